@@ -1,0 +1,14 @@
+"""demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
+from . import units
+from .integrators import EulerCromer, Integrator, VelocityVerlet
+from .interactions import Dipole, KelvinVoigt, PairInteraction, PowerLawDipole
+from .neighbours import AllPairs
+from .particles import Particles
+from .scene import Scene
+from .simulation import Simulation, SimulationError, Trajectory
+
+__version__ = "0.1.0"
+
+__all__ = ["Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
+           "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
+           "Integrator", "AllPairs", "units"]

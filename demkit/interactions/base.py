@@ -1,0 +1,89 @@
+"""The plug-in contract every pair interaction follows.
+
+An interaction is a small evaluator. It declares what it needs and provides two pure numba
+functions; the scene fuses the chosen interactions into one compiled pair loop
+(see :mod:`demkit.kernels`).
+
+Pair functions see one pair (i, j) with separation ``d = x_j - x_i`` (``dx, dy, dz``) and
+``r2 = |d|**2``, then the particle arrays named in ``reads`` (indexed with i and j), then the
+scalars named in ``parameters`` in that order::
+
+    force(i, j, dx, dy, dz, r2, *fields, *params)
+        -> (fx, fy, fz)                               force on j (the force on i is its negative)
+           + (tix, tiy, tiz, tjx, tjy, tjz)           if ``torque`` is True
+           + (power,)                                 if ``dissipative`` is True (energy lost per time)
+    energy(i, j, dx, dy, dz, r2, *fields, *params) -> pair potential energy
+
+Interactions with per-contact history (``history_size > 0``) also receive ``history, p, offset,
+commit`` before the parameters: they read ``history[p, offset:offset + history_size]`` and write
+it only when ``commit`` is True, so that evaluating forces has no side effects unless asked.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+FIELDS = ("velocity", "angular_velocity", "dipole", "radius", "mass")
+
+
+class PairInteraction:
+    """Base class of pair interactions (subclass it to plug in new physics)."""
+
+    #: particle arrays the pair functions read, from :data:`FIELDS`
+    reads: tuple = ()
+    #: does the force function also return torques on i and j?
+    torque: bool = False
+    #: does the force function also return a dissipated power (>= 0)?
+    dissipative: bool = False
+    #: number of history values kept per pair
+    history_size: int = 0
+    #: energy category reported by Scene.energy() ("magnetic", "contact", ...)
+    energy_kind: str = "potential"
+    #: names of the scalar parameters passed to the pair functions, in order
+    parameters: tuple = ()
+    #: centre distance beyond which the pair loop skips this interaction (None: never skipped;
+    #: contact laws test their own reach instead)
+    cutoff_distance = None
+    #: numba functions (set by subclasses)
+    force_function = None
+    energy_function = None
+
+    def parameter_values(self):
+        """The values of :attr:`parameters` as a float64 array."""
+        return np.array([float(getattr(self, name)) for name in self.parameters], dtype=np.float64)
+
+    def cutoff(self, particles):
+        """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""
+        return math.inf if self.cutoff_distance is None else self.cutoff_distance
+
+    def max_time_step(self, particles):
+        """Largest time step this interaction can be integrated with safely (math.inf: no limit)."""
+        return math.inf
+
+    def check(self, particles):
+        """Raise ValueError if the particles lack something this interaction needs."""
+        for field in self.reads:
+            if field in ("dipole",) and getattr(particles, field) is None:
+                raise ValueError(f"{type(self).__name__} needs particle {field} moments: "
+                                 f"pass {field}=... to Particles")
+
+    def __repr__(self):
+        args = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.parameters)
+        return f"{type(self).__name__}({args})"
+
+
+def positive(name, value):
+    """Return float(value), raising ValueError unless it is finite and > 0."""
+    value = float(value)
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive finite number, got {value}")
+    return value
+
+
+def non_negative(name, value):
+    """Return float(value), raising ValueError unless it is finite and >= 0."""
+    value = float(value)
+    if not math.isfinite(value) or value < 0:
+        raise ValueError(f"{name} must be a non-negative finite number, got {value}")
+    return value

@@ -1,0 +1,111 @@
+"""Normal contact laws.
+
+Kelvin-Voigt (linear spring-dashpot) on the overlap delta = R_i + R_j - r > 0 along n = (x_j - x_i)/r:
+
+    F_n = k delta + c d(delta)/dt,    F_j = F_n n,  F_i = -F_j,   U = k delta^2 / 2
+
+With ``no_tension=True`` F_n is clamped at 0 (the dashpot cannot pull). The power dissipated is
+P = (F_n - k delta) d(delta)/dt (= c delta_dot^2 without the clamp), so that
+kinetic + potential + dissipated work is conserved. For the two-body problem with
+m_eff = m_i m_j/(m_i + m_j), omega_0 = sqrt(k/m_eff), zeta = c / (2 sqrt(k m_eff)) the contact lasts
+pi / (omega_0 sqrt(1 - zeta^2)) and the restitution coefficient is exp(-pi zeta / sqrt(1 - zeta^2)).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..motion import KERNEL_OPTIONS
+
+from .base import PairInteraction, non_negative, positive
+
+
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension):
+    """Force on j and dissipated power of a linear spring-dashpot contact."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0, 0.0, 0.0, 0.0
+    r = math.sqrt(r2)
+    inv_r = 1.0 / r
+    nx = dx * inv_r
+    ny = dy * inv_r
+    nz = dz * inv_r
+    overlap = reach - r
+    # d(overlap)/dt = -(v_j - v_i).n
+    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
+             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    elastic = stiffness * overlap
+    fn = elastic + damping * rate
+    if no_tension > 0.0 and fn < 0.0:
+        fn = 0.0
+    power = (fn - elastic) * rate
+    return fn * nx, fn * ny, fn * nz, power
+
+
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension):
+    """Elastic energy k delta^2 / 2 of the spring."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    overlap = reach - math.sqrt(r2)
+    return 0.5 * stiffness * overlap * overlap
+
+
+def contact_duration(stiffness, damping, m_eff):
+    """Duration of a two-body Kelvin-Voigt contact that ends when the overlap returns to zero."""
+    omega0 = math.sqrt(stiffness / m_eff)
+    zeta = damping / (2.0 * math.sqrt(stiffness * m_eff))
+    if zeta < 1.0:
+        return math.pi / (omega0 * math.sqrt(1.0 - zeta * zeta))
+    return math.pi / omega0
+
+
+def restitution(stiffness, damping, m_eff):
+    """Analytic normal restitution coefficient exp(-pi zeta/sqrt(1-zeta^2)) (contact ends at zero overlap)."""
+    zeta = damping / (2.0 * math.sqrt(stiffness * m_eff))
+    if zeta >= 1.0:
+        return 0.0
+    return math.exp(-math.pi * zeta / math.sqrt(1.0 - zeta * zeta))
+
+
+class KelvinVoigt(PairInteraction):
+    """Linear spring-dashpot normal contact (the seed paper's contact: stiffness=1, damping=2*Gamma=0.1).
+
+    stiffness : k > 0, force per overlap length.
+    damping : c >= 0, force per overlap rate (the paper's gamma = 2 Gamma m omega_0).
+    no_tension : forbid the attractive end of the contact (F_n >= 0).
+    """
+
+    reads = ("velocity", "radius")
+    dissipative = True
+    energy_kind = "contact"
+    parameters = ("stiffness", "damping", "no_tension")
+    force_function = kelvin_voigt_force
+    energy_function = kelvin_voigt_energy
+
+    def __init__(self, stiffness, damping=0.0, no_tension=False):
+        self.stiffness = positive("KelvinVoigt stiffness", stiffness)
+        self.damping = non_negative("KelvinVoigt damping", damping)
+        self.no_tension = bool(no_tension)
+
+    def cutoff(self, particles):
+        return 2.0 * float(np.max(particles.radius))
+
+    def lightest_pair_mass(self, particles):
+        """Smallest reduced mass m_i m_j / (m_i + m_j) over pairs (the two lightest particles)."""
+        m = np.sort(particles.mass)
+        if len(m) == 1:
+            return float(m[0])
+        return float(m[0] * m[1] / (m[0] + m[1]))
+
+    def max_time_step(self, particles):
+        """A tenth of the shortest contact duration (and, for heavy damping, 0.2 m_eff/c)."""
+        m_eff = self.lightest_pair_mass(particles)
+        limit = 0.1 * contact_duration(self.stiffness, self.damping, m_eff)
+        if self.damping > 0:
+            limit = min(limit, 0.2 * m_eff / self.damping)
+        return limit

@@ -1,0 +1,154 @@
+"""Compiled building blocks of rigid-sphere motion used by the integrators' time loops.
+
+All take arrays and a step h; none knows which forces exist. Spheres are isotropic, so
+d(omega)/dt = tau / I and the free rotation of a body-fixed vector (the dipole) over a step is
+an exact rotation about omega by the angle |omega| h (Rodrigues' formula).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: numba options of every hot kernel: no reference counting (kernels never allocate; it costs
+#: ~2x on small scenes) and fused multiply-add (exact NaN/inf semantics are kept, so the
+#: non-finite checks still work).
+KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, inline="always")
+
+
+@njit(**KERNEL_OPTIONS)
+def kick(velocity, force, mass, h):
+    """v += F/m h."""
+    for i in range(velocity.shape[0]):
+        s = h / mass[i]
+        velocity[i, 0] += s * force[i, 0]
+        velocity[i, 1] += s * force[i, 1]
+        velocity[i, 2] += s * force[i, 2]
+
+
+@njit(**KERNEL_OPTIONS)
+def drift(position, velocity, h):
+    """x += v h."""
+    for i in range(position.shape[0]):
+        position[i, 0] += h * velocity[i, 0]
+        position[i, 1] += h * velocity[i, 1]
+        position[i, 2] += h * velocity[i, 2]
+
+
+@njit(**KERNEL_OPTIONS)
+def rotation_coefficients(theta2):
+    """(sin t / t, (1 - cos t)/t^2, cos t) for t^2 = theta2, accurate to round-off at any t.
+
+    Small angles use the Taylor series (truncation below 1e-18 relative in every branch),
+    larger ones libm. The tiny-angle branch keeps the usual step (|w| dt ~ 1e-5) short.
+    """
+    if theta2 < 1e-8:
+        q = 0.5 - theta2 * (1.0 / 24)
+        return 1.0 - theta2 * (1.0 / 6), q, 1.0 - theta2 * q
+    if theta2 < 2.5e-3:
+        t = theta2
+        # Horner forms with constant coefficients (-1)^k/(2k+1)! and (-1)^k/(2k+2)!, no divisions
+        s = 1.0 + t * (-1.0 / 6 + t * (1.0 / 120 + t * (-1.0 / 5040 + t * (1.0 / 362880
+                                                                          - t * (1.0 / 39916800)))))
+        q = 0.5 + t * (-1.0 / 24 + t * (1.0 / 720 + t * (-1.0 / 40320 + t * (1.0 / 3628800
+                                                                           - t * (1.0 / 479001600)))))
+        return s, q, 1.0 - t * q
+    theta = math.sqrt(theta2)
+    half = math.sin(0.5 * theta)
+    return math.sin(theta) / theta, 2.0 * half * half / theta2, math.cos(theta)
+
+
+@njit(**KERNEL_OPTIONS)
+def rotate(vectors, angular_velocity, h):
+    """Rotate each row of ``vectors`` about its particle's omega by |omega| h (exact, norm-preserving).
+
+    v' = cos(t) v + (sin t / t) (w x v) + ((1 - cos t)/t^2) (w.v) w,  w = omega h, t = |w|.
+    """
+    for i in range(vectors.shape[0]):
+        wx = angular_velocity[i, 0] * h
+        wy = angular_velocity[i, 1] * h
+        wz = angular_velocity[i, 2] * h
+        theta2 = wx * wx + wy * wy + wz * wz
+        if theta2 == 0.0:
+            continue
+        s, q, c = rotation_coefficients(theta2)
+        vx = vectors[i, 0]
+        vy = vectors[i, 1]
+        vz = vectors[i, 2]
+        wv = q * (wx * vx + wy * vy + wz * vz)
+        vectors[i, 0] = c * vx + s * (wy * vz - wz * vy) + wv * wx
+        vectors[i, 1] = c * vy + s * (wz * vx - wx * vz) + wv * wy
+        vectors[i, 2] = c * vz + s * (wx * vy - wy * vx) + wv * wz
+
+
+@njit(**KERNEL_OPTIONS)
+def advance_spin(angular_velocity, dipole, torque, inertia, kick_h, rotate_h):
+    """omega += tau/I kick_h, then rotate the dipoles by omega rotate_h (skips absent fields)."""
+    if angular_velocity.shape[0] == 0:
+        return
+    if kick_h != 0.0:
+        kick(angular_velocity, torque, inertia, kick_h)
+    if rotate_h != 0.0 and dipole.shape[0] > 0:
+        rotate(dipole, angular_velocity, rotate_h)
+
+
+@njit(**KERNEL_OPTIONS)
+def state_is_finite(position, velocity, angular_velocity):
+    """True if no position, velocity or angular velocity is NaN or inf."""
+    s = 0.0
+    for i in range(position.shape[0]):
+        s += position[i, 0] + position[i, 1] + position[i, 2]
+        s += velocity[i, 0] + velocity[i, 1] + velocity[i, 2]
+    for i in range(angular_velocity.shape[0]):
+        s += angular_velocity[i, 0] + angular_velocity[i, 1] + angular_velocity[i, 2]
+    return math.isfinite(s) and math.isfinite(s * 0.0)
+
+
+@njit(**KERNEL_OPTIONS)
+def kinetic_energies(velocity, angular_velocity, mass, inertia):
+    """(sum m v^2/2, sum I w^2/2)."""
+    kin = 0.0
+    for i in range(velocity.shape[0]):
+        kin += 0.5 * mass[i] * (velocity[i, 0] ** 2 + velocity[i, 1] ** 2 + velocity[i, 2] ** 2)
+    rot = 0.0
+    for i in range(angular_velocity.shape[0]):
+        rot += 0.5 * inertia[i] * (angular_velocity[i, 0] ** 2 + angular_velocity[i, 1] ** 2
+                                   + angular_velocity[i, 2] ** 2)
+    return kin, rot
+
+
+@njit(**KERNEL_OPTIONS)
+def store_frame(k, position, velocity, angular_velocity, dipole, mass, inertia, record):
+    """Copy the state into frame k of the record arrays and store the angular momentum about 0."""
+    rec_position, rec_velocity, rec_omega, rec_dipole, rec_energy, rec_momentum = record
+    lx = 0.0
+    ly = 0.0
+    lz = 0.0
+    for i in range(position.shape[0]):
+        for a in range(3):
+            rec_position[k, i, a] = position[i, a]
+            rec_velocity[k, i, a] = velocity[i, a]
+        px = mass[i] * velocity[i, 0]
+        py = mass[i] * velocity[i, 1]
+        pz = mass[i] * velocity[i, 2]
+        lx += position[i, 1] * pz - position[i, 2] * py
+        ly += position[i, 2] * px - position[i, 0] * pz
+        lz += position[i, 0] * py - position[i, 1] * px
+    for i in range(angular_velocity.shape[0]):
+        for a in range(3):
+            rec_omega[k, i, a] = angular_velocity[i, a]
+        lx += inertia[i] * angular_velocity[i, 0]
+        ly += inertia[i] * angular_velocity[i, 1]
+        lz += inertia[i] * angular_velocity[i, 2]
+    for i in range(dipole.shape[0]):
+        for a in range(3):
+            rec_dipole[k, i, a] = dipole[i, a]
+    rec_momentum[k, 0] = lx
+    rec_momentum[k, 1] = ly
+    rec_momentum[k, 2] = lz
+
+
+def empty_vectors():
+    """Placeholder (0,3) array standing for an absent optional field."""
+    return np.zeros((0, 3), dtype=np.float64)

@@ -1,0 +1,120 @@
+"""Particles: a structure of arrays describing N rigid spheres.
+
+Always present: ``position`` (N,3), ``velocity`` (N,3), ``radius`` (N,), ``mass`` (N,),
+``inertia`` (N,) = inertia_factor * mass * radius**2 (2/5 for a solid sphere) and ``ids`` (N,).
+Optional fields exist only when given or when a scene needs them: ``angular_velocity`` (N,3)
+and ``dipole`` (N,3, magnetic moment vectors). Absent optional fields are ``None``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+OPTIONAL_FIELDS = ("angular_velocity", "dipole")
+
+
+def _vectors(name, value, n):
+    arr = np.array(value, dtype=np.float64)
+    if arr.shape == (3,) and n is not None:
+        arr = np.tile(arr, (n, 1))
+    if arr.ndim != 2 or arr.shape[1] != 3 or (n is not None and arr.shape[0] != n):
+        want = f"({n}, 3)" if n is not None else "(N, 3)"
+        raise ValueError(f"{name} must have shape {want}, got {np.shape(value)}")
+    _finite(name, arr)
+    return np.ascontiguousarray(arr)
+
+
+def _scalars(name, value, n, positive=True):
+    arr = np.array(value, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},), got {np.shape(value)}")
+    _finite(name, arr)
+    if positive and np.any(arr <= 0):
+        k = int(np.argmax(arr <= 0))
+        raise ValueError(f"{name} must be positive; particle {k} has {name} = {arr[k]}")
+    return np.ascontiguousarray(arr)
+
+
+def _finite(name, arr):
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        k = int(np.argwhere(bad)[0][0])
+        raise ValueError(f"{name} contains NaN or inf (particle {k}: {arr[k]})")
+
+
+class Particles:
+    """N rigid spheres stored as arrays (structure of arrays).
+
+    Parameters
+    ----------
+    position : (N,3) array, length units.
+    velocity : (N,3) array or None (zeros), length/time.
+    radius, mass : scalar or (N,) array, positive.
+    inertia_factor : scalar or (N,) array; moment of inertia I = inertia_factor * m * R**2
+        (2/5 for a uniform solid sphere).
+    dipole : (N,3) array of magnetic moments, or None (no dipole field is stored).
+    angular_velocity : (N,3) array, rad/time, or None (created as zeros if a scene needs it).
+    ids : (N,) integers, unique and persistent (default 0..N-1).
+    """
+
+    def __init__(self, position, velocity=None, radius=1.0, mass=1.0, inertia_factor=0.4,
+                 dipole=None, angular_velocity=None, ids=None):
+        self.position = _vectors("position", position, None)
+        n = self.position.shape[0]
+        if n < 1:
+            raise ValueError("Particles needs at least one particle")
+        self.velocity = np.zeros((n, 3)) if velocity is None else _vectors("velocity", velocity, n)
+        self.radius = _scalars("radius", radius, n)
+        self.mass = _scalars("mass", mass, n)
+        self.inertia_factor = _scalars("inertia_factor", inertia_factor, n)
+        self.inertia = self.inertia_factor * self.mass * self.radius**2
+        self.dipole = None if dipole is None else _vectors("dipole", dipole, n)
+        self.angular_velocity = (None if angular_velocity is None
+                                 else _vectors("angular_velocity", angular_velocity, n))
+        if ids is None:
+            self.ids = np.arange(n, dtype=np.int64)
+        else:
+            self.ids = np.array(ids, dtype=np.int64)
+            if self.ids.shape != (n,) or len(np.unique(self.ids)) != n:
+                raise ValueError(f"ids must be {n} unique integers, got {ids!r}")
+
+    def __len__(self):
+        return self.position.shape[0]
+
+    @property
+    def n(self):
+        return self.position.shape[0]
+
+    def require(self, field):
+        """Create an optional field as zeros if it is absent (used by scenes that need it)."""
+        if field not in OPTIONAL_FIELDS:
+            raise ValueError(f"unknown optional field {field!r}; known: {OPTIONAL_FIELDS}")
+        if getattr(self, field) is None:
+            setattr(self, field, np.zeros((self.n, 3)))
+
+    def check_finite(self):
+        """Raise ValueError if any state array holds NaN or inf."""
+        for name in ("position", "velocity") + OPTIONAL_FIELDS:
+            arr = getattr(self, name)
+            if arr is not None:
+                _finite(name, arr)
+
+    def linear_momentum(self):
+        """Total linear momentum sum_i m_i v_i, shape (3,)."""
+        return (self.mass[:, None] * self.velocity).sum(axis=0)
+
+    def angular_momentum(self, origin=(0.0, 0.0, 0.0)):
+        """Orbital + spin angular momentum about ``origin``: sum_i m_i (x_i - o) x v_i + I_i w_i."""
+        rel = self.position - np.asarray(origin, dtype=np.float64)
+        total = np.cross(rel, self.mass[:, None] * self.velocity).sum(axis=0)
+        if self.angular_velocity is not None:
+            total += (self.inertia[:, None] * self.angular_velocity).sum(axis=0)
+        return total
+
+    def copy(self):
+        """A deep copy (all arrays copied)."""
+        new = Particles.__new__(Particles)
+        for key, value in self.__dict__.items():
+            setattr(new, key, value.copy() if isinstance(value, np.ndarray) else value)
+        return new
