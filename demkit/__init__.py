@@ -1,5 +1,5 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
-from . import units
+from . import analysis, units
 from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions import Dipole, KelvinVoigt, PairInteraction, PowerLawDipole
 from .neighbours import AllPairs
@@ -11,4 +11,4 @@ __version__ = "0.1.0"
 
 __all__ = ["Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
-           "Integrator", "AllPairs", "units"]
+           "Integrator", "AllPairs", "analysis", "units"]
