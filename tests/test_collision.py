@@ -4,7 +4,7 @@ import pytest
 from conftest import R_PAPER, V_PAPER, two_magnets
 
 import demkit as dk
-from demkit.analysis import final_spin
+from demkit.analysis import final_spin, settle_index
 
 
 def collide(b_over_r, model, integrator=dk.EulerCromer, dt=0.01):
@@ -36,8 +36,13 @@ def test_momentum_conserved_over_whole_collision(paper_run):
 def test_spin_takes_angular_momentum_from_orbit(paper_run):
     _, traj = paper_run
     spin = (traj.inertia[None, :] * traj.angular_velocity[..., 2]).sum(axis=1)
-    # rigid barbell: spin share I_spin/I_total = (2 * 2/5) / (14/5) = 2/7 of the total
-    assert spin[-1] / traj.angular_momentum[-1, 2] == pytest.approx(2 / 7, rel=0.03)
+    share = spin / traj.angular_momentum[:, 2]
+    settled = settle_index(traj)
+    # rigid barbell: spin share I_spin/I_total = (2 * 2/5) / (14/5) = 2/7. The spheres rock about
+    # the barbell (share swings 0.08..0.49, the paper's quasi-periodic modes); its time average
+    # over ~6 revolutions lands within 1 % of 2/7 (measured 0.284); 3 % leaves room for the phase.
+    assert share[settled:].mean() == pytest.approx(2 / 7, rel=0.03)
+    assert share[:100].max() < 1e-12  # no spin before the collision
 
 
 def test_energy_balance_closes_to_first_order(paper_run):
