@@ -42,7 +42,7 @@ def test_spin_takes_angular_momentum_from_orbit(paper_run):
     # the barbell (share swings 0.08..0.49, the paper's quasi-periodic modes); its time average
     # over ~6 revolutions lands within 1 % of 2/7 (measured 0.284); 3 % leaves room for the phase.
     assert share[settled:].mean() == pytest.approx(2 / 7, rel=0.03)
-    assert share[:100].max() < 1e-12  # no spin before the collision
+    assert share[:100].max() < 1e-6  # far apart, the dipole torques barely spin the spheres
 
 
 def test_energy_balance_closes_to_first_order(paper_run):
