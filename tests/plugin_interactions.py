@@ -1,0 +1,54 @@
+"""User-style plug-in interactions used by the tests (importable, so their kernels are cached)."""
+import math
+
+from numba import njit
+
+import demkit as dk
+
+
+@njit
+def contact_counter_force(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, growth):
+    """No force; counts the steps a pair spends touching in its per-contact history."""
+    reach = radius[i] + radius[j]
+    if commit and r2 < reach * reach:
+        history[p, offset] += growth
+    return 0.0, 0.0, 0.0
+
+
+@njit
+def contact_counter_energy(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, growth):
+    return 0.0
+
+
+class ContactCounter(dk.PairInteraction):
+    reads = ("radius",)
+    history_size = 1
+    energy_kind = "counter"
+    parameters = ("growth",)
+    force_function = contact_counter_force
+    energy_function = contact_counter_energy
+
+    def __init__(self):
+        self.growth = 1.0
+
+
+@njit
+def poison_force(i, j, dx, dy, dz, r2, limit):
+    """A force that turns NaN once the pair is closer than sqrt(limit): a stand-in for a blow-up."""
+    s = math.sqrt(r2 - limit) * 0.0 - 1e-3
+    return s * dx, s * dy, s * dz
+
+
+@njit
+def poison_energy(i, j, dx, dy, dz, r2, limit):
+    return 0.0
+
+
+class Poison(dk.PairInteraction):
+    energy_kind = "poison"
+    parameters = ("limit",)
+    force_function = poison_force
+    energy_function = poison_energy
+
+    def __init__(self, distance):
+        self.limit = distance ** 2
