@@ -1,0 +1,107 @@
+"""Trajectories as polylines: one VTK poly-line per particle through its recorded centres.
+
+The file is VTK XML PolyData (.vtp) with raw binary appended data (optionally zlib-compressed),
+written here directly because meshio has no poly-line cells. Point data: ``time`` (the time of
+each vertex) and ``id``; cell data (one value per line): ``id`` and ``radius``. Colour by ``time``
+in ParaView to see the direction of motion.
+"""
+from __future__ import annotations
+
+import os
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+_VTK_TYPES = {np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32",
+              np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32"}
+_BLOCK = 1 << 16  # bytes per compressed block (VTK reads any block size given in the header)
+
+
+def _encode(array, compress):
+    """Bytes of one appended array: UInt64 length header + data, or VTK's zlib block layout."""
+    raw = np.ascontiguousarray(array).tobytes()
+    if not compress:
+        return np.uint64(len(raw)).tobytes() + raw
+    blocks = [zlib.compress(raw[k:k + _BLOCK]) for k in range(0, len(raw), _BLOCK)]
+    last = len(raw) - (len(blocks) - 1) * _BLOCK if blocks else 0
+    header = np.array([len(blocks), _BLOCK, last] + [len(b) for b in blocks], dtype=np.uint64)
+    return header.tobytes() + b"".join(blocks)
+
+
+def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False):
+    """Write poly-lines to the .vtp ``path``.
+
+    points (P,3); lengths (L,) number of consecutive points in each line (sum = P);
+    point_data {name: (P,) or (P,k)}; cell_data {name: (L,) or (L,k)}.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    lengths = np.asarray(lengths, dtype=np.int64)
+    arrays, xml, offset = [], {"PointData": [], "CellData": [], "Points": [], "Lines": []}, 0
+
+    def add(section, name, value):
+        nonlocal offset
+        value = np.asarray(value)
+        if value.dtype not in _VTK_TYPES:
+            value = value.astype(np.float64 if value.dtype.kind == "f" else np.int64)
+        comps = value.shape[1] if value.ndim == 2 else 1
+        xml[section].append(f'<DataArray type="{_VTK_TYPES[value.dtype]}" Name="{name}" '
+                            f'NumberOfComponents="{comps}" format="appended" offset="{offset}"/>')
+        block = _encode(value, compress)
+        arrays.append(block)
+        offset += len(block)
+
+    for name, value in point_data.items():
+        add("PointData", name, value)
+    for name, value in cell_data.items():
+        add("CellData", name, value)
+    add("Points", "Points", points)
+    add("Lines", "connectivity", np.arange(len(points), dtype=np.int64))
+    add("Lines", "offsets", np.cumsum(lengths))
+    compressor = ' compressor="vtkZLibDataCompressor"' if compress else ""
+    head = [
+        '<?xml version="1.0"?>',
+        f'<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64"{compressor}>',
+        "<PolyData>",
+        f'<Piece NumberOfPoints="{len(points)}" NumberOfVerts="0" NumberOfLines="{len(lengths)}" '
+        'NumberOfStrips="0" NumberOfPolys="0">']
+    for section in ("PointData", "CellData", "Points", "Lines"):
+        head += [f"<{section}>"] + xml[section] + [f"</{section}>"]
+    head += ["</Piece>", "</PolyData>", '<AppendedData encoding="raw">', "_"]
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as f:
+        f.write("\n".join(head).encode())
+        for block in arrays:
+            f.write(block)
+        f.write(b"\n</AppendedData>\n</VTKFile>\n")
+    os.replace(tmp, path)
+    return path
+
+
+def write_polylines(source, path, compress=False):
+    """Write the paths of all particles of ``source`` as poly-lines to ``path`` (.vtp).
+
+    source : a :class:`demkit.Trajectory`, a :class:`demkit.io.SeriesData`, or a written series
+        (its .pvd or folder; frames are read back and matched by particle id).
+    Returns the path written.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        from .series import read_series
+
+        source = read_series(source)
+    path = Path(path)
+    if path.suffix != ".vtp":
+        raise ValueError(f"polylines are written as VTK PolyData: the path must end in .vtp, got {path}")
+    time = np.asarray(source.time, dtype=np.float64)
+    position = np.asarray(source.position)
+    if position.ndim != 3 or position.shape[0] != len(time) or position.shape[2] != 3:
+        raise ValueError(f"position must have shape (T, N, 3) with T = {len(time)} frames, got {position.shape}")
+    nframes, n = position.shape[:2]
+    ids = np.asarray(source.ids, dtype=np.int64)
+    points = position.transpose(1, 0, 2).reshape(-1, 3)  # particle-major: line k is particle k
+    return write_vtp_lines(
+        path, points, np.full(n, nframes),
+        point_data={"time": np.tile(time, n), "id": np.repeat(ids, nframes)},
+        cell_data={"id": ids, "radius": np.asarray(source.radius, dtype=np.float64)},
+        compress=compress)
