@@ -43,8 +43,15 @@ def energy_kinds(interactions):
 
 
 def _importable(fn):
+    """Can the generated file import ``fn`` by name (needed for the on-disk cache)?"""
     module = getattr(fn, "__module__", None)
-    return module not in (None, "__main__") and "<" not in module
+    if not module or module == "__main__":
+        return False
+    try:
+        found = getattr(importlib.import_module(module), fn.__name__, None)
+    except Exception:  # any import failure just means: compile in memory
+        return False
+    return found is fn
 
 
 def _pair_call(k, inter, offset, kind):
