@@ -70,7 +70,7 @@ def generate_source(interactions, templates, importable):
              "kinetic_energies, store_frame", ""]
     if importable:
         for k, inter in enumerate(interactions):
-            for kind, fn in (("force", inter.force_function), ("energy", inter.energy_function)):
+            for kind, fn in zip(("force", "energy"), inter.pair_functions()):
                 lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
     lines.append("from demkit.motion import KERNEL_OPTIONS")
     lines.append(f"OPTIONS = dict(KERNEL_OPTIONS, cache={importable})")
@@ -187,7 +187,7 @@ def _fingerprint(source, interactions):
     h = hashlib.sha256(source.encode())
     h.update(numba.__version__.encode())
     for inter in interactions:
-        for fn in (inter.force_function, inter.energy_function):
+        for fn in inter.pair_functions():
             h.update(inspect.getsource(fn.py_func).encode())
     from . import motion
     h.update(inspect.getsource(motion).encode())
@@ -197,11 +197,10 @@ def _fingerprint(source, interactions):
 def build_module(interactions, templates):
     """Return the compiled kernel module for these interactions and integrator templates."""
     for inter in interactions:
-        for fn in (inter.force_function, inter.energy_function):
+        for fn in inter.pair_functions():
             if not hasattr(fn, "py_func"):
                 raise TypeError(f"{type(inter).__name__}: pair functions must be numba @njit functions")
-    importable = all(_importable(fn) for inter in interactions
-                     for fn in (inter.force_function, inter.energy_function))
+    importable = all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
     importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
     source = generate_source(interactions, templates, importable)
     key = _fingerprint(source, interactions)
@@ -242,7 +241,8 @@ def _load_in_memory(name, source, interactions):
     module = types.ModuleType(name)
     if interactions is not None:
         for k, inter in enumerate(interactions):
-            setattr(module, f"force_{k}", inter.force_function)
-            setattr(module, f"energy_{k}", inter.energy_function)
+            force, energy = inter.pair_functions()
+            setattr(module, f"force_{k}", force)
+            setattr(module, f"energy_{k}", energy)
     exec(compile(source, f"<{name}>", "exec"), module.__dict__)
     return module

@@ -44,7 +44,7 @@ class Scene:
         self.interactions = tuple(interactions)
         for inter in self.interactions:
             inter.check(particles)
-        if any(inter.torque for inter in self.interactions):
+        if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions):
             particles.require("angular_velocity")
         self.pair_list = AllPairs() if pairs is None else pairs
         self.pairs = self.pair_list.build(particles)

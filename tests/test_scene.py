@@ -28,6 +28,7 @@ def test_dipole_scene_allocates_spin():
     scene = two_magnets()
     assert scene.particles.angular_velocity.shape == (2, 3)
     assert "dipole_force" in scene.kernels.source
+    assert "cache=True" in scene.kernels.source  # library interactions are compiled once, then cached
 
 
 def test_energy_keys_and_total():

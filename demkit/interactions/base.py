@@ -20,6 +20,7 @@ it only when ``commit`` is True, so that evaluating forces has no side effects u
 """
 from __future__ import annotations
 
+import inspect
 import math
 
 import numpy as np
@@ -49,6 +50,15 @@ class PairInteraction:
     force_function = None
     energy_function = None
 
+    def pair_functions(self):
+        """(force_function, energy_function) as plain numba dispatchers.
+
+        Looked up statically: a dispatcher stored on a class is a descriptor, and plain attribute
+        access would hand back a bound method.
+        """
+        return (inspect.getattr_static(self, "force_function"),
+                inspect.getattr_static(self, "energy_function"))
+
     def parameter_values(self):
         """The values of :attr:`parameters` as a float64 array."""
         return np.array([float(getattr(self, name)) for name in self.parameters], dtype=np.float64)
@@ -63,10 +73,11 @@ class PairInteraction:
 
     def check(self, particles):
         """Raise ValueError if the particles lack something this interaction needs."""
-        for field in self.reads:
-            if field in ("dipole",) and getattr(particles, field) is None:
-                raise ValueError(f"{type(self).__name__} needs particle {field} moments: "
-                                 f"pass {field}=... to Particles")
+        unknown = set(self.reads) - set(FIELDS)
+        if unknown:
+            raise ValueError(f"{type(self).__name__} reads unknown fields {sorted(unknown)}; known: {FIELDS}")
+        if "dipole" in self.reads and particles.dipole is None:
+            raise ValueError(f"{type(self).__name__} needs particle dipole moments: pass dipole=... to Particles")
 
     def __repr__(self):
         args = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.parameters)
