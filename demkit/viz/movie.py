@@ -1,0 +1,64 @@
+"""Encoding rendered frames: GIF with Pillow, MP4 (H.264) with imageio-ffmpeg's bundled ffmpeg."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+FORMATS = (".gif", ".mp4")
+
+
+def check_path(path):
+    """The output Path, ValueError unless it ends in .gif or .mp4 and its folder exists."""
+    path = Path(path)
+    if path.suffix.lower() not in FORMATS:
+        raise ValueError(f"animations are written as .gif or .mp4, got {path}")
+    if not path.parent.is_dir():
+        raise ValueError(f"folder {path.parent} does not exist")
+    return path
+
+
+class MovieWriter:
+    """Collects frames (H,W,3 uint8 arrays) and writes them to ``path`` at ``fps`` frames/s."""
+
+    def __init__(self, path, fps):
+        if not np.isfinite(fps) or fps <= 0:
+            raise ValueError(f"fps must be positive, got {fps}")
+        self.path, self.fps = check_path(path), float(fps)
+        self.gif = self.path.suffix.lower() == ".gif"
+        self._frames, self._ffmpeg = [], None
+        if not self.gif:
+            try:
+                import imageio_ffmpeg  # noqa: F401
+            except ImportError:
+                raise RuntimeError("writing .mp4 needs the imageio-ffmpeg package "
+                                   "(pip install imageio-ffmpeg), or write a .gif") from None
+
+    def add(self, image):
+        image = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
+        if self.gif:
+            from PIL import Image
+
+            self._frames.append(Image.fromarray(image).quantize(colors=255, method=Image.Quantize.MEDIANCUT,
+                                                                dither=Image.Dither.NONE))
+            return
+        if self._ffmpeg is None:
+            import imageio_ffmpeg
+
+            height, width = image.shape[:2]
+            self._ffmpeg = imageio_ffmpeg.write_frames(
+                str(self.path), (width, height), fps=self.fps, codec="libx264",
+                pix_fmt_out="yuv420p", quality=7, macro_block_size=2,
+                ffmpeg_log_level="error")
+            self._ffmpeg.send(None)
+        self._ffmpeg.send(image)
+
+    def close(self):
+        """Write the file (GIF) or finish the stream (MP4); returns the path."""
+        if self.gif and self._frames:
+            first, rest = self._frames[0], self._frames[1:]
+            first.save(self.path, save_all=True, append_images=rest, loop=0,
+                       duration=max(20, int(round(1000.0 / self.fps))), disposal=1, optimize=False)
+        elif self._ffmpeg is not None:
+            self._ffmpeg.close()
+        return self.path
