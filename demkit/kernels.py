@@ -99,29 +99,27 @@ def generate_source(interactions, templates, importable):
                "        r2 = dx * dx + dy * dy + dz * dz"]
         return out + body
 
+    def guarded(k, inter, statements):
+        """Indent ``statements`` under the cutoff test of interaction k, if it has a cutoff."""
+        if inter.cutoff_distance is None:
+            return ["        " + st for st in statements]
+        return [f"        if r2 < params[{offset + k}]:"] + ["            " + st for st in statements]
+
     # ---- forces
     body = ["        fx = 0.0", "        fy = 0.0", "        fz = 0.0"]
     if any_torque:
         body += [f"        {c} = 0.0" for c in ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")]
     for k, inter in enumerate(interactions):
         outs = ["ax", "ay", "az"]
-        if inter.torque:
-            outs += ["bix", "biy", "biz", "bjx", "bjy", "bjz"]
-        if inter.dissipative:
-            outs += ["w"]
-        call = f"{', '.join(outs)} = {_pair_call(k, inter, hist_offsets[k], 'force')}"
         acc = ["fx += ax", "fy += ay", "fz += az"]
         if inter.torque:
+            outs += ["bix", "biy", "biz", "bjx", "bjy", "bjz"]
             acc += ["tix += bix", "tiy += biy", "tiz += biz", "tjx += bjx", "tjy += bjy", "tjz += bjz"]
         if inter.dissipative:
+            outs += ["w"]
             acc += ["power += w"]
-        guard = f"r2 < params[{offset + k}]" if inter.cutoff_distance is not None else None
-        pad = "        "
-        if guard:
-            body.append(f"{pad}if {guard}:")
-            pad += "    "
-        body.append(pad + call)
-        body += [pad + a for a in acc]
+        call = f"{', '.join(outs)} = {_pair_call(k, inter, hist_offsets[k], 'force')}"
+        body += guarded(k, inter, [call] + acc)
     body += ["        force[i, 0] -= fx", "        force[i, 1] -= fy", "        force[i, 2] -= fz",
              "        force[j, 0] += fx", "        force[j, 1] += fy", "        force[j, 2] += fz"]
     if any_torque:
@@ -136,22 +134,25 @@ def generate_source(interactions, templates, importable):
               "            torque[i, a] = 0.0"] + unpack + ["    power = 0.0"]
     lines += pair_loop(body) + ["    return power"]
 
-    # ---- energies
-    body = []
-    for k, inter in enumerate(interactions):
-        slot = 2 + kinds.index(inter.energy_kind)
-        guard = f"r2 < params[{offset + k}]" if inter.cutoff_distance is not None else None
-        pad = "        "
-        if guard:
-            body.append(f"{pad}if {guard}:")
-            pad += "    "
-        body.append(f"{pad}out[{slot}] += {_pair_call(k, inter, hist_offsets[k], 'energy')}")
+    # ---- energies: totals per kind, and per pair and interaction (diagnostics)
+    def energy_body(target):
+        body = []
+        for k, inter in enumerate(interactions):
+            slot = target(k, 2 + kinds.index(inter.energy_kind))
+            body += guarded(k, inter, [f"{slot} += {_pair_call(k, inter, hist_offsets[k], 'energy')}"])
+        return body
+
     lines += ["", "@njit(**OPTIONS)",
               f"def compute_energies({args}, inertia, out):",
               '    """out = [kinetic, rotational, <one potential energy per kind>]."""',
               "    out[:] = 0.0",
               "    out[0], out[1] = kinetic_energies(velocity, angular_velocity, mass, inertia)"]
-    lines += unpack + (pair_loop(body) if body else [])
+    lines += unpack + (pair_loop(energy_body(lambda k, slot: f"out[{slot}]")) if interactions else [])
+    lines += ["", "@njit(**OPTIONS)",
+              f"def compute_pair_energies({args}, out):",
+              '    """out[p, k] = energy of pair p under interaction k."""',
+              "    out[:, :] = 0.0"]
+    lines += unpack + (pair_loop(energy_body(lambda k, slot: f"out[p, {k}]")) if interactions else [])
 
     # ---- state-tuple wrappers used by the time loops
     lines += ["", "", "@njit(**OPTIONS)",

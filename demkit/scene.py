@@ -119,6 +119,15 @@ class Scene:
                                       st[6], out)
         return energy_dict(out, self.energy_kinds, self.dissipated)
 
+    def pair_energies(self):
+        """(pairs, energies): the (P,2) pair indices and a (P, n_interactions) array of the
+        potential energy of each pair under each interaction, in ``self.interactions`` order."""
+        out = np.zeros((len(self.pairs), len(self.interactions)))
+        st = self.state()
+        self.kernels.compute_pair_energies(st[0], st[1], st[2], st[3], st[4], st[5], st[7], st[8],
+                                           st[9], out)
+        return self.pairs.copy(), out
+
     def angular_momentum(self, origin=(0.0, 0.0, 0.0)):
         """Orbital + spin angular momentum about ``origin``, shape (3,)."""
         return self.particles.angular_momentum(origin)

@@ -103,3 +103,18 @@ def test_run_continues_time_and_record_every_validation():
         sim.run(duration=1.0, record_every=0.001)
     with pytest.raises(ValueError, match="duration"):
         sim.run(duration=-1.0)
+
+
+def test_pair_energies_sum_to_the_energy_kinds():
+    rng = np.random.default_rng(3)
+    pos = np.array([[0.0, 0, 0], [1.9, 0.1, 0], [0.3, 1.95, 0.2], [6, 6, 6]])
+    p = dk.Particles(position=pos, radius=1.0, dipole=rng.normal(size=(4, 3)))
+    scene = dk.Scene(p, [dk.Dipole(0.5, cutoff=5.0), dk.KelvinVoigt(3.0)])
+    pairs, per_pair = scene.pair_energies()
+    assert per_pair.shape == (6, 2) and pairs.shape == (6, 2)
+    e = scene.energy()
+    assert per_pair[:, 0].sum() == pytest.approx(e["magnetic"], rel=1e-14)
+    assert per_pair[:, 1].sum() == pytest.approx(e["contact"], rel=1e-14)
+    far = [k for k, (i, j) in enumerate(pairs) if 3 in (i, j)]
+    assert not per_pair[far].any()  # beyond the dipole cutoff and out of contact
+    assert (per_pair[:, 1] > 0).sum() == 2  # pairs (0,1) and (0,2) overlap
