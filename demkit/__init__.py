@@ -8,10 +8,11 @@ from .scene import Scene
 from .simulation import Simulation, SimulationError, Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
+from . import capture, fits, scenes  # the seed paper's scene, its fits and capture threshold
 
 __version__ = "0.1.0"
 
 __all__ = ["Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
            "Integrator", "AllPairs", "analysis", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz"]
+           "write_series", "read_series", "io", "viz", "capture", "fits", "scenes"]
