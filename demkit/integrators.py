@@ -7,7 +7,9 @@ in compiled code between Python-level events. A template has the signature
     template(nsteps, first_step, stride, dt, forces_ready, state, record) -> int
 
 and may call ``forces_of(state, commit)`` (fills ``force``/``torque``, returns the dissipated power),
-``record_frame(k, state, record)`` and the helpers of :mod:`demkit.motion`. ``state`` is the tuple
+``end_step(step, countdown, stride, state, record)`` (finiteness check and recording; returns the
+steps left until the next frame, or -1 for a non-finite state) and the helpers of
+:mod:`demkit.motion`. ``state`` is the tuple
 (position, velocity, angular_velocity, dipole, radius, mass, inertia, pairs, history, params,
 force, torque, accum); accum[0] is the dissipated work. It records frame ``step // stride`` after
 every step that is a multiple of ``stride`` (global count ``first_step + n + 1``) and returns -1,
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import math
 
-from .motion import advance_spin, drift, kick, state_is_finite  # noqa: F401 (used by templates)
+from .motion import advance_spin, drift, kick  # noqa: F401 (used by templates)
 
 
 def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, state, record):
@@ -34,12 +36,9 @@ def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, state, r
         kick(velocity, force, mass, dt)
         drift(position, velocity, dt)
         advance_spin(angular_velocity, dipole, torque, inertia, dt, dt)
-        if not state_is_finite(position, velocity, angular_velocity):
+        countdown = end_step(first_step + n + 1, countdown, stride, state, record)  # noqa: F821
+        if countdown < 0:
             return n
-        countdown -= 1
-        if countdown == 0:
-            record_frame((first_step + n + 1) // stride, state, record)  # noqa: F821
-            countdown = stride
     return -1
 
 
@@ -57,12 +56,9 @@ def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, state
         accum[0] += dt * forces_of(state, True)  # noqa: F821
         kick(velocity, force, mass, half)
         advance_spin(angular_velocity, dipole, torque, inertia, half, 0.0)
-        if not state_is_finite(position, velocity, angular_velocity):
+        countdown = end_step(first_step + n + 1, countdown, stride, state, record)  # noqa: F821
+        if countdown < 0:
             return n
-        countdown -= 1
-        if countdown == 0:
-            record_frame((first_step + n + 1) // stride, state, record)  # noqa: F821
-            countdown = stride
     return -1
 
 

@@ -166,7 +166,17 @@ def generate_source(interactions, templates, importable):
               "    last = e.shape[1] - 1",
               "    compute_energies(state[0], state[1], state[2], state[3], state[4], state[5],",
               "                     state[7], state[8], state[9], state[6], e[k, :last])",
-              "    e[k, last] = state[12][0]"]
+              "    e[k, last] = state[12][0]",
+              "", "", "@njit(**OPTIONS)",
+              "def end_step(step, countdown, stride, state, record):",
+              '    """After global step ``step``: -1 if the state went non-finite, else the steps left',
+              '    until the next frame (recording frame step // stride when it is due)."""',
+              "    if not state_is_finite(state[0], state[1], state[2]):",
+              "        return -1",
+              "    if countdown == 1:",
+              "        record_frame(step // stride, state, record)",
+              "        return stride",
+              "    return countdown - 1"]
 
     # ---- integrator time loops
     for name, template in templates.items():

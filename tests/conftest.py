@@ -21,3 +21,17 @@ def two_magnets(b_over_r=4.0, v=V_PAPER, x0=150.0, model=dk.Dipole, damping=0.1,
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def energy_gradient(scene, kind, i, h):
+    """Central-difference gradient of scene.energy()[kind] with respect to the position of particle i."""
+    x = scene.particles.position
+    grad = np.zeros(3)
+    for a in range(3):
+        x[i, a] += h
+        up = scene.energy()[kind]
+        x[i, a] -= 2 * h
+        down = scene.energy()[kind]
+        x[i, a] += h
+        grad[a] = (up - down) / (2 * h)
+    return grad
