@@ -1,0 +1,219 @@
+"""VTK output: what VTKWriter writes reads back (meshio, pyvista, ParaView) at the right times."""
+import shutil
+import subprocess
+import sys
+import textwrap
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+from conftest import two_magnets
+
+import demkit as dk
+from demkit.io import read_pvd, read_series, write_polylines, write_series
+
+DT = 0.01
+
+
+def three_spheres(dipole=True, contact=True):
+    """Three touching spheres with non-sequential ids (frames are matched by id, not order)."""
+    pos = [[0.0, 0.0, 0.0], [2.1, 0.3, 0.0], [1.0, 1.9, 0.4]]
+    p = dk.Particles(pos, velocity=[[0.01, 0, 0], [-0.02, 0.01, 0], [0, -0.01, 0.005]], radius=1.1,
+                     mass=[1.0, 2.0, 1.5], dipole=np.eye(3) if dipole else None, ids=[7, 3, 11])
+    inter = ([dk.Dipole(prefactor=1 / 3)] if dipole else []) + ([dk.KelvinVoigt(1.0, 0.1)] if contact else [])
+    return dk.Scene(p, inter)
+
+
+def run_with_writer(tmp_path, scene, duration=2.0, every=0.5, **options):
+    writer = dk.VTKWriter(tmp_path / "out", every=every, **options)
+    sim = dk.Simulation(scene, dk.EulerCromer(dt=DT), writers=[writer])
+    traj = sim.run(duration, record_every=every)
+    return sim, writer, traj
+
+
+def test_frames_read_back_with_meshio_at_the_recorded_times(tmp_path):
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres())
+    sim.close()
+    entries = read_pvd(writer.pvd)
+    assert [t for t, _ in entries] == pytest.approx(traj.time, abs=1e-12)
+    assert writer.fields == ("velocity", "angular_velocity", "dipole", "force", "torque")
+    for k, (_, path) in enumerate(entries):
+        mesh = meshio.read(path)
+        np.testing.assert_array_equal(mesh.points, traj.position[k])
+        data = mesh.point_data
+        assert set(data) == {"id", "radius", "mass", "velocity", "angular_velocity", "dipole", "force", "torque"}
+        np.testing.assert_array_equal(data["id"], [7, 3, 11])
+        np.testing.assert_array_equal(data["mass"], [1.0, 2.0, 1.5])
+        np.testing.assert_array_equal(data["velocity"], traj.velocity[k])
+        np.testing.assert_array_equal(data["angular_velocity"], traj.angular_velocity[k])
+        np.testing.assert_array_equal(data["dipole"], traj.dipole[k])
+        assert mesh.cells[0].type == "vertex" and len(mesh.cells[0]) == 3
+    force, torque = sim.scene.forces()  # the last frame is the final state
+    np.testing.assert_array_equal(data["force"], force)
+    np.testing.assert_array_equal(data["torque"], torque)
+    assert np.abs(force).max() > 0
+
+
+def test_pyvista_reads_the_series_and_the_trails(tmp_path):
+    pv = pytest.importorskip("pyvista")
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres())
+    sim.close()
+    reader = pv.get_reader(str(writer.pvd))
+    np.testing.assert_allclose(reader.time_values, traj.time, atol=1e-12)
+    for k in (0, len(traj) - 1):
+        reader.set_active_time_value(traj.time[k])
+        grid = reader.read()[0]
+        np.testing.assert_array_equal(grid.points, traj.position[k])
+        np.testing.assert_array_equal(grid.point_data["dipole"], traj.dipole[k])
+    trails = pv.read(writer.series.trails)
+    assert trails.n_lines == 3 and trails.n_points == 3 * len(traj)
+    order = np.argsort(traj.ids)  # lines are in id order: 3, 7, 11
+    paths = np.asarray(trails.points).reshape(3, len(traj), 3)
+    np.testing.assert_array_equal(paths, traj.position[:, order].transpose(1, 0, 2))
+    np.testing.assert_array_equal(trails.point_data["time"].reshape(3, -1)[1], traj.time)
+    np.testing.assert_array_equal(trails.cell_data["id"], [3, 7, 11])
+
+
+def test_only_fields_the_scene_has(tmp_path):
+    scene = three_spheres(dipole=False)  # Kelvin-Voigt only: no dipole, no torque, no spin
+    sim, writer, _ = run_with_writer(tmp_path, scene)
+    assert writer.fields == ("velocity", "force")
+    _, data = dk.io.read_frame(writer.series.folder / "particles_000000.vtu")
+    assert set(data) == {"id", "radius", "mass", "velocity", "force"}
+    with pytest.raises(ValueError, match="no dipole"):
+        run_with_writer(tmp_path / "b", three_spheres(dipole=False), fields=["dipole"])
+
+
+def test_field_selection_and_single_precision(tmp_path):
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres(), fields=["dipole"], dtype="float32")
+    pos, data = dk.io.read_frame(writer.series.folder / "particles_000002.vtu")
+    assert set(data) == {"id", "radius", "mass", "dipole"} and pos.dtype == np.float32
+    np.testing.assert_allclose(pos, traj.position[2], rtol=1e-6)
+
+
+@pytest.mark.parametrize("compress", [True, "lzma"])
+def test_compressed_frames_read_back_identically(tmp_path, compress):
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres(), compress=compress)
+    sim.close()
+    path = writer.series.folder / "particles_000003.vtu"
+    assert ET.parse(path).getroot().get("compressor") in ("vtkZLibDataCompressor", "vtkLZMADataCompressor")
+    np.testing.assert_array_equal(meshio.read(path).points, traj.position[3])
+    series = read_series(writer.pvd)
+    np.testing.assert_array_equal(series.velocity[:, [1, 0, 2]], traj.velocity)  # id order 3, 7, 11
+    pv = pytest.importorskip("pyvista")
+    trails = pv.read(writer.series.trails)
+    assert trails.n_lines == 3
+
+
+def test_series_is_valid_after_every_frame_and_trails_can_be_rebuilt(tmp_path):
+    writer = dk.VTKWriter(tmp_path / "out", every=1.0)
+    scene = three_spheres()
+    writer.begin(scene.particles, has_force=True, has_torque=True)
+    force, torque = scene.forces()
+    for k in range(3):
+        writer.write_state(float(k), scene.particles, force, torque)
+        assert [t for t, _ in read_pvd(writer.pvd)] == list(range(k + 1))
+    # "interrupted": never closed, so no trails yet; rebuild them from the frames
+    assert not writer.series.trails.exists()
+    out = write_polylines(writer.series.folder, tmp_path / "rebuilt.vtp")
+    pv = pytest.importorskip("pyvista")
+    assert pv.read(out).n_points == 9
+
+
+def test_context_manager_writes_trails(tmp_path):
+    scene = three_spheres()
+    with dk.VTKWriter(tmp_path / "out", every=0.5) as writer:
+        sim = dk.Simulation(scene, dk.EulerCromer(dt=DT), writers=[writer])
+        sim.run(1.0)
+    assert writer.series.trails.exists() and writer.frames_written == 3
+    with pytest.raises(ValueError, match="used already"):
+        dk.Simulation(scene, dk.EulerCromer(dt=DT), writers=[writer]).run(1.0)
+
+
+def test_trajectory_to_series_round_trip(tmp_path):
+    traj = dk.Simulation(two_magnets(x0=30.0), dk.EulerCromer(dt=DT)).run(200.0, record_every=50.0)
+    pvd = write_series(traj, tmp_path / "series", compress=True)
+    back = read_series(pvd.parent)
+    np.testing.assert_array_equal(back.time, traj.time)
+    np.testing.assert_array_equal(back.position, traj.position)
+    np.testing.assert_array_equal(back.dipole, traj.dipole)
+    assert back.force is None and len(back) == 5
+    assert (pvd.parent / "particles_trails.vtp").exists()
+
+
+@pytest.mark.parametrize("every", [0, -1.0, float("nan"), float("inf"), "soon", None])
+def test_bad_interval(tmp_path, every):
+    with pytest.raises(ValueError, match="every"):
+        dk.VTKWriter(tmp_path / "out", every=every)
+
+
+def test_bad_folders_and_options(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(ValueError, match="not a folder"):
+        dk.VTKWriter(tmp_path / "afile", every=1.0)
+    with pytest.raises(ValueError, match="cannot write"):
+        dk.VTKWriter(tmp_path / "afile" / "sub", every=1.0)
+    with pytest.raises(ValueError, match="compress"):
+        dk.VTKWriter(tmp_path / "c", every=1.0, compress="gzip")
+    with pytest.raises(ValueError, match="unknown field"):
+        dk.VTKWriter(tmp_path / "d", every=1.0, fields=["spin"])
+    with pytest.raises(ValueError, match="dtype"):
+        dk.VTKWriter(tmp_path / "e", every=1.0, dtype="float16")
+
+
+def test_existing_data_is_never_silently_replaced(tmp_path):
+    sim, writer, _ = run_with_writer(tmp_path, three_spheres(), duration=2.0)  # 5 frames
+    sim.close()
+    folder = writer.series.folder
+    (folder / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="not empty.*overwrite=True"):
+        dk.VTKWriter(folder, every=1.0)
+    assert len(read_pvd(folder / "particles.pvd")) == 5
+    # overwrite=True replaces the series (no stale frames from the longer run) and keeps other files
+    sim, writer, _ = run_with_writer(tmp_path, three_spheres(), duration=1.0, overwrite=True)
+    sim.close()
+    assert len(read_pvd(writer.pvd)) == 3
+    assert sorted(p.name for p in folder.glob("particles_*.vtu")) == [f"particles_00000{k}.vtu" for k in range(3)]
+    assert (folder / "notes.txt").read_text() == "mine"
+
+
+def test_paraview_script_path_cli():
+    out = subprocess.run([sys.executable, "-m", "demkit.io", "--paraview-script"], capture_output=True,
+                         text=True, check=True).stdout.strip()
+    assert out.endswith("paraview_setup.py") and dk.io.paraview_script().exists()
+
+
+PVPYTHON_CHECK = textwrap.dedent("""
+    import sys
+    from paraview.simple import PVDReader
+    reader = PVDReader(FileName=sys.argv[1])
+    reader.UpdatePipelineInformation()
+    times = list(reader.TimestepValues)
+    reader.UpdatePipeline(times[-1])
+    info = reader.GetDataInformation()
+    print("RESULT", len(times), times[-1], info.GetNumberOfPoints(), ",".join(sorted(reader.PointData.keys())))
+""")
+
+
+@pytest.mark.skipif(shutil.which("pvpython") is None,
+                    reason="ParaView's pvpython is not installed (Debian package 'paraview')")
+def test_paraview_opens_the_series(tmp_path):
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres(), compress=True)
+    sim.close()
+    script = tmp_path / "check.py"
+    script.write_text(PVPYTHON_CHECK)
+    done = subprocess.run(["pvpython", str(script), str(writer.pvd)], capture_output=True, text=True, timeout=120)
+    line = next((l for l in done.stdout.splitlines() if l.startswith("RESULT")), None)
+    assert line, done.stdout + done.stderr
+    _, steps, last, points, arrays = line.split()
+    assert int(steps) == len(traj) and float(last) == pytest.approx(traj.time[-1])
+    assert int(points) == 3
+    assert arrays.split(",") == sorted(["id", "radius", "mass", "velocity", "angular_velocity", "dipole",
+                                        "force", "torque"])
+    # the shipped set-up script builds its pipeline and writes a state file (no rendering needed)
+    state = tmp_path / "view.pvsm"
+    done = subprocess.run(["pvpython", str(dk.io.paraview_script()), str(writer.pvd), "--state", str(state)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "spheres, dipoles" in done.stdout and state.exists()
