@@ -78,7 +78,7 @@ def main(argv=None):
         parser.error(f"no such file: {pvd}")
     reader = pvs.PVDReader(registrationName=os.path.basename(pvd), FileName=pvd)
     view = pvs.CreateView("RenderView")
-    pvs.GetAnimationScene().UpdateAnimationUsingDataTimeSteps()
+    pvs.GetAnimationScene().PlayMode = "Snap To TimeSteps"  # play the frames as written
     trails = pvd[:-4] + "_trails.vtp"
     made = decorate(reader, view, trails)
     state = os.path.abspath(args.state or pvd[:-4] + ".pvsm")
@@ -88,6 +88,10 @@ def main(argv=None):
     if args.screenshot:
         times = reader.TimestepValues
         view.ViewTime = times[-1] if times else 0.0
+        # the growing trails only grow while the animation plays: show the whole paths instead
+        pvs.Hide(made["growing trails"], view)
+        if "trails" in made:
+            pvs.Show(made["trails"], view)
         pvs.SaveScreenshot(os.path.abspath(args.screenshot), view, ImageResolution=[1024, 768])
         print(f"picture written to {args.screenshot}")
     return 0
