@@ -31,7 +31,8 @@ def load(source):
             fields = {k: data[k][None] for k in ("dipole",) if k in data}
             ids = data.get("id", np.arange(len(pos)))
             radius = data.get("radius", np.ones(len(pos)))
-            return SeriesData(np.zeros(1), pos[None], fields, ids, radius, data.get("mass"), [path], None)
+            return SeriesData(np.array([_frame_time(path)]), pos[None], fields, ids, radius,
+                              data.get("mass"), [path], None)
         return read_series(path)
     for attr in ("time", "position", "radius", "ids"):
         if not hasattr(source, attr):
@@ -47,6 +48,20 @@ def default_trail(frames, shown):
     if len(shown) == 1:
         return 0.25 * float(frames.time[shown[0]] - frames.time[0])
     return 0.25 * float(frames.time[shown[-1]] - frames.time[shown[0]])
+
+
+def _frame_time(path):
+    """The time of a .vtu frame from a .pvd beside it that lists it (NaN when none does)."""
+    from ..io import read_pvd
+
+    for pvd in sorted(path.parent.glob("*.pvd")):
+        try:
+            for time, file in read_pvd(pvd):
+                if file.resolve() == path.resolve():
+                    return time
+        except ValueError:
+            continue
+    return float("nan")
 
 
 class Style:
@@ -90,12 +105,13 @@ class FrameDrawer:
             first = int(np.searchsorted(self.frames.time, self.frames.time[shown[0]] - self.trail))
         pos = self.frames.position[first:shown[-1] + 1].reshape(-1, 3)
         rmax = float(np.max(self.frames.radius))
-        lo, hi = pos.min(axis=0) - rmax, pos.max(axis=0) + rmax
+        reach = rmax * (1.4 if self.style.arrows and getattr(self.frames, "dipole", None) is not None else 1.0)
+        lo, hi = pos.min(axis=0) - reach, pos.max(axis=0) + reach
         view = self.style.view
         if view == "auto":
-            extent = hi - lo
+            extent = np.ptp(pos, axis=0)  # of the centres
             flat = int(np.argmin(extent))
-            view = ("yz", "xz", "xy")[flat] if extent[flat] <= 2.5 * rmax else "iso"
+            view = ("yz", "xz", "xy")[flat] if extent[flat] <= 0.5 * rmax else "iso"
         p = self.plotter
         if view == "iso":
             # an invisible box spanning everything shown fixes the camera for the whole animation
@@ -109,7 +125,7 @@ class FrameDrawer:
         across = 3 - normal - up
         centre = (lo + hi) / 2
         width, height = self.style.window_size
-        half = max((hi[up] - lo[up]) / 2, (hi[across] - lo[across]) / 2 * height / width) * 1.08
+        half = max((hi[up] - lo[up]) / 2, (hi[across] - lo[across]) / 2 * height / width) * 1.06
         eye = centre.copy()
         sign = -1.0 if view == "xz" else 1.0  # keep the first axis pointing right
         depth = float(np.max(hi - lo)) + half
@@ -136,12 +152,13 @@ class FrameDrawer:
                        color="#202020")
         self._show("trails", self._trails(k), scalars="colour", rgb=True, line_width=3)
         if self.style.label:
-            text = f"t = {f.time[k]:.6g}"
+            text = f"t = {f.time[k]:.6g}" if np.isfinite(f.time[k]) else Path(f.files[k]).name
             if "label" not in self._actors:
                 colour = "black" if pv.Color(self.style.background).int_rgb[1] > 127 else "white"
                 height = self.style.window_size[1]
+                size = max(8, round(14 * height / 720))
                 self._actors["label"] = self.plotter.add_text(
-                    text, position=(14, height - 36), font_size=14, color=colour)
+                    text, position=(size, height - 2.6 * size), font_size=size, color=colour)
             else:
                 self._actors["label"].SetInput(text)
         self.plotter.render()
