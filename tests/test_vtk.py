@@ -217,3 +217,30 @@ def test_paraview_opens_the_series(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "spheres, dipoles" in done.stdout and state.exists()
+
+
+def test_trails_are_written_at_exit_when_the_writer_is_never_closed(tmp_path):
+    code = textwrap.dedent(f"""
+        import demkit as dk
+        p = dk.Particles([[0, 0, 0], [3, 0, 0]], velocity=[[0.1, 0, 0], [0, 0, 0]], radius=1.0)
+        scene = dk.Scene(p, [dk.KelvinVoigt(1.0, 0.1)])
+        sim = dk.Simulation(scene, dk.EulerCromer(dt=0.01), writers=[dk.VTKWriter({str(tmp_path / 'out')!r}, every=1.0)])
+        sim.run(3.0)
+    """)
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    assert (tmp_path / "out" / "particles_trails.vtp").exists()
+    assert len(read_pvd(tmp_path / "out" / "particles.pvd")) == 4
+
+
+def test_documented_writer_example_runs(tmp_path, monkeypatch):
+    import re
+    from pathlib import Path
+
+    doc = Path(__file__).resolve().parents[1] / "docs" / "visualisation.md"
+    first = re.findall(r"```python\n(.*?)```", doc.read_text(), flags=re.S)[0]
+    monkeypatch.chdir(tmp_path)
+    namespace = {}
+    exec(compile(first, str(doc), "exec"), namespace)
+    assert namespace["writer"].frames_written == 21
+    assert len(read_pvd(tmp_path / "out" / "particles.pvd")) == 21
+    assert (tmp_path / "out" / "particles_trails.vtp").exists()
