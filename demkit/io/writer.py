@@ -7,7 +7,8 @@ Usage::
     sim.run(5000.0)
     sim.close()                                         # writes the trails file
 
-or ``with dk.VTKWriter("out", every=100.0) as writer: ...``. The .pvd collection is rewritten
+or ``with dk.VTKWriter("out", every=100.0) as writer: ...`` (a writer never closed writes its
+trails when it is garbage-collected or the program exits). The .pvd collection is rewritten
 after every frame, so an interrupted run leaves a valid series of the frames written so far (the
 trails can then be rebuilt with ``demkit.io.write_polylines("out", "out/particles_trails.vtp")``).
 """
@@ -99,6 +100,8 @@ class VTKWriter:
     def write(self, simulation):
         """Write the current state of ``simulation`` as the next frame (called by the simulation)."""
         force = torque = None
+        if self.fields is None:
+            raise ValueError("the simulation must call open() before write()")
         if "force" in self.fields or "torque" in self.fields:
             force, torque = simulation.scene.forces()
         self.write_state(simulation.time, simulation.scene.particles, force, torque)
