@@ -142,3 +142,18 @@ def test_bad_arguments_fail_before_rendering(tmp_path):
         dk.viz.snapshot(42, tmp_path / "x.png")
     with pytest.raises(ValueError, match="no .pvd"):
         dk.viz.snapshot(tmp_path, tmp_path / "x.png")
+
+
+def test_two_magnet_example_writes_a_series_and_an_animation(tmp_path):
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "two_magnets" / "watch.py"
+    done = run_child(f"import runpy, sys; sys.argv = ['watch.py', '--out', {str(tmp_path)!r}, '--frames', '8']; "
+                     f"runpy.run_path({str(script)!r}, run_name='__main__')")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "first contact" in done.stdout
+    series = dk.read_series(tmp_path / "vtk")
+    assert len(series) == 451 and series.dipole is not None
+    assert (tmp_path / "vtk" / "particles_trails.vtp").exists()
+    frames = list(ImageSequence.Iterator(Image.open(tmp_path / "collision.gif")))
+    assert len(frames) == 8 and all(not_blank(f) > 0.005 for f in frames)

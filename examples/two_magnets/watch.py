@@ -7,6 +7,7 @@ Open the .pvd in ParaView, or set it up with ``pvpython $(python -m demkit.io --
 DIR/vtk/particles.pvd``. Re-running replaces this example's own series (overwrite=True).
 """
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -28,13 +29,15 @@ def two_magnets():
 
 
 def main(argv=None):
+    """Run, write and animate; ``argv`` are command-line options (None: the defaults). Returns the
+    paths written: {"pvd", "trails", "movie"} (movie None when nothing can render here)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "output", help="output folder")
     parser.add_argument("--movie", choices=["gif", "mp4"], default="gif")
     parser.add_argument("--duration", type=float, default=45000.0, help="simulated time (t_c)")
     parser.add_argument("--every", type=float, default=100.0, help="time between VTK frames (t_c)")
     parser.add_argument("--frames", type=int, default=120, help="frames in the animation")
-    args = parser.parse_args(argv)
+    args = parser.parse_args([] if argv is None else argv)
     args.out.mkdir(parents=True, exist_ok=True)
 
     start = time.perf_counter()
@@ -66,4 +69,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])
