@@ -405,12 +405,13 @@ def _json_default(value):
 
 
 def main(argv=None):
-    """Run the replication; returns the summary dict (also written to summary.json)."""
+    """Run the replication with command-line ``argv`` (None: the defaults); returns the summary
+    dict (also written to docs/data/two_magnets/summary.json)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="reduced replication (for tests)")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: cores)")
     parser.add_argument("--out", type=Path, default=ROOT, help="root folder of docs/ (default: repository)")
-    args = parser.parse_args(argv)
+    args = parser.parse_args([] if argv is None else list(argv))  # None: defaults, not sys.argv
     workers = max(1, args.workers)
     start = time.perf_counter()
     _warm_up(args.quick)
@@ -427,4 +428,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])
