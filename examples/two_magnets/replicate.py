@@ -29,13 +29,13 @@ import numpy as np
 
 import demkit as dk
 from demkit import analysis, capture, fits
-from demkit.scenes import BARBELL_BETA, POINT_MASS_BETA, TwoMagnets
+from demkit.scenes import TwoMagnets
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
-import figures  # noqa: E402  (examples/two_magnets/figures.py)
-import report  # noqa: E402  (examples/two_magnets/report.py)
+import replication_figures as figures  # noqa: E402  (examples/two_magnets/replication_figures.py)
+import replication_report as report  # noqa: E402  (examples/two_magnets/replication_report.py)
 
 #: what the paper reports (dimensionless unless stated)
 PAPER = {"beta": 2.80, "beta_power_law": 2.00, "b_max": 4.65, "compression": 1e-5,
