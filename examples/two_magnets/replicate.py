@@ -290,7 +290,8 @@ def summarise(results, wall, workers, quick):
             "not_sticking": [r["b_over_R"] for r in sweep if r["model"] == model and r["outcome"] != "stick"],
         }
     thresholds = [r for r in results if r["kind"] == "threshold"]
-    out["thresholds"] = [{k: v for k, v in r.items() if k != "evaluations"} for r in thresholds]
+    # timings only in wall_s / cpu_s above, so that the data files change only when results do
+    out["thresholds"] = [{k: v for k, v in r.items() if k not in ("evaluations", "wall_s")} for r in thresholds]
     speed_rows = [r for r in thresholds if r["model"] == "dipole" and r["group"] in ("paper", "speed")
                   and r["dipoles"] == "aligned" and r["prefactor"] == 1 / 3]
     if len(speed_rows) >= 3:
@@ -299,7 +300,7 @@ def summarise(results, wall, workers, quick):
         p, dp, c = fits.fit_power_law(v, bmax)
         out["b_max_speed_exponent"] = {"p": p, "sigma": dp, "c": c,
                                        "speed_for_paper_b_max": (PAPER["b_max"] / c) ** (1 / p)}
-    out["energy"] = {r["dipoles"]: {k: v for k, v in r.items() if k not in ("series", "zoom")}
+    out["energy"] = {r["dipoles"]: {k: v for k, v in r.items() if k not in ("series", "zoom", "wall_s")}
                      for r in results if r["kind"] == "energy"}
     paper_threshold = next((t for t in thresholds if t["group"] == "paper"), None)
     if paper_threshold is not None:
@@ -339,10 +340,10 @@ def _fmt(value):
 SWEEP_COLUMNS = ["model", "b_over_R", "speed", "x0", "outcome", "omega", "sigma", "beta_point",
                  "omega_rad_s", "rev_s", "omega_rad_s_demkit_scales", "k_ratio_from_omega",
                  "k_ratio_measured", "compression", "compression_static", "spin_fraction_at_contact", "first_contact", "settle_time",
-                 "window_end", "sim_time", "wall_s"]
+                 "window_end", "sim_time"]
 THRESHOLD_COLUMNS = ["name", "group", "model", "speed", "x0", "damping", "prefactor", "dipoles", "dt",
                      "integrator", "b_stick", "b_escape", "b_max", "half_width", "escape_outcome",
-                     "central_estimate", "wall_s"]
+                     "central_estimate"]
 RUN_COLUMNS = ["kind", "model", "b_over_R", "speed", "x0", "damping", "prefactor", "dipoles", "dt",
                "integrator", "outcome", "omega", "sigma", "note"]
 
