@@ -11,17 +11,7 @@ import numpy as np
 
 import demkit as dk
 
-R, V = 6.94, 5.78e-3
-
-
-def build(b_over_r=4.0, v=V, x0=150.0, model=dk.Dipole):
-    """The paper's initial state: unit dipoles along the initial line of centres."""
-    b = b_over_r * R
-    position = np.array([[-x0, -b / 2, 0.0], [x0, b / 2, 0.0]])
-    n = (position[1] - position[0]) / np.linalg.norm(position[1] - position[0])
-    particles = dk.Particles(position=position, velocity=[[v, 0, 0], [-v, 0, 0]], radius=R,
-                             mass=1.0, dipole=[n, n])
-    return dk.Scene(particles, [model(prefactor=1 / 3), dk.KelvinVoigt(stiffness=1.0, damping=0.1)])
+R, V = dk.scenes.PAPER_RADIUS, dk.scenes.PAPER_SPEED
 
 
 def main(argv=None):
@@ -30,7 +20,7 @@ def main(argv=None):
     parser.add_argument("--dt", type=float, default=0.01, help="Euler-Cromer time step")
     args = parser.parse_args(argv)
 
-    scene = build(args.b_over_r)
+    scene = dk.scenes.TwoMagnets(b_over_R=args.b_over_r).scene()
     e0, l0 = scene.energy(), scene.angular_momentum()
     print(f"two magnets: b/R = {args.b_over_r}, v = {V}, R = {R}; U/K at the start = "
           f"{e0['magnetic'] / e0['kinetic']:.1e}")

@@ -16,16 +16,7 @@ import numpy as np
 import demkit as dk
 
 HERE = Path(__file__).resolve().parent
-R, SPEED, B = 6.94, 5.78e-3, 4 * 6.94  # paper units: radius, speed of each sphere, impact parameter
-
-
-def two_magnets():
-    """Spheres at x = -150 / +150, y = +b/2 / -b/2, approaching along x; unit dipoles along the
-    initial line of centres; the paper's dipole and Kelvin-Voigt contact."""
-    pos = np.array([[-150.0, B / 2, 0.0], [150.0, -B / 2, 0.0]])
-    n = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
-    p = dk.Particles(pos, velocity=[[SPEED, 0, 0], [-SPEED, 0, 0]], radius=R, mass=1.0, dipole=[n, n])
-    return dk.Scene(p, [dk.Dipole(prefactor=1 / 3), dk.KelvinVoigt(stiffness=1.0, damping=0.1)])
+R = dk.scenes.PAPER_RADIUS
 
 
 def main(argv=None):
@@ -42,7 +33,8 @@ def main(argv=None):
 
     start = time.perf_counter()
     writer = dk.VTKWriter(args.out / "vtk", every=args.every, overwrite=True)
-    sim = dk.Simulation(two_magnets(), dk.EulerCromer(dt=0.01), writers=[writer])
+    scene = dk.scenes.TwoMagnets(b_over_R=4.0).scene()  # the paper's collision at b = 4R
+    sim = dk.Simulation(scene, dk.EulerCromer(dt=0.01), writers=[writer])
     traj = sim.run(args.duration, record_every=1.0)  # fine recording to find the first contact
     sim.close()  # writes the trails file
     touch = np.flatnonzero(np.linalg.norm(traj.position[:, 1] - traj.position[:, 0], axis=1) <= 2 * R)
