@@ -143,7 +143,7 @@ class TwoMagnets:
         sim = self.simulation(dt, integrator)
         parts = [sim.run(min(first, max_time), record_every)]
         while True:
-            trajectory = join(parts)
+            trajectory = Trajectory.concatenate(parts)
             if _finished(trajectory, revolutions, self.prefactor) or sim.time >= max_time - 0.5 * dt:
                 return trajectory
             parts.append(sim.run(min(chunk, max_time - sim.time), record_every))
@@ -159,7 +159,7 @@ class TwoMagnets:
         sim = self.simulation(dt, integrator)
         parts = [sim.run(min(first, max_time), record_every)]
         while True:
-            trajectory = join(parts)
+            trajectory = Trajectory.concatenate(parts)
             try:
                 return analysis.outcome(trajectory, prefactor=self.prefactor), trajectory
             except analysis.UndeterminedOutcome:
@@ -180,26 +180,3 @@ def _finished(trajectory, revolutions, prefactor):
     except ValueError:
         return False
     return True
-
-
-def join(parts):
-    """One Trajectory from consecutive runs of the same Simulation (each run's first frame repeats
-    the previous run's last frame and is dropped)."""
-    parts = list(parts)
-    if len(parts) == 1:
-        return parts[0]
-
-    def cat(name):
-        arrays = [getattr(p, name) for p in parts]
-        if arrays[0] is None:
-            return None
-        return np.concatenate([arrays[0]] + [a[1:] for a in arrays[1:]])
-
-    energy = {key: np.concatenate([np.asarray(parts[0].energy[key])]
-                                  + [np.asarray(p.energy[key])[1:] for p in parts[1:]])
-              for key in parts[0].energy}
-    first = parts[0]
-    return Trajectory(time=cat("time"), position=cat("position"), velocity=cat("velocity"),
-                      angular_velocity=cat("angular_velocity"), dipole=cat("dipole"), energy=energy,
-                      angular_momentum=cat("angular_momentum"), radius=first.radius, mass=first.mass,
-                      inertia=first.inertia, ids=first.ids)

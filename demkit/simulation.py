@@ -46,6 +46,28 @@ class Trajectory:
     def __len__(self):
         return len(self.time)
 
+    @classmethod
+    def concatenate(cls, parts):
+        """One Trajectory from consecutive runs of one Simulation. Each later run's first frame
+        repeats the previous run's last one and is dropped; a gap in time raises ValueError."""
+        parts = list(parts)
+        if not parts:
+            raise ValueError("concatenate needs at least one trajectory")
+        for before, after in zip(parts, parts[1:]):
+            if after.time[0] != before.time[-1]:
+                raise ValueError(f"trajectories are not consecutive: one ends at t = {before.time[-1]:.6g}, "
+                                 f"the next starts at t = {after.time[0]:.6g}")
+
+        def joined(arrays):
+            return None if arrays[0] is None else np.concatenate([arrays[0]] + [a[1:] for a in arrays[1:]])
+
+        first = parts[0]
+        fields = {name: joined([getattr(p, name) for p in parts])
+                  for name in ("time", "position", "velocity", "angular_velocity", "dipole", "angular_momentum")}
+        energy = {key: joined([np.asarray(p.energy[key]) for p in parts]) for key in first.energy}
+        return cls(energy=energy, radius=first.radius, mass=first.mass, inertia=first.inertia,
+                   ids=first.ids, **fields)
+
     def linear_momentum(self):
         """Total linear momentum per frame, (T,3)."""
         return (self.mass[None, :, None] * self.velocity).sum(axis=1)

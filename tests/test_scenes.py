@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from demkit import analysis
-from demkit.scenes import TwoMagnets, join
+import demkit as dk
+from demkit.scenes import TwoMagnets
 
 
 def test_initial_state_is_the_papers():
@@ -30,14 +31,16 @@ def test_invalid_setups_are_rejected(bad):
         TwoMagnets(**bad)
 
 
-def test_join_is_one_continuous_run():
+def test_concatenated_runs_equal_one_continuous_run():
     setup = TwoMagnets(3.0)
     whole = setup.simulation().run(3000.0, record_every=10.0)
     sim = setup.simulation()
     parts = [sim.run(1000.0, record_every=10.0), sim.run(2000.0, record_every=10.0)]
-    joined = join(parts)
+    joined = dk.Trajectory.concatenate(parts)
     assert np.array_equal(joined.time, whole.time)
     assert np.array_equal(joined.position, whole.position)  # same steps, bit for bit
     assert np.array_equal(joined.energy["total"], whole.energy["total"])
     with pytest.raises(analysis.UndeterminedOutcome):
         analysis.outcome(joined)
+    with pytest.raises(ValueError, match="not consecutive"):
+        dk.Trajectory.concatenate(parts[::-1])
