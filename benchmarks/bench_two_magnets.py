@@ -1,7 +1,7 @@
 """Speed of the seed paper's scene: Euler-Cromer, dt = 0.01, 4 million steps, side by side with LAMMPS.
 
 Writes benchmarks/results/two_magnets.json. Measures
-* steps per second of demkit (best of 5), recording a frame every 100 steps (record_every = 1.0);
+* steps per second of demkit (best of 5; Euler-Cromer, and velocity Verlet for reference), recording a frame every 100 steps (record_every = 1.0);
 * the same for LAMMPS (shared/reference/lammps/two_magnets.in, output every 100 steps) when `lmp`
   is installed (best of 3), and the ratio;
 * the cold start (import + compile, empty numba caches) and the cached start, in fresh processes.
@@ -32,6 +32,7 @@ scene = dk.Scene(p, [dk.Dipole(prefactor=1 / 3), dk.KelvinVoigt(stiffness=1.0, d
 sim = dk.Simulation(scene, dk.EulerCromer(dt=%r))
 """ % DT
 
+
 START = "import time; t0 = time.perf_counter()\n" + SCENE + """
 sim.run(duration=%r, record_every=%r)
 print(time.perf_counter() - t0)
@@ -55,9 +56,9 @@ def startup():
     return cold, cached
 
 
-def demkit_rate(repeats=5):
+def demkit_rate(integrator="EulerCromer", repeats=5):
     ns = {}
-    exec(SCENE, ns)
+    exec(SCENE.replace("EulerCromer", integrator), ns)
     sim = ns["sim"]
     sim.run(duration=10 * DT)  # compile (or load the cache) outside the timing
     best = 0.0
@@ -87,11 +88,13 @@ def lammps_rate(repeats=3):
 def main():
     cold, cached = startup()
     rate = demkit_rate()
+    verlet = demkit_rate("VelocityVerlet")
     lammps = lammps_rate()
     result = {
         "scene": "two magnets (paper units), Euler-Cromer dt = 0.01, 4e6 steps, frame every 100 steps",
         "demkit_steps_per_s": rate,
         "demkit_ns_per_step": 1e9 / rate,
+        "demkit_velocity_verlet_steps_per_s": verlet,
         "lammps_steps_per_s": lammps,
         "speedup_vs_lammps": None if lammps is None else rate / lammps,
         "cold_start_s": cold,
