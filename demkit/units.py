@@ -7,7 +7,9 @@ energy k x_c^2, angular velocity 1/t_c, damping (force per velocity) m/t_c.
 
 For the paper's 5 mm NdFeB spheres (m = 4 g, Young's modulus 39.5 GPa, M = 8.8e5 A/m)
 ``PaperUnits.from_si(...)`` gives t_c = 3.59e-6 s, x_c = 7.29e-4 m, R/x_c = 6.86. The paper quotes
-x_c = 7.2e-4 m and R~ = 6.94 = 5 mm / 7.2e-4 m: it divided by the rounded x_c.
+x_c = 7.2e-4 m and R~ = 6.94 = 5 mm / 7.2e-4 m: it divided by the rounded x_c. To convert with the
+paper's own rounded scales, build them directly:
+``PaperUnits(mass=4e-3, length=7.2e-4, time=3.6e-6, radius=5e-3)`` (R~ = 6.94, 5.78e-3 <-> 1.156 m/s).
 """
 from __future__ import annotations
 

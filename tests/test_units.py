@@ -41,3 +41,9 @@ def test_bad_inputs(kwargs, message):
         units.PaperUnits.from_si(**kwargs)
     with pytest.raises(ValueError, match="unknown quantity"):
         units.paper_magnets().scale("colour")
+
+
+def test_the_papers_rounded_scales():
+    rounded = units.PaperUnits(mass=4e-3, length=7.2e-4, time=3.6e-6, radius=5e-3)
+    assert rounded.dimensionless_radius == pytest.approx(6.944, abs=1e-3)
+    assert rounded.to_si(5.78e-3, "velocity") == pytest.approx(1.156, rel=1e-9)
