@@ -215,9 +215,11 @@ def build_module(interactions, templates):
     importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
     source = generate_source(interactions, templates, importable)
     key = _fingerprint(source, interactions)
+    name = f"demkit_kernel_{key}"
+    if not importable:  # in memory: bind to these very function objects, not look-alikes
+        key += "".join(f"-{id(fn)}" for inter in interactions for fn in inter.pair_functions())
     if key in _MODULES:
         return _MODULES[key]
-    name = f"demkit_kernel_{key}"
     if importable:
         module = _load_from_file(name, source)
     else:
