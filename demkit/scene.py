@@ -105,27 +105,21 @@ class Scene:
         """(force, torque), each (N,3), at the current state; changes nothing."""
         n = len(self.particles)
         force, torque = np.zeros((n, 3)), np.zeros((n, 3))
-        st = self.state(force, torque)
-        self.kernels.compute_forces(st[0], st[1], st[2], st[3], st[4], st[5], st[7], st[8], st[9],
-                                    force, torque, False)
+        self.kernels.forces_of(self.state(force, torque), False)
         return force, torque
 
     def energy(self):
         """Energies: kinetic, rotational, one per energy kind (magnetic, contact, ...), total and
         dissipated. total = kinetic + rotational + potentials; total + dissipated is conserved."""
         out = np.zeros(2 + len(self.energy_kinds))
-        st = self.state()
-        self.kernels.compute_energies(st[0], st[1], st[2], st[3], st[4], st[5], st[7], st[8], st[9],
-                                      st[6], out)
+        self.kernels.energies_of(self.state(), out)
         return energy_dict(out, self.energy_kinds, self.dissipated)
 
     def pair_energies(self):
         """(pairs, energies): the (P,2) pair indices and a (P, n_interactions) array of the
         potential energy of each pair under each interaction, in ``self.interactions`` order."""
         out = np.zeros((len(self.pairs), len(self.interactions)))
-        st = self.state()
-        self.kernels.compute_pair_energies(st[0], st[1], st[2], st[3], st[4], st[5], st[7], st[8],
-                                           st[9], out)
+        self.kernels.pair_energies_of(self.state(), out)
         return self.pairs.copy(), out
 
     def angular_momentum(self, origin=(0.0, 0.0, 0.0)):
