@@ -1,5 +1,5 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
-from . import analysis, units
+from . import units
 from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions import Dipole, KelvinVoigt, PairInteraction, PowerLawDipole
 from .neighbours import AllPairs
@@ -8,11 +8,11 @@ from .scene import Scene
 from .simulation import Simulation, SimulationError, Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
-from . import capture, fits, scenes  # the seed paper's scene, its fits and capture threshold
+from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
 
 __version__ = "0.1.0"
 
 __all__ = ["Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
-           "Integrator", "AllPairs", "analysis", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "capture", "fits", "scenes"]
+           "Integrator", "AllPairs", "units", "VTKWriter", "write_polylines",
+           "write_series", "read_series", "io", "viz", "two_magnets"]

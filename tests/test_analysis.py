@@ -1,4 +1,4 @@
-"""Tests of demkit.analysis (final spin, outcome), demkit.fits and demkit.capture.
+"""Tests of demkit.two_magnets.analysis (final spin, outcome), demkit.two_magnets.fits and demkit.two_magnets.capture.
 
 Truths used: synthetic trajectories with a known rotation (exact omega, or crossing times found
 independently by root finding), angular-momentum conservation of the barbell (beta = 14/5 or 2),
@@ -11,8 +11,8 @@ import pytest
 from scipy.optimize import brentq
 
 import demkit as dk
-from demkit import analysis, capture, fits
-from demkit.scenes import BARBELL_BETA, POINT_MASS_BETA, TwoMagnets
+from demkit.two_magnets import analysis, capture, fits
+from demkit.two_magnets import BARBELL_BETA, POINT_MASS_BETA, TwoMagnets
 
 R = 6.94
 

@@ -4,7 +4,7 @@ import pytest
 from conftest import R_PAPER, V_PAPER, two_magnets
 
 import demkit as dk
-from demkit.analysis import final_spin, settle_index
+from demkit.two_magnets.analysis import final_spin, settle_index
 
 
 def collide(b_over_r, model, integrator=dk.EulerCromer, dt=0.01):
@@ -60,7 +60,7 @@ def test_energy_balance_closes_to_first_order(paper_run):
 @pytest.mark.parametrize("model, beta", [(dk.Dipole, 14 / 5), (dk.PowerLawDipole, 2.0)])
 def test_final_spin_gives_paper_beta(b_over_r, model, beta):
     _, traj = collide(b_over_r, model)
-    assert dk.analysis.outcome(traj) == "stick"
+    assert dk.two_magnets.outcome(traj) == "stick"
     omega, sigma = final_spin(traj, revolutions=5)
     measured = V_PAPER * b_over_r * R_PAPER / (omega * R_PAPER**2)
     # the tolerance: 0.5 %. The 5-revolution mean wobbles by ~0.3 % (quasi-periodic

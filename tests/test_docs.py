@@ -21,7 +21,7 @@ def guide_namespace():
 
 def test_guide_quick_start_runs(guide_namespace):
     traj = guide_namespace["traj"]
-    assert guide_namespace["dk"].analysis.outcome(traj) == "stick"
+    assert guide_namespace["dk"].two_magnets.outcome(traj) == "stick"
     omega, _ = guide_namespace["omega"], guide_namespace["sigma"]
     assert omega > 0
 

@@ -11,7 +11,7 @@ import numpy as np
 
 import demkit as dk
 
-R, V = dk.scenes.PAPER_RADIUS, dk.scenes.PAPER_SPEED
+R, V = dk.two_magnets.PAPER_RADIUS, dk.two_magnets.PAPER_SPEED
 
 
 def main(argv=None):
@@ -20,7 +20,7 @@ def main(argv=None):
     parser.add_argument("--dt", type=float, default=0.01, help="Euler-Cromer time step")
     args = parser.parse_args(argv)
 
-    scene = dk.scenes.TwoMagnets(b_over_R=args.b_over_r).scene()
+    scene = dk.two_magnets.TwoMagnets(b_over_R=args.b_over_r).scene()
     e0, l0 = scene.energy(), scene.angular_momentum()
     print(f"two magnets: b/R = {args.b_over_r}, v = {V}, R = {R}; U/K at the start = "
           f"{e0['magnetic'] / e0['kinetic']:.1e}")
@@ -33,10 +33,10 @@ def main(argv=None):
     print(f"ran {steps:,} Euler-Cromer steps (dt = {args.dt}) in {elapsed:.2f} s "
           f"({steps / elapsed / 1e6:.1f} million steps/s, compilation included)")
 
-    outcome = dk.analysis.outcome(traj)
+    outcome = dk.two_magnets.outcome(traj)
     print(f"outcome: {outcome}")
     if outcome == "stick":
-        omega, sigma = dk.analysis.final_spin(traj, revolutions=5)
+        omega, sigma = dk.two_magnets.final_spin(traj, revolutions=5)
         beta = V * args.b_over_r * R / (omega * R**2)
         print(f"final spin  omega_f = {omega:.6e} +- {sigma:.1e}  (mean of 5 revolutions)")
         print(f"predicted   v b/(beta R^2) = {predicted:.6e}  with beta = 14/5")

@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 import demkit as dk
-from demkit import analysis, capture, fits
-from demkit.scenes import TwoMagnets
+from demkit.two_magnets import analysis, capture, fits
+from demkit.two_magnets import TwoMagnets
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -130,7 +130,7 @@ def energy_series(dipoles, revolutions=5, keep_every=10):
 
 
 def threshold(name, group, setup_kwargs, lo, hi, tol, dt=0.01, integrator="euler_cromer"):
-    """Largest sticking b/R by bisection (see demkit.capture.capture_threshold)."""
+    """Largest sticking b/R by bisection (see demkit.two_magnets.capture.capture_threshold)."""
     start = time.perf_counter()
     setup = TwoMagnets(5.0, **setup_kwargs)
     found = capture.capture_threshold(setup, lo, hi, tol=tol, dt=dt, integrator=INTEGRATORS[integrator])

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 
-from demkit.scenes import BARBELL_BETA, PAPER_RADIUS, PAPER_SPEED, POINT_MASS_BETA  # noqa: E402
+from demkit.two_magnets import BARBELL_BETA, PAPER_RADIUS, PAPER_SPEED, POINT_MASS_BETA  # noqa: E402
 
 DPI = 100
 COLOURS = {"dipole": "tab:blue", "power_law": "tab:orange"}
@@ -125,7 +125,7 @@ def capture_figure(results, summary, path):
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(9.0, 4.0), gridspec_kw={"width_ratios": [1.6, 1]})
     th = [r for r in results if r["kind"] == "threshold"]
     v = np.geomspace(2.5e-3, 1.6e-2, 60)
-    from demkit.capture import central_capture
+    from demkit.two_magnets.capture import central_capture
     ax.plot(v, [central_capture(s, PAPER_RADIUS, 150.0) for s in v], "k--", lw=0.8,
             label="central -alpha/r^3 estimate (exact for power law)")
     for model, group, marker in (("dipole", ("paper", "speed"), "o"), ("power_law", ("model", "speed power law"), "s")):

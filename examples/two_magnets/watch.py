@@ -16,7 +16,7 @@ import numpy as np
 import demkit as dk
 
 HERE = Path(__file__).resolve().parent
-R = dk.scenes.PAPER_RADIUS
+R = dk.two_magnets.PAPER_RADIUS
 
 
 def main(argv=None):
@@ -33,7 +33,7 @@ def main(argv=None):
 
     start = time.perf_counter()
     writer = dk.VTKWriter(args.out / "vtk", every=args.every, overwrite=True)
-    scene = dk.scenes.TwoMagnets(b_over_R=4.0).scene()  # the paper's collision at b = 4R
+    scene = dk.two_magnets.TwoMagnets(b_over_R=4.0).scene()  # the paper's collision at b = 4R
     sim = dk.Simulation(scene, dk.EulerCromer(dt=0.01), writers=[writer])
     traj = sim.run(args.duration, record_every=1.0)  # fine recording to find the first contact
     sim.close()  # writes the trails file

@@ -1,6 +1,6 @@
 """Capture threshold: the largest impact parameter at which two magnets still end up stuck.
 
-:func:`capture_threshold` bisects on the simulated outcome of a :class:`demkit.scenes.TwoMagnets`
+:func:`capture_threshold` bisects on the simulated outcome of a :class:`demkit.two_magnets.TwoMagnets`
 set-up; :func:`central_capture` is the closed-form answer for a central attraction
 U(r) = -alpha / r^3 (exact for the power-law model, where touching at these speeds means sticking):
 with reduced mass mu = m/2, relative speed 2v, L = mu (2v) b, energy E = mu (2v)^2/2 - alpha/r0^3 at
@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .integrators import EulerCromer
+from ..integrators import EulerCromer
 
 
 @dataclass(frozen=True)

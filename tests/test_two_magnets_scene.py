@@ -1,10 +1,10 @@
-"""demkit.scenes.TwoMagnets: the paper's initial state, and joining consecutive runs."""
+"""demkit.two_magnets.TwoMagnets: the paper's initial state, and joining consecutive runs."""
 import numpy as np
 import pytest
 
-from demkit import analysis
+from demkit.two_magnets import analysis
 import demkit as dk
-from demkit.scenes import TwoMagnets
+from demkit.two_magnets import TwoMagnets
 
 
 def test_initial_state_is_the_papers():

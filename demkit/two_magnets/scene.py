@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import analysis
-from .integrators import EulerCromer
-from .interactions import Dipole, KelvinVoigt, PowerLawDipole
-from .particles import Particles
-from .scene import Scene
-from .simulation import Simulation, Trajectory
+from ..integrators import EulerCromer
+from ..interactions import Dipole, KelvinVoigt, PowerLawDipole
+from ..particles import Particles
+from ..scene import Scene
+from ..simulation import Simulation, Trajectory
 
 #: the seed paper's settings (dimensionless): R~, impact speed of each sphere, dashpot c = 2 Gamma
 PAPER_RADIUS, PAPER_SPEED, PAPER_DAMPING = 6.94, 5.78e-3, 0.1
@@ -131,7 +131,7 @@ class TwoMagnets:
     # ---- runs --------------------------------------------------------------------------------
     def run(self, revolutions=5, dt=0.01, integrator=EulerCromer, record_every=1.0, max_time=None):
         """Run until the outcome is a miss or a bounce, or the pair settled and turned
-        ``revolutions`` times (ready for :func:`demkit.analysis.final_spin`); returns the Trajectory.
+        ``revolutions`` times (ready for :func:`demkit.two_magnets.analysis.final_spin`); returns the Trajectory.
 
         Runs in chunks (the first sized from :meth:`approach_time`, :data:`SETTLE_ALLOWANCE` and the
         expected period) and stops at ``max_time`` (default three times the first chunk) regardless.
@@ -149,9 +149,9 @@ class TwoMagnets:
             parts.append(sim.run(min(chunk, max_time - sim.time), record_every))
 
     def fate(self, dt=0.01, integrator=EulerCromer, record_every=1.0, max_time=None, chunk=2000.0):
-        """(outcome, trajectory): run until :func:`demkit.analysis.outcome` is certain.
+        """(outcome, trajectory): run until :func:`demkit.two_magnets.analysis.outcome` is certain.
 
-        Raises :class:`demkit.analysis.UndeterminedOutcome` if still undecided at ``max_time``
+        Raises :class:`demkit.two_magnets.analysis.UndeterminedOutcome` if still undecided at ``max_time``
         (default: four approach times plus 20000).
         """
         first = 1.05 * self.approach_time()
