@@ -1,5 +1,6 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
 from . import units
+from .box import Box
 from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions import Dipole, KelvinVoigt, PairInteraction, PowerLawDipole
 from .neighbours import AllPairs
@@ -12,7 +13,7 @@ from . import two_magnets  # the seed paper's two-body study: its scene, analysi
 
 __version__ = "0.1.0"
 
-__all__ = ["Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
+__all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
            "Integrator", "AllPairs", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets"]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-OPTIONAL_FIELDS = ("angular_velocity", "dipole")
+OPTIONAL_FIELDS = ("angular_velocity", "dipole", "image")
 
 
 def _vectors(name, value, n):
@@ -36,6 +36,13 @@ def _scalars(name, value, n, positive=True):
     return np.ascontiguousarray(arr)
 
 
+def _images(value, n):
+    arr = np.array(value)
+    if arr.shape != (n, 3) or not (np.issubdtype(arr.dtype, np.integer) or np.all(arr == np.round(arr))):
+        raise ValueError(f"image must be an ({n}, 3) array of integers, got shape {np.shape(value)}")
+    return np.ascontiguousarray(arr, dtype=np.int64)
+
+
 def _finite(name, arr):
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -56,10 +63,11 @@ class Particles:
     dipole : (N,3) array of magnetic moments, or None (no dipole field is stored).
     angular_velocity : (N,3) array, rad/time, or None (created as zeros if a scene needs it).
     ids : (N,) integers, unique and persistent (default 0..N-1).
+    image : (N,3) integers, periodic image counts, or None (created as zeros in a periodic box).
     """
 
     def __init__(self, position, velocity=None, radius=1.0, mass=1.0, inertia_factor=0.4,
-                 dipole=None, angular_velocity=None, ids=None):
+                 dipole=None, angular_velocity=None, ids=None, image=None):
         self.position = _vectors("position", position, None)
         n = self.position.shape[0]
         if n < 1:
@@ -72,6 +80,7 @@ class Particles:
         self.dipole = None if dipole is None else _vectors("dipole", dipole, n)
         self.angular_velocity = (None if angular_velocity is None
                                  else _vectors("angular_velocity", angular_velocity, n))
+        self.image = None if image is None else _images(image, n)
         if ids is None:
             self.ids = np.arange(n, dtype=np.int64)
         else:
@@ -91,11 +100,11 @@ class Particles:
         if field not in OPTIONAL_FIELDS:
             raise ValueError(f"unknown optional field {field!r}; known: {OPTIONAL_FIELDS}")
         if getattr(self, field) is None:
-            setattr(self, field, np.zeros((self.n, 3)))
+            setattr(self, field, np.zeros((self.n, 3), dtype=np.int64 if field == "image" else np.float64))
 
     def check_finite(self):
         """Raise ValueError if any state array holds NaN or inf."""
-        for name in ("position", "velocity") + OPTIONAL_FIELDS:
+        for name in ("position", "velocity", "angular_velocity", "dipole"):
             arr = getattr(self, name)
             if arr is not None:
                 _finite(name, arr)
