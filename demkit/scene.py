@@ -46,6 +46,7 @@ class Scene:
             inter.check(particles)
         if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions):
             particles.require("angular_velocity")
+        self.box = None  # open space (periodic boxes: see the N-body engine)
         self.pair_list = AllPairs() if pairs is None else pairs
         self.pairs = self.pair_list.build(particles)
         width = sum(inter.history_size for inter in self.interactions)

@@ -29,11 +29,13 @@ class Trajectory:
     time (T,); position, velocity (T,N,3); angular_velocity, dipole (T,N,3) or None when the scene
     has no such field; energy: dict of (T,) arrays (kinetic, rotational, magnetic, contact, ...,
     total, dissipated); angular_momentum (T,3) about the origin (orbital + spin); and the constant
-    particle properties radius, mass, inertia, ids (N,).
+    particle properties radius, mass, inertia, ids (N,). In a periodic box, positions are wrapped
+    into it, ``image`` (T,N,3) holds the integer image counts and ``box`` the :class:`demkit.Box`
+    (both None in open space); :meth:`unwrapped` gives continuous paths.
     """
 
     def __init__(self, time, position, velocity, angular_velocity, dipole, energy,
-                 angular_momentum, radius, mass, inertia, ids):
+                 angular_momentum, radius, mass, inertia, ids, image=None, box=None):
         self.time = time
         self.position = position
         self.velocity = velocity
@@ -42,6 +44,13 @@ class Trajectory:
         self.energy = energy
         self.angular_momentum = angular_momentum
         self.radius, self.mass, self.inertia, self.ids = radius, mass, inertia, ids
+        self.image, self.box = image, box
+
+    def unwrapped(self):
+        """Positions (T,N,3) continued across periodic boundaries: position + image * box size."""
+        if self.image is None:
+            return self.position
+        return self.position + self.image * self.box.size
 
     def __len__(self):
         return len(self.time)
@@ -63,10 +72,11 @@ class Trajectory:
 
         first = parts[0]
         fields = {name: joined([getattr(p, name) for p in parts])
-                  for name in ("time", "position", "velocity", "angular_velocity", "dipole", "angular_momentum")}
+                  for name in ("time", "position", "velocity", "angular_velocity", "dipole", "angular_momentum",
+                               "image")}
         energy = {key: joined([np.asarray(p.energy[key]) for p in parts]) for key in first.energy}
         return cls(energy=energy, radius=first.radius, mass=first.mass, inertia=first.inertia,
-                   ids=first.ids, **fields)
+                   ids=first.ids, box=first.box, **fields)
 
     def linear_momentum(self):
         """Total linear momentum per frame, (T,3)."""
