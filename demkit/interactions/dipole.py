@@ -9,11 +9,27 @@ For moments m_i, m_j and separation r = x_j - x_i (unit vector n = r/|r|), with 
 
 Head-to-tail moments (m_i = m_j = n) attract: F_j = -6 A /r^4 n. The point-dipole form is exact
 for uniformly magnetised spheres (Edwards et al., Am. J. Phys. 85, 130 (2017)).
+
+Truncation (``cutoff``): plain by default (pairs at r >= r_c are skipped, as LAMMPS'
+lj/cut/dipole/cut does; the energy jumps when a pair crosses r_c). With ``switch_width`` w the pair
+energy is multiplied by a smooth switch S(r), S = 1 for r <= r_on = r_c - w and, with
+x = (r - r_on)/w on [r_on, r_c],
+
+    S(x) = 1 - 10 x^3 + 15 x^4 - 6 x^5,     dS/dr = -30 x^2 (1 - x)^2 / w,
+
+so S, S' and S'' vanish at r_c and S', S'' at r_on. The switched pair is a genuine potential,
+
+    U_s = S U,    F_j,s = -dU_s/dx_j = S F_j - U S'(r) n,    tau_s = S tau,
+
+and a run conserves energy to the integrator's order. The switched pair functions repeat the plain
+arithmetic instead of calling the plain ones: the on-disk kernel cache is keyed by the source of the
+pair functions named in the scene, so a callee's later edit would not invalidate it.
 """
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ..motion import KERNEL_OPTIONS
@@ -87,12 +103,125 @@ def power_law_energy(i, j, dx, dy, dz, r2, dipole, prefactor):
     return -2.0 * prefactor * mi * mj / (r2 * math.sqrt(r2))
 
 
+@njit(**KERNEL_OPTIONS)
+def switched_dipole_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+    """Force on j and torques of the switched pair S(r) U: S F_j - U S' n, S tau_i, S tau_j.
+
+    Below ``switch_on`` the arithmetic is that of :func:`dipole_force`, term for term.
+    """
+    inv_r2 = 1.0 / r2
+    inv_r = math.sqrt(inv_r2)
+    ax = dipole[i, 0]
+    ay = dipole[i, 1]
+    az = dipole[i, 2]
+    bx = dipole[j, 0]
+    by = dipole[j, 1]
+    bz = dipole[j, 2]
+    ad = ax * dx + ay * dy + az * dz
+    bd = bx * dx + by * dy + bz * dz
+    ab = ax * bx + ay * by + az * bz
+    inv_r3 = prefactor * inv_r2 * inv_r
+    inv_r5 = inv_r3 * inv_r2
+    radial = 3.0 * inv_r5 * (ab - 5.0 * ad * bd * inv_r2)
+    c = 3.0 * inv_r5
+    fx = radial * dx + c * (bd * ax + ad * bx)
+    fy = radial * dy + c * (bd * ay + ad * by)
+    fz = radial * dz + c * (bd * az + ad * bz)
+    cx = ay * bz - az * by
+    cy = az * bx - ax * bz
+    cz = ax * by - ay * bx
+    si = 3.0 * bd * inv_r5
+    sj = 3.0 * ad * inv_r5
+    tix = si * (ay * dz - az * dy) - inv_r3 * cx
+    tiy = si * (az * dx - ax * dz) - inv_r3 * cy
+    tiz = si * (ax * dy - ay * dx) - inv_r3 * cz
+    tjx = sj * (by * dz - bz * dy) + inv_r3 * cx
+    tjy = sj * (bz * dx - bx * dz) + inv_r3 * cy
+    tjz = sj * (bx * dy - by * dx) + inv_r3 * cz
+    r = r2 * inv_r
+    if r <= switch_on:
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz
+    x = (r - switch_on) / switch_width
+    if x >= 1.0:  # the pair loop already skips r >= r_c; this keeps the function right on its own
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    y = 1.0 - x
+    s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+    ds = -30.0 * x * x * y * y / switch_width              # dS/dr
+    u = inv_r3 * (ab - 3.0 * ad * bd * inv_r2)             # plain pair energy U
+    g = -u * ds * inv_r                                    # -U S' n = g d
+    return (s * fx + g * dx, s * fy + g * dy, s * fz + g * dz,
+            s * tix, s * tiy, s * tiz, s * tjx, s * tjy, s * tjz)
+
+
+@njit(**KERNEL_OPTIONS)
+def switched_dipole_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+    """S(r) U, with U = A [m_i.m_j - 3 (m_i.n)(m_j.n)] / r^3 as in :func:`dipole_energy`."""
+    ad = dipole[i, 0] * dx + dipole[i, 1] * dy + dipole[i, 2] * dz
+    bd = dipole[j, 0] * dx + dipole[j, 1] * dy + dipole[j, 2] * dz
+    ab = dipole[i, 0] * dipole[j, 0] + dipole[i, 1] * dipole[j, 1] + dipole[i, 2] * dipole[j, 2]
+    inv_r3 = 1.0 / (r2 * math.sqrt(r2))
+    u = prefactor * inv_r3 * (ab - 3.0 * ad * bd / r2)
+    r = math.sqrt(r2)
+    if r <= switch_on:
+        return u
+    x = (r - switch_on) / switch_width
+    if x >= 1.0:
+        return 0.0
+    return u * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
+
+
+@njit(**KERNEL_OPTIONS)
+def switched_power_law_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+    """Central force on j of the switched power law S(r) U: S F_j - U S' n."""
+    mi = math.sqrt(dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2)
+    mj = math.sqrt(dipole[j, 0] ** 2 + dipole[j, 1] ** 2 + dipole[j, 2] ** 2)
+    s = -6.0 * prefactor * mi * mj / (r2 * r2 * math.sqrt(r2))
+    r = math.sqrt(r2)
+    if r <= switch_on:
+        return s * dx, s * dy, s * dz
+    x = (r - switch_on) / switch_width
+    if x >= 1.0:
+        return 0.0, 0.0, 0.0
+    y = 1.0 - x
+    sw = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+    ds = -30.0 * x * x * y * y / switch_width
+    u = -2.0 * prefactor * mi * mj / (r2 * r)
+    g = sw * s - u * ds / r
+    return g * dx, g * dy, g * dz
+
+
+@njit(**KERNEL_OPTIONS)
+def switched_power_law_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+    """S(r) U with U = -2 A |m_i||m_j| / r^3."""
+    mi = math.sqrt(dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2)
+    mj = math.sqrt(dipole[j, 0] ** 2 + dipole[j, 1] ** 2 + dipole[j, 2] ** 2)
+    u = -2.0 * prefactor * mi * mj / (r2 * math.sqrt(r2))
+    r = math.sqrt(r2)
+    if r <= switch_on:
+        return u
+    x = (r - switch_on) / switch_width
+    if x >= 1.0:
+        return 0.0
+    return u * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
+
+
+def switch(r, cutoff, switch_width):
+    """The switching function S(r) and dS/dr (numpy, for tests and plots)."""
+    r = np.asarray(r, dtype=float)
+    x = np.clip((r - (cutoff - switch_width)) / switch_width, 0.0, 1.0)
+    return 1.0 - 10 * x**3 + 15 * x**4 - 6 * x**5, -30.0 * x**2 * (1.0 - x) ** 2 / switch_width
+
+
 class Dipole(PairInteraction):
     """Full dipole-dipole force and torque (see module docstring).
 
     prefactor : A = mu0/4pi (1e-7 T m/A in SI); 1/3 with unit moments gives the seed paper's units.
-    cutoff : centre distance beyond which the pair is ignored (None: never). A cutoff without a
-        shift makes the energy jump when pairs cross it.
+    cutoff : centre distance r_c beyond which the pair is ignored (None: never).
+    switch_width : None (default) truncates plainly at ``cutoff``: forces, torques and energy jump
+        when a pair crosses it, so a long run's energy drifts. A width w with 0 < w < cutoff
+        multiplies the pair energy by a smooth switch S(r) on [cutoff - w, cutoff] (S = 1 below,
+        0 at the cutoff, continuous first and second derivatives) and derives force and torque
+        from it: a genuine, energy-conserving potential, exact below cutoff - w.
     """
 
     reads = ("dipole",)
@@ -101,10 +230,37 @@ class Dipole(PairInteraction):
     parameters = ("prefactor",)
     force_function = dipole_force
     energy_function = dipole_energy
+    #: (force, energy) pair functions of the switched form; their parameters are
+    #: ("prefactor", "switch_on", "switch_width")
+    switched_functions = (switched_dipole_force, switched_dipole_energy)
 
-    def __init__(self, prefactor=1e-7, cutoff=None):
-        self.prefactor = positive("Dipole prefactor", prefactor)
-        self.cutoff_distance = None if cutoff is None else positive("Dipole cutoff", cutoff)
+    def __init__(self, prefactor=1e-7, cutoff=None, switch_width=None):
+        name = type(self).__name__
+        self.prefactor = positive(f"{name} prefactor", prefactor)
+        self.cutoff_distance = None if cutoff is None else positive(f"{name} cutoff", cutoff)
+        self.switch_width = None
+        if switch_width is None:
+            return
+        if cutoff is None:
+            raise ValueError(f"{name} switch_width needs a cutoff: the switch runs from cutoff - "
+                             f"switch_width to cutoff (got switch_width={switch_width!r}, cutoff=None)")
+        width = positive(f"{name} switch_width", switch_width)
+        if not width < self.cutoff_distance:
+            raise ValueError(f"{name} switch_width must be a positive finite number smaller than the "
+                             f"cutoff, got switch_width={width} with cutoff={self.cutoff_distance}")
+        self.switch_width = width
+        self.switch_on = self.cutoff_distance - width
+        # instance attributes: PairInteraction.pair_functions() looks them up statically
+        self.force_function, self.energy_function = self.switched_functions
+        self.parameters = ("prefactor", "switch_on", "switch_width")
+
+    def __repr__(self):
+        args = f"prefactor={self.prefactor!r}"
+        if self.cutoff_distance is not None:
+            args += f", cutoff={self.cutoff_distance!r}"
+        if self.switch_width is not None:
+            args += f", switch_width={self.switch_width!r}"
+        return f"{type(self).__name__}({args})"
 
 
 class PowerLawDipole(Dipole):
@@ -112,8 +268,10 @@ class PowerLawDipole(Dipole):
 
     F_j = -6 A |m_i||m_j| / r^4 n and U = -2 A |m_i||m_j| / r^3: the head-to-tail force, applied
     whatever the orientation. It conserves angular momentum trivially but gives the wrong spin-up.
+    ``cutoff`` and ``switch_width`` as for :class:`Dipole`.
     """
 
     torque = False
     force_function = power_law_force
     energy_function = power_law_energy
+    switched_functions = (switched_power_law_force, switched_power_law_energy)
