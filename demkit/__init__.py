@@ -3,7 +3,6 @@ from . import units
 from .box import Box
 from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions import Dipole, KelvinVoigt, PairInteraction, PowerLawDipole
-from .neighbours import AllPairs
 from .particles import Particles
 from .scene import Scene
 from .simulation import Simulation, SimulationError, Trajectory
@@ -15,5 +14,5 @@ __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
-           "Integrator", "AllPairs", "units", "VTKWriter", "write_polylines",
+           "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets"]

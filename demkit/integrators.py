@@ -4,16 +4,19 @@ Each integrator names a *loop template*: a plain Python function whose source is
 scene's generated kernel module (:mod:`demkit.kernels`) and compiled there, so that many steps run
 in compiled code between Python-level events. A template has the signature
 
-    template(nsteps, first_step, stride, dt, forces_ready, state, record) -> int
+    template(nsteps, first_step, stride, dt, forces_ready, s, record) -> int
 
-and may call ``forces_of(state, commit)`` (fills ``force``/``torque``, returns the dissipated power),
-``end_step(step, countdown, stride, state, record)`` (finiteness check and recording; returns the
-steps left until the next frame, or -1 for a non-finite state) and the helpers of
-:mod:`demkit.motion`. ``state`` is the tuple
-(position, velocity, angular_velocity, dipole, radius, mass, inertia, pairs, history, params,
-force, torque, accum); accum[0] is the dissipated work. It records frame ``step // stride`` after
-every step that is a multiple of ``stride`` (global count ``first_step + n + 1``) and returns -1,
-or the index n of the step that produced a non-finite state.
+where ``s`` is the scene's named state (:mod:`demkit.state`: ``s.position``, ``s.velocity``,
+``s.angular_velocity``, ``s.dipole``, ``s.mass``, ``s.inertia``, ``s.force``, ``s.torque``,
+``s.accum`` (accum[0]: dissipated work), ...). It may call ``forces_of(s, commit)`` (fills
+``s.force``/``s.torque`` and keeps neighbour lists up to date; returns the dissipated power),
+``end_step(step, countdown, stride, s, record)`` (list upkeep, finiteness check and recording;
+returns the steps left until the next frame, or -1 when the run must stop) and the helpers of
+:mod:`demkit.motion`. Pass fields straight into calls (``kick(s.velocity, s.force, s.mass, h)``);
+binding them to local names makes numba count references at every use. It records frame
+``step // stride`` after every step that is a multiple of ``stride`` (global count
+``first_step + n + 1``) and returns -1, or the index n of the step after which the run stopped.
+Per-particle arrays may be re-ordered or wrapped only in ``end_step``, between steps.
 
 Planned without rework: a 4th-order symplectic composition (velocity-Verlet sub-steps with
 Yoshida coefficients, same template shape), classic RK4 (stages on copies of the state arrays),
@@ -27,36 +30,32 @@ import math
 from .motion import advance_spin, drift, kick  # noqa: F401 (used by templates)
 
 
-def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, state, record):
-    position, velocity, angular_velocity, dipole = state[0], state[1], state[2], state[3]
-    mass, inertia, force, torque, accum = state[5], state[6], state[10], state[11], state[12]
+def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
-        accum[0] += dt * forces_of(state, True)  # noqa: F821 (defined in the generated module)
-        kick(velocity, force, mass, dt)
-        drift(position, velocity, dt)
-        advance_spin(angular_velocity, dipole, torque, inertia, dt, dt)
-        countdown = end_step(first_step + n + 1, countdown, stride, state, record)  # noqa: F821
+        s.accum[0] += dt * forces_of(s, True)  # noqa: F821 (defined in the generated module)
+        kick(s.velocity, s.force, s.mass, dt)
+        drift(s.position, s.velocity, dt)
+        advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, dt, dt)
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
             return n
     return -1
 
 
-def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, state, record):
-    position, velocity, angular_velocity, dipole = state[0], state[1], state[2], state[3]
-    mass, inertia, force, torque, accum = state[5], state[6], state[10], state[11], state[12]
+def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     half = 0.5 * dt
     if not forces_ready:
-        forces_of(state, False)  # noqa: F821
+        forces_of(s, False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
-        kick(velocity, force, mass, half)
-        advance_spin(angular_velocity, dipole, torque, inertia, half, dt)
-        drift(position, velocity, dt)
-        accum[0] += dt * forces_of(state, True)  # noqa: F821
-        kick(velocity, force, mass, half)
-        advance_spin(angular_velocity, dipole, torque, inertia, half, 0.0)
-        countdown = end_step(first_step + n + 1, countdown, stride, state, record)  # noqa: F821
+        kick(s.velocity, s.force, s.mass, half)
+        advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, half, dt)
+        drift(s.position, s.velocity, dt)
+        s.accum[0] += dt * forces_of(s, True)  # noqa: F821
+        kick(s.velocity, s.force, s.mass, half)
+        advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, half, 0.0)
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
             return n
     return -1

@@ -1,18 +1,23 @@
-"""Generate one fused, compiled kernel module for a scene's chosen interactions.
+"""Generate one fused, compiled kernel module for a scene.
 
-The generated module holds
+The scene's interactions come in *groups* (:class:`Group`): interactions of the same reach share a
+pair loop, over a neighbour list (``kind="list"``) or over all pairs i < j (``kind="all"``, for no
+cutoff or a handful of spheres). For each group the module holds
 
-* ``compute_forces(position, velocity, angular_velocity, dipole, radius, mass, pairs, history,
-  params, force, torque, commit) -> dissipated power``: one loop over the pair list calling only
-  the chosen interactions' force functions and applying Newton's third law once per pair;
-* ``compute_energies(..., out)``: kinetic, rotational, then one potential energy per energy kind;
-* one ``<name>_steps`` time loop per integrator template (see :mod:`demkit.integrators`), pasted
-  from ordinary Python source so that the whole time step runs in compiled code.
+* ``group_<g>_forces(<arrays>, force, torque, start, end, partner, history, commit)``: its pair loop,
+  calling only its interactions' pair functions, Newton's third law applied once per pair, minimum
+  image only along periodic axes; returns the dissipated power. ``_parallel`` variants split the
+  owners into fixed chunks with their own force buffers (results independent of the thread count);
+* ``group_<g>_energies`` and ``group_<g>_pair_energies`` (diagnostics),
 
-Absent optional fields are passed as (0, 3) arrays. Parameters arrive in ``params`` (an argument,
-not a frozen global). The source is written to a cache folder named by a hash of everything it
-depends on (its own text and the source of every pair function), so numba's on-disk cache can be
-reused safely between runs; set ``DEMKIT_CACHE_DIR`` to move it, ``DEMKIT_NO_CACHE=1`` to disable it.
+and for the scene ``forces_of(s, commit)``, ``energies_of(s, out)``, ``end_step`` (list upkeep,
+wrapping, finiteness, recording) and one ``<name>_steps`` time loop per integrator template (see
+:mod:`demkit.integrators`), pasted from ordinary Python source. ``s`` is the scene's named state
+(:mod:`demkit.state`). Parameters arrive in ``s.params`` (an argument, not a frozen global).
+
+The source is written to a cache folder named by a hash of everything it depends on (its own text
+and the source of every pair function), so numba's on-disk cache is reused safely between runs;
+set ``DEMKIT_CACHE_DIR`` to move it, ``DEMKIT_NO_CACHE=1`` to disable it.
 """
 from __future__ import annotations
 
@@ -23,14 +28,49 @@ import os
 import sys
 import tempfile
 import textwrap
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numba
 
-from .interactions.base import FIELDS
-
 ENERGY_KINDS = ("magnetic", "contact")
 _MODULES = {}
+
+
+@dataclass
+class Group:
+    """Interactions sharing one pair loop: ``members`` are (global index, interaction) pairs."""
+
+    members: list
+    kind: str  # "list" or "all"
+    reach: float  # interaction reach (the list adds the skin)
+    parallel: bool = False
+    offsets: dict = field(default_factory=dict)  # global index -> history offset in the group's rows
+
+    def __post_init__(self):
+        width = 0
+        for k, inter in self.members:
+            self.offsets[k] = width
+            width += inter.history_size
+        self.width = width
+
+    @property
+    def torque(self):
+        return any(inter.torque for _, inter in self.members)
+
+
+@dataclass
+class Plan:
+    """Everything the generated source depends on."""
+
+    interactions: tuple
+    groups: list
+    periodic: tuple  # three bools
+    growing: bool  # neighbour lists (mutable state, reference counting on)
+
+    @property
+    def lists(self):
+        return [g for g, group in enumerate(self.groups) if group.kind == "list"]
 
 
 def energy_kinds(interactions):
@@ -54,143 +94,308 @@ def _importable(fn):
     return found is fn
 
 
-def _pair_call(k, inter, offset, kind):
+ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params"
+LIST_ARRAYS = "start, end, partner, history"
+
+
+def _state_arrays(g):
+    """Call arguments handing group g's arrays over from the state ``s``."""
+    fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
+    lists = ", ".join(f"s.lists[{g}].{name}" for name in LIST_ARRAYS.split(", "))
+    return f"{fields}, {{targets}}{lists}"
+
+
+def _pair_call(k, inter, offset, kind, nparams):
     """Source of the call to interaction k's force or energy function."""
     args = ["i", "j", "dx", "dy", "dz", "r2", *inter.reads]
     if inter.history_size:
         args += ["history", "p", str(offset), "commit" if kind == "force" else "False"]
-    args += [f"p{k}_{n}" for n in range(len(inter.parameters))]
+    args += [f"p{k}_{n}" for n in range(nparams)]
     return f"{kind}_{k}({', '.join(args)})"
 
 
-def generate_source(interactions, templates, importable):
-    """Python source of the fused kernel module (see module docstring)."""
-    lines = ["import math", "import numpy as np", "from numba import njit",
-             "from demkit.motion import kick, drift, rotate, advance_spin, state_is_finite, "
-             "kinetic_energies, store_frame", ""]
-    if importable:
-        for k, inter in enumerate(interactions):
-            for kind, fn in zip(("force", "energy"), inter.pair_functions()):
-                lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
-    lines.append("from demkit.motion import KERNEL_OPTIONS")
-    lines.append(f"OPTIONS = dict(KERNEL_OPTIONS, cache={importable})")
-    any_torque = any(inter.torque for inter in interactions)
-    kinds = energy_kinds(interactions)
-    args = "position, velocity, angular_velocity, dipole, radius, mass, pairs, history, params"
+class _Source:
+    """Builds the text of the generated module."""
 
-    # parameters read once from the params array
-    unpack, offset = [], 0
-    for k, inter in enumerate(interactions):
-        for n in range(len(inter.parameters)):
-            unpack.append(f"    p{k}_{n} = params[{offset}]")
-            offset += 1
-    hist_offsets, h = [], 0
-    for inter in interactions:
-        hist_offsets.append(h)
-        h += inter.history_size
+    def __init__(self, plan, importable):
+        self.plan = plan
+        self.kinds = energy_kinds(plan.interactions)
+        self.importable = importable
+        # parameter slots: each interaction's parameters, then one squared cutoff per interaction
+        self.param_slot, slot = {}, 0
+        for k, inter in enumerate(plan.interactions):
+            self.param_slot[k] = slot
+            slot += len(inter.parameters)
+        self.cutoff_slot = {k: slot + k for k in range(len(plan.interactions))}
 
-    def pair_loop(body):
-        out = ["    for p in range(pairs.shape[0]):",
-               "        i = pairs[p, 0]",
-               "        j = pairs[p, 1]",
-               "        dx = position[j, 0] - position[i, 0]",
-               "        dy = position[j, 1] - position[i, 1]",
-               "        dz = position[j, 2] - position[i, 2]",
-               "        r2 = dx * dx + dy * dy + dz * dz"]
-        return out + body
+    # ---- pair loops ------------------------------------------------------------------------
+    def prelude(self, group):
+        lines = ["    n = position.shape[0]"]
+        for a, axis in enumerate("xyz"):
+            if self.plan.periodic[a] and group.kind == "list":
+                lines += [f"    l{axis} = box[{a}]", f"    h{axis} = 0.5 * box[{a}]"]
+        for k, inter in group.members:
+            for m in range(len(inter.parameters)):
+                lines.append(f"    p{k}_{m} = params[{self.param_slot[k] + m}]")
+            if inter.cutoff_distance is not None:
+                lines.append(f"    c{k} = params[{self.cutoff_slot[k]}]")
+        return lines
 
-    def guarded(k, inter, statements):
-        """Indent ``statements`` under the cutoff test of interaction k, if it has a cutoff."""
+    def rows(self, group, indent, first, last):
+        """Loop headers over the pairs of owners first..last-1; the body goes at indent + 8."""
+        pad = " " * indent
+        lines = [f"{pad}for i in range({first}, {last}):",
+                 f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
+        if group.kind == "list":
+            lines.append(f"{pad}    for p in range(start[i], end[i]):")
+            lines.append(f"{pad}        j = partner[p]")
+        else:
+            if group.width:
+                lines.append(f"{pad}    p = i * (2 * n - i - 1) // 2 - 1")
+            lines.append(f"{pad}    for j in range(i + 1, n):")
+            if group.width:
+                lines.append(f"{pad}        p += 1")
+        lines += [f"{pad}        dx = position[j, 0] - xi", f"{pad}        dy = position[j, 1] - yi",
+                  f"{pad}        dz = position[j, 2] - zi"]
+        for a, axis in enumerate("xyz"):
+            if self.plan.periodic[a] and group.kind == "list":
+                d = f"d{axis}"
+                lines += [f"{pad}        if {d} > h{axis}:", f"{pad}            {d} -= l{axis}",
+                          f"{pad}        elif {d} < -h{axis}:", f"{pad}            {d} += l{axis}"]
+        lines.append(f"{pad}        r2 = dx * dx + dy * dy + dz * dz")
+        return lines
+
+    def guarded(self, k, inter, statements, pad):
         if inter.cutoff_distance is None:
-            return ["        " + st for st in statements]
-        return [f"        if r2 < params[{offset + k}]:"] + ["            " + st for st in statements]
+            return [pad + st for st in statements]
+        return [f"{pad}if r2 < c{k}:"] + [pad + "    " + st for st in statements]
 
-    # ---- forces
-    body = ["        fx = 0.0", "        fy = 0.0", "        fz = 0.0"]
-    if any_torque:
-        body += [f"        {c} = 0.0" for c in ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")]
-    for k, inter in enumerate(interactions):
-        outs = ["ax", "ay", "az"]
-        acc = ["fx += ax", "fy += ay", "fz += az"]
-        if inter.torque:
-            outs += ["bix", "biy", "biz", "bjx", "bjy", "bjz"]
-            acc += ["tix += bix", "tiy += biy", "tiz += biz", "tjx += bjx", "tjy += bjy", "tjz += bjz"]
-        if inter.dissipative:
-            outs += ["w"]
-            acc += ["power += w"]
-        call = f"{', '.join(outs)} = {_pair_call(k, inter, hist_offsets[k], 'force')}"
-        body += guarded(k, inter, [call] + acc)
-    body += ["        force[i, 0] -= fx", "        force[i, 1] -= fy", "        force[i, 2] -= fz",
-             "        force[j, 0] += fx", "        force[j, 1] += fy", "        force[j, 2] += fz"]
-    if any_torque:
-        body += ["        torque[i, 0] += tix", "        torque[i, 1] += tiy", "        torque[i, 2] += tiz",
-                 "        torque[j, 0] += tjx", "        torque[j, 1] += tjy", "        torque[j, 2] += tjz"]
-    lines += ["", "@njit(**OPTIONS)",
-              f"def compute_forces({args}, force, torque, commit):",
-              '    """Forces and torques of all chosen interactions; returns the dissipated power."""',
-              "    for i in range(force.shape[0]):",
-              "        for a in range(3):",
-              "            force[i, a] = 0.0",
-              "            torque[i, a] = 0.0"] + unpack + ["    power = 0.0"]
-    lines += pair_loop(body) + ["    return power"]
-
-    # ---- energies: totals per kind, and per pair and interaction (diagnostics)
-    def energy_body(target):
-        body = []
-        for k, inter in enumerate(interactions):
-            slot = target(k, 2 + kinds.index(inter.energy_kind))
-            body += guarded(k, inter, [f"{slot} += {_pair_call(k, inter, hist_offsets[k], 'energy')}"])
+    def force_body(self, group, indent, force, torque):
+        pad = " " * indent
+        torque_on = group.torque
+        body = [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"]
+        if torque_on:
+            body += [f"{pad}{c} = 0.0" for c in ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")]
+        for k, inter in group.members:
+            outs = ["ax", "ay", "az"]
+            acc = ["fx += ax", "fy += ay", "fz += az"]
+            if inter.torque:
+                outs += ["bix", "biy", "biz", "bjx", "bjy", "bjz"]
+                acc += ["tix += bix", "tiy += biy", "tiz += biz", "tjx += bjx", "tjy += bjy", "tjz += bjz"]
+            if inter.dissipative:
+                outs += ["w"]
+                acc += ["power += w"]
+            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force', len(inter.parameters))}"
+            body += self.guarded(k, inter, [call] + acc, pad)
+        body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
+                 f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz"]
+        if torque_on:
+            body += [f"{pad}{torque}[j, 0] += tjx", f"{pad}{torque}[j, 1] += tjy", f"{pad}{torque}[j, 2] += tjz",
+                     f"{pad}qix += tix", f"{pad}qiy += tiy", f"{pad}qiz += tiz"]
         return body
 
-    lines += ["", "@njit(**OPTIONS)",
-              f"def compute_energies({args}, inertia, out):",
-              '    """out = [kinetic, rotational, <one potential energy per kind>]."""',
-              "    out[:] = 0.0",
-              "    out[0], out[1] = kinetic_energies(velocity, angular_velocity, mass, inertia)"]
-    lines += unpack + (pair_loop(energy_body(lambda k, slot: f"out[{slot}]")) if interactions else [])
-    lines += ["", "@njit(**OPTIONS)",
-              f"def compute_pair_energies({args}, out):",
-              '    """out[p, k] = energy of pair p under interaction k."""',
-              "    out[:, :] = 0.0"]
-    lines += unpack + (pair_loop(energy_body(lambda k, slot: f"out[p, {k}]")) if interactions else [])
+    def owner_sums(self, group, indent, force, torque):
+        """Per-owner accumulators: opened after the row header, stored after the row."""
+        pad = " " * indent
+        open_ = [f"{pad}fix = 0.0", f"{pad}fiy = 0.0", f"{pad}fiz = 0.0"]
+        close = [f"{pad}{force}[i, 0] += fix", f"{pad}{force}[i, 1] += fiy", f"{pad}{force}[i, 2] += fiz"]
+        if group.torque:
+            open_ += [f"{pad}qix = 0.0", f"{pad}qiy = 0.0", f"{pad}qiz = 0.0"]
+            close += [f"{pad}{torque}[i, 0] += qix", f"{pad}{torque}[i, 1] += qiy", f"{pad}{torque}[i, 2] += qiz"]
+        return open_, close
 
-    # ---- state-tuple wrappers used by the time loops
-    lines += ["", "", "@njit(**OPTIONS)",
-              "def forces_of(state, commit):",
-              "    return compute_forces(state[0], state[1], state[2], state[3], state[4], state[5],",
-              "                          state[7], state[8], state[9], state[10], state[11], commit)",
-              "", "", "@njit(**OPTIONS)",
-              "def record_frame(k, state, record):",
-              "    store_frame(k, state[0], state[1], state[2], state[3], state[5], state[6], record)",
-              "    e = record[4]",
-              "    last = e.shape[1] - 1",
-              "    energies_of(state, e[k, :last])",
-              "    e[k, last] = state[12][0]",
-              "", "", "@njit(**OPTIONS)",
-              "def energies_of(state, out):",
-              "    compute_energies(state[0], state[1], state[2], state[3], state[4], state[5],",
-              "                     state[7], state[8], state[9], state[6], out)",
-              "", "", "@njit(**OPTIONS)",
-              "def pair_energies_of(state, out):",
-              "    compute_pair_energies(state[0], state[1], state[2], state[3], state[4], state[5],",
-              "                          state[7], state[8], state[9], out)",
-              "", "", "@njit(**OPTIONS)",
-              "def end_step(step, countdown, stride, state, record):",
-              '    """After global step ``step``: -1 if the state went non-finite, else the steps left',
-              '    until the next frame (recording frame step // stride when it is due)."""',
-              "    if not state_is_finite(state[0], state[1], state[2]):",
-              "        return -1",
-              "    if countdown == 1:",
-              "        record_frame(step // stride, state, record)",
-              "        return stride",
-              "    return countdown - 1"]
+    def force_loop(self, group, indent, first, last, force, torque):
+        rows = self.rows(group, indent, first, last)
+        open_, close = self.owner_sums(group, indent + 4, force, torque)
+        # the accumulators open right after the owner's coordinates are read
+        return rows[:4] + open_ + rows[4:] + self.force_body(group, indent + 8, force, torque) + close
 
-    # ---- integrator time loops
-    for name, template in templates.items():
-        src = textwrap.dedent(inspect.getsource(template))
-        src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
-        lines += ["", "", "@njit(**OPTIONS)"] + src.rstrip().splitlines()
-    return "\n".join(lines) + "\n"
+    def group_forces(self, g, group):
+        signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, commit"
+        lines = ["", "", "@njit(**INNER)", f"def group_{g}_forces({signature}):",
+                 f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
+        lines += self.prelude(group) + ["    power = 0.0"]
+        lines += self.force_loop(group, 4, 0, "n", "force", "torque")
+        lines.append("    return power")
+        if not group.parallel:
+            return lines
+        lines += ["", "", "@njit(**PARALLEL)",
+                  f"def group_{g}_forces_parallel({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
+                  '    """As the serial loop, owners cut into fixed chunks with their own buffers, summed in',
+                  '    chunk order (the same result for any number of threads)."""']
+        lines += self.prelude(group)
+        lines += ["    chunks = bounds.shape[0] - 1",
+                  "    for t in prange(chunks):",
+                  "        cf = chunk_force[t]",
+                  "        ct = chunk_torque[t]",
+                  "        for i in range(n):",
+                  "            for a in range(3):",
+                  "                cf[i, a] = 0.0"]
+        if group.torque:
+            lines += ["                ct[i, a] = 0.0"]
+        lines += ["        power = 0.0"]
+        lines += self.force_loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct")
+        lines += ["        chunk_power[t] = power",
+                  "    for i in prange(n):",
+                  "        for a in range(3):",
+                  "            total = 0.0",
+                  "            for t in range(chunks):",
+                  "                total += chunk_force[t, i, a]",
+                  "            force[i, a] += total"]
+        if group.torque:
+            lines += ["            total = 0.0",
+                      "            for t in range(chunks):",
+                      "                total += chunk_torque[t, i, a]",
+                      "            torque[i, a] += total"]
+        lines += ["    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
+                  "    return power"]
+        return lines
+
+    def energy_statements(self, group, target):
+        body = []
+        for k, inter in group.members:
+            call = _pair_call(k, inter, group.offsets[k], "energy", len(inter.parameters))
+            body += self.guarded(k, inter, [f"{target(k)} += {call}"], " " * 12)
+        return body
+
+    def group_energies(self, g, group):
+        lines = ["", "", "@njit(**INNER)", f"def group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out):",
+                 f'    """Add the potential energies of group {g} to out[2 + kind]."""']
+        lines += self.prelude(group)
+        lines += self.rows(group, 4, 0, "n")
+        lines += self.energy_statements(group, lambda k: f"out[{2 + self.kinds.index(self.plan.interactions[k].energy_kind)}]")
+        lines += ["", "", "@njit(**INNER)",
+                  f"def group_{g}_pair_energies({ARRAYS}, {LIST_ARRAYS}, owners, partners, out):",
+                  f'    """owners[q], partners[q], out[q, k]: entry q of group {g} and its energy under',
+                  '    interaction k (global numbering)."""']
+        lines += self.prelude(group) + ["    q = 0"]
+        lines += self.rows(group, 4, 0, "n")
+        lines += ["            owners[q] = i", "            partners[q] = j"]
+        lines += self.energy_statements(group, lambda k: f"out[q, {k}]") + ["            q += 1"]
+        return lines
+
+    # ---- scene-level functions -----------------------------------------------------------------
+    def group_call(self, g, group, kind, targets, extra):
+        args = _state_arrays(g).format(targets=targets)
+        return f"group_{g}_{kind}({args}{extra})"
+
+    def scene_functions(self):
+        plan = self.plan
+        lines = []
+        if plan.lists:
+            lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
+                      '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
+                      '    build; ``strict``: flag MOVED_TOO_FAR when it moved more than the skin (a step too long',
+                      '    for the lists to be trusted)."""',
+                      "    d2, k = max_displacement(s.position, s.reference)",
+                      "    if d2 <= 0.25 * s.skin * s.skin:",
+                      "        return",
+                      "    if strict and d2 > s.skin * s.skin and s.status[0] == OK:",
+                      "        s.status[0] = MOVED_TOO_FAR",
+                      "        s.status[1] = k"]
+            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)" for g in plan.lists]
+            lines += ["    copy_rows(s.reference, s.position)",
+                      "    s.counters[REBUILDS] += 1",
+                      "    s.counters[WRAP_DUE] = 1"]
+        # forces
+        lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
+                  '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
+        if plan.lists:
+            lines.append("    maintain_lists(s, strict)")
+        lines += ["    clear(force, torque)", "    power = 0.0"]
+        for g, group in enumerate(plan.groups):
+            if group.parallel:
+                extra = f", commit, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
+                lines.append("    power += " + self.group_call(g, group, "forces_parallel", "force, torque, ", extra))
+            else:
+                lines.append("    power += " + self.group_call(g, group, "forces", "force, torque, ", ", commit"))
+        lines += ["    return power",
+                  "", "", "@njit(**OUTER)", "def forces_of(s, commit):",
+                  '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""',
+                  "    return compute_forces(s, s.force, s.torque, commit, True)"]
+        # energies
+        lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
+                  '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
+        if plan.lists:
+            lines.append("    maintain_lists(s, False)")
+        lines += ["    for a in range(out.shape[0]):", "        out[a] = 0.0",
+                  "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
+        for g, group in enumerate(plan.groups):
+            lines.append("    " + self.group_call(g, group, "energies", "", ", out"))
+        for g, group in enumerate(plan.groups):
+            lines += ["", "", "@njit(**OUTER)", f"def pair_energies_{g}(s, owners, partners, out):"]
+            if plan.lists:
+                lines.append("    maintain_lists(s, False)")
+            lines.append("    " + self.group_call(g, group, "pair_energies", "", ", owners, partners, out"))
+        lines += ["", "", "@njit(**OUTER)", "def prepare(s):",
+                  '    """Before stepping: lists up to date, periodic coordinates wrapped into the box."""']
+        if plan.lists:
+            lines.append("    maintain_lists(s, False)")
+        if any(plan.periodic):
+            lines.append("    wrap(s.position, s.reference, s.image, s.box, s.periodic)")
+        lines.append("    return 0")
+        # end of step and recording
+        lines += ["", "", "@njit(**OUTER)", "def record_frame(k, s, record):",
+                  "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
+                  "                s.inertia, s.box, s.periodic, record)",
+                  "    e = record[4]",
+                  "    last = e.shape[1] - 1",
+                  "    energies_of(s, e[k, :last])",
+                  "    e[k, last] = s.accum[0]",
+                  "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
+                  '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
+                  '    steps left until the next frame (recording frame step // stride when it is due)."""']
+        if plan.lists and any(plan.periodic):
+            lines += ["    if s.counters[WRAP_DUE] != 0:",
+                      "        wrap(s.position, s.reference, s.image, s.box, s.periodic)",
+                      "        s.counters[WRAP_DUE] = 0"]
+        if plan.lists:  # only list upkeep can flag a stop before the finiteness check
+            lines += ["    if s.status[0] != OK:", "        s.status[2] = step", "        return -1"]
+        lines += ["    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
+                  "        s.status[0] = NON_FINITE",
+                  "        s.status[2] = step",
+                  "        return -1",
+                  "    if countdown == 1:",
+                  "        record_frame(step // stride, s, record)",
+                  "        return stride",
+                  "    return countdown - 1"]
+        return lines
+
+    def text(self, templates):
+        plan = self.plan
+        lines = ["import math", "import numpy as np", "from numba import njit, prange",
+                 "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
+                 "                           store_frame, clear, KERNEL_OPTIONS)",
+                 "from demkit.neighbours import max_displacement, rebuild, copy_rows, wrap",
+                 "from demkit.state import OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE", ""]
+        if self.importable:
+            for k, inter in enumerate(plan.interactions):
+                for kind, fn in zip(("force", "energy"), inter.pair_functions()):
+                    lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
+        cache = self.importable
+        fast = 'fastmath={"contract", "arcp"}'
+        nrt = "" if plan.growing else ", _nrt=False"
+        if plan.growing:  # big scenes: separate pair-loop functions, no reference counting inside
+            lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
+        else:  # small scenes: everything inlined into the time loop
+            lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache})")
+        lines += [f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
+                  f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
+                  f"UPKEEP = dict(cache={cache})",
+                  f"LOOP = dict(cache={cache}, {fast}{nrt})"]
+        for g, group in enumerate(plan.groups):
+            lines += self.group_forces(g, group) + self.group_energies(g, group)
+        lines += self.scene_functions()
+        for name, template in templates.items():
+            src = textwrap.dedent(inspect.getsource(template))
+            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
+            lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
+        return "\n".join(lines) + "\n"
+
+
+def generate_source(plan, templates, importable):
+    """Python source of the fused kernel module (see module docstring)."""
+    return _Source(plan, importable).text(templates)
 
 
 def _cache_dir():
@@ -207,20 +412,22 @@ def _fingerprint(source, interactions):
     for inter in interactions:
         for fn in inter.pair_functions():
             h.update(inspect.getsource(fn.py_func).encode())
-    from . import motion
-    h.update(inspect.getsource(motion).encode())
+    from . import motion, neighbours, state
+    for module in (motion, neighbours, state):
+        h.update(inspect.getsource(module).encode())
     return h.hexdigest()[:20]
 
 
-def build_module(interactions, templates):
-    """Return the compiled kernel module for these interactions and integrator templates."""
+def build_module(plan, templates):
+    """Return the compiled kernel module for this plan and these integrator templates."""
+    interactions = plan.interactions
     for inter in interactions:
         for fn in inter.pair_functions():
             if not hasattr(fn, "py_func"):
                 raise TypeError(f"{type(inter).__name__}: pair functions must be numba @njit functions")
     importable = all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
     importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
-    source = generate_source(interactions, templates, importable)
+    source = generate_source(plan, templates, importable)
     key = _fingerprint(source, interactions)
     name = f"demkit_kernel_{key}"
     if not importable:  # in memory: bind to these very function objects, not look-alikes
@@ -247,7 +454,7 @@ def _load_from_file(name, source):
                 fh.write(source)
             os.replace(tmp, path)
     except OSError:
-        return _load_in_memory(name, source.replace("cache=True)", "cache=False)"), None)
+        return _load_in_memory(name, source.replace("cache=True", "cache=False"), None)
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module

@@ -119,36 +119,69 @@ def kinetic_energies(velocity, angular_velocity, mass, inertia):
 
 
 @njit(**KERNEL_OPTIONS)
-def store_frame(k, position, velocity, angular_velocity, dipole, mass, inertia, record):
-    """Copy the state into frame k of the record arrays and store the angular momentum about 0."""
-    rec_position, rec_velocity, rec_omega, rec_dipole, rec_energy, rec_momentum = record
+def clear(force, torque):
+    """Zero the force and torque arrays."""
+    for i in range(force.shape[0]):
+        for a in range(3):
+            force[i, a] = 0.0
+    for i in range(torque.shape[0]):
+        for a in range(3):
+            torque[i, a] = 0.0
+
+
+@njit(**KERNEL_OPTIONS)
+def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mass, inertia, box, periodic,
+                record):
+    """Copy the state into frame k of the record arrays, particle i at row tag[i] (the user's order).
+
+    Along periodic axes the recorded position is folded into [0, L) and the recorded image count
+    follows. Also stores the angular momentum about 0 of the unwrapped positions.
+    """
+    rec_position, rec_velocity, rec_omega, rec_dipole, rec_energy, rec_momentum, rec_image = record
     lx = 0.0
     ly = 0.0
     lz = 0.0
     for i in range(position.shape[0]):
+        row = tag[i]
         for a in range(3):
-            rec_position[k, i, a] = position[i, a]
-            rec_velocity[k, i, a] = velocity[i, a]
+            x = position[i, a]
+            if periodic[a]:
+                shift = math.floor(x / box[a])
+                folded = x - shift * box[a]
+                if folded >= box[a]:  # round-off
+                    folded -= box[a]
+                    shift += 1
+                rec_position[k, row, a] = folded
+                rec_image[k, row, a] = image[i, a] + shift
+                x += image[i, a] * box[a]
+            else:
+                rec_position[k, row, a] = x
+            rec_velocity[k, row, a] = velocity[i, a]
+        ux = position[i, 0] + (image[i, 0] * box[0] if periodic[0] else 0.0)
+        uy = position[i, 1] + (image[i, 1] * box[1] if periodic[1] else 0.0)
+        uz = position[i, 2] + (image[i, 2] * box[2] if periodic[2] else 0.0)
         px = mass[i] * velocity[i, 0]
         py = mass[i] * velocity[i, 1]
         pz = mass[i] * velocity[i, 2]
-        lx += position[i, 1] * pz - position[i, 2] * py
-        ly += position[i, 2] * px - position[i, 0] * pz
-        lz += position[i, 0] * py - position[i, 1] * px
+        lx += uy * pz - uz * py
+        ly += uz * px - ux * pz
+        lz += ux * py - uy * px
     for i in range(angular_velocity.shape[0]):
+        row = tag[i]
         for a in range(3):
-            rec_omega[k, i, a] = angular_velocity[i, a]
+            rec_omega[k, row, a] = angular_velocity[i, a]
         lx += inertia[i] * angular_velocity[i, 0]
         ly += inertia[i] * angular_velocity[i, 1]
         lz += inertia[i] * angular_velocity[i, 2]
     for i in range(dipole.shape[0]):
+        row = tag[i]
         for a in range(3):
-            rec_dipole[k, i, a] = dipole[i, a]
+            rec_dipole[k, row, a] = dipole[i, a]
     rec_momentum[k, 0] = lx
     rec_momentum[k, 1] = ly
     rec_momentum[k, 2] = lz
 
 
-def empty_vectors():
+def empty_vectors(dtype=np.float64):
     """Placeholder (0,3) array standing for an absent optional field."""
-    return np.zeros((0, 3), dtype=np.float64)
+    return np.zeros((0, 3), dtype=dtype)

@@ -1,26 +1,425 @@
-"""Pair lists: which pairs (i, j), i < j, the pair loop visits.
+"""Neighbour lists: cell binning and Verlet half lists with a skin, built in compiled code.
 
-A pair list hands the compiled loop an (P, 2) int64 array of candidate pairs. Interactions never
-see how it was built, so a cell list with a skin can replace :class:`AllPairs` later without
-changing them; per-pair history is stored in rows that follow this array.
+A list of reach r_c + skin holds every pair closer than that (minimum image along periodic axes)
+when it is built; it stays complete for the cutoff r_c until some sphere has moved skin/2 from where
+it was at the build, which :func:`max_displacement` watches at every force evaluation.
+
+Layout (:class:`demkit.state.PairList`): rows by owner, the partners of particle i at
+``partner[start[i]:end[i]]`` (rows come in the order of the cells; ``start[N]`` is the number of
+entries). The pair {i, j} is stored once, in the row of the particle with the lower *tag* (tags are persistent: they survive re-sorting), so
+a pair always meets its interaction in the same orientation. Per-pair history rows follow the
+entries; at a rebuild the non-zero rows are carried to the pair's new entry by tag (a pair that
+left the list loses its history, one that enters starts from zero). Lists grow (x1.5) instead of
+overflowing; ``bounds`` cuts the owners into chunks of equal pair counts for threads.
+
+Cells are at least one reach wide: 27 neighbouring cells (fewer, de-duplicated, along a periodic
+axis with fewer than three cells; clipped along open axes, which span the particles' extent). The
+build works cell by cell on a cell-sorted copy of the positions folded into the box, adding one
+image shift per neighbouring cell, so no pair needs a minimum-image test (except along a periodic
+axis with fewer than three cells).
+
+The functions taking a list object allocate (numba reference counting on); every loop runs in a
+function compiled without it, on plain arrays (see :mod:`demkit.state`).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
+
+#: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
+MAX_CELLS_PER_PARTICLE = 4
+#: options of the loops below: no reference counting (they never allocate)
+LOOP_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"})
 
 
-class AllPairs:
-    """Every pair i < j: exact for any cutoff, O(N^2) memory and work (use for small N)."""
+@njit(**LOOP_OPTIONS)
+def max_displacement(position, reference):
+    """(largest squared displacement since the reference positions, index of that particle)."""
+    worst = 0.0
+    k = 0
+    for i in range(position.shape[0]):
+        dx = position[i, 0] - reference[i, 0]
+        dy = position[i, 1] - reference[i, 1]
+        dz = position[i, 2] - reference[i, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 > worst:
+            worst = d2
+            k = i
+    return worst, k
 
-    def build(self, particles):
-        """Return the (P, 2) int64 array of pairs for the current positions."""
-        n = len(particles)
-        i, j = np.triu_indices(n, k=1)
-        return np.ascontiguousarray(np.stack([i, j], axis=1).astype(np.int64))
 
-    def needs_rebuild(self, particles):
-        """All pairs never change."""
-        return False
+@njit(**LOOP_OPTIONS)
+def copy_rows(target, source):
+    """target[:] = source for (N,3) arrays."""
+    for i in range(source.shape[0]):
+        target[i, 0] = source[i, 0]
+        target[i, 1] = source[i, 1]
+        target[i, 2] = source[i, 2]
 
-    def __repr__(self):
-        return "AllPairs()"
+
+@njit(**LOOP_OPTIONS)
+def cell_grid(position, box, periodic, reach, origin, size, ncell):
+    """Fill origin, size (3,) and ncell (3,) for cells at least ``reach`` wide."""
+    n = position.shape[0]
+    extent = size  # holds the extents until the cell sizes are known
+    for a in range(3):
+        if periodic[a]:
+            origin[a] = 0.0
+            extent[a] = box[a]
+        else:
+            lo = np.inf
+            hi = -np.inf
+            for i in range(n):
+                lo = min(lo, position[i, a])
+                hi = max(hi, position[i, a])
+            origin[a] = lo
+            extent[a] = hi - lo
+    width = reach
+    while True:
+        total = 1
+        for a in range(3):
+            ncell[a] = max(1, int(extent[a] / width))
+            total *= ncell[a]
+        if total <= MAX_CELLS_PER_PARTICLE * n + 27:
+            break
+        width *= 1.5
+    for a in range(3):
+        size[a] = extent[a] / ncell[a] if extent[a] > 0.0 else width
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def cell_coordinate(x, length, periodic, origin, size, ncell):
+    """Cell coordinate of coordinate x along one axis (periodic coordinates folded into the box)."""
+    if periodic:
+        x -= length * math.floor(x / length)
+    k = int((x - origin) / size)
+    return min(max(k, 0), ncell - 1)
+
+
+@njit(**LOOP_OPTIONS)
+def bin_particles(position, box, periodic, origin, size, ncell, cell, cell_start, members):
+    """Counting sort of the particles by cell: members[cell_start[c]:cell_start[c+1]] are in cell c."""
+    n = position.shape[0]
+    ncells = cell_start.shape[0] - 1
+    for c in range(ncells + 1):
+        cell_start[c] = 0
+    for i in range(n):
+        cx = cell_coordinate(position[i, 0], box[0], periodic[0], origin[0], size[0], ncell[0])
+        cy = cell_coordinate(position[i, 1], box[1], periodic[1], origin[1], size[1], ncell[1])
+        cz = cell_coordinate(position[i, 2], box[2], periodic[2], origin[2], size[2], ncell[2])
+        cell[i] = (cx * ncell[1] + cy) * ncell[2] + cz
+        cell_start[cell[i] + 1] += 1
+    for c in range(ncells):
+        cell_start[c + 1] += cell_start[c]
+    for i in range(n):  # stable: members of a cell keep index order
+        c = cell[i]
+        members[cell_start[c]] = i
+        cell_start[c] += 1
+    for c in range(ncells, 0, -1):
+        cell_start[c] = cell_start[c - 1]
+    cell_start[0] = 0
+
+
+@njit(**LOOP_OPTIONS)
+def neighbour_cells(ncell, periodic, near, shift, counts):
+    """near[a, c, :counts[a, c]]: the distinct cell coordinates c-1, c, c+1 along axis a (folded along
+    a periodic axis, clipped along an open one); shift[a, c, q] = -1, 0 or +1: the box lengths to add
+    to the coordinates of that cell's members to get their image nearest to cell c (0 when the axis
+    has fewer than 3 cells: candidates then take the minimum image one by one)."""
+    for a in range(3):
+        for c in range(ncell[a]):
+            counts[a, c] = 0
+            for o in range(-1, 2):
+                k = c + o
+                s = 0
+                if periodic[a]:
+                    if ncell[a] >= 3:
+                        s = -1 if k < 0 else (1 if k >= ncell[a] else 0)
+                    k %= ncell[a]
+                elif k < 0 or k >= ncell[a]:
+                    continue
+                seen = False
+                for q in range(counts[a, c]):
+                    seen = seen or near[a, c, q] == k
+                if not seen:
+                    near[a, c, counts[a, c]] = k
+                    shift[a, c, counts[a, c]] = s
+                    counts[a, c] += 1
+
+
+@njit(**LOOP_OPTIONS)
+def sorted_copy(position, box, periodic, members, xs):
+    """xs[m]: position of members[m], folded into the box along periodic axes."""
+    for m in range(members.shape[0]):
+        j = members[m]
+        for a in range(3):
+            x = position[j, a]
+            if periodic[a]:
+                x -= box[a] * math.floor(x / box[a])
+            xs[m, a] = x
+
+
+@njit(**LOOP_OPTIONS)
+def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image):
+    """The members of the cells around (cx, cy, cz) as ranges lo[r]:hi[r] of the cell-sorted arrays,
+    with the image shift image[r] to add to their coordinates; cells consecutive along z share a
+    range. Returns the number of ranges."""
+    nr = 0
+    for ax in range(counts[0, cx]):
+        kx = near[0, cx, ax]
+        for ay in range(counts[1, cy]):
+            ky = near[1, cy, ay]
+            base = (kx * ncell[1] + ky) * ncell[2]
+            last = -2
+            for az in range(counts[2, cz]):
+                kz = near[2, cz, az]
+                k = base + kz
+                if nr > 0 and kz == last + 1 and shift[2, cz, az] == shift[2, cz, az - 1]:
+                    hi[nr - 1] = cell_start[k + 1]
+                else:
+                    lo[nr] = cell_start[k]
+                    hi[nr] = cell_start[k + 1]
+                    image[nr, 0] = shift[0, cx, ax] * box[0]
+                    image[nr, 1] = shift[1, cy, ay] * box[1]
+                    image[nr, 2] = shift[2, cz, az] * box[2]
+                    nr += 1
+                last = kz
+    return nr
+
+
+@njit(**LOOP_OPTIONS)
+def fill_pairs(tag, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+               end, partner, lo, hi, image):
+    """Write the pairs closer than ``reach`` into partner, the partners of particle i at
+    start[i]:end[i], each pair in the row of its lower tag; returns how many pairs there are
+    (entries beyond len(partner) are counted, not written). Works cell by cell on the cell-sorted,
+    folded copy ``xs``; a periodic axis with fewer than 3 cells takes the minimum image per pair."""
+    reach2 = reach * reach
+    capacity = partner.shape[0]
+    per_pair = False
+    for a in range(3):
+        per_pair = per_pair or (periodic[a] and ncell[a] < 3)
+    lx = box[0] if periodic[0] and ncell[0] < 3 else 0.0
+    ly = box[1] if periodic[1] and ncell[1] < 3 else 0.0
+    lz = box[2] if periodic[2] and ncell[2] < 3 else 0.0
+    ix = 1.0 / box[0] if lx > 0.0 else 0.0
+    iy = 1.0 / box[1] if ly > 0.0 else 0.0
+    iz = 1.0 / box[2] if lz > 0.0 else 0.0
+    count = 0
+    c = 0
+    for cx in range(ncell[0]):
+        for cy in range(ncell[1]):
+            for cz in range(ncell[2]):
+                if cell_start[c] == cell_start[c + 1]:
+                    c += 1
+                    continue
+                nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
+                for m in range(cell_start[c], cell_start[c + 1]):
+                    i = members[m]
+                    ti = tag[i]
+                    start[i] = count
+                    for r in range(nr):
+                        xi = xs[m, 0] - image[r, 0]
+                        yi = xs[m, 1] - image[r, 1]
+                        zi = xs[m, 2] - image[r, 2]
+                        for q in range(lo[r], hi[r]):
+                            dx = xs[q, 0] - xi
+                            dy = xs[q, 1] - yi
+                            dz = xs[q, 2] - zi
+                            if per_pair:
+                                dx -= lx * math.floor(dx * ix + 0.5)
+                                dy -= ly * math.floor(dy * iy + 0.5)
+                                dz -= lz * math.floor(dz * iz + 0.5)
+                            if dx * dx + dy * dy + dz * dz < reach2:
+                                j = members[q]
+                                if tag[j] > ti:
+                                    if count < capacity:
+                                        partner[count] = j
+                                    count += 1
+                    end[i] = count
+                c += 1
+    start[start.shape[0] - 1] = count
+    return count
+
+
+@njit(cache=True)
+def build(pl, position, tag, box, periodic):
+    """Fill ``pl.start``/``pl.partner`` with every pair closer than ``pl.reach`` (grows the list)."""
+    n = position.shape[0]
+    origin = np.empty(3)
+    size = np.empty(3)
+    ncell = np.empty(3, dtype=np.int64)
+    cell_grid(position, box, periodic, pl.reach, origin, size, ncell)
+    cell = np.empty(n, dtype=np.int64)
+    cell_start = np.empty(ncell[0] * ncell[1] * ncell[2] + 1, dtype=np.int64)
+    members = np.empty(n, dtype=np.int64)
+    bin_particles(position, box, periodic, origin, size, ncell, cell, cell_start, members)
+    widest = max(ncell[0], ncell[1], ncell[2])
+    near = np.empty((3, widest, 3), dtype=np.int64)
+    shift = np.empty((3, widest, 3), dtype=np.int64)
+    counts = np.empty((3, widest), dtype=np.int64)
+    neighbour_cells(ncell, periodic, near, shift, counts)
+    xs = np.empty((n, 3))
+    sorted_copy(position, box, periodic, members, xs)
+    lo = np.empty(27, dtype=np.int64)
+    hi = np.empty(27, dtype=np.int64)
+    image = np.empty((27, 3))
+    count = fill_pairs(tag, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
+                       pl.start, pl.end, pl.partner, lo, hi, image)
+    if count > pl.partner.shape[0]:
+        pl.partner = np.empty(count + count // 2 + 16, dtype=np.int32)
+        fill_pairs(tag, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
+                   pl.start, pl.end, pl.partner, lo, hi, image)
+
+
+@njit(**LOOP_OPTIONS)
+def count_kept(history, total):
+    """How many of the first ``total`` history rows are not all zero."""
+    kept = 0
+    for p in range(total):
+        for h in range(history.shape[1]):
+            if history[p, h] != 0.0:
+                kept += 1
+                break
+    return kept
+
+
+@njit(**LOOP_OPTIONS)
+def save_rows(start, end, partner, history, tag, owners, partners, rows):
+    """Copy the non-zero history rows, with the tags of their pair, into owners/partners/rows."""
+    k = 0
+    for i in range(end.shape[0]):
+        for p in range(start[i], end[i]):
+            nonzero = False
+            for h in range(history.shape[1]):
+                nonzero = nonzero or history[p, h] != 0.0
+            if nonzero:
+                owners[k] = tag[i]
+                partners[k] = tag[partner[p]]
+                for h in range(history.shape[1]):
+                    rows[k, h] = history[p, h]
+                k += 1
+
+
+@njit(cache=True)
+def saved_history(pl, tag):
+    """(owner tags, partner tags, rows) of the list's entries whose history is not all zero."""
+    total = pl.start[pl.start.shape[0] - 1]
+    kept = count_kept(pl.history, total)
+    owners = np.empty(kept, dtype=np.int64)
+    partners = np.empty(kept, dtype=np.int64)
+    rows = np.empty((kept, pl.history.shape[1]))
+    save_rows(pl.start, pl.end, pl.partner, pl.history, tag, owners, partners, rows)
+    return owners, partners, rows
+
+
+@njit(**LOOP_OPTIONS)
+def put_rows(start, end, partner, history, total, where, owners, partners, rows):
+    """Zero the first ``total`` rows, then put each saved row on its pair's entry, if listed."""
+    for p in range(total):
+        for h in range(history.shape[1]):
+            history[p, h] = 0.0
+    for k in range(owners.shape[0]):
+        i = where[owners[k]]
+        j = where[partners[k]]
+        for p in range(start[i], end[i]):
+            if partner[p] == j:
+                for h in range(history.shape[1]):
+                    history[p, h] = rows[k, h]
+                break
+
+
+@njit(cache=True)
+def restore_history(pl, tag, owners, partners, rows):
+    """Size the history to the (new) list and put the saved rows back by tag."""
+    total = pl.start[pl.start.shape[0] - 1]
+    if pl.history.shape[0] < pl.partner.shape[0]:
+        pl.history = np.zeros((pl.partner.shape[0], pl.history.shape[1]))
+    where = np.empty(tag.shape[0], dtype=np.int64)
+    for i in range(tag.shape[0]):
+        where[tag[i]] = i
+    put_rows(pl.start, pl.end, pl.partner, pl.history, total, where, owners, partners, rows)
+
+
+@njit(**LOOP_OPTIONS)
+def balance(start, end, bounds):
+    """Cut the owners (by index) into len(bounds)-1 consecutive chunks holding equal numbers of pairs."""
+    n = end.shape[0]
+    chunks = bounds.shape[0] - 1
+    total = start[n]
+    i = 0
+    done = 0
+    bounds[0] = 0
+    for t in range(1, chunks):
+        target = (total * t) // chunks
+        while i < n and done < target:
+            done += end[i] - start[i]
+            i += 1
+        bounds[t] = i
+    bounds[chunks] = n
+
+
+@njit(cache=True)
+def rebuild(pl, position, tag, box, periodic):
+    """Rebuild one list, carrying its per-pair history by tag."""
+    if pl.history.shape[1] > 0:
+        owners, partners, rows = saved_history(pl, tag)
+        build(pl, position, tag, box, periodic)
+        restore_history(pl, tag, owners, partners, rows)
+    else:
+        build(pl, position, tag, box, periodic)
+    balance(pl.start, pl.end, pl.bounds)
+
+
+@njit(**LOOP_OPTIONS)
+def wrap(position, reference, image, box, periodic):
+    """Bring periodic coordinates into [0, L), counting images and moving the reference along."""
+    for a in range(3):
+        if not periodic[a]:
+            continue
+        length = box[a]
+        for i in range(position.shape[0]):
+            x = position[i, a]
+            if x < 0.0 or x >= length:
+                k = math.floor(x / length)
+                position[i, a] = x - k * length
+                if position[i, a] >= length:  # round-off
+                    position[i, a] -= length
+                    k += 1
+                image[i, a] += k
+                if reference.shape[0] > 0:
+                    reference[i, a] -= k * length
+
+
+@njit(**LOOP_OPTIONS)
+def triangle_bounds(n, bounds):
+    """Cut the rows i of the all-pairs triangle (n - 1 - i pairs each) into equal shares."""
+    chunks = bounds.shape[0] - 1
+    total = n * (n - 1) // 2
+    i = 0
+    done = 0
+    bounds[0] = 0
+    for t in range(1, chunks):
+        target = (total * t) // chunks
+        while i < n and done < target:
+            done += n - 1 - i
+            i += 1
+        bounds[t] = i
+    bounds[chunks] = n
+
+
+def entry_owners(pl):
+    """The owner (particle index) of each list entry, (P,)."""
+    start, end = pl.start, pl.end
+    owners = np.empty(start[-1], dtype=np.int64)
+    for i in range(len(end)):
+        owners[start[i]:end[i]] = i
+    return owners
+
+
+def pairs_of(pl, tag):
+    """(P, 2) array of the listed pairs as tags (owner first): for diagnostics and tests."""
+    return np.stack([tag[entry_owners(pl)], tag[pl.partner[: pl.start[-1]]]], axis=1)
+

@@ -1,37 +1,60 @@
-"""Scene: particles + the chosen interactions, fused into one compiled pair loop.
+"""Scene: particles in a box (or open space) and the chosen interactions, fused into compiled kernels.
 
 Only what the interactions declare is allocated: no dipole arrays without a dipole interaction
 (or user-given moments), no angular velocity unless something produces torque (or the user gave
-spins), no history unless an interaction keeps some.
+spins), no history unless an interaction keeps some, no image counts or periodic arithmetic in
+open space, no neighbour lists for a handful of spheres, no threads for small scenes.
+
+Interactions are grouped by reach (:class:`demkit.kernels.Group`): those of equal finite reach
+share a neighbour list with a skin (contacts reach 2 R_max, dipoles their cutoff); interactions
+without a cutoff loop over all pairs i < j; a scene of at most :data:`ALL_PAIRS_MAX` spheres in
+open space loops over all pairs for everything (one fused loop, the fastest for a few spheres).
 """
 from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
+from . import neighbours
+from .box import Box
 from .integrators import TEMPLATES
 from .interactions.base import PairInteraction
-from .kernels import build_module, energy_kinds
+from .kernels import Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
-from .neighbours import AllPairs
 from .particles import Particles
+from .state import STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected
 MAX_INITIAL_OVERLAP = 0.5
+#: open scenes with at most this many spheres loop over all pairs (no neighbour lists)
+ALL_PAIRS_MAX = 64
+#: scenes with at least this many spheres split their pair loops among threads (parallel="auto")
+PARALLEL_MIN = 2000
+#: default skin of the neighbour lists, as a fraction of the mean diameter
+DEFAULT_SKIN = 0.3
+#: an all-pairs history larger than this many bytes is refused (give the interaction a cutoff)
+MAX_ALL_PAIRS_HISTORY = 2**31
 
 
 class Scene:
-    """Particles and pair interactions.
+    """Particles, an optional box and pair interactions.
 
     Parameters
     ----------
     particles : Particles
     interactions : list of PairInteraction (e.g. ``[Dipole(prefactor=1/3), KelvinVoigt(1.0, 0.1)]``)
-    pairs : pair list (default :class:`demkit.neighbours.AllPairs`)
+    box : :class:`demkit.Box` or None (open space)
+    skin : extra reach of the neighbour lists (length); default 0.3 mean diameters. Lists are
+        rebuilt when a sphere has moved skin/2.
+    parallel : None (threads when the scene is large enough to gain), True or False. Threads
+        follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops are cut into
+        ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results do not depend on how many
+        threads run them.
     """
 
-    def __init__(self, particles, interactions, pairs=None):
+    def __init__(self, particles, interactions, box=None, skin=None, parallel=None):
         if not isinstance(particles, Particles):
             raise TypeError(f"particles must be a demkit.Particles, got {type(particles).__name__}")
         if isinstance(interactions, PairInteraction):
@@ -40,52 +63,160 @@ class Scene:
         for inter in interactions:
             if not isinstance(inter, PairInteraction):
                 raise TypeError(f"interactions must be PairInteraction objects, got {inter!r}")
+        if box is not None and not isinstance(box, Box):
+            raise TypeError(f"box must be a demkit.Box or None, got {type(box).__name__}")
+        if parallel not in (None, True, False):
+            raise ValueError(f"parallel must be None (automatic), True or False, got {parallel!r}")
         self.particles = particles
         self.interactions = tuple(interactions)
+        self.box = box
         for inter in self.interactions:
             inter.check(particles)
         if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions):
             particles.require("angular_velocity")
-        self.box = None  # open space (periodic boxes: see the N-body engine)
-        self.pair_list = AllPairs() if pairs is None else pairs
-        self.pairs = self.pair_list.build(particles)
-        width = sum(inter.history_size for inter in self.interactions)
-        self.history = np.zeros((len(self.pairs), width)) if width else np.zeros((0, 0))
-        cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
-                for inter in self.interactions]
-        values = [inter.parameter_values() for inter in self.interactions]
-        self.params = np.concatenate(values + [np.array(cut2)]) if values else np.zeros(0)
+        self.periodic = tuple(bool(f) for f in box.periodic) if box is not None else (False,) * 3
+        if any(self.periodic):
+            particles.require("image")
+        self.skin = self._skin(skin)
+        self.reaches = [inter.cutoff(particles) for inter in self.interactions]
+        self._check_geometry()
+        self.chunks = max(1, int(numba.config.NUMBA_NUM_THREADS))
+        auto = self.chunks > 1 and len(particles) >= PARALLEL_MIN
+        self.parallel = auto if parallel is None else bool(parallel)
+        self.plan = self._plan()
         self.energy_kinds = energy_kinds(self.interactions)
-        self.kernels = build_module(self.interactions, TEMPLATES)
         n = len(particles)
         self.force = np.zeros((n, 3))
         self.torque = np.zeros((n, 3))
         self.accum = np.zeros(1)  # accum[0]: work dissipated so far
+        self.state = self._make_state()
+        self.kernels = build_module(self.plan, TEMPLATES)
+        self.kernels.prepare(self.state)
         self.validate()
 
-    # ---- state ---------------------------------------------------------------------------
+    # ---- set-up ----------------------------------------------------------------------------
+    def _skin(self, skin):
+        if skin is None:
+            return DEFAULT_SKIN * 2.0 * float(np.mean(self.particles.radius))
+        skin = float(skin)
+        if not math.isfinite(skin) or skin <= 0:
+            raise ValueError(f"skin must be a positive finite length, got {skin}")
+        return skin
+
+    def _check_geometry(self):
+        p = self.particles
+        contact = 2.0 * float(np.max(p.radius))
+        for inter, reach in zip(self.interactions, self.reaches):
+            if "dipole" in inter.reads and inter.cutoff_distance is not None and reach < contact:
+                raise ValueError(f"{type(inter).__name__} cutoff {reach:.6g} is shorter than the contact reach "
+                                 f"{contact:.6g} (twice the largest radius): touching spheres would not interact")
+            if self.box is not None:
+                self.box.check_reach(reach, type(inter).__name__)
+        if self.box is not None:
+            outside = self.box.outside(p.position)
+            if len(outside):
+                k = int(outside[0])
+                raise ValueError(f"particle {p.ids[k]} at {p.position[k].tolist()} is outside the box {self.box} "
+                                 f"along an open (non-periodic) axis ({len(outside)} particles are)")
+
+    def _plan(self):
+        """Group the interactions by reach (see the module docstring)."""
+        n = len(self.particles)
+        members = list(enumerate(self.interactions))
+        if n <= ALL_PAIRS_MAX and not any(self.periodic):
+            groups = [Group(members, "all", math.inf)] if members else []
+        else:
+            by_reach = {}
+            for (k, inter), reach in zip(members, self.reaches):
+                by_reach.setdefault(reach, []).append((k, inter))
+            groups = [Group(m, "all" if math.isinf(r) else "list", r) for r, m in sorted(by_reach.items())]
+        for group in groups:
+            group.parallel = self.parallel and n > 1
+            if group.kind == "all" and group.width:
+                size = n * (n - 1) // 2 * group.width * 8
+                if size > MAX_ALL_PAIRS_HISTORY:
+                    raise ValueError(f"{[type(i).__name__ for _, i in group.members]} keep history for every pair "
+                                     f"of {n} spheres ({size / 2**30:.1f} GiB) because they have no cutoff: "
+                                     f"give them a cutoff_distance")
+        return Plan(self.interactions, groups, self.periodic, any(g.kind == "list" for g in groups))
+
+    def _make_state(self):
+        p, plan = self.particles, self.plan
+        n = len(p)
+        growing = plan.growing
+        lists = []
+        for group in plan.groups:
+            bounds = np.zeros(self.chunks + 1, dtype=np.int64)
+            if group.kind == "list":
+                lists.append(new_pair_list(group.reach + self.skin, n, group.width, self.chunks))
+                continue
+            neighbours.triangle_bounds(n, bounds)
+            history = np.zeros((n * (n - 1) // 2 if group.width else 0, group.width))
+            fields = (math.inf, np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
+                      np.zeros(0, dtype=np.int32), history, bounds)
+            lists.append(PairList(*fields) if growing else PairListTuple(*fields))
+        threads = self.chunks if any(g.parallel for g in plan.groups) else 0
+        omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
+        dipole = p.dipole if p.dipole is not None else empty_vectors()
+        image = p.image if p.image is not None else empty_vectors(np.int64)
+        params = [inter.parameter_values() for inter in self.interactions]
+        cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
+                for inter in self.interactions]
+        self.params = np.concatenate(params + [np.array(cut2)]) if params else np.zeros(0)
+        fields = dict(
+            position=p.position, velocity=p.velocity, angular_velocity=omega, dipole=dipole,
+            radius=p.radius, mass=p.mass, inertia=p.inertia, tag=np.arange(n, dtype=np.int64), image=image,
+            force=self.force, torque=self.torque, accum=self.accum, params=self.params,
+            box=self.box.size.copy() if self.box is not None else np.zeros(3),
+            periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
+            skin=self.skin, status=np.zeros(4, dtype=np.int64), counters=np.zeros(4, dtype=np.int64),
+            lists=tuple(lists), thread_force=np.zeros((threads, n, 3)), thread_torque=np.zeros((threads, n, 3)),
+            thread_power=np.zeros(threads))
+        self.arrays = fields
+        values = [fields[name] for name in STATE_FIELDS]
+        return State(*values) if growing else StateTuple(*values)
+
+    # ---- state -----------------------------------------------------------------------------
     @property
     def dissipated(self):
         """Work dissipated by the interactions since the scene was made."""
         return float(self.accum[0])
 
-    def state(self, force=None, torque=None):
-        """The tuple of arrays the compiled kernels work on (views of the particle arrays)."""
+    @property
+    def counters(self):
+        return self.arrays["counters"]
+
+    @property
+    def status(self):
+        return self.arrays["status"]
+
+    def close_pairs(self, reach):
+        """(P, 2) particle indices of the pairs closer than ``reach`` (minimum image), via a cell list."""
         p = self.particles
-        omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
-        dipole = p.dipole if p.dipole is not None else empty_vectors()
-        return (p.position, p.velocity, omega, dipole, p.radius, p.mass, p.inertia, self.pairs,
-                self.history, self.params, self.force if force is None else force,
-                self.torque if torque is None else torque, self.accum)
+        pl = new_pair_list(reach, len(p), 0, 1)
+        box = self.arrays["box"]
+        neighbours.rebuild(pl, p.position, self.arrays["tag"], box, self.arrays["periodic"])
+        return neighbours.pairs_of(pl, self.arrays["tag"])
+
+    def separations(self, pairs):
+        """Centre-to-centre vectors x_j - x_i (minimum image) of index pairs (P, 2)."""
+        d = self.particles.position[pairs[:, 1]] - self.particles.position[pairs[:, 0]]
+        return self.box.minimum_image(d) if self.box is not None else d
 
     def validate(self):
-        """Raise ValueError for non-finite state, coincident or deeply overlapping spheres."""
+        """Raise ValueError for non-finite state, coincident or deeply overlapping spheres, spheres
+        outside the box. O(N): overlaps are found with a cell list."""
         p = self.particles
         p.check_finite()
-        if len(self.pairs) == 0:
+        if self.box is not None:
+            self._check_geometry()
+        if len(p) < 2:
             return
-        i, j = self.pairs[:, 0], self.pairs[:, 1]
-        r = np.linalg.norm(p.position[j] - p.position[i], axis=1)
+        pairs = self.close_pairs(2.0 * float(np.max(p.radius)))
+        if len(pairs) == 0:
+            return
+        i, j = pairs[:, 0], pairs[:, 1]
+        r = np.linalg.norm(self.separations(pairs), axis=1)
         overlap = (p.radius[i] + p.radius[j] - r) / np.minimum(p.radius[i], p.radius[j])
         k = int(np.argmax(overlap))
         if r[k] == 0.0:
@@ -103,36 +234,98 @@ class Scene:
 
     # ---- diagnostics ---------------------------------------------------------------------
     def forces(self):
-        """(force, torque), each (N,3), at the current state; changes nothing."""
+        """(force, torque), each (N,3), at the current state; changes nothing (history included)."""
         n = len(self.particles)
         force, torque = np.zeros((n, 3)), np.zeros((n, 3))
-        self.kernels.forces_of(self.state(force, torque), False)
+        self.kernels.compute_forces(self.state, force, torque, False, False)
         return force, torque
 
     def energy(self):
         """Energies: kinetic, rotational, one per energy kind (magnetic, contact, ...), total and
         dissipated. total = kinetic + rotational + potentials; total + dissipated is conserved."""
         out = np.zeros(2 + len(self.energy_kinds))
-        self.kernels.energies_of(self.state(), out)
+        self.kernels.energies_of(self.state, out)
         return energy_dict(out, self.energy_kinds, self.dissipated)
 
     def pair_energies(self):
-        """(pairs, energies): the (P,2) pair indices and a (P, n_interactions) array of the
-        potential energy of each pair under each interaction, in ``self.interactions`` order."""
-        out = np.zeros((len(self.pairs), len(self.interactions)))
-        self.kernels.pair_energies_of(self.state(), out)
-        return self.pairs.copy(), out
+        """(pairs, energies): the (P,2) particle indices i < j of every pair some interaction can
+        reach (within its list or all pairs) and a (P, n_interactions) array of the potential
+        energy of each pair under each interaction, in ``self.interactions`` order."""
+        chunks = []
+        for g, group in enumerate(self.plan.groups):
+            n = len(self.particles)
+            size = n * (n - 1) // 2 if group.kind == "all" else self._list(g).size
+            owners, partners = np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int64)
+            values = np.zeros((size, len(self.interactions)))
+            getattr(self.kernels, f"pair_energies_{g}")(self.state, owners, partners, values)
+            tag = self.arrays["tag"]
+            chunks.append((tag[owners], tag[partners], values))
+        if not chunks:
+            return np.zeros((0, 2), dtype=np.int64), np.zeros((0, len(self.interactions)))
+        i = np.concatenate([c[0] for c in chunks])
+        j = np.concatenate([c[1] for c in chunks])
+        values = np.concatenate([c[2] for c in chunks])
+        pairs = np.stack([np.minimum(i, j), np.maximum(i, j)], axis=1)
+        unique, inverse = np.unique(pairs, axis=0, return_inverse=True)
+        merged = np.zeros((len(unique), len(self.interactions)))
+        np.add.at(merged, inverse.ravel(), values)
+        return unique, merged
+
+    @property
+    def history_values(self):
+        """Number of per-pair history values stored (0 when no interaction keeps history)."""
+        return sum(self._list(g).history.size for g in range(len(self.plan.groups)))
+
+    def history(self, interaction):
+        """(pairs, values): the (P,2) particle indices (owner first) of the pairs the interaction can
+        reach now and its (P, history_size) history values for them."""
+        for g, group in enumerate(self.plan.groups):
+            for k, inter in group.members:
+                if inter is interaction:
+                    pl = self._list(g)
+                    offset = group.offsets[k]
+                    tag = self.arrays["tag"]
+                    if group.kind == "list":
+                        self.kernels.prepare(self.state)
+                        pairs = neighbours.pairs_of(pl, tag)
+                    else:
+                        i, j = np.triu_indices(len(self.particles), k=1)
+                        pairs = np.stack([tag[i], tag[j]], axis=1)
+                    rows = pl.history[: len(pairs), offset:offset + inter.history_size]
+                    return pairs, rows.copy()
+        raise ValueError(f"{interaction!r} is not an interaction of this scene")
+
+    def _list(self, g):
+        return self.state.lists[g] if self.plan.growing else self.arrays["lists"][g]
+
+    def neighbour_lists(self):
+        """One dict per neighbour list: interactions served, reach (cutoff + skin), pairs, capacity."""
+        out = []
+        for g, group in enumerate(self.plan.groups):
+            if group.kind != "list":
+                continue
+            pl = self._list(g)
+            out.append({"interactions": [type(i).__name__ for _, i in group.members], "cutoff": group.reach,
+                        "reach": pl.reach, "pairs": pl.size, "capacity": len(pl.partner),
+                        "history_width": group.width})
+        return out
 
     def angular_momentum(self, origin=(0.0, 0.0, 0.0)):
-        """Orbital + spin angular momentum about ``origin``, shape (3,)."""
-        return self.particles.angular_momentum(origin)
+        """Orbital + spin angular momentum about ``origin``, shape (3,) (unwrapped positions)."""
+        p = self.particles
+        if p.image is None:
+            return p.angular_momentum(origin)
+        unwrapped = p.copy()
+        unwrapped.position = p.position + p.image * self.box.size
+        return unwrapped.angular_momentum(origin)
 
     def linear_momentum(self):
         """Total linear momentum, shape (3,)."""
         return self.particles.linear_momentum()
 
     def __repr__(self):
-        return f"Scene({len(self.particles)} particles, {list(self.interactions)}, {self.pair_list})"
+        where = f", {self.box}" if self.box is not None else ""
+        return f"Scene({len(self.particles)} particles, {list(self.interactions)}{where})"
 
 
 def energy_dict(values, kinds, dissipated):

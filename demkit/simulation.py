@@ -6,10 +6,13 @@ times and the end of the run). Frames are recorded inside the compiled loop.
 from __future__ import annotations
 
 import math
+import time
 
+import numba
 import numpy as np
 
 from .scene import energy_dict
+from .state import MOVED_TOO_FAR, NON_FINITE, OK, REBUILDS
 
 
 class SimulationError(RuntimeError):
@@ -103,6 +106,7 @@ class Simulation:
         self.time = 0.0
         self.step = 0
         self.trajectory = None
+        self.statistics = {}
         self._opened = False
         limit = scene.max_time_step()
         if integrator.dt > limit:
@@ -132,11 +136,12 @@ class Simulation:
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
         scene = self.scene
         scene.validate()
-        state = scene.state()
+        state = scene.state
+        kern = scene.kernels
+        kern.prepare(state)
         nframes = nsteps // stride + 1
         extra_final = nsteps % stride != 0
         record = self._allocate(nframes + extra_final)
-        kern = scene.kernels
         kern.record_frame(0, state, record)
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
         if not self._opened:
@@ -145,6 +150,8 @@ class Simulation:
                 w.write(self)
             self._opened = True
         start_time, start_step = self.time, self.step
+        rebuilds = int(scene.counters[REBUILDS])
+        clock = time.perf_counter()
         done = 0
         forces_ready = False
         while done < nsteps:
@@ -163,11 +170,26 @@ class Simulation:
                     w.write(self)
         if extra_final:
             kern.record_frame(nframes, state, record)
+        self._measure(nsteps, time.perf_counter() - clock, int(scene.counters[REBUILDS]) - rebuilds)
         steps = np.arange(nframes) * stride
         if extra_final:
             steps = np.append(steps, nsteps)
         self.trajectory = self._trajectory(record, start_time + steps * dt)
         return self.trajectory
+
+    def _measure(self, nsteps, seconds, rebuilds):
+        scene = self.scene
+        n = len(scene.particles)
+        self.statistics = {
+            "steps": nsteps, "seconds": seconds,
+            "steps_per_second": nsteps / seconds if seconds > 0 else math.inf,
+            "particle_steps_per_second": n * nsteps / seconds if seconds > 0 else math.inf,
+            "neighbour_list_builds": rebuilds,
+            "steps_per_build": nsteps / rebuilds if rebuilds else None,
+            "lists": scene.neighbour_lists(), "skin": scene.skin if scene.plan.lists else None,
+            "threads": numba.get_num_threads() if scene.parallel else 1,
+            "chunks": scene.chunks if scene.parallel else 1,
+        }
 
     def close(self):
         """Close the writers (call when done; further runs reopen nothing)."""
@@ -181,28 +203,44 @@ class Simulation:
         shape = (nframes, n, 3)
         omega = np.zeros(shape) if p.angular_velocity is not None else np.zeros((0, 0, 3))
         dipole = np.zeros(shape) if p.dipole is not None else np.zeros((0, 0, 3))
+        image = np.zeros(shape, dtype=np.int64) if p.image is not None else np.zeros((0, 0, 3), dtype=np.int64)
         energy = np.zeros((nframes, 3 + len(self.scene.energy_kinds)))
-        return (np.zeros(shape), np.zeros(shape), omega, dipole, energy, np.zeros((nframes, 3)))
+        return (np.zeros(shape), np.zeros(shape), omega, dipole, energy, np.zeros((nframes, 3)), image)
 
     def _trajectory(self, record, times):
         p = self.scene.particles
         t = len(times)
-        pos, vel, omega, dipole, energy, momentum = (r[:t] for r in record)
+        pos, vel, omega, dipole, energy, momentum, image = (r[:t] for r in record)
         return Trajectory(
             time=times, position=pos, velocity=vel,
             angular_velocity=omega if p.angular_velocity is not None else None,
             dipole=dipole if p.dipole is not None else None,
             energy=energy_dict(energy[:, :-1], self.scene.energy_kinds, energy[:, -1]),
             angular_momentum=momentum, radius=p.radius.copy(), mass=p.mass.copy(),
-            inertia=p.inertia.copy(), ids=p.ids.copy())
+            inertia=p.inertia.copy(), ids=p.ids.copy(), image=image if p.image is not None else None,
+            box=self.scene.box)
 
     def _fail(self, bad_step, start_time, start_step, stride, record):
         dt = self.integrator.dt
-        p = self.scene.particles
+        scene = self.scene
+        p = scene.particles
+        status = scene.status
+        code, index = int(status[0]), int(status[1])
+        status[:] = OK
         good_frames = (bad_step - 1) // stride + 1
         self.trajectory = self._trajectory(record, start_time + np.arange(good_frames) * stride * dt)
         self.step = start_step + bad_step
         self.time = start_time + bad_step * dt
+        kept = (f"The {good_frames} frames recorded before it are kept in simulation.trajectory")
+        if code == MOVED_TOO_FAR:
+            k = int(scene.arrays["tag"][index])
+            speed = float(np.linalg.norm(p.velocity[index]))
+            raise SimulationError(
+                f"particle id {p.ids[k]} moved more than the neighbour-list skin ({scene.skin:.6g}) between two "
+                f"rebuilds at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}, so {speed * dt:.6g} per "
+                f"step): the lists could miss pairs and contacts could be stepped over. Use a smaller time step "
+                f"(dt = {dt:.6g}) or a larger skin. {kept}.",
+                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         arrays = [p.position, p.velocity] + ([p.angular_velocity] if p.angular_velocity is not None else [])
         bad = np.zeros(len(p), dtype=bool)
         for arr in arrays:
@@ -211,6 +249,5 @@ class Simulation:
         raise SimulationError(
             f"the run became non-finite (NaN or inf) at step {self.step} (t = {self.time:.6g}) for "
             f"particle id {p.ids[k]}: position {p.position[k].tolist()}, velocity {p.velocity[k].tolist()}. "
-            f"The {good_frames} frames recorded before it are kept in simulation.trajectory; a smaller "
-            f"time step or gentler initial conditions may help.",
+            f"{kept}; a smaller time step or gentler initial conditions may help.",
             step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)

@@ -17,7 +17,7 @@ def test_scene_without_dipoles_has_no_dipole_fields_or_code():
     scene = contact_only()
     p = scene.particles
     assert p.dipole is None and p.angular_velocity is None
-    assert scene.history.size == 0
+    assert scene.history_values == 0
     assert "dipole_force" not in scene.kernels.source and "force_1" not in scene.kernels.source
     traj = dk.Simulation(scene, dk.VelocityVerlet(0.01)).run(duration=1.0, record_every=0.5)
     assert traj.dipole is None and traj.angular_velocity is None
@@ -60,10 +60,12 @@ def test_angular_momentum_orbital_plus_spin():
 def test_plugin_with_per_contact_history():
     p = dk.Particles(position=[[0.0, 0, 0], [2.05, 0, 0], [10.0, 0, 0]],
                      velocity=[[0.05, 0, 0], [-0.05, 0, 0], [0, 0, 0]], radius=1.0)
-    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1.0), ContactCounter()])
-    assert scene.history.shape == (3, 1)
+    counter = ContactCounter()
+    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1.0), counter])
+    pairs, values = scene.history(counter)
+    assert values.shape == (3, 1) and pairs.tolist() == [[0, 1], [0, 2], [1, 2]]
     scene.forces()
-    assert not scene.history.any()  # evaluating forces commits no history
+    assert not scene.history(counter)[1].any()  # evaluating forces commits no history
     steps_touching = 0
     sim = dk.Simulation(scene, dk.EulerCromer(0.01))
     for _ in range(400):
@@ -71,8 +73,9 @@ def test_plugin_with_per_contact_history():
         sim.run(duration=0.01)
         steps_touching += before
     # EC evaluates forces at the start of each step: history counts those steps for pair (0, 1)
-    assert scene.history[0, 0] == steps_touching > 0
-    assert scene.history[1:, 0].sum() == 0  # pairs (0, 2) and (1, 2) never touched
+    values = scene.history(counter)[1]
+    assert values[0, 0] == steps_touching > 0
+    assert values[1:, 0].sum() == 0  # pairs (0, 2) and (1, 2) never touched
     assert "counter" in scene.energy()
 
 

@@ -1,0 +1,154 @@
+"""The named state the compiled kernels work on.
+
+A scene's arrays travel as one object ``s`` with physical names, so that a time-loop template
+reads ``kick(s.velocity, s.force, s.mass, h)``. Absent optional fields are (0, 3) arrays.
+
+Two forms with the same field names, so one template source compiles for both:
+
+* :data:`StateTuple` / :data:`PairListTuple`, named tuples, for scenes whose arrays never change
+  size (no neighbour lists: small open scenes such as the seed paper's pair). They need no numba
+  reference counting, which keeps a two-sphere step at tens of nanoseconds.
+* :class:`State` / :class:`PairList`, numba structrefs (mutable), for scenes with neighbour lists,
+  which grow inside the compiled loop. Fields that compiled code replaces (the arrays of a list)
+  are read back in Python through the proxies' properties; every other array is shared with
+  Python, which made it.
+
+Hot loops never take these objects: they are compiled without reference counting and receive
+plain arrays (``s.position``, ...), because numba's counting of array references costs more than
+a pair interaction when it happens in an inner loop.
+
+Codes written to ``status[0]`` by the compiled loop (``status[1]`` holds the internal particle index,
+``status[2]`` the global step): :data:`OK`, :data:`NON_FINITE`, :data:`MOVED_TOO_FAR`.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+from numba.core import types
+from numba.experimental import structref
+
+OK, NON_FINITE, MOVED_TOO_FAR = 0, 1, 2
+#: slots of ``State.counters``
+REBUILDS, WRAP_DUE, SORTS = 0, 1, 2
+
+PAIR_LIST_FIELDS = ("reach", "start", "end", "partner", "history", "bounds")
+STATE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia",
+                "tag", "image", "force", "torque", "accum", "params", "box", "periodic", "reference",
+                "skin", "status", "counters", "lists", "thread_force", "thread_torque", "thread_power")
+
+StateTuple = namedtuple("StateTuple", STATE_FIELDS)
+PairListTuple = namedtuple("PairListTuple", PAIR_LIST_FIELDS)
+
+
+@structref.register
+class PairListType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+@structref.register
+class StateType(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+class PairList(structref.StructRefProxy):
+    """A half neighbour list: the partners of internal particle i are ``partner[start[i]:end[i]]``
+    (each pair once, owned by the lower tag; ``start[N]`` entries in all), ``history`` has one row
+    per entry. ``reach`` = interaction cutoff + skin; ``bounds`` splits the owners into equal
+    shares of pairs for threads."""
+
+    @property
+    def reach(self):
+        return _get_reach(self)
+
+    @property
+    def start(self):
+        return _get_start(self)
+
+    @property
+    def end(self):
+        return _get_end(self)
+
+    @property
+    def partner(self):
+        return _get_partner(self)
+
+    @property
+    def history(self):
+        return _get_history(self)
+
+    @property
+    def bounds(self):
+        return _get_bounds(self)
+
+    @property
+    def size(self):
+        """Number of pairs in the list."""  # noqa
+        return int(self.start[-1])
+
+
+class State(structref.StructRefProxy):
+    """The arrays of a scene, by name (see the module docstring)."""
+
+    @property
+    def lists(self):
+        return _get_lists(self)
+
+    @property
+    def skin(self):
+        return _get_skin(self)
+
+
+structref.define_proxy(PairList, PairListType, list(PAIR_LIST_FIELDS))
+structref.define_proxy(State, StateType, list(STATE_FIELDS))
+
+
+@njit(cache=True)
+def _get_reach(s):
+    return s.reach
+
+
+@njit(cache=True)
+def _get_start(s):
+    return s.start
+
+
+@njit(cache=True)
+def _get_end(s):
+    return s.end
+
+
+@njit(cache=True)
+def _get_partner(s):
+    return s.partner
+
+
+@njit(cache=True)
+def _get_history(s):
+    return s.history
+
+
+@njit(cache=True)
+def _get_bounds(s):
+    return s.bounds
+
+
+@njit(cache=True)
+def _get_lists(s):
+    return s.lists
+
+
+@njit(cache=True)
+def _get_skin(s):
+    return s.skin
+
+
+def new_pair_list(reach, n, history_width, chunks, capacity=None):
+    """An empty growing list for n particles (filled, and grown, in compiled code)."""
+    capacity = max(4 * n, 16) if capacity is None else max(int(capacity), 16)
+    return PairList(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
+                    np.zeros(capacity, dtype=np.int32),
+                    np.zeros((capacity, history_width)), np.zeros(chunks + 1, dtype=np.int64))
