@@ -226,7 +226,7 @@ def test_switched_goes_continuously_to_zero_at_the_cutoff(rng):
         assert us == 0 and not fs.any() and not ts.any()
         d = r * n
         dip = scene.particles.dipole
-        args = (0, 1, d[0], d[1], d[2], d @ d, dip, 0.7, CUTOFF - WIDTH, WIDTH)
+        args = (0, 1, d[0], d[1], d[2], d @ d, dip, 0.7, CUTOFF - WIDTH, 1 / WIDTH)
         assert switched_dipole_energy(*args) == 0.0
         assert not any(switched_dipole_force(*args))
 

@@ -104,10 +104,11 @@ def power_law_energy(i, j, dx, dy, dz, r2, dipole, prefactor):
 
 
 @njit(**KERNEL_OPTIONS)
-def switched_dipole_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+def switched_dipole_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, inv_width):
     """Force on j and torques of the switched pair S(r) U: S F_j - U S' n, S tau_i, S tau_j.
 
-    Below ``switch_on`` the arithmetic is that of :func:`dipole_force`, term for term.
+    Branch-free: x is clamped to [0, 1], so below ``switch_on`` S = 1 and S' = 0 exactly and the
+    results are those of :func:`dipole_force` bit for bit; at and beyond the cutoff all are 0.
     """
     inv_r2 = 1.0 / r2
     inv_r = math.sqrt(inv_r2)
@@ -138,15 +139,11 @@ def switched_dipole_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, sw
     tjx = sj * (by * dz - bz * dy) + inv_r3 * cx
     tjy = sj * (bz * dx - bx * dz) + inv_r3 * cy
     tjz = sj * (bx * dy - by * dx) + inv_r3 * cz
-    r = r2 * inv_r
-    if r <= switch_on:
-        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz
-    x = (r - switch_on) / switch_width
-    if x >= 1.0:  # the pair loop already skips r >= r_c; this keeps the function right on its own
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # switch: x = (r - r_on)/w in [0, 1]; S = 1 - x^3 (10 - 15 x + 6 x^2), dS/dr = -30 x^2 (1-x)^2 / w
+    x = min(max((r2 * inv_r - switch_on) * inv_width, 0.0), 1.0)
     y = 1.0 - x
     s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
-    ds = -30.0 * x * x * y * y / switch_width              # dS/dr
+    ds = -30.0 * x * x * y * y * inv_width
     u = inv_r3 * (ab - 3.0 * ad * bd * inv_r2)             # plain pair energy U
     g = -u * ds * inv_r                                    # -U S' n = g d
     return (s * fx + g * dx, s * fy + g * dy, s * fz + g * dz,
@@ -154,55 +151,40 @@ def switched_dipole_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, sw
 
 
 @njit(**KERNEL_OPTIONS)
-def switched_dipole_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+def switched_dipole_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, inv_width):
     """S(r) U, with U = A [m_i.m_j - 3 (m_i.n)(m_j.n)] / r^3 as in :func:`dipole_energy`."""
     ad = dipole[i, 0] * dx + dipole[i, 1] * dy + dipole[i, 2] * dz
     bd = dipole[j, 0] * dx + dipole[j, 1] * dy + dipole[j, 2] * dz
     ab = dipole[i, 0] * dipole[j, 0] + dipole[i, 1] * dipole[j, 1] + dipole[i, 2] * dipole[j, 2]
     inv_r3 = 1.0 / (r2 * math.sqrt(r2))
-    u = prefactor * inv_r3 * (ab - 3.0 * ad * bd / r2)
-    r = math.sqrt(r2)
-    if r <= switch_on:
-        return u
-    x = (r - switch_on) / switch_width
-    if x >= 1.0:
-        return 0.0
-    return u * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
+    x = min(max((math.sqrt(r2) - switch_on) * inv_width, 0.0), 1.0)
+    return prefactor * inv_r3 * (ab - 3.0 * ad * bd / r2) * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
 
 
 @njit(**KERNEL_OPTIONS)
-def switched_power_law_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+def switched_power_law_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, inv_width):
     """Central force on j of the switched power law S(r) U: S F_j - U S' n."""
     mi = math.sqrt(dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2)
     mj = math.sqrt(dipole[j, 0] ** 2 + dipole[j, 1] ** 2 + dipole[j, 2] ** 2)
-    s = -6.0 * prefactor * mi * mj / (r2 * r2 * math.sqrt(r2))
     r = math.sqrt(r2)
-    if r <= switch_on:
-        return s * dx, s * dy, s * dz
-    x = (r - switch_on) / switch_width
-    if x >= 1.0:
-        return 0.0, 0.0, 0.0
+    f = -6.0 * prefactor * mi * mj / (r2 * r2 * r)         # F_j = f d
+    x = min(max((r - switch_on) * inv_width, 0.0), 1.0)
     y = 1.0 - x
-    sw = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
-    ds = -30.0 * x * x * y * y / switch_width
+    s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+    ds = -30.0 * x * x * y * y * inv_width
     u = -2.0 * prefactor * mi * mj / (r2 * r)
-    g = sw * s - u * ds / r
+    g = s * f - u * ds / r
     return g * dx, g * dy, g * dz
 
 
 @njit(**KERNEL_OPTIONS)
-def switched_power_law_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, switch_width):
+def switched_power_law_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, inv_width):
     """S(r) U with U = -2 A |m_i||m_j| / r^3."""
     mi = math.sqrt(dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2)
     mj = math.sqrt(dipole[j, 0] ** 2 + dipole[j, 1] ** 2 + dipole[j, 2] ** 2)
-    u = -2.0 * prefactor * mi * mj / (r2 * math.sqrt(r2))
     r = math.sqrt(r2)
-    if r <= switch_on:
-        return u
-    x = (r - switch_on) / switch_width
-    if x >= 1.0:
-        return 0.0
-    return u * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
+    x = min(max((r - switch_on) * inv_width, 0.0), 1.0)
+    return -2.0 * prefactor * mi * mj / (r2 * r) * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
 
 
 def switch(r, cutoff, switch_width):
@@ -231,7 +213,7 @@ class Dipole(PairInteraction):
     force_function = dipole_force
     energy_function = dipole_energy
     #: (force, energy) pair functions of the switched form; their parameters are
-    #: ("prefactor", "switch_on", "switch_width")
+    #: ("prefactor", "switch_on", "inv_switch_width")
     switched_functions = (switched_dipole_force, switched_dipole_energy)
 
     def __init__(self, prefactor=1e-7, cutoff=None, switch_width=None):
@@ -250,9 +232,10 @@ class Dipole(PairInteraction):
                              f"cutoff, got switch_width={width} with cutoff={self.cutoff_distance}")
         self.switch_width = width
         self.switch_on = self.cutoff_distance - width
+        self.inv_switch_width = 1.0 / width
         # instance attributes: PairInteraction.pair_functions() looks them up statically
         self.force_function, self.energy_function = self.switched_functions
-        self.parameters = ("prefactor", "switch_on", "switch_width")
+        self.parameters = ("prefactor", "switch_on", "inv_switch_width")
 
     def __repr__(self):
         args = f"prefactor={self.prefactor!r}"
