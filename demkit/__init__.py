@@ -9,10 +9,11 @@ from .simulation import Simulation, SimulationError, Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
+from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 
 __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "PairInteraction", "EulerCromer", "VelocityVerlet",
            "Integrator", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "two_magnets"]
+           "write_series", "read_series", "io", "viz", "two_magnets", "build"]
