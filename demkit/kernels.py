@@ -165,10 +165,16 @@ class _Source:
         lines.append(f"{pad}        r2 = dx * dx + dy * dy + dz * dz")
         return lines
 
-    def guarded(self, k, inter, statements, pad):
+    def guarded(self, k, inter, statements, pad, offset=None):
+        """``statements`` under interaction k's cutoff test; beyond the cutoff a pair has no history:
+        with ``offset`` (committing force loops) its history values are zeroed there."""
         if inter.cutoff_distance is None:
             return [pad + st for st in statements]
-        return [f"{pad}if r2 < c{k}:"] + [pad + "    " + st for st in statements]
+        lines = [f"{pad}if r2 < c{k}:"] + [pad + "    " + st for st in statements]
+        if offset is not None and inter.history_size:
+            lines += [f"{pad}elif commit:", f"{pad}    for h in range({offset}, {offset + inter.history_size}):",
+                      f"{pad}        history[p, h] = 0.0"]
+        return lines
 
     def force_body(self, group, indent, force, torque):
         pad = " " * indent
@@ -186,7 +192,7 @@ class _Source:
                 outs += ["w"]
                 acc += ["power += w"]
             call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force', len(inter.parameters))}"
-            body += self.guarded(k, inter, [call] + acc, pad)
+            body += self.guarded(k, inter, [call] + acc, pad, group.offsets[k])
         body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
                  f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz"]
         if torque_on:

@@ -276,24 +276,32 @@ class Scene:
         """Number of per-pair history values stored (0 when no interaction keeps history)."""
         return sum(self._list(g).history.size for g in range(len(self.plan.groups)))
 
-    def history(self, interaction):
-        """(pairs, values): the (P,2) particle indices (owner first) of the pairs the interaction can
-        reach now and its (P, history_size) history values for them."""
+    def _group_of(self, interaction):
         for g, group in enumerate(self.plan.groups):
             for k, inter in group.members:
                 if inter is interaction:
-                    pl = self._list(g)
-                    offset = group.offsets[k]
-                    tag = self.arrays["tag"]
-                    if group.kind == "list":
-                        self.kernels.prepare(self.state)
-                        pairs = neighbours.pairs_of(pl, tag)
-                    else:
-                        i, j = np.triu_indices(len(self.particles), k=1)
-                        pairs = np.stack([tag[i], tag[j]], axis=1)
-                    rows = pl.history[: len(pairs), offset:offset + inter.history_size]
-                    return pairs, rows.copy()
+                    return g, group, k
         raise ValueError(f"{interaction!r} is not an interaction of this scene")
+
+    def candidate_pairs(self, interaction):
+        """(P,2) particle indices (owner first) of the pairs the interaction's loop visits now: its
+        neighbour list (every pair within cutoff + skin at the last build) or all pairs."""
+        g, group, _ = self._group_of(interaction)
+        tag = self.arrays["tag"]
+        if group.kind == "list":
+            self.kernels.prepare(self.state)
+            return neighbours.pairs_of(self._list(g), tag)
+        i, j = np.triu_indices(len(self.particles), k=1)
+        return np.stack([tag[i], tag[j]], axis=1)
+
+    def history(self, interaction):
+        """(pairs, values): :meth:`candidate_pairs` of the interaction and its (P, history_size)
+        per-pair history values for them."""
+        g, group, k = self._group_of(interaction)
+        pairs = self.candidate_pairs(interaction)
+        offset = group.offsets[k]
+        rows = self._list(g).history[: len(pairs), offset:offset + interaction.history_size]
+        return pairs, rows.copy()
 
     def _list(self, g):
         return self.state.lists[g] if self.plan.growing else self.arrays["lists"][g]

@@ -17,6 +17,10 @@ scalars named in ``parameters`` in that order::
 Interactions with per-contact history (``history_size > 0``) also receive ``history, p, offset,
 commit`` before the parameters: they read ``history[p, offset:offset + history_size]`` and write
 it only when ``commit`` is True, so that evaluating forces has no side effects unless asked.
+Beyond ``cutoff_distance`` the pair functions are not called and, when committing, the pair's
+history values are set to zero (a pair out of reach has no history). History survives
+neighbour-list rebuilds and re-sorting; a pair that leaves the list loses it, one that enters
+starts from zero. The pair is always presented in the same orientation (i, j).
 """
 from __future__ import annotations
 

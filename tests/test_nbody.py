@@ -1,0 +1,304 @@
+"""The N-body engine: neighbour lists against brute force, forces against an all-pairs minimum-image
+sum, history through rebuilds and permutations, conservation in a periodic box, threads."""
+import math
+
+import numba
+import numpy as np
+import pytest
+from numba import njit
+from reference_forces import dipole_forces, kelvin_voigt_forces, pairs_within
+
+import demkit as dk
+from demkit import neighbours
+from demkit.state import new_pair_list
+
+
+def gas(n=300, phi=0.2, periodic=True, seed=1, uneven=False, dipoles=True, speed=1.0, moment=1.0):
+    """Random non-overlapping spheres at volume fraction phi with thermal velocities."""
+    rng = np.random.default_rng(seed)
+    radius = rng.uniform(0.35, 0.65, n) if uneven else 0.5
+    box = dk.build.box_for(n, radius, phi, periodic=periodic)
+    x = dk.build.random_packing(n, radius, box, seed=rng)
+    v = speed * dk.build.thermal_velocities(n, kT=1.0, mass=1.0, seed=rng)
+    mu = moment * dk.build.random_directions(n, seed=rng) if dipoles else None
+    return dk.Particles(position=x, velocity=v, radius=radius, mass=1.0, dipole=mu), box
+
+
+BOXES = {"open": False, "periodic": True, "mixed": (True, False, True)}
+
+
+@pytest.mark.parametrize("kind", list(BOXES))
+def test_lists_hold_exactly_the_pairs_within_each_cutoff_after_motion(kind):
+    p, box = gas(n=300, periodic=BOXES[kind], uneven=True, seed=2)
+    contact, dipole = dk.KelvinVoigt(stiffness=1000.0), dk.Dipole(prefactor=1.0, cutoff=3.0)
+    scene = dk.Scene(p, [contact, dipole], box=box if kind != "open" else None, skin=0.1)
+    assert [g.kind for g in scene.plan.groups] == ["list", "list"]
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+    sim.run(duration=3.0)
+    assert sim.statistics["neighbour_list_builds"] >= 10  # the lists were rebuilt many times
+    x = p.position if kind == "open" else p.position + p.image * box.size
+    frame = None if kind == "open" else box
+    for inter, cutoff in ((contact, 2 * p.radius.max()), (dipole, 3.0)):
+        listed = {tuple(sorted(pair)) for pair in scene.candidate_pairs(inter).tolist()}
+        truth = pairs_within(x, cutoff, frame)
+        assert truth <= listed
+        near = pairs_within(x, cutoff + scene.skin, frame)  # each moved < skin/2 since the build
+        assert listed <= pairs_within(x, cutoff + 2 * scene.skin, frame) and len(near & listed) == len(listed & near)
+        i, j = np.array(sorted(listed)).T
+        d = scene.separations(np.stack([i, j], 1))
+        assert {pair for pair, r in zip(sorted(listed), np.linalg.norm(d, axis=1)) if r < cutoff} == truth
+
+
+@pytest.mark.parametrize("kind", ["open", "periodic"])
+def test_forces_torques_energies_equal_the_all_pairs_minimum_image_sum(kind):
+    p, box = gas(n=400, periodic=kind == "periodic", uneven=True, seed=3)
+    p.position += 0.02 * np.random.default_rng(4).normal(size=p.position.shape)  # some overlaps
+    frame = box if kind == "periodic" else None
+    scene = dk.Scene(p, [dk.Dipole(prefactor=0.7, cutoff=3.5), dk.KelvinVoigt(stiffness=500.0, damping=2.0)],
+                     box=frame)
+    force, torque = scene.forces()
+    fd, td, ud = dipole_forces(p.position, p.dipole, 0.7, cutoff=3.5, box=frame)
+    fc, uc = kelvin_voigt_forces(p.position, p.velocity, p.radius, 500.0, 2.0, box=frame)
+    assert uc > 0  # contacts present
+    # round-off only: the sums run in another order (relative to the largest force, 1e-12)
+    np.testing.assert_allclose(force, fd + fc, rtol=0, atol=1e-12 * np.abs(fd + fc).max())
+    np.testing.assert_allclose(torque, td, rtol=0, atol=1e-12 * np.abs(td).max())
+    e = scene.energy()
+    assert e["magnetic"] == pytest.approx(ud, rel=1e-12)
+    assert e["contact"] == pytest.approx(uc, rel=1e-12)
+
+
+@njit
+def touch_counter_force(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, unit):
+    """No force; history = steps the pair has been touching without a break (0 when apart)."""
+    reach = radius[i] + radius[j]
+    if commit:
+        history[p, offset] = history[p, offset] + unit if r2 < reach * reach else 0.0
+    return 0.0, 0.0, 0.0
+
+
+@njit
+def touch_counter_energy(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, unit):
+    return 0.0
+
+
+class TouchCounter(dk.PairInteraction):
+    reads = ("radius",)
+    history_size = 1
+    energy_kind = "counter"
+    parameters = ("unit",)
+    force_function = touch_counter_force
+    energy_function = touch_counter_energy
+
+    def __init__(self, cutoff=None):
+        self.unit = 1.0
+        self.cutoff_distance = cutoff
+
+
+def counts_by_ids(scene, counter):
+    pairs, values = scene.history(counter)
+    ids = scene.particles.ids
+    return {tuple(sorted((ids[i], ids[j]))): v for (i, j), v in zip(pairs.tolist(), values[:, 0]) if v}
+
+
+def test_history_follows_its_pair_through_rebuilds_and_a_permutation():
+    p, box = gas(n=150, phi=0.3, periodic=True, dipoles=False, seed=5, speed=3.0)
+    runs = {}
+    for name, order in (("listed", np.arange(150)), ("permuted", np.random.default_rng(6).permutation(150))):
+        q = dk.Particles(position=p.position[order], velocity=p.velocity[order], radius=p.radius[order],
+                         ids=p.ids[order])
+        counter = TouchCounter(cutoff=1.0)
+        scene = dk.Scene(q, [dk.KelvinVoigt(stiffness=1000.0), counter], box=box, skin=0.05)
+        sim = dk.Simulation(scene, dk.EulerCromer(dt=1e-3))
+        sim.run(duration=1.5)
+        runs[name] = (counts_by_ids(scene, counter), sim.statistics["neighbour_list_builds"])
+    counts, builds = runs["listed"]
+    assert builds > 20 and len(counts) > 10
+    assert max(counts.values()) > 50  # contacts that lasted through several rebuilds
+    assert runs["permuted"][0] == counts
+
+
+def test_history_survives_rebuilds_exactly_as_an_all_pairs_history():
+    """Open space: the same counter without a cutoff keeps its history for all pairs (no lists)."""
+    p, _ = gas(n=100, phi=0.2, periodic=False, dipoles=False, seed=7, speed=3.0)
+    runs = []
+    for cutoff in (1.0, None):
+        counter = TouchCounter(cutoff=cutoff)
+        scene = dk.Scene(p.copy(), [dk.KelvinVoigt(stiffness=1000.0), counter], skin=0.05)
+        assert ("list" if cutoff else "all") in [g.kind for g in scene.plan.groups]
+        runs.append((dk.Simulation(scene, dk.EulerCromer(dt=1e-3)), scene, counter))
+    compared = 0
+    for _ in range(20):  # compare at many moments: contacts in an expanding gas come and go
+        counts = []
+        for sim, scene, counter in runs:
+            sim.run(duration=0.1)
+            counts.append(counts_by_ids(scene, counter))
+        assert counts[0] == counts[1]
+        compared += len(counts[0])
+    assert compared > 20 and runs[0][0].statistics["neighbour_list_builds"] > 0
+
+
+def test_a_pair_that_leaves_the_list_loses_its_history_and_re_enters_at_zero():
+    x = np.array([[0.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+    tag = np.arange(3)
+    box, periodic = np.zeros(3), np.zeros(3, dtype=bool)
+    pl = new_pair_list(1.5, 3, 2, 1)
+    neighbours.rebuild(pl, x, tag, box, periodic)
+    assert neighbours.pairs_of(pl, tag).tolist() == [[0, 1]]
+    pl.history[0] = [3.0, -1.0]
+    x[1, 0] = 0.5  # moves, still listed: history kept
+    neighbours.rebuild(pl, x, tag, box, periodic)
+    assert pl.history[0].tolist() == [3.0, -1.0]
+    x[1, 0] = 4.0  # now 1.0 from particle 2 and 4.0 from particle 0: the pair (0, 1) left
+    neighbours.rebuild(pl, x, tag, box, periodic)
+    assert neighbours.pairs_of(pl, tag).tolist() == [[1, 2]] and not pl.history[0].any()
+    x[1, 0] = 1.0  # back: the pair (0, 1) re-enters with zero history
+    neighbours.rebuild(pl, x, tag, box, periodic)
+    assert neighbours.pairs_of(pl, tag).tolist() == [[0, 1]] and not pl.history[0].any()
+
+
+@njit
+def smooth_contact_force(i, j, dx, dy, dz, r2, radius, stiffness):
+    """F = k delta^2 along d (repulsive), U = k delta^3 / 3: smooth at the touch, unlike k delta."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0, 0.0, 0.0
+    r = math.sqrt(r2)
+    s = stiffness * (reach - r) ** 2 / r
+    return s * dx, s * dy, s * dz
+
+
+@njit
+def smooth_contact_energy(i, j, dx, dy, dz, r2, radius, stiffness):
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    return stiffness * (reach - math.sqrt(r2)) ** 3 / 3.0
+
+
+class SmoothContact(dk.PairInteraction):
+    reads = ("radius",)
+    energy_kind = "contact"
+    parameters = ("stiffness",)
+    force_function = smooth_contact_force
+    energy_function = smooth_contact_energy
+
+    def __init__(self, stiffness):
+        self.stiffness = stiffness
+
+    def cutoff(self, particles):
+        return 2.0 * float(particles.radius.max())
+
+
+def energy_error(dt, duration=1.0):
+    """Energy error of a periodic dipolar gas with the switched (energy-conserving) cutoff and a
+    contact smooth at the touch (a linear spring's kink makes every contact onset a first-order event)."""
+    p, box = gas(n=250, phi=0.25, periodic=True, seed=8)
+    scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0, switch_width=0.5), SmoothContact(2e4)], box=box)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt=dt))
+    traj = sim.run(duration=duration, record_every=0.05)
+    total = traj.energy["total"]
+    return np.abs(total - total[0]).max(), traj, scene
+
+
+def test_periodic_box_conserves_momentum_and_energy_to_second_order():
+    coarse, traj, scene = energy_error(2e-3)
+    fine, _, _ = energy_error(1e-3)
+    momentum = traj.linear_momentum()
+    assert np.abs(momentum - momentum[0]).max() < 1e-11  # round-off over 500 steps
+    kinetic = traj.energy["kinetic"][0]
+    assert coarse < 1e-3 * kinetic  # bounded and small
+    assert 3.4 < coarse / fine < 4.6  # second order: halving dt divides the error by ~4
+    assert traj.image is not None and np.abs(traj.image).max() >= 1  # spheres crossed the box
+    assert (traj.position >= 0).all() and (traj.position < scene.box.size).all()
+
+
+def test_unwrapped_paths_are_continuous_across_periodic_boundaries():
+    p, box = gas(n=200, periodic=True, dipoles=False, seed=9, speed=4.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1000.0)], box=box)
+    traj = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3)).run(duration=2.0, record_every=0.01)
+    jumps = np.abs(np.diff(traj.unwrapped(), axis=0)).max()
+    assert np.abs(traj.image).max() >= 1 and jumps < 0.2  # speeds ~ 4-15: < 0.15 per frame
+    assert np.abs(np.diff(traj.position, axis=0)).max() > 0.9 * box.size.min()  # wrapped ones jump
+
+
+def test_thread_count_changes_nothing_and_threads_agree_with_the_serial_loop():
+    p, box = gas(n=300, periodic=True, seed=10)
+    inters = [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.0)]
+    serial = dk.Scene(p.copy(), inters, box=box, parallel=False)
+    threaded = dk.Scene(p.copy(), inters, box=box, parallel=True)
+    assert "prange" in threaded.kernels.source and "_parallel(" not in serial.kernels.source
+    f0, t0 = serial.forces()
+    f1, t1 = threaded.forces()
+    np.testing.assert_allclose(f1, f0, rtol=0, atol=1e-12 * np.abs(f0).max())
+    np.testing.assert_allclose(t1, t0, rtol=0, atol=1e-12 * np.abs(t0).max())
+    finals = []
+    before = numba.get_num_threads()
+    try:
+        for threads in (1, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            scene = dk.Scene(p.copy(), inters, box=box, parallel=True)
+            dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3)).run(duration=0.3)
+            finals.append(scene.particles.position.copy())
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(finals[0], finals[1])  # bit-identical whatever the thread count
+
+
+def test_small_open_scenes_have_no_lists_no_threads_no_periodic_code():
+    p = dk.Particles(position=[[0.0, 0, 0], [3.0, 0, 0]], radius=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
+    scene = dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(1.0)])
+    src = scene.kernels.source
+    assert [g.kind for g in scene.plan.groups] == ["all"]
+    assert "maintain_lists" not in src and "prange(" not in src.split("def group_0_energies")[0]
+    assert "lx = box" not in src and "image" not in scene.arrays or scene.arrays["image"].size == 0
+    assert scene.particles.image is None and scene.history_values == 0
+    open_big, _ = gas(n=100, periodic=False, dipoles=False)
+    scene = dk.Scene(open_big, [dk.KelvinVoigt(100.0)])
+    assert "lx = box" not in scene.kernels.source and scene.particles.image is None
+
+
+def test_statistics_report_rebuilds_pairs_and_rates():
+    p, box = gas(n=200, periodic=True, seed=11)
+    scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(stiffness=1000.0)], box=box)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+    sim.run(duration=0.5)
+    st = sim.statistics
+    assert st["steps"] == 500 and st["particle_steps_per_second"] > 0 and st["neighbour_list_builds"] >= 1
+    cutoffs = sorted(entry["cutoff"] for entry in st["lists"])
+    assert cutoffs == [1.0, 3.0] and all(entry["pairs"] <= entry["capacity"] for entry in st["lists"])
+
+
+def test_a_sphere_crossing_more_than_the_skin_in_one_step_stops_the_run():
+    p, box = gas(n=100, periodic=True, dipoles=False, seed=12)
+    p.velocity[17] = [400.0, 0.0, 0.0]  # 0.4 per step at dt = 1e-3, skin 0.3
+    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=100.0)], box=box)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+    with pytest.raises(dk.SimulationError, match="moved more than the neighbour-list skin") as info:
+        sim.run(duration=1.0, record_every=0.1)
+    assert info.value.particle == 17 and info.value.step <= 2
+    assert f"step {info.value.step}" in str(info.value)
+
+
+def test_bad_boxes_skins_and_cutoffs_are_refused_before_stepping():
+    p, box = gas(n=100, periodic=True, seed=13)
+    with pytest.raises(ValueError, match="Box size"):
+        dk.Box(size=(1.0, -2.0, 3.0))
+    with pytest.raises(ValueError, match="Box size"):
+        dk.Box(size=(1.0, math.nan, 3.0))
+    with pytest.raises(ValueError, match="periodic"):
+        dk.Box(size=5.0, periodic="yes")
+    with pytest.raises(ValueError, match="not longer than twice the reach"):
+        dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=0.6 * box.size[0])], box=box)
+    with pytest.raises(ValueError, match="no cutoff"):
+        dk.Scene(p, [dk.Dipole(prefactor=1.0)], box=box)
+    with pytest.raises(ValueError, match="shorter than the contact reach"):
+        dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=0.8)], box=box)
+    for skin in (0.0, -0.1, math.inf):
+        with pytest.raises(ValueError, match="skin"):
+            dk.Scene(p, [dk.KelvinVoigt(10.0)], box=box, skin=skin)
+    closed = dk.Box(box.size, periodic=False)
+    q = p.copy()
+    q.position[5] = [-1.0, 2.0, 2.0]
+    with pytest.raises(ValueError, match="outside the box"):
+        dk.Scene(q, [dk.KelvinVoigt(10.0)], box=closed)
