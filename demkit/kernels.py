@@ -34,6 +34,12 @@ from pathlib import Path
 import numba
 
 ENERGY_KINDS = ("magnetic", "contact")
+#: pairs per block of a blocked pair loop (the scratch buffers hold one block)
+BLOCK = 64
+#: per-particle fields that are scalars (the others are 3-vectors)
+SCALAR_FIELDS = ("radius", "mass")
+#: rows of the gather buffer: positions and at most every field
+GATHER_ROWS = 3 + 3 * 3 + 2
 _MODULES = {}
 
 
@@ -57,6 +63,11 @@ class Group:
     @property
     def torque(self):
         return any(inter.torque for _, inter in self.members)
+
+    @property
+    def blocked(self):
+        """Evaluate blocks of pairs in a vectorisable loop, then scatter (branch-free lists only)."""
+        return self.kind == "list" and all(inter.branch_free and not inter.history_size for _, inter in self.members)
 
 
 @dataclass
@@ -98,11 +109,11 @@ ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, param
 LIST_ARRAYS = "start, end, partner, history"
 
 
-def _state_arrays(g):
+def _state_arrays(g, scratch=False):
     """Call arguments handing group g's arrays over from the state ``s``."""
     fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
     lists = ", ".join(f"s.lists[{g}].{name}" for name in LIST_ARRAYS.split(", "))
-    return f"{fields}, {{targets}}{lists}"
+    return f"{fields}, {{targets}}{lists}" + (", s.scratch, s.gather" if scratch else "")
 
 
 def _pair_call(k, inter, offset, kind, nparams):
@@ -142,7 +153,8 @@ class _Source:
         return lines
 
     def rows(self, group, indent, first, last):
-        """Loop headers over the pairs of owners first..last-1; the body goes at indent + 8."""
+        """Loop headers over the pairs of owners first..last-1 and the pair geometry; the body goes
+        at indent + 8."""
         pad = " " * indent
         lines = [f"{pad}for i in range({first}, {last}):",
                  f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
@@ -155,15 +167,21 @@ class _Source:
             lines.append(f"{pad}    for j in range(i + 1, n):")
             if group.width:
                 lines.append(f"{pad}        p += 1")
-        lines += [f"{pad}        dx = position[j, 0] - xi", f"{pad}        dy = position[j, 1] - yi",
-                  f"{pad}        dz = position[j, 2] - zi"]
+        return lines + self.geometry(group, pad + " " * 8)
+
+    def geometry(self, group, pad, select=False):
+        """dx, dy, dz = x_j - x_i (minimum image along periodic axes: branches, or selects that a
+        vectorising compiler keeps) and r2."""
+        lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
         for a, axis in enumerate("xyz"):
             if self.plan.periodic[a] and group.kind == "list":
-                d = f"d{axis}"
-                lines += [f"{pad}        if {d} > h{axis}:", f"{pad}            {d} -= l{axis}",
-                          f"{pad}        elif {d} < -h{axis}:", f"{pad}            {d} += l{axis}"]
-        lines.append(f"{pad}        r2 = dx * dx + dy * dy + dz * dz")
-        return lines
+                d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
+                if select:
+                    lines.append(f"{pad}{d} = {d} - {l} if {d} > {h} else ({d} + {l} if {d} < -{h} else {d})")
+                else:
+                    lines += [f"{pad}if {d} > {h}:", f"{pad}    {d} -= {l}", f"{pad}elif {d} < -{h}:",
+                              f"{pad}    {d} += {l}"]
+        return lines + [f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
 
     def guarded(self, k, inter, statements, pad, offset=None):
         """``statements`` under interaction k's cutoff test; beyond the cutoff a pair has no history:
@@ -210,18 +228,98 @@ class _Source:
             close += [f"{pad}{torque}[i, 0] += qix", f"{pad}{torque}[i, 1] += qiy", f"{pad}{torque}[i, 2] += qiz"]
         return open_, close
 
+    def gathered_fields(self, group):
+        """Rows of the gather buffer: the partners' positions (rows 0-2), then each field the group's
+        interactions read, as {field: first row}; and the number of rows."""
+        rows, row = {}, 3
+        for _, inter in group.members:
+            for name in inter.reads:
+                if name not in rows:
+                    rows[name] = row
+                    row += 1 if name in SCALAR_FIELDS else 3
+        return rows, row
+
+    def blocked_loop(self, group, indent, first, last, force, torque, out, gather):
+        """Rows in blocks of BLOCK entries: copy the partners' data into contiguous rows of ``gather``
+        (column 0 holds the owner), evaluate the block in a branch-free loop the compiler vectorises
+        (the pair functions see the gathered columns as the field arrays, j = 1 + u), keep the pair
+        forces and torques in ``out``, then scatter them."""
+        pad = " " * indent
+        rows, _ = self.gathered_fields(group)
+        head = self.rows(group, indent, first, last)[:4]
+        open_, close = self.owner_sums(group, indent + 4, force, torque)
+        cols = ["fx", "fy", "fz"] + (["tix", "tiy", "tiz", "tjx", "tjy", "tjz"] if group.torque else [])
+        inner = pad + " " * 12
+
+        def copy(index, column, target):
+            lines = []
+            for name, row in rows.items():
+                if name in SCALAR_FIELDS:
+                    lines.append(f"{target}{gather}[{row}, {column}] = {name}[{index}]")
+                else:
+                    lines += [f"{target}{gather}[{row + a}, {column}] = {name}[{index}, {a}]" for a in range(3)]
+            return lines
+
+        body = copy("i", 0, pad + "    ")
+        body += [f"{pad}    for b0 in range(start[i], end[i], {BLOCK}):",
+                 f"{pad}        m = min({BLOCK}, end[i] - b0)",
+                 f"{pad}        for u in range(m):",
+                 f"{inner}j = partner[b0 + u]"]
+        body += [f"{inner}{gather}[{a}, u + 1] = position[j, {a}]" for a in range(3)]
+        body += copy("j", "u + 1", inner)
+        body += [f"{pad}        for u in range(m):",
+                 f"{inner}j = u + 1",
+                 f"{inner}dx = {gather}[0, j] - xi", f"{inner}dy = {gather}[1, j] - yi",
+                 f"{inner}dz = {gather}[2, j] - zi"]
+        body += self.geometry(group, inner, select=True)[3:]  # minimum image and r2
+        body += [f"{inner}{c} = 0.0" for c in cols]
+        for k, inter in group.members:
+            outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if inter.torque else [])
+            call = _pair_call(k, inter, 0, "force", len(inter.parameters)).replace("(i, j,", "(0, j,", 1)
+            for name in inter.reads:
+                call = call.replace(f", {name},", f", g_{name},").replace(f", {name})", f", g_{name})")
+            body.append(f"{inner}{', '.join(outs)} = {call}")
+            keep = ""
+            if inter.cutoff_distance is not None:
+                body.append(f"{inner}keep = 1.0 if r2 < c{k} else 0.0")
+                keep = " * keep"
+            body += [f"{inner}{c} += {o}{keep}" for c, o in zip(cols, outs)]
+        body += [f"{inner}{out}[{n}, u] = {c}" for n, c in enumerate(cols)]
+        body += [f"{pad}        for u in range(m):",
+                 f"{inner}j = partner[b0 + u]",
+                 f"{inner}{force}[j, 0] += {out}[0, u]", f"{inner}{force}[j, 1] += {out}[1, u]",
+                 f"{inner}{force}[j, 2] += {out}[2, u]",
+                 f"{inner}fix -= {out}[0, u]", f"{inner}fiy -= {out}[1, u]", f"{inner}fiz -= {out}[2, u]"]
+        if group.torque:
+            body += [f"{inner}qix += {out}[3, u]", f"{inner}qiy += {out}[4, u]", f"{inner}qiz += {out}[5, u]",
+                     f"{inner}{torque}[j, 0] += {out}[6, u]", f"{inner}{torque}[j, 1] += {out}[7, u]",
+                     f"{inner}{torque}[j, 2] += {out}[8, u]"]
+        return head + open_ + body + close
+
+    def gather_views(self, group, gather, pad):
+        """The gathered columns seen as field arrays: g_<field>[j, c] = gather[row + c, j]."""
+        rows, _ = self.gathered_fields(group)
+        return [f"{pad}g_{name} = {gather}[{row}]" if name in SCALAR_FIELDS else
+                f"{pad}g_{name} = {gather}[{row}:{row + 3}].T" for name, row in rows.items()]
+
     def force_loop(self, group, indent, first, last, force, torque):
         rows = self.rows(group, indent, first, last)
         open_, close = self.owner_sums(group, indent + 4, force, torque)
         # the accumulators open right after the owner's coordinates are read
         return rows[:4] + open_ + rows[4:] + self.force_body(group, indent + 8, force, torque) + close
 
+    def loop(self, group, indent, first, last, force, torque, out, gather):
+        if group.blocked:
+            return (self.gather_views(group, gather, " " * indent)
+                    + self.blocked_loop(group, indent, first, last, force, torque, out, gather))
+        return self.force_loop(group, indent, first, last, force, torque)
+
     def group_forces(self, g, group):
-        signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, commit"
+        signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         lines = ["", "", "@njit(**INNER)", f"def group_{g}_forces({signature}):",
                  f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
-        lines += self.prelude(group) + ["    power = 0.0"]
-        lines += self.force_loop(group, 4, 0, "n", "force", "torque")
+        lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
+        lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
         lines.append("    return power")
         if not group.parallel:
             return lines
@@ -234,13 +332,15 @@ class _Source:
                   "    for t in prange(chunks):",
                   "        cf = chunk_force[t]",
                   "        ct = chunk_torque[t]",
+                  "        co = scratch[t]",
+                  "        cg = gather[t]",
                   "        for i in range(n):",
                   "            for a in range(3):",
                   "                cf[i, a] = 0.0"]
         if group.torque:
             lines += ["                ct[i, a] = 0.0"]
         lines += ["        power = 0.0"]
-        lines += self.force_loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct")
+        lines += self.loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
         lines += ["        chunk_power[t] = power",
                   "    for i in prange(n):",
                   "        for a in range(3):",
@@ -282,7 +382,7 @@ class _Source:
 
     # ---- scene-level functions -----------------------------------------------------------------
     def group_call(self, g, group, kind, targets, extra):
-        args = _state_arrays(g).format(targets=targets)
+        args = _state_arrays(g, scratch=kind.startswith("forces")).format(targets=targets)
         return f"group_{g}_{kind}({args}{extra})"
 
     def scene_functions(self):
@@ -379,7 +479,7 @@ class _Source:
                 for kind, fn in zip(("force", "energy"), inter.pair_functions()):
                     lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
         cache = self.importable
-        fast = 'fastmath={"contract", "arcp"}'
+        fast = 'fastmath={"contract", "arcp"}, error_model="numpy"'
         nrt = "" if plan.growing else ", _nrt=False"
         if plan.growing:  # big scenes: separate pair-loop functions, no reference counting inside
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")

@@ -12,9 +12,11 @@ import numpy as np
 from numba import njit
 
 #: numba options of every hot kernel: no reference counting (kernels never allocate; it costs
-#: ~2x on small scenes) and fused multiply-add (exact NaN/inf semantics are kept, so the
-#: non-finite checks still work).
-KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, inline="always")
+#: ~2x on small scenes), fused multiply-add (exact NaN/inf semantics are kept, so the non-finite
+#: checks still work) and IEEE division (x/0 gives inf or NaN, caught by those checks, instead of
+#: a Python ZeroDivisionError test at every division, which also stops vectorisation).
+KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy",
+                      inline="always")
 
 
 @njit(**KERNEL_OPTIONS)

@@ -31,7 +31,7 @@ from numba import njit
 #: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
 MAX_CELLS_PER_PARTICLE = 4
 #: options of the loops below: no reference counting (they never allocate)
-LOOP_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"})
+LOOP_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
 
 
 @njit(**LOOP_OPTIONS)

@@ -21,7 +21,7 @@ from . import neighbours
 from .box import Box
 from .integrators import TEMPLATES
 from .interactions.base import PairInteraction
-from .kernels import Group, Plan, build_module, energy_kinds
+from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
 from .state import STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
@@ -171,7 +171,8 @@ class Scene:
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
             skin=self.skin, status=np.zeros(4, dtype=np.int64), counters=np.zeros(4, dtype=np.int64),
             lists=tuple(lists), thread_force=np.zeros((threads, n, 3)), thread_torque=np.zeros((threads, n, 3)),
-            thread_power=np.zeros(threads))
+            thread_power=np.zeros(threads), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
+            gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)))
         self.arrays = fields
         values = [fields[name] for name in STATE_FIELDS]
         return State(*values) if growing else StateTuple(*values)

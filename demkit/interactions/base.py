@@ -47,6 +47,9 @@ class PairInteraction:
     energy_kind: str = "potential"
     #: names of the scalar parameters passed to the pair functions, in order
     parameters: tuple = ()
+    #: the pair functions have no branches (and no history): the pair loop then evaluates blocks of
+    #: pairs in a loop the compiler can vectorise, and applies the cutoff as a mask
+    branch_free: bool = False
     #: centre distance beyond which the pair loop skips this interaction (None: never skipped;
     #: contact laws test their own reach instead)
     cutoff_distance = None

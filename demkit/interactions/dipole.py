@@ -210,6 +210,7 @@ class Dipole(PairInteraction):
     torque = True
     energy_kind = "magnetic"
     parameters = ("prefactor",)
+    branch_free = True
     force_function = dipole_force
     energy_function = dipole_energy
     #: (force, energy) pair functions of the switched form; their parameters are
