@@ -108,7 +108,7 @@ def _fraction(volume_fraction):
         raise ValueError(f"volume_fraction must be a number, got {volume_fraction!r}") from None
     if not math.isfinite(phi) or phi <= 0:
         raise ValueError(f"volume_fraction must be in (0, {RSA_LIMIT}], got {volume_fraction!r}")
-    if phi > RSA_LIMIT:
+    if phi > RSA_LIMIT * (1 + 1e-12):  # slack: the fraction of box_for(..., RSA_LIMIT) rounds either way
         raise ValueError(
             f"volume fraction {phi:.4g} is beyond what random sequential addition reaches: it saturates "
             f"at 0.384 for equal spheres and needs ever more attempts long before, so random_packing "
@@ -341,8 +341,7 @@ def random_packing(n, radius, box, seed=None, max_attempts=None):
             raise ValueError(f"the box side {'xyz'[a]} = {size[a]:.6g} is shorter than the largest sphere's "
                              f"diameter {2 * rmax:.6g}")
     phi = _sphere_volume(r) / box.volume
-    if phi > RSA_LIMIT:
-        _fraction(phi)  # raises, with the explanation
+    _fraction(phi)  # raises above RSA_LIMIT, with the explanation
     if max_attempts is None:
         max_attempts = 1000 * n + 1_000_000
     max_attempts = _count(max_attempts, "max_attempts")

@@ -1,5 +1,8 @@
 """dk.build: packings without overlaps at the asked volume fraction, lattices, chains, rings, random states."""
 import math
+import re
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,6 +11,9 @@ from scipy.spatial import cKDTree
 import demkit as dk
 from demkit import build
 
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs" / "builders.md"
+BENCHMARKS = ROOT / "benchmarks"
 TOL = 1e-9  # relative slack for "touching" in the overlap checks
 
 
@@ -285,12 +291,52 @@ def test_random_states_reject_bad_input(call, match):
         call()
 
 
-def test_builders_feed_particles_and_scene():
-    n, r = 300, 0.5
-    box = build.box_for(n, r, 0.2)
-    x = build.random_packing(n, r, box, seed=0)
-    p = dk.Particles(position=x, velocity=build.thermal_velocities(n, 1.0, 1.0, seed=1), radius=r,
-                     dipole=2.0 * build.random_directions(n, seed=2))
-    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1000.0)], box=box)
-    force, _ = scene.forces()
-    np.testing.assert_array_equal(force, 0.0)  # no contacts in a packing without overlaps
+def test_the_examples_in_docs_builders_run():
+    ns = {}
+    for block in re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S):
+        exec(compile(block, str(DOCS), "exec"), ns)
+    scene, box = ns["scene"], ns["box"]
+    assert scene.box == box and len(scene.particles) == 1000
+    force, torque = scene.forces()
+    assert np.all(np.isfinite(force)) and np.all(np.isfinite(torque))
+    np.testing.assert_allclose(force.sum(axis=0), 0, atol=1e-9 * np.abs(force).max())
+    assert scene.energy()["contact"] == 0.0  # no overlaps in the packing
+    assert len(ns["chain_and_ring"]) == 20 and len(ns["x_fcc"]) == 864
+    assert np.all((ns["x_slab"][:, 2] >= 0.5) & (ns["x_slab"][:, 2] <= 5.5))
+
+
+# ----------------------------------------------------------------------------- the benchmarks' reference scene
+
+def test_reference_scene_files_and_lammps_deck(tmp_path):
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        from lammps_run import lammps_available, run_deck
+        from reference_scene import load_reference_scene, particles_and_box
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    scene = load_reference_scene(500, tmp_path)  # writes the files
+    assert set(scene) == {"L", "x", "v", "omega", "mu", "d", "m", "phi", "seed"}
+    again = load_reference_scene(500, tmp_path, create=False)
+    for key in ("x", "v", "mu"):
+        np.testing.assert_array_equal(scene[key], again[key])
+    particles, box = particles_and_box(again)
+    assert box.size[0] ** 3 * 0.2 == pytest.approx(500 * math.pi / 6, rel=1e-12)
+    assert closest_pair_gap(particles.position, 0.5, box) >= -TOL
+    np.testing.assert_allclose(np.linalg.norm(scene["mu"], axis=1), 2.0)
+    np.testing.assert_allclose(scene["v"].sum(axis=0), 0, atol=1e-12)
+    # the LAMMPS data file holds the same state
+    text = (tmp_path / "scene_N500.data").read_text()
+    atoms = text.split("Atoms # hybrid")[1].split("Velocities")[0].split()
+    rows = np.array(atoms, dtype=float).reshape(500, 11)  # id type x y z diameter density q mux muy muz
+    np.testing.assert_array_equal(rows[:, 2:5], scene["x"])
+    np.testing.assert_array_equal(rows[:, 8:11], scene["mu"])
+    np.testing.assert_allclose(rows[:, 6] * math.pi / 6, 1.0)  # mass 1
+    if not lammps_available():
+        pytest.skip("lmp is not installed")
+    deck = BENCHMARKS / "lammps" / "in.reference"
+    for model in ("full", "nodip_nofric"):
+        out = run_deck(deck, {"data": tmp_path / "scene_N500.data", "model": model, "nsteps": 20})
+        assert out["steps"] == 20 and out["atoms"] == 500 and out["atom_steps_per_s"] > 0
+        assert re.search(r"Step\s+v_contacts\s+v_pairs\s*\n\s*0\s+0\s", out["log"])  # no initial contacts
+    with pytest.raises(RuntimeError, match="unknown model"):
+        run_deck(deck, {"data": tmp_path / "scene_N500.data", "model": "bogus"})
