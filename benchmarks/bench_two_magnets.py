@@ -2,7 +2,7 @@
 
 Writes benchmarks/results/two_magnets.json. Measures
 * steps per second of demkit (best of 5; Euler-Cromer, and velocity Verlet for reference), recording a frame every 100 steps (record_every = 1.0);
-* the same for LAMMPS (shared/reference/lammps/two_magnets.in, output every 100 steps) when `lmp`
+* the same for LAMMPS (benchmarks/lammps/two_magnets.in, output every 100 steps) when `lmp`
   is installed (best of 3), and the ratio;
 * the cold start (import + compile, empty numba caches) and the cached start, in fresh processes.
 """
@@ -18,7 +18,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-DECK = ROOT.parent / "shared" / "reference" / "lammps" / "two_magnets.in"
+DECK = HERE / "lammps" / "two_magnets.in"
 STEPS = 4_000_000
 DT = 0.01
 
