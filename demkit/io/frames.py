@@ -2,7 +2,8 @@
 
 A frame's points are the sphere centres, with one vertex cell per sphere (so ParaView shows the
 points even before a Glyph filter is added). Point data: ``id`` (int64), ``radius``, ``mass``
-and, when present, ``velocity``, ``angular_velocity``, ``dipole``, ``force``, ``torque`` (N,3).
+and, when present, ``velocity``, ``angular_velocity``, ``dipole``, ``force``, ``torque`` (N,3)
+and, in a periodic box, ``image`` (N,3 int64 image counts: unwrapped = position + image * size).
 """
 from __future__ import annotations
 

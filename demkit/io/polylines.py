@@ -3,7 +3,9 @@
 The file is VTK XML PolyData (.vtp) with raw binary appended data (optionally zlib-compressed),
 written here directly because meshio has no poly-line cells. Point data: ``time`` (the time of
 each vertex) and ``id``; cell data (one value per line): ``id`` and ``radius``. Colour by ``time``
-in ParaView to see the direction of motion.
+in ParaView to see the direction of motion. In a periodic box the paths are unwrapped
+(position + image * size, so they do not jump across the box) and field data ``box_size`` and
+``box_periodic`` (0/1) describe the box.
 """
 from __future__ import annotations
 
@@ -29,15 +31,16 @@ def _encode(array, compress):
     return header.tobytes() + b"".join(blocks)
 
 
-def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False):
+def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False, field_data=None):
     """Write poly-lines to the .vtp ``path``.
 
     points (P,3); lengths (L,) number of consecutive points in each line (sum = P);
-    point_data {name: (P,) or (P,k)}; cell_data {name: (L,) or (L,k)}.
+    point_data {name: (P,) or (P,k)}; cell_data {name: (L,) or (L,k)}; field_data {name: (k,)}.
     """
     points = np.asarray(points, dtype=np.float64)
     lengths = np.asarray(lengths, dtype=np.int64)
-    arrays, xml, offset = [], {"PointData": [], "CellData": [], "Points": [], "Lines": []}, 0
+    arrays, offset = [], 0
+    xml = {"FieldData": [], "PointData": [], "CellData": [], "Points": [], "Lines": []}
 
     def add(section, name, value):
         nonlocal offset
@@ -45,12 +48,15 @@ def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False
         if value.dtype not in _VTK_TYPES:
             value = value.astype(np.float64 if value.dtype.kind == "f" else np.int64)
         comps = value.shape[1] if value.ndim == 2 else 1
-        xml[section].append(f'<DataArray type="{_VTK_TYPES[value.dtype]}" Name="{name}" '
+        tuples = f'NumberOfTuples="{len(value)}" ' if section == "FieldData" else ""
+        xml[section].append(f'<DataArray type="{_VTK_TYPES[value.dtype]}" Name="{name}" {tuples}'
                             f'NumberOfComponents="{comps}" format="appended" offset="{offset}"/>')
         block = _encode(value, compress)
         arrays.append(block)
         offset += len(block)
 
+    for name, value in (field_data or {}).items():
+        add("FieldData", name, value)
     for name, value in point_data.items():
         add("PointData", name, value)
     for name, value in cell_data.items():
@@ -62,7 +68,10 @@ def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False
     head = [
         '<?xml version="1.0"?>',
         f'<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64"{compressor}>',
-        "<PolyData>",
+        "<PolyData>"]
+    if xml["FieldData"]:
+        head += ["<FieldData>"] + xml["FieldData"] + ["</FieldData>"]
+    head += [
         f'<Piece NumberOfPoints="{len(points)}" NumberOfVerts="0" NumberOfLines="{len(lengths)}" '
         'NumberOfStrips="0" NumberOfPolys="0">']
     for section in ("PointData", "CellData", "Points", "Lines"):
@@ -83,7 +92,8 @@ def write_polylines(source, path, compress=False):
     """Write the paths of all particles of ``source`` as poly-lines to ``path`` (.vtp).
 
     source : a :class:`demkit.Trajectory`, a :class:`demkit.io.SeriesData`, or a written series
-        (its .pvd or folder; frames are read back and matched by particle id).
+        (its .pvd or folder; frames are read back and matched by particle id). With image counts
+        and a box the paths are unwrapped (position + image * size).
     Returns the path written.
     """
     if isinstance(source, (str, os.PathLike)):
@@ -95,6 +105,9 @@ def write_polylines(source, path, compress=False):
         raise ValueError(f"polylines are written as VTK PolyData: the path must end in .vtp, got {path}")
     time = np.asarray(source.time, dtype=np.float64)
     position = np.asarray(source.position)
+    image, box = getattr(source, "image", None), getattr(source, "box", None)
+    if image is not None and box is not None:
+        position = position + np.asarray(image) * box.size
     if position.ndim != 3 or position.shape[0] != len(time) or position.shape[2] != 3:
         raise ValueError(f"position must have shape (T, N, 3) with T = {len(time)} frames, got {position.shape}")
     nframes, n = position.shape[:2]
@@ -104,4 +117,12 @@ def write_polylines(source, path, compress=False):
         path, points, np.full(n, nframes),
         point_data={"time": np.tile(time, n), "id": np.repeat(ids, nframes)},
         cell_data={"id": ids, "radius": np.asarray(source.radius, dtype=np.float64)},
-        compress=compress)
+        compress=compress, field_data=box_fields(box))
+
+
+def box_fields(box):
+    """Field data describing ``box`` (None: none): box_size (3,) and box_periodic (3,) 0/1."""
+    if box is None:
+        return {}
+    return {"box_size": np.asarray(box.size, dtype=np.float64),
+            "box_periodic": np.asarray(box.periodic, dtype=np.int64)}

@@ -3,6 +3,10 @@
 
 The collection is rewritten atomically (temporary file + rename), so a reader never sees a
 half-written .pvd and an interrupted run leaves a valid series of the frames written so far.
+
+A series in a box also holds ``<Box size="Lx Ly Lz" periodic="1 1 0"/>`` after the collection
+(lower corner at the origin; ParaView's reader ignores the element, demkit and its ParaView script
+read it).
 """
 from __future__ import annotations
 
@@ -11,10 +15,11 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 
-def write_pvd(path, entries):
+def write_pvd(path, entries, box=None):
     """Write the collection ``entries`` = [(time, relative_file), ...] to ``path`` atomically.
 
-    Times are written with ``repr`` so that they read back exactly.
+    Times are written with ``repr`` so that they read back exactly; ``box`` (a demkit.Box or None)
+    is written as a ``Box`` element.
     """
     path = Path(path)
     lines = ['<?xml version="1.0"?>',
@@ -22,7 +27,12 @@ def write_pvd(path, entries):
              "  <Collection>"]
     for time, name in entries:
         lines.append(f'    <DataSet timestep="{float(time)!r}" group="" part="0" file="{name}"/>')
-    lines += ["  </Collection>", "</VTKFile>", ""]
+    lines.append("  </Collection>")
+    if box is not None:
+        size = " ".join(repr(float(x)) for x in box.size)
+        periodic = " ".join(str(int(bool(f))) for f in box.periodic)
+        lines.append(f'  <Box size="{size}" periodic="{periodic}"/>')
+    lines += ["</VTKFile>", ""]
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text("\n".join(lines), encoding="utf-8")
     os.replace(tmp, path)
@@ -43,6 +53,24 @@ def read_pvd(path):
     entries = [(float(ds.get("timestep", "0")), path.parent / ds.get("file"))
                for ds in root.iter("DataSet")]
     return sorted(entries, key=lambda e: e[0])
+
+
+def read_box(path):
+    """The :class:`demkit.Box` stored in the .pvd ``path``, or None when it has none."""
+    from ..box import Box
+
+    try:
+        element = ET.parse(path).getroot().find("Box")
+    except (ET.ParseError, OSError) as err:
+        raise ValueError(f"cannot read the ParaView collection {path}: {err}") from err
+    if element is None:
+        return None
+    try:
+        size = [float(x) for x in element.get("size", "").split()]
+        periodic = [bool(int(x)) for x in element.get("periodic", "").split()]
+        return Box(size, periodic)
+    except ValueError as err:
+        raise ValueError(f"{path} holds a malformed Box element: {err}") from err
 
 
 def find_pvd(source):

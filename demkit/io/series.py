@@ -3,6 +3,7 @@
 Layout of a series called ``name`` (default ``particles``) in ``folder``::
 
     folder/name.pvd             collection: the simulation time of every frame (open this in ParaView)
+                                and the box, when there is one (see demkit.io.pvd)
     folder/name_000000.vtu      one file per frame (binary; see demkit.io.frames)
     folder/name_trails.vtp      trajectories as polylines (see demkit.io.polylines)
 
@@ -19,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, read_frame
-from .pvd import find_pvd, read_pvd, write_pvd
+from .pvd import find_pvd, read_box, read_pvd, write_pvd
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
@@ -27,7 +28,7 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 class SeriesFolder:
     """The files of one series (see the module docstring); checks and claims the folder."""
 
-    def __init__(self, folder, name="particles", overwrite=False):
+    def __init__(self, folder, name="particles", overwrite=False, box=None):
         if not isinstance(name, str) or not _NAME.match(name):
             raise ValueError(f"series name must be letters, digits, '_', '.' or '-', got {name!r}")
         self.folder = Path(folder)
@@ -51,6 +52,7 @@ class SeriesFolder:
             for path in self.own_files():
                 path.unlink()
         self.entries = []
+        self.box = box  # written into the .pvd with every frame
 
     @property
     def pvd(self):
@@ -77,7 +79,7 @@ class SeriesFolder:
         path = self.folder / f"{self.name}_{len(self.entries):06d}.vtu"
         write(path)
         self.entries.append((float(time), path.name))
-        write_pvd(self.pvd, self.entries)
+        write_pvd(self.pvd, self.entries, self.box)
         return path
 
 
@@ -85,15 +87,23 @@ class SeriesData:
     """Frames read back from a series, particles in increasing id order.
 
     time (T,); position (T,N,3); velocity, angular_velocity, dipole, force, torque (T,N,3) or
-    None when the series lacks them; ids, radius, mass (N,); files: the .vtu paths; pvd: its path.
+    None when the series lacks them; ids, radius, mass (N,); files: the .vtu paths; pvd: its path;
+    image (T,N,3) int64 periodic image counts and box (a :class:`demkit.Box`), or None.
     """
 
-    def __init__(self, time, position, fields, ids, radius, mass, files, pvd):
+    def __init__(self, time, position, fields, ids, radius, mass, files, pvd, image=None, box=None):
         self.time, self.position = time, position
         for name in VECTOR_FIELDS:
             setattr(self, name, fields.get(name))
         self.ids, self.radius, self.mass = ids, radius, mass
         self.files, self.pvd = files, pvd
+        self.image, self.box = image, box
+
+    def unwrapped(self):
+        """Positions (T,N,3) continued across periodic boundaries: position + image * box size."""
+        if self.image is None or self.box is None:
+            return self.position
+        return self.position + self.image * self.box.size
 
     def __len__(self):
         return len(self.time)
@@ -133,24 +143,27 @@ def read_series(source, frames=None):
         elif not np.array_equal(data["id"][order], ids):
             raise ValueError(f"frame {file} holds other particles than the first frame")
         positions.append(pos[order])
-        for name in VECTOR_FIELDS:
+        for name in VECTOR_FIELDS + ("image",):
             if name in data:
                 vectors.setdefault(name, []).append(data[name][order])
     fields = {k: np.stack(v) for k, v in vectors.items() if len(v) == len(entries)}
     return SeriesData(np.array([t for t, _ in entries]), np.stack(positions), fields, ids,
-                      constant["radius"], constant["mass"], [f for _, f in entries], pvd)
+                      constant["radius"], constant["mass"], [f for _, f in entries], pvd,
+                      image=fields.get("image"), box=read_box(pvd))
 
 
 def write_series(trajectory, folder, name="particles", compress=False, dtype="float64",
                  overwrite=False, trails=True):
     """Write a recorded :class:`demkit.Trajectory` as a series (one .vtu per frame + .pvd).
 
-    Writes position, velocity and, when recorded, angular_velocity and dipole (a trajectory holds
-    no forces), plus the polyline trails file when ``trails``. Returns the .pvd path.
+    Writes position, velocity and, when recorded, angular_velocity, dipole and the periodic image
+    counts (a trajectory holds no forces), the box into the .pvd, plus the polyline trails file
+    (unwrapped paths) when ``trails``. Returns the .pvd path.
     """
     from .polylines import write_polylines
 
-    series = SeriesFolder(folder, name, overwrite)
+    series = SeriesFolder(folder, name, overwrite, box=getattr(trajectory, "box", None))
+    image = getattr(trajectory, "image", None)
     writer = FrameWriter(compress, dtype)
     constant = {"id": np.asarray(trajectory.ids, dtype=np.int64),
                 "radius": trajectory.radius, "mass": trajectory.mass}
@@ -160,6 +173,8 @@ def write_series(trajectory, folder, name="particles", compress=False, dtype="fl
             value = getattr(trajectory, field, None)
             if value is not None:
                 data[field] = value[k]
+        if image is not None:
+            data["image"] = np.asarray(image[k], dtype=np.int64)
         series.add_frame(time, lambda path: writer.write(path, trajectory.position[k], data))
     if trails:
         write_polylines(trajectory, series.trails, compress=bool(writer.compression))

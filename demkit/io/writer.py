@@ -26,10 +26,13 @@ from .series import SeriesFolder
 
 
 class _Trails:
-    """Positions of every written frame in id order, written as poly-lines when finished."""
+    """Positions of every written frame in id order (unwrapped in a periodic box), written as
+    poly-lines when finished."""
 
-    def __init__(self, path, compress):
-        self.path, self.compress = path, compress
+    image = None  # for write_polylines: the positions kept are unwrapped already
+
+    def __init__(self, path, compress, box=None):
+        self.path, self.compress, self.box = path, compress, box
         self.time, self.position, self.ids, self.radius = [], [], None, None
         self.broken = False
 
@@ -41,8 +44,12 @@ class _Trails:
             warnings.warn("the particles changed during the run: no trails file will be written")
             self.broken = True
         if not self.broken:
+            position = particles.position[order]
+            image = getattr(particles, "image", None)
+            if image is not None and self.box is not None:
+                position = position + image[order] * self.box.size
             self.time.append(float(time))
-            self.position.append(particles.position[order].copy())
+            self.position.append(np.array(position, dtype=np.float64))
 
     def write(self):
         if self.broken or not self.time:
@@ -65,7 +72,8 @@ class VTKWriter:
         keeps every frame's positions in memory (N*3*8 bytes per frame): use False for large runs.
     fields : names among velocity, angular_velocity, dipole, force, torque to write (default: all
         the scene has; force and torque need one extra force evaluation per frame). id, radius and
-        mass are always written.
+        mass are always written, and ``image`` (periodic image counts) when the particles have it.
+        The scene's box (``scene.box``) is stored in the .pvd, and the trails are unwrapped.
     dtype : 'float64' (default) or 'float32' (half the bytes).
     name : base name of the series files.
     """
@@ -95,7 +103,8 @@ class VTKWriter:
         """Start the series for ``simulation``'s scene (called by the simulation)."""
         scene = simulation.scene
         self.begin(scene.particles, has_force=bool(scene.interactions),
-                   has_torque=any(inter.torque for inter in scene.interactions))
+                   has_torque=any(inter.torque for inter in scene.interactions),
+                   box=getattr(scene, "box", None))
 
     def write(self, simulation):
         """Write the current state of ``simulation`` as the next frame (called by the simulation)."""
@@ -113,9 +122,10 @@ class VTKWriter:
         self._closed = True
 
     # ---- lower-level use (without a Simulation) -----------------------------------------------
-    def begin(self, particles, has_force=False, has_torque=False):
-        """Choose the fields for ``particles`` and claim the folder. Raises ValueError if this
-        writer was used before or another run started writing the same series."""
+    def begin(self, particles, has_force=False, has_torque=False, box=None):
+        """Choose the fields for ``particles`` and claim the folder; ``box`` (a demkit.Box or None)
+        goes into the .pvd. Raises ValueError if this writer was used before or another run
+        started writing the same series."""
         if self.fields is not None or self._closed:
             raise ValueError("this VTKWriter has been used already: create a new one for a new run")
         self.series.check_unclaimed()
@@ -123,8 +133,9 @@ class VTKWriter:
                      if getattr(particles, f) is not None]
         available += ["force"] * has_force + ["torque"] * has_torque
         self.fields = choose_fields(available, self._requested)
+        self.series.box = box
         if self.trails:
-            self._trails = _Trails(self.series.trails, bool(self._frames.compression))
+            self._trails = _Trails(self.series.trails, bool(self._frames.compression), box)
             self._finalizer = weakref.finalize(self, self._trails.write)
 
     def write_state(self, time, particles, force=None, torque=None):
@@ -141,6 +152,8 @@ class VTKWriter:
             if value is None:
                 raise ValueError(f"{name} must be given to write_state: the writer writes {name}")
             data[name] = value
+        if getattr(particles, "image", None) is not None:
+            data["image"] = np.asarray(particles.image, dtype=np.int64)
         path = self.series.add_frame(time, lambda p: self._frames.write(p, particles.position, data))
         if self._trails is not None:
             self._trails.add(time, particles)
