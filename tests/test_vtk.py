@@ -244,3 +244,108 @@ def test_documented_writer_example_runs(tmp_path, monkeypatch):
     assert namespace["writer"].frames_written == 21
     assert len(read_pvd(tmp_path / "out" / "particles.pvd")) == 21
     assert (tmp_path / "out" / "particles_trails.vtp").exists()
+
+
+# ---- periodic boxes: image counts, the box, unwrapped trails ------------------------------------
+
+def crossing_trajectory(frames=12):
+    """Sphere 0 runs along +x through the periodic x side (L = 10) at t = 4; sphere 1 sits still."""
+    box = dk.Box([10.0, 8.0, 6.0], periodic=[True, True, False])
+    t = np.arange(frames) * 1.0
+    unwrapped = np.zeros((frames, 2, 3))
+    unwrapped[:, 0] = np.c_[8.0 + 0.5 * t, np.full(frames, 4.0), np.full(frames, 3.0)]
+    unwrapped[:, 1] = [2.0, 2.0, 2.0]
+    position, image = box.wrap(unwrapped)
+    velocity = np.zeros_like(position)
+    velocity[:, 0, 0] = 0.5
+    traj = dk.Trajectory(t, position, velocity, None, None, {}, None, np.full(2, 0.4), np.ones(2),
+                         np.full(2, 0.064), np.array([5, 9]), image=image, box=box)
+    return traj, unwrapped
+
+
+def test_series_carries_the_box_and_image_counts_and_trails_do_not_jump(tmp_path):
+    traj, unwrapped = crossing_trajectory()
+    assert traj.image[:, 0, 0].tolist() == [0] * 4 + [1] * 8  # it does cross
+    pvd = write_series(traj, tmp_path / "series")
+    back = read_series(pvd)
+    assert back.box == traj.box
+    np.testing.assert_array_equal(back.image, traj.image)
+    np.testing.assert_array_equal(back.position, traj.position)
+    np.testing.assert_allclose(back.unwrapped(), unwrapped)
+    _, data = dk.io.read_frame(tmp_path / "series" / "particles_000005.vtu")
+    assert data["image"].dtype.kind == "i" and data["image"].shape == (2, 3)
+    pv = pytest.importorskip("pyvista")
+    trails = pv.read(tmp_path / "series" / "particles_trails.vtp")
+    path = np.asarray(trails.points).reshape(2, len(traj), 3)[0]
+    assert np.abs(np.diff(path, axis=0)).max() == pytest.approx(0.5)  # steps of 0.5, no jump of 10
+    np.testing.assert_allclose(path, unwrapped[:, 0])
+    np.testing.assert_array_equal(trails.field_data["box_size"], [10.0, 8.0, 6.0])
+    np.testing.assert_array_equal(trails.field_data["box_periodic"], [1, 1, 0])
+    # a series without a box reads back without one
+    plain = read_series(write_series(three_spheres_trajectory(), tmp_path / "plain"))
+    assert plain.box is None and plain.image is None
+
+
+def three_spheres_trajectory():
+    return dk.Simulation(three_spheres(), dk.EulerCromer(dt=DT)).run(0.2, record_every=0.1)
+
+
+class StandIn:
+    """What VTKWriter reads from a Simulation: time and scene (particles, interactions, box)."""
+
+    def __init__(self, particles, box):
+        self.time = 0.0
+        self.scene = type("Scene", (), {"particles": particles, "interactions": (), "box": box})()
+
+
+def test_writer_stores_the_scene_box_and_image_counts(tmp_path):
+    traj, unwrapped = crossing_trajectory(frames=6)
+    p = dk.Particles(traj.position[0], velocity=traj.velocity[0], radius=0.4, ids=traj.ids,
+                     image=traj.image[0])
+    sim = StandIn(p, traj.box)
+    writer = dk.VTKWriter(tmp_path / "out", every=1.0)
+    writer.open(sim)
+    for k in range(len(traj)):
+        sim.time, p.position[:], p.image[:] = traj.time[k], traj.position[k], traj.image[k]
+        writer.write(sim)
+    writer.close()
+    back = read_series(writer.pvd)
+    assert back.box == traj.box and writer.fields == ("velocity",)
+    np.testing.assert_array_equal(back.image, traj.image)
+    pv = pytest.importorskip("pyvista")
+    path = np.asarray(pv.read(writer.series.trails).points).reshape(2, len(traj), 3)[0]
+    np.testing.assert_allclose(path, unwrapped[:, 0])
+    with pytest.raises(ValueError, match="malformed Box"):
+        text = writer.pvd.read_text().replace('periodic="1 1 0"', 'periodic="1 1"')
+        (tmp_path / "bad.pvd").write_text(text)
+        dk.io.pvd.read_box(tmp_path / "bad.pvd")
+
+
+@pytest.mark.skipif(shutil.which("pvpython") is None or shutil.which("xvfb-run") is None,
+                    reason="needs ParaView's pvpython and xvfb-run (Debian packages 'paraview', 'xvfb')")
+def test_paraview_script_state_has_a_view_framing_the_box_and_the_screenshot_exits_cleanly(tmp_path):
+    traj, _ = crossing_trajectory()
+    pvd = write_series(traj, tmp_path / "series")
+    state, png = tmp_path / "view.pvsm", tmp_path / "shot.png"
+    done = subprocess.run(["xvfb-run", "-a", "pvpython", str(dk.io.paraview_script()), str(pvd), "--state",
+                           str(state), "--screenshot", str(png)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr  # was 1 (GLXBadContext at exit)
+    assert "box" in done.stdout
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(png).convert("RGB"), dtype=int)
+    assert pixels.shape == (768, 1024, 3) and len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20
+    root = ET.parse(state).getroot()
+    view = next(p for p in root.iter("Proxy") if p.get("type") == "RenderView")
+    layout = next(p for p in root.iter("Proxy") if p.get("type") == "ViewLayout")
+    assert [i.get("view") for i in layout.iter("Item")] == [view.get("id")]  # the GUI shows the view
+
+    def prop(name):
+        element = next(e for e in view.iter("Property") if e.get("name") == name)
+        return [float(x.get("value")) for x in element.iter("Element")]
+
+    assert prop("CameraFocalPoint") == pytest.approx([5.0, 4.0, 3.0])  # the box centre
+    assert np.linalg.norm(np.subtract(prop("CameraPosition"), [5.0, 4.0, 3.0])) > 7.0
+    sources = {i.get("name") for c in root.iter("ProxyCollection") if c.get("name") == "sources"
+               for i in c.iter("Item")}
+    assert {"spheres", "box", "growing trails", "trails"} <= sources

@@ -1,32 +1,57 @@
-"""ParaView set-up for a demkit series: spheres to scale, dipole arrows, trails.
+"""ParaView set-up for a demkit series: spheres to scale, dipole arrows, trails, the box.
 
 Run with ParaView's Python (not demkit's):
 
     pvpython paraview_setup.py out/particles.pvd              # writes out/particles.pvsm
     paraview --state=out/particles.pvsm                       # open it in the GUI
-    pvpython paraview_setup.py out/particles.pvd --screenshot frame.png   (needs a display)
+    xvfb-run -a pvpython paraview_setup.py out/particles.pvd --screenshot frame.png
 
-or, in the ParaView GUI, open the .pvd, select it and run this file from View > Python Shell >
-Run Script: it decorates the selected series. Find this file with
+(``--screenshot`` renders, which Debian's ParaView does through X only: use a display or
+``xvfb-run``.) Or, in the ParaView GUI, open the .pvd, select it and run this file from View >
+Python Shell > Run Script: it decorates the selected series. Find this file with
 ``python -m demkit.io --paraview-script``.
 
 Pipeline: PVD reader -> Glyph (Sphere, scaled by ``radius``: ParaView's sphere glyph has radius
-0.5, so scale factor 2), coloured by ``id``; Glyph (Arrow, oriented by ``dipole``, centred on the
-sphere, 2.7 radii long) when the series has dipoles; "Temporal Particles To Pathlines" keyed by
-``id`` for trails that grow as the animation plays; the ``<name>_trails.vtp`` poly-lines (whole
-paths, coloured by time) when present.
+0.5, so scale factor 2), coloured by ``id`` (up to 10 particles) or by speed (|velocity|, with a
+colour bar); Glyph (Arrow, oriented by ``dipole``, centred on the sphere, 2.7 radii long) when the
+series has dipoles; "Temporal Particles To Pathlines" keyed by ``id`` for trails that grow as the
+animation plays (broken where a sphere crosses a periodic side); the ``<name>_trails.vtp``
+poly-lines (whole paths, coloured by time; hidden at first) when present; the box outline when
+the .pvd holds a ``Box`` element. The saved state has a layout holding the render view and a
+camera that frames the box, or else every position of the run.
 """
 import argparse
+import math
 import os
 import sys
+import xml.etree.ElementTree as ET
 
 import paraview.simple as pvs
 
+ID_COLOURS_UP_TO = 10  # particles; above this the spheres are coloured by speed
+VIEW_SIZE = [1024, 768]
 
-def decorate(reader, view, trails_file=None):
-    """Add the demkit glyphs, arrows and trails for ``reader`` to ``view``; returns the sources."""
+
+def read_box(pvd):
+    """(size [3], periodic [3] bools) from the .pvd's Box element, or None."""
+    try:
+        element = ET.parse(pvd).getroot().find("Box")
+    except (ET.ParseError, OSError):
+        return None
+    if element is None:
+        return None
+    size = [float(x) for x in element.get("size").split()]
+    periodic = [x == "1" for x in element.get("periodic").split()]
+    return size, periodic
+
+
+def decorate(reader, view, trails_file=None, box=None):
+    """Add the demkit glyphs, arrows, trails and box to ``view``; returns the sources made."""
     reader.UpdatePipelineInformation()
+    times = list(reader.TimestepValues) or [0.0]
+    reader.UpdatePipeline(times[0])
     arrays = reader.PointData.keys()
+    count = reader.GetDataInformation().GetNumberOfPoints()
     spheres = pvs.Glyph(registrationName="spheres", Input=reader, GlyphType="Sphere")
     spheres.ScaleArray = ["POINTS", "radius"]
     spheres.ScaleFactor = 2.0
@@ -34,7 +59,12 @@ def decorate(reader, view, trails_file=None):
     spheres.GlyphType.ThetaResolution = 24
     spheres.GlyphType.PhiResolution = 24
     shown = pvs.Show(spheres, view)
-    pvs.ColorBy(shown, ("POINTS", "id"))
+    if count > ID_COLOURS_UP_TO and "velocity" in arrays:
+        pvs.ColorBy(shown, ("POINTS", "velocity", "Magnitude"))
+        shown.RescaleTransferFunctionToDataRangeOverTime()
+        shown.SetScalarBarVisibility(view, True)
+    else:
+        pvs.ColorBy(shown, ("POINTS", "id"))
     made = {"spheres": spheres}
     if "dipole" in arrays:
         arrows = pvs.Glyph(registrationName="dipoles", Input=reader, GlyphType="Arrow")
@@ -51,7 +81,8 @@ def decorate(reader, view, trails_file=None):
     paths.IdChannelArray = "id"
     paths.MaskPoints = 1
     paths.MaxTrackLength = 100000
-    paths.MaxStepDistance = [1e30, 1e30, 1e30]
+    # a step longer than half a periodic side is a jump across the box: the track breaks there
+    paths.MaxStepDistance = [s / 2 if p else 1e30 for s, p in zip(*box)] if box else [1e30] * 3
     paths_shown = pvs.Show(paths, view)
     pvs.ColorBy(paths_shown, ("POINTS", "id"))
     made["growing trails"] = paths
@@ -61,26 +92,79 @@ def decorate(reader, view, trails_file=None):
         pvs.ColorBy(whole_shown, ("POINTS", "time"))
         pvs.Hide(whole, view)  # whole paths: tick the eye in the Pipeline Browser to show them
         made["trails"] = whole
+    if box:
+        size = box[0]
+        outline = pvs.Box(registrationName="box", XLength=size[0], YLength=size[1], ZLength=size[2],
+                          Center=[s / 2 for s in size])
+        outline_shown = pvs.Show(outline, view)
+        outline_shown.SetRepresentationType("Outline")
+        outline_shown.AmbientColor = outline_shown.DiffuseColor = [0.85, 0.85, 0.85]
+        made["box"] = outline
     pvs.Hide(reader, view)
-    view.ViewSize = [1024, 768]
-    view.ResetCamera()
+    frame_camera(view, reader, times, made.get("trails"), box)
     return made
+
+
+def frame_camera(view, reader, times, trails=None, box=None):
+    """Point the camera at the box, or at every position of the run (the trails file, or the
+    first and last frames): a plane view when the spheres lie in a plane, else isometric."""
+    rmax = reader.PointData["radius"].GetRange()[1]
+    spans = []
+    for t in (times[0], times[-1]):
+        reader.UpdatePipeline(t)
+        spans.append(reader.GetDataInformation().GetBounds())
+    if trails is not None:
+        trails.UpdatePipeline()
+        spans.append(trails.GetDataInformation().GetBounds())
+    lo = [min(b[2 * a] for b in spans) for a in range(3)]
+    hi = [max(b[2 * a + 1] for b in spans) for a in range(3)]
+    extent = [h - l for l, h in zip(lo, hi)]
+    if box:
+        lo, hi = [0.0] * 3, list(box[0])
+    else:
+        pad = 1.4 * rmax
+        lo, hi = [x - pad for x in lo], [x + pad for x in hi]
+    centre = [(l + h) / 2 for l, h in zip(lo, hi)]
+    flat = min(range(3), key=lambda a: extent[a])
+    if extent[flat] <= 0.5 * rmax:  # face-on, parallel projection
+        up = 2 if flat != 2 else 1
+        across = 3 - flat - up
+        half = max((hi[up] - lo[up]) / 2, (hi[across] - lo[across]) / 2 * VIEW_SIZE[1] / VIEW_SIZE[0])
+        eye = list(centre)
+        eye[flat] += (-1.0 if flat == 1 else 1.0) * 4 * max(hi[a] - lo[a] for a in range(3))
+        view.CameraParallelProjection = 1
+        view.CameraParallelScale = 1.1 * half
+        view.CameraViewUp = [1.0 if a == up else 0.0 for a in range(3)]
+    else:  # isometric, perspective: the bounds' enclosing sphere fills the view
+        radius = 0.5 * math.sqrt(sum((h - l) ** 2 for l, h in zip(lo, hi)))
+        distance = radius / math.sin(math.radians(view.CameraViewAngle / 2))
+        eye = [c + distance / math.sqrt(3) for c in centre]
+        view.CameraParallelProjection = 0
+        view.CameraViewUp = [0.0, 0.0, 1.0]
+    view.CameraPosition = eye
+    view.CameraFocalPoint = centre
+    view.CenterOfRotation = centre
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description="Set up ParaView for a demkit .pvd series.")
     parser.add_argument("pvd", help="the series' .pvd collection")
     parser.add_argument("--state", help="ParaView state file to write (default: next to the .pvd)")
-    parser.add_argument("--screenshot", help="also save a picture of the last frame (needs a display)")
+    parser.add_argument("--screenshot", help="also save a picture of the last frame (renders: needs "
+                                             "a display or xvfb-run)")
     args = parser.parse_args(argv)
     pvd = os.path.abspath(args.pvd)
     if not os.path.exists(pvd):
         parser.error(f"no such file: {pvd}")
     reader = pvs.PVDReader(registrationName=os.path.basename(pvd), FileName=pvd)
     view = pvs.CreateView("RenderView")
+    layout = pvs.CreateLayout("demkit")
+    pvs.AssignViewToLayout(view=view, layout=layout, hint=0)  # else the GUI opens with no view
+    pvs.SetActiveView(view)
+    view.ViewSize = VIEW_SIZE
     pvs.GetAnimationScene().PlayMode = "Snap To TimeSteps"  # play the frames as written
-    trails = pvd[:-4] + "_trails.vtp"
-    made = decorate(reader, view, trails)
+    box = read_box(pvd)
+    made = decorate(reader, view, pvd[:-4] + "_trails.vtp", box)
     state = os.path.abspath(args.state or pvd[:-4] + ".pvsm")
     pvs.SaveState(state)
     print(f"set up {', '.join(made)} for {pvd}")
@@ -89,11 +173,16 @@ def main(argv=None):
         times = reader.TimestepValues
         view.ViewTime = times[-1] if times else 0.0
         # the growing trails only grow while the animation plays: show the whole paths instead
+        # (unwrapped, so not in a periodic box, where they leave it)
         pvs.Hide(made["growing trails"], view)
-        if "trails" in made:
+        if "trails" in made and not (box and any(box[1])):
             pvs.Show(made["trails"], view)
-        pvs.SaveScreenshot(os.path.abspath(args.screenshot), view, ImageResolution=[1024, 768])
+        pvs.SaveScreenshot(os.path.abspath(args.screenshot), view, ImageResolution=VIEW_SIZE)
         print(f"picture written to {args.screenshot}")
+    # release the render window while the X connection is still open: without this, pvpython
+    # under xvfb-run exits with GLXBadContext and status 1 after writing the picture
+    pvs.Delete(view)
+    pvs.RemoveLayout(layout)
     return 0
 
 
@@ -103,8 +192,10 @@ def in_gui():
     if source is None:
         raise RuntimeError("select a demkit .pvd series in the Pipeline Browser first")
     name = getattr(source, "FileName", None)
-    trails = name[:-4] + "_trails.vtp" if isinstance(name, str) and name.endswith(".pvd") else None
-    decorate(source, pvs.GetActiveViewOrCreate("RenderView"), trails)
+    is_pvd = isinstance(name, str) and name.endswith(".pvd")
+    decorate(source, pvs.GetActiveViewOrCreate("RenderView"), name[:-4] + "_trails.vtp" if is_pvd else None,
+             read_box(name) if is_pvd else None)
+    pvs.GetAnimationScene().UpdateAnimationUsingDataTimeSteps()
     pvs.Render()
 
 
