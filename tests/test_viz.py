@@ -135,7 +135,7 @@ def test_bad_arguments_fail_before_rendering(tmp_path):
     with pytest.raises(ValueError, match="no frame has a time"):
         dk.viz.animate(traj, tmp_path / "run.gif", time_range=(100.0, 200.0))
     with pytest.raises(ValueError, match="out of range"):
-        dk.viz.snapshot(traj, tmp_path / "x.png", frame=5)
+        dk.viz.snapshot(traj, tmp_path / "x.png", frame_index=5)
     with pytest.raises(ValueError, match="view"):
         dk.viz.snapshot(traj, tmp_path / "x.png", view="top")
     with pytest.raises(TypeError, match="cannot draw"):
@@ -157,3 +157,242 @@ def test_two_magnet_example_writes_a_series_and_an_animation(tmp_path):
     assert (tmp_path / "vtk" / "particles_trails.vtp").exists()
     frames = list(ImageSequence.Iterator(Image.open(tmp_path / "collision.gif")))
     assert len(frames) == 8 and all(not_blank(f) > 0.005 for f in frames)
+
+
+# ---- many spheres: framing, colouring, subsets, periodic boxes --------------------------------
+
+def touching_ball(n, radius=1.0):
+    """The n sites of an fcc packing of touching spheres nearest to the origin."""
+    a = 2 * radius * np.sqrt(2)
+    g = np.arange(-5, 6)
+    cells = np.array(np.meshgrid(g, g, g, indexing="ij")).reshape(3, -1).T
+    sites = (cells[:, None, :] + np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])) * a
+    sites = sites.reshape(-1, 3)
+    return sites[np.argsort(np.linalg.norm(sites, axis=1), kind="stable")[:n]]
+
+
+def trajectory(position, velocity=None, box=None, image=None, dipole=None, radius=1.0):
+    """A Trajectory built by hand from positions (T,N,3)."""
+    t, n = position.shape[:2]
+    velocity = np.zeros_like(position) if velocity is None else velocity
+    return dk.Trajectory(np.arange(t) * 1.0, position, velocity, None, dipole, {}, None, np.full(n, radius),
+                         np.ones(n), np.full(n, 0.4 * radius**2), np.arange(n), image=image, box=box)
+
+
+def exploded(n=200, fragments=5, far=225.0):
+    """A cluster of n - fragments touching spheres and fragments flown ``far`` away (2 frames),
+    each sphere with its own speed."""
+    rng = np.random.default_rng(3)
+    direction = rng.normal(size=(fragments, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    pos = np.vstack([touching_ball(n - fragments), far * direction])
+    speed = np.r_[np.linspace(0.0, 0.01, n - fragments), np.full(fragments, 0.02)]
+    velocity = np.vstack([np.zeros((n - fragments, 3)), direction]) * speed[:, None]
+    velocity[: n - fragments, 0] = speed[: n - fragments]
+    m = rng.normal(size=(n, 3))
+    return trajectory(np.stack([pos, pos]), np.stack([velocity, velocity]),
+                      dipole=np.stack([m, m]) / np.linalg.norm(m, axis=1)[None, :, None])
+
+
+def straddling(L=30.0, frames=3):
+    """A 13-sphere cluster around the corner x = y = 0 of a periodic box, plus a sphere that crosses
+    the x side between frames 1 and 2, plus lone spheres."""
+    box = dk.Box([L, L, L], periodic=True)
+    ball = touching_ball(13) + [0.3, 0.2, L / 2]
+    others = np.array([[L - 0.5, 20.0, 5.0], [10.0, 10.0, 10.0], [20.0, 5.0, 25.0]])
+    unwrapped = np.repeat(np.vstack([ball, others])[None], frames, axis=0)
+    unwrapped[:, 13, 0] += 0.4 * np.arange(frames)
+    position, image = box.wrap(unwrapped)
+    return trajectory(position, box=box, image=image)
+
+
+def plan(source, shown=(-1,), **style):
+    from demkit.viz.plan import Plan, Style
+
+    frames = source
+    shown = np.arange(len(frames.time))[list(shown)]
+    return Plan(frames, Style(**style), shown)
+
+
+def brute_force(position, radius, box, extra=0.0, scale=1.0):
+    d = position[None, :, :] - position[:, None, :]
+    if box is not None:
+        d = box.minimum_image(d)
+    close = np.linalg.norm(d, axis=2) < (radius[:, None] + radius[None, :]) * scale + extra
+    np.fill_diagonal(close, False)
+    return close
+
+
+def test_clusters_and_contacts_agree_with_brute_force_in_open_and_periodic_space(rng):
+    from scipy.sparse.csgraph import connected_components
+
+    box = dk.Box([12.0, 12.0, 12.0], periodic=[True, True, False])
+    position = rng.uniform(0, 12, (300, 3))
+    radius = rng.uniform(0.4, 0.6, 300)
+    for b in (None, box):
+        touching = brute_force(position, radius, b, scale=1.01)
+        np.testing.assert_array_equal(dk.viz.contacts(position, radius, b), touching.sum(axis=1))
+        linked = brute_force(position, radius, b, extra=0.1 * radius.mean())
+        count, label = connected_components(linked, directed=False)
+        got = dk.viz.clusters(position, radius, b)
+        assert got.max() + 1 == count
+        for c in range(count):  # the same groups, ranked by size
+            assert len(np.unique(got[label == c])) == 1
+        sizes = np.bincount(got)
+        assert np.all(np.diff(sizes) <= 0)
+    # across the periodic x side: touching, so one cluster
+    pair = np.array([[0.2, 6.0, 6.0], [11.9, 6.0, 6.0]])
+    assert dk.viz.contacts(pair, 0.25, box).tolist() == [1, 1]
+    assert dk.viz.clusters(pair, 0.25, box).tolist() == [0, 0]
+    assert dk.viz.clusters(pair, 0.25, None).tolist() == [0, 1]
+
+
+def test_default_framing_follows_the_cluster_the_box_or_everything():
+    far = plan(exploded())
+    assert far.framing.kind == "cluster" and far.colouring.name == "speed"
+    assert np.ptp(far.framing.bounds.reshape(3, 2), axis=1).max() < 20  # not 450
+    assert plan(exploded(), frame="all").framing.kind == "all"
+    assert plan(straddling()).framing.kind == "box"
+    assert plan(straddling()).framing.outline.tolist() == [0, 30, 0, 30, 0, 30]
+    two = trajectory(np.array([[[0.0, 0, 0], [50.0, 0, 0]]]))
+    assert plan(two).framing.kind == "all" and plan(two).colouring.name == "id"
+    assert plan(two, subset=[1]).framing.bounds.tolist() == [49, 51, -1, 1, -1, 1]
+
+
+def test_a_cluster_across_a_periodic_side_is_drawn_in_one_piece():
+    source = straddling()
+    p = plan(source, frame="cluster")
+    members = p.framing.members
+    assert members.sum() == 13
+    drawn = p.framing.place(source.position[-1])[members]
+    assert np.ptp(drawn, axis=0).max() < 8  # wrapped, it spans the box (about 30)
+    assert np.ptp(source.position[-1][members], axis=0).max() > 25
+    box = p.framing.outline.reshape(3, 2)
+    assert np.all(drawn >= box[:, 0]) and np.all(drawn < box[:, 1])  # the outline moved with it
+
+
+def test_colour_fields():
+    source = exploded()
+    speed = plan(source, frame="all").colouring
+    assert speed.title == "speed" and speed.bar and speed.clim == pytest.approx((0.0, 0.02))
+    assert plan(source).colouring.clim == pytest.approx((0.0, 0.01))  # the range of the spheres framed
+    contacts = plan(source, color_by="contacts").colouring
+    assert contacts.values(1).max() == 12 and contacts.values(1)[-5:].tolist() == [0] * 5
+    assert contacts.clim[1] % (contacts.n_labels - 1) == 0  # whole numbers at the labels
+    dipole = plan(source, color_by="dipole").colouring
+    np.testing.assert_allclose(dipole.values(0), source.dipole[0][:, 2])
+    assert dipole.clim == (-1.0, 1.0)
+    cluster = plan(source, color_by="cluster", frame="all").colouring
+    assert cluster.values(0)[:195].max() == 0 and sorted(cluster.values(0)[195:]) == [1, 2, 3, 4, 5]
+    assert cluster.bar and len(cluster.annotations) == 6
+    values = np.arange(200.0)
+    assert plan(source, color_by=values).colouring.values(1)[7] == 7
+    assert plan(source, color_by=np.stack([values, 2 * values])).colouring.values(1)[7] == 14
+    assert plan(source, color_by="velocity").colouring.title == "velocity (magnitude)"
+    colours = speed.rgb(np.array([0.0, 0.02, np.nan]))
+    assert colours[0].tolist() == [68, 1, 84] and colours[1].tolist() == [253, 231, 36]
+    assert colours[2].tolist() == [128, 128, 128]
+
+
+def test_bad_drawing_arguments_are_clear_value_errors(tmp_path):
+    source, png = exploded(), tmp_path / "x.png"
+    cases = [(dict(color_by="temperature"), "cannot colour by 'temperature'.*contacts.*speed.*dipole"),
+             (dict(color_by=np.ones(7)), r"shape \(N,\)"),
+             (dict(subset=[3, 200]), "out of range for 200 spheres"),
+             (dict(subset=np.ones(5, bool)), "one entry per sphere"),
+             (dict(subset=[]), "selects no sphere"),
+             (dict(subset="largest"), "subset must be"),
+             (dict(bounds=(0, 1, 0, 1)), "6 finite numbers"),
+             (dict(bounds=(0, 1, 2, 1, 0, 1)), "min < max"),
+             (dict(zoom=0), "zoom must be a positive"),
+             (dict(zoom="near"), "zoom must be a positive"),
+             (dict(frame="box"), "needs a source with a box"),
+             (dict(frame="middle"), "frame must be one of"),
+             (dict(frame=3), "frame_index=3"),
+             (dict(cmap="rainbowish"), "unknown colour map"),
+             (dict(clim=(1, 0)), "low < high")]
+    for options, message in cases:
+        with pytest.raises(ValueError, match=message):
+            dk.viz.snapshot(source, png, **options)
+    with pytest.raises(ValueError, match="subset"):
+        dk.viz.animate(source, tmp_path / "x.gif", subset=lambda frames, k: [999])
+    assert not png.exists()
+
+
+RENDER_MANY = """
+    import sys
+    import numpy as np
+    import demkit as dk
+    from demkit.viz.plan import Plan, Style
+    from demkit.viz.render import FrameDrawer, load
+    out = {out!r}
+    size = dict(window_size=(400, 300))
+    dk.viz.snapshot(out + "/exploded", out + "/cluster.png", frame="cluster", **size)
+    dk.viz.snapshot(out + "/exploded", out + "/all.png", frame="all", **size)
+    dk.viz.snapshot(out + "/exploded", out + "/speed.png", color_by="speed", arrows=False, **size)
+    blue = (np.arange(200) % 10 == 0) & (np.arange(200) < 195)  # the cluster's spheres in palette colour 0
+    dk.viz.snapshot(out + "/exploded", out + "/subset.png", color_by="id", subset=blue, arrows=False, **size)
+    dk.viz.snapshot(out + "/exploded", out + "/ids.png", color_by="id", arrows=False, **size)
+    dk.viz.snapshot(out + "/exploded", out + "/zoom.png", frame="cluster", zoom=3, **size)
+    frames = load(out + "/straddling")
+    dk.viz.snapshot(frames, out + "/box.png", view="xy", trail=5, **size)
+    drawer = FrameDrawer(Plan(frames, Style(trail=5.0, view="xy"), np.array([2])))
+    trails = drawer._trails(2, np.arange(16))
+    drawer.close()
+    lines = np.asarray(trails.lines).reshape(-1, 3)[:, 1:]
+    step = np.linalg.norm(np.diff(np.asarray(trails.points)[lines], axis=1)[:, 0], axis=1)
+    print("TRAILS", len(lines), step.max())
+"""
+
+
+@pytest.fixture(scope="module")
+def many(tmp_path_factory):
+    """Series of the test scenes written to disk, drawn in a child process; returns the folder."""
+    folder = tmp_path_factory.mktemp("many")
+    dk.write_series(exploded(), folder / "exploded", trails=False)
+    dk.write_series(straddling(), folder / "straddling", trails=False)
+    done = run_child(RENDER_MANY.format(out=str(folder)))
+    assert done.returncode == 0, done.stdout + done.stderr
+    return folder, done.stdout
+
+
+def test_framing_on_the_cluster_fills_the_picture(many):
+    folder, _ = many
+    cluster, everything = (not_blank(Image.open(folder / f)) for f in ("cluster.png", "all.png"))
+    assert cluster > 0.3 and everything < 0.02  # a dot when 5 fragments are 225 away
+    assert not_blank(Image.open(folder / "zoom.png")) > 0.9
+
+
+def test_colour_by_speed_has_a_colour_bar_and_many_colours(many):
+    folder, _ = many
+    pixels = np.asarray(Image.open(folder / "speed.png").convert("RGB"), dtype=int)
+    bar, spheres = pixels[:, 320:], pixels[:, :320]  # the bar is in the right sixth
+    assert has_colour(Image.fromarray(bar.astype(np.uint8)), (253, 231, 37), 40)  # viridis top
+    assert has_colour(Image.fromarray(bar.astype(np.uint8)), (68, 1, 84), 40)     # and bottom
+    drawn = spheres[np.abs(spheres - 255).sum(axis=2) > 30]
+    hues = {tuple(c) for c in (drawn // 32)}
+    assert len(hues) > 15
+
+
+def test_subset_draws_only_those_spheres(many):
+    folder, _ = many
+    every, subset = Image.open(folder / "ids.png"), Image.open(folder / "subset.png")
+    # coloured by id, the whole cluster shows palette colours 0, 1, 2, ...; the subset (every tenth
+    # sphere of the cluster: ids 0, 10, 20, ...) only colour 0, blue
+    others = ((214, 39, 40), (44, 160, 44), (255, 127, 14), (188, 189, 34))
+    assert all(has_colour(every, c, 60) for c in others)
+    assert not any(has_colour(subset, c, 60) for c in others)
+    assert has_colour(subset, (31, 119, 180), 60)
+    assert not_blank(subset) > 0.1  # framed on the subset, not on the fragments 225 away
+
+
+def test_periodic_box_outline_and_trails_without_jumps(many):
+    folder, out = many
+    line = next(l for l in out.splitlines() if l.startswith("TRAILS"))
+    _, count, longest = line.split()
+    assert int(count) == 16 * 2 - 1  # the step across the side is left out
+    assert float(longest) == pytest.approx(0.4)
+    pixels = np.asarray(Image.open(folder / "box.png").convert("RGB"), dtype=int)
+    grey = (np.abs(pixels - pixels[..., :1]).sum(axis=2) < 10) & (pixels[..., 0] < 200) & (pixels[..., 0] > 60)
+    rows, cols = np.nonzero(grey)
+    assert np.ptp(rows) > 250 and np.ptp(cols) > 250  # the outline spans the picture

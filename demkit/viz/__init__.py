@@ -4,8 +4,10 @@
     demkit.viz.animate(trajectory, "run.gif")        # or .mp4
 
 Sources: a written series (.pvd or its folder), one .vtu frame, a :class:`demkit.Trajectory` or
-a :class:`demkit.io.SeriesData`. Spheres are drawn to scale (coloured per particle), dipoles as
-arrows through the sphere centres, recent paths as trails fading into the background.
+a :class:`demkit.io.SeriesData`. Spheres are drawn to scale, coloured by a field (``color_by``,
+with a colour bar), dipoles as arrows through the sphere centres, recent paths as trails fading
+into the background, the box (when there is one) as thin lines. ``frame``, ``bounds`` and
+``zoom`` choose what the camera shows, ``subset`` which spheres are drawn.
 Before the first picture, a child process checks which OpenGL path works here (EGL, OSMesa or X;
 see :mod:`demkit.viz.backend`); when none does, :class:`RenderingUnavailable` is raised.
 """
@@ -15,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .analysis import clusters, contacts
 from .backend import RenderingUnavailable, ensure_rendering, rendering_info
 
-__all__ = ["snapshot", "animate", "rendering_info", "RenderingUnavailable"]
+__all__ = ["snapshot", "animate", "rendering_info", "RenderingUnavailable", "clusters", "contacts"]
 
 
 def _select(frames, time_range):
@@ -34,19 +37,52 @@ def _select(frames, time_range):
     return index
 
 
-def snapshot(source, path, time=None, frame=-1, trail=None, window_size=(1024, 768),
-             background="white", arrows=True, view="auto", label=True):
+DRAWING = """
+    frame : what the camera fits: 'all' (every sphere drawn), 'cluster' (the largest cluster:
+        spheres whose surfaces are closer than 0.1 mean radii; in a periodic box drawn in one
+        piece), 'box' (the simulation box) or 'auto' (default: 'box' when the source has a box and
+        no subset is given, else 'cluster' when the largest cluster holds more than half the
+        spheres drawn and the others spread over more than 1.5 times its size, else 'all').
+    bounds : (xmin, xmax, ymin, ymax, zmin, zmax) to fit instead (length units; overrides frame).
+    zoom : factor applied after framing (2: twice as close).
+    color_by : 'id' (a colour per particle, cycled; the default up to 10 particles), 'speed' (the
+        default above 10 particles when the source has velocities), 'contacts' (touching
+        neighbours: centre distance < (r_i + r_j)(1 + 0.01)), 'cluster' (largest first), 'dipole'
+        (m_z/|m|, the z component of the unit moment, -1..1), 'radius', the name of a point field
+        of the source ('velocity', 'angular_velocity', 'force', 'torque': magnitudes; 'mass'), or
+        an (N,) or (T, N) array of values. A colour bar shows the field.
+    cmap : a matplotlib colour map name (default 'viridis'; 'coolwarm' for 'dipole').
+    clim : (low, high) colour range (default: the range over the frames shown).
+    subset : the spheres to draw: indices (into the particle axis of the source), a boolean mask
+        (N,), a callable(frames, k) returning either for frame k, or 'cluster' (the largest
+        cluster of each frame). Framing follows the subset.
+    trail : length of the fading trails in time units (0: none; None: a quarter of the time shown
+        for at most 1000 particles, none above).
+    view : 'auto' (a plane view when the framed spheres lie in one, else isometric), 'xy', 'xz',
+        'yz', 'iso'.
+    arrows : draw dipoles as dark arrows through the centres. label : show the time.
+    The box, when the source has one, is outlined with thin lines."""
+
+
+def _plan(frames, shown, **style):
+    from .plan import Plan, Style
+
+    return Plan(frames, Style(**style), shown)
+
+
+def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size=(1024, 768),
+             background="white", arrows=True, view="auto", label=True, frame="auto", bounds=None,
+             zoom=1.0, color_by=None, cmap=None, clim=None, subset=None):
     """Draw one frame of ``source`` to an image file (PNG, JPEG, ... by the suffix of ``path``).
 
-    time : draw the frame nearest this simulation time (overrides ``frame``, default the last).
-    trail : length of the fading trails in time units (0: none; None: a quarter of the time up to
-        the frame for at most 1000 particles, none above).
-    view : 'auto' (a plane view when the particles lie in one, else isometric), 'xy', 'xz', 'yz', 'iso'.
-    Returns the path. Raises RenderingUnavailable if nothing can render here.
+    time : draw the frame nearest this simulation time (overrides ``frame_index``, default the last).
+    frame_index : the frame to draw (an index; -1: the last).
+    {DRAWING}
+    Returns the path. Raises ValueError for bad arguments (before anything renders) and
+    RenderingUnavailable if nothing can render here.
     """
-    from .render import FrameDrawer, Style, load
+    from .render import FrameDrawer, load
 
-    style = Style(trail, window_size, background, arrows, view, label)
     path = Path(path)
     if not path.parent.is_dir():
         raise ValueError(f"folder {path.parent} does not exist")
@@ -55,11 +91,14 @@ def snapshot(source, path, time=None, frame=-1, trail=None, window_size=(1024, 7
     if time is not None:
         k = int(np.argmin(np.abs(np.asarray(frames.time) - time)))
     else:
-        if not -n <= frame < n:
-            raise ValueError(f"frame {frame} is out of range for {n} frames")
-        k = frame % n
+        if not -n <= frame_index < n:
+            raise ValueError(f"frame {frame_index} is out of range for {n} frames")
+        k = frame_index % n
+    plan = _plan(frames, np.array([k]), trail=trail, window_size=window_size, background=background,
+                 arrows=arrows, view=view, label=label, frame=frame, bounds=bounds, zoom=zoom,
+                 color_by=color_by, cmap=cmap, clim=clim, subset=subset)
     ensure_rendering()
-    drawer = FrameDrawer(frames, style, np.array([k]))
+    drawer = FrameDrawer(plan)
     try:
         drawer.draw(k)
         drawer.plotter.screenshot(str(path))
@@ -68,20 +107,22 @@ def snapshot(source, path, time=None, frame=-1, trail=None, window_size=(1024, 7
     return path
 
 
-def animate(source, path, fps=20, max_frames=200, time_range=None, trail=None,
-            window_size=(800, 600), background="white", arrows=True, view="auto", label=True):
+def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None, window_size=(800, 600),
+            background="white", arrows=True, view="auto", label=True, frame="auto", bounds=None,
+            zoom=1.0, color_by=None, cmap=None, clim=None, subset=None):
     """Render the frames of ``source`` to an animation, ``path`` ending in .gif or .mp4.
 
     max_frames : at most this many frames, evenly chosen from those in ``time_range``
         (a (start, stop) pair of simulation times, either may be None).
-    fps : frames per second of the animation. trail, view, ...: as for :func:`snapshot`.
-    The camera stays fixed, framing everything shown. Returns the path.
-    Raises RenderingUnavailable if nothing can render here.
+    fps : frames per second of the animation.
+    {DRAWING}
+    The camera and the colour range stay fixed for the whole animation (framing the last frame's
+    cluster for frame='cluster'). Returns the path. Raises ValueError for bad arguments and
+    RenderingUnavailable if nothing can render here.
     """
     from .movie import MovieWriter
-    from .render import FrameDrawer, Style, load
+    from .render import FrameDrawer, load
 
-    style = Style(trail, window_size, background, arrows, view, label)
     movie = MovieWriter(path, fps)
     if int(max_frames) < 1:
         raise ValueError(f"max_frames must be at least 1, got {max_frames}")
@@ -89,11 +130,18 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, trail=None,
     index = _select(frames, time_range)
     if len(index) > max_frames:
         index = index[np.unique(np.round(np.linspace(0, len(index) - 1, int(max_frames))).astype(int))]
+    plan = _plan(frames, index, trail=trail, window_size=window_size, background=background,
+                 arrows=arrows, view=view, label=label, frame=frame, bounds=bounds, zoom=zoom,
+                 color_by=color_by, cmap=cmap, clim=clim, subset=subset)
     ensure_rendering()
-    drawer = FrameDrawer(frames, style, index)
+    drawer = FrameDrawer(plan)
     try:
         for k in index:
             movie.add(drawer.draw(k))
     finally:
         drawer.close()
     return movie.close()
+
+
+snapshot.__doc__ = snapshot.__doc__.replace("{DRAWING}", DRAWING.strip("\n").lstrip())
+animate.__doc__ = animate.__doc__.replace("{DRAWING}", DRAWING.strip("\n").lstrip())

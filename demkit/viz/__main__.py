@@ -3,6 +3,7 @@
     python -m demkit.viz --check
     python -m demkit.viz snapshot out/particles.pvd frame.png [--time T]
     python -m demkit.viz animate out/particles.pvd run.gif [--fps 20] [--max-frames 200]
+    options for both: --color-by FIELD --cmap NAME --frame {auto,all,cluster,box} --zoom Z
 """
 import argparse
 import sys
@@ -20,7 +21,12 @@ def main(argv=None):
     parser.add_argument("--time", type=float, help="snapshot: the frame nearest this time")
     parser.add_argument("--fps", type=float, default=20.0)
     parser.add_argument("--max-frames", type=int, default=200)
+    parser.add_argument("--color-by", help="id, speed, contacts, cluster, dipole, radius or a point field")
+    parser.add_argument("--cmap", help="a matplotlib colour map (default viridis)")
+    parser.add_argument("--frame", default="auto", choices=["auto", "all", "cluster", "box"])
+    parser.add_argument("--zoom", type=float, default=1.0)
     args = parser.parse_args(argv)
+    style = dict(color_by=args.color_by, cmap=args.cmap, frame=args.frame, zoom=args.zoom)
     try:
         if args.check:
             info = rendering_info()
@@ -29,9 +35,9 @@ def main(argv=None):
             if not (args.source and args.output):
                 parser.error(f"{args.action} needs a source and an output path")
             if args.action == "snapshot":
-                print(snapshot(args.source, args.output, time=args.time))
+                print(snapshot(args.source, args.output, time=args.time, **style))
             else:
-                print(animate(args.source, args.output, fps=args.fps, max_frames=args.max_frames))
+                print(animate(args.source, args.output, fps=args.fps, max_frames=args.max_frames, **style))
         elif not args.check:
             parser.print_help()
     except (RenderingUnavailable, ValueError) as err:

@@ -1,4 +1,5 @@
-"""Drawing frames with pyvista: spheres to scale, dipole arrows, fading trails, a time label.
+"""Drawing frames with pyvista: spheres to scale coloured by a field (with a colour bar), dipole
+arrows, fading trails, the box outline, a time label. What to draw is decided in :mod:`.plan`.
 
 pyvista is imported only inside these functions (after the backend probe has chosen the OpenGL
 window class), never at ``import demkit``.
@@ -10,17 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-#: one colour per particle (cycled), RGB 0..255
-PALETTE = np.array([[31, 119, 180], [214, 39, 40], [44, 160, 44], [255, 127, 14], [148, 103, 189],
-                    [140, 86, 75], [227, 119, 194], [127, 127, 127], [188, 189, 34], [23, 190, 207]],
-                   dtype=np.uint8)
+BAR_SPACE = 0.16  # fraction of the window width kept free for the colour bar
 
 
 def load(source):
     """Frames to draw from ``source``: a Trajectory, a SeriesData, a .pvd or its folder, or one
-    .vtu frame. Returns an object with time (T,), position (T,N,3), dipole (T,N,3) or None,
-    radius and ids (N,)."""
-    from ..io import SeriesData, read_frame, read_series
+    .vtu frame. Returns an object with time (T,), position (T,N,3), radius and ids (N,) and, when
+    the source has them, velocity, dipole, ... (T,N,3), image (T,N,3) and box."""
+    from ..io import VECTOR_FIELDS, SeriesData, read_frame, read_series
 
     if isinstance(source, (str, os.PathLike)):
         path = Path(source)
@@ -28,11 +26,13 @@ def load(source):
             if not path.exists():
                 raise ValueError(f"no such frame file: {path}")
             pos, data = read_frame(path)
-            fields = {k: data[k][None] for k in ("dipole",) if k in data}
+            fields = {k: data[k][None] for k in VECTOR_FIELDS if k in data}
             ids = data.get("id", np.arange(len(pos)))
             radius = data.get("radius", np.ones(len(pos)))
-            return SeriesData(np.array([_frame_time(path)]), pos[None], fields, ids, radius,
-                              data.get("mass"), [path], None)
+            image = data["image"][None] if "image" in data else None
+            time, box = _beside(path)
+            return SeriesData(np.array([time]), pos[None], fields, ids, radius, data.get("mass"), [path],
+                              None, image=image, box=box)
         return read_series(path)
     for attr in ("time", "position", "radius", "ids"):
         if not hasattr(source, attr):
@@ -41,55 +41,30 @@ def load(source):
     return source
 
 
-def default_trail(frames, shown):
-    """A quarter of the time from the first frame to the last shown (none above 1000 particles)."""
-    if frames.position.shape[1] > 1000:
-        return 0.0
-    if len(shown) == 1:
-        return 0.25 * float(frames.time[shown[0]] - frames.time[0])
-    return 0.25 * float(frames.time[shown[-1]] - frames.time[shown[0]])
-
-
-def _frame_time(path):
-    """The time of a .vtu frame from a .pvd beside it that lists it (NaN when none does)."""
+def _beside(path):
+    """(time, box) of a .vtu frame from a .pvd beside it that lists it ((NaN, None) when none does)."""
     from ..io import read_pvd
+    from ..io.pvd import read_box
 
     for pvd in sorted(path.parent.glob("*.pvd")):
         try:
             for time, file in read_pvd(pvd):
                 if file.resolve() == path.resolve():
-                    return time
+                    return time, read_box(pvd)
         except ValueError:
             continue
-    return float("nan")
-
-
-class Style:
-    """How frames look. trail: length of the fading trails in time units (0: none);
-    window_size: pixels (width, height); background: colour; arrows: draw dipole arrows;
-    view: 'auto', 'xy', 'xz', 'yz' or 'iso'; label: show the time."""
-
-    def __init__(self, trail=None, window_size=(960, 720), background="white", arrows=True,
-                 view="auto", label=True, sphere_resolution=None):
-        self.trail, self.window_size, self.background = trail, tuple(window_size), background
-        self.arrows, self.view, self.label = arrows, view, label
-        self.sphere_resolution = sphere_resolution
-        if view not in ("auto", "xy", "xz", "yz", "iso"):
-            raise ValueError(f"view must be 'auto', 'xy', 'xz', 'yz' or 'iso', got {view!r}")
-        if trail is not None and (not np.isfinite(trail) or trail < 0):
-            raise ValueError(f"trail must be a non-negative time (0: no trails), got {trail}")
+    return float("nan"), None
 
 
 class FrameDrawer:
-    """An off-screen pyvista plotter that draws frame k of ``frames`` on demand."""
+    """An off-screen pyvista plotter that draws frame k of ``plan.frames`` on demand."""
 
-    def __init__(self, frames, style, shown):
+    def __init__(self, plan):
         import pyvista as pv
 
-        self.pv, self.frames, self.style = pv, frames, style
-        n = frames.position.shape[1]
-        self.colours = PALETTE[np.arange(n) % len(PALETTE)]
-        self.trail = style.trail if style.trail is not None else default_trail(frames, shown)
+        self.pv, self.plan, self.frames, self.style = pv, plan, plan.frames, plan.style
+        style = plan.style
+        n = self.frames.position.shape[1]
         res = style.sphere_resolution or (32 if n <= 100 else 20 if n <= 1000 else 12 if n <= 20000 else 6)
         self.sphere = pv.Sphere(radius=1.0, theta_resolution=res, phi_resolution=res)
         arrow_res = 20 if n <= 1000 else 6
@@ -100,71 +75,87 @@ class FrameDrawer:
         if n > 1000:  # multisampling costs ~4x with a software renderer (llvmpipe): measured
             self.plotter.ren_win.SetMultiSamples(0)
         self.plotter.set_background(style.background)
+        self.ink = "black" if pv.Color(style.background).int_rgb[1] > 127 else "white"
         self._actors = {}
-        self._place_camera(shown)
+        outline = plan.framing.outline
+        if outline is not None:
+            self.plotter.add_mesh(pv.Box(bounds=outline).outline(), color=self.ink, opacity=0.45,
+                                  line_width=1, reset_camera=False)
+        self._place_camera()
 
-    def _place_camera(self, shown):
-        first = shown[0]
-        if self.trail > 0:
-            first = int(np.searchsorted(self.frames.time, self.frames.time[shown[0]] - self.trail))
-        pos = self.frames.position[first:shown[-1] + 1].reshape(-1, 3)
-        rmax = float(np.max(self.frames.radius))
-        reach = rmax * (1.4 if self.style.arrows and getattr(self.frames, "dipole", None) is not None else 1.0)
-        lo, hi = pos.min(axis=0) - reach, pos.max(axis=0) + reach
-        view = self.style.view
-        if view == "auto":
-            extent = np.ptp(pos, axis=0)  # of the centres
-            flat = int(np.argmin(extent))
-            view = ("yz", "xz", "xy")[flat] if extent[flat] <= 0.5 * rmax else "iso"
-        p = self.plotter
+    def _place_camera(self):
+        b = self.plan.framing.bounds
+        lo, hi = b[0::2], b[1::2]
+        centre = (lo + hi) / 2
+        p, view, zoom = self.plotter, self.plan.view, self.style.zoom
+        # with a colour bar, the framed region is centred in the window's left 84 %
+        reserve = BAR_SPACE if self.plan.colouring.bar else 0.0
+        p.camera.SetWindowCenter(reserve, 0.0)
         if view == "iso":
-            # an invisible box spanning everything shown fixes the camera for the whole animation
-            box = self.pv.Box(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
-            p.add_mesh(box, opacity=0.0, name="bounds")
-            p.view_isometric()
-            p.reset_camera()
+            p.camera.focal_point, p.camera.position, p.camera.up = centre, centre + 1.0, (0.0, 0.0, 1.0)
+            p.renderer.ResetCamera(*b)  # fits the bounds' enclosing sphere; then fit the points:
+            framing = self.plan.framing
+            forward = np.asarray(p.camera.GetDirectionOfProjection())
+            right = np.cross(forward, (0.0, 0.0, 1.0))
+            right /= np.linalg.norm(right)
+            up = np.cross(right, forward)
+            pad = framing.reach * np.array([right, -right, up, -up])
+            pts = (framing.points[:, None, :] + pad[None]).reshape(-1, 3)
+            width, height = self.style.window_size
+            matrix = p.camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+            m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+            ndc = np.c_[pts, np.ones(len(pts))] @ m.T
+            x, y = ndc[:, 0] / ndc[:, 3], ndc[:, 1] / ndc[:, 3]
+            # NDC x of the window centre is -reserve; the free part spans 1 - reserve either side
+            fit = 0.9 / max(np.abs(x + reserve).max() / (1 - reserve), np.abs(y).max())
+            p.camera.Zoom(fit * zoom)
             return
         # plane views: parallel projection scaled so the bounds fill the window, with a margin
         normal, up = {"xy": (2, 1), "xz": (1, 2), "yz": (0, 2)}[view]
         across = 3 - normal - up
-        centre = (lo + hi) / 2
         width, height = self.style.window_size
-        half = max((hi[up] - lo[up]) / 2, (hi[across] - lo[across]) / 2 * height / width) * 1.06
+        width = width * (1 - reserve)
+        half = max((hi[up] - lo[up]) / 2, (hi[across] - lo[across]) / 2 * height / width) * 1.12
         eye = centre.copy()
         sign = -1.0 if view == "xz" else 1.0  # keep the first axis pointing right
-        depth = float(np.max(hi - lo)) + half
-        eye[normal] += sign * 10 * depth
+        eye[normal] += sign * 10 * (float(np.max(hi - lo)) + half)
         up_vector = np.zeros(3)
         up_vector[up] = 1.0
         p.camera.position, p.camera.focal_point, p.camera.up = eye, centre, up_vector
         p.enable_parallel_projection()
-        p.camera.parallel_scale = half
-        p.camera.clipping_range = (8 * depth, 12 * depth)
+        p.camera.parallel_scale = half / zoom
 
     def draw(self, k):
         """Draw frame k and return the image, (height, width, 3) uint8."""
-        pv, f = self.pv, self.frames
-        centres = pv.PolyData(np.ascontiguousarray(f.position[k], dtype=np.float64))
-        centres.point_data["radius"] = np.asarray(f.radius, dtype=np.float64)
-        centres.point_data["colour"] = self.colours
-        self._show("spheres", centres.glyph(geom=self.sphere, scale="radius", orient=False, factor=1.0),
-                   scalars="colour", rgb=True, smooth_shading=True)
-        dipole = getattr(f, "dipole", None)
-        if self.style.arrows and dipole is not None:
-            centres.point_data["dipole"] = np.asarray(dipole[k], dtype=np.float64)
-            self._show("arrows", centres.glyph(geom=self.arrow, orient="dipole", scale="radius", factor=1.0),
-                       color="#202020")
-        self._show("trails", self._trails(k), scalars="colour", rgb=True, line_width=3)
+        pv, f, plan = self.pv, self.frames, self.plan
+        index = np.flatnonzero(plan.mask(k))
+        colouring = plan.colouring
+        centres = pv.PolyData(np.ascontiguousarray(plan.framing.place(f.position[k][index]), dtype=np.float64))
+        centres.point_data["radius"] = np.broadcast_to(np.asarray(f.radius, dtype=np.float64), plan.mask(k).shape)[index]
+        centres.point_data["value"] = colouring.values(k)[index]
+        spheres = centres.glyph(geom=self.sphere, scale="radius", orient=False, factor=1.0) if len(index) else None
+        height = self.style.window_size[1]
+        size = max(8, round(14 * height / 720))
+        bar = dict(title=colouring.title, vertical=True, position_x=0.85, position_y=0.12, width=0.05,
+                   height=0.7, color=self.ink, title_font_size=round(1.4 * size), label_font_size=round(1.2 * size),
+                   n_labels=0 if colouring.annotations else colouring.n_labels, fmt="%.3g", fill=False)
+        self._show("spheres", spheres, scalars="value", cmap=colouring.cmap, clim=colouring.clim,
+                   n_colors=colouring.n_colors, annotations=colouring.annotations,
+                   show_scalar_bar=colouring.bar, scalar_bar_args=bar, nan_color="grey",
+                   smooth_shading=True)
+        if plan.dipoles:
+            centres.point_data["dipole"] = np.asarray(f.dipole[k][index], dtype=np.float64)
+            arrows = centres.glyph(geom=self.arrow, orient="dipole", scale="radius", factor=1.0) if len(index) else None
+            self._show("arrows", arrows, color="#202020")
+        self._show("trails", self._trails(k, index), scalars="colour", rgb=True, line_width=3)
         if self.style.label:
             text = f"t = {f.time[k]:.6g}" if np.isfinite(f.time[k]) else Path(f.files[k]).name
             if "label" not in self._actors:
-                colour = "black" if pv.Color(self.style.background).int_rgb[1] > 127 else "white"
-                height = self.style.window_size[1]
-                size = max(8, round(14 * height / 720))
                 self._actors["label"] = self.plotter.add_text(
-                    text, position=(size, height - 2.6 * size), font_size=size, color=colour)
+                    text, position=(size, height - 2.6 * size), font_size=size, color=self.ink)
             else:
                 self._actors["label"].SetInput(text)
+        self.plotter.renderer.ResetCameraClippingRange()
         self.plotter.render()
         return self.plotter.screenshot(return_img=True)
 
@@ -182,22 +173,34 @@ class FrameDrawer:
             actor[0].copy_from(mesh, deep=False)
             actor[1].SetVisibility(True)
 
-    def _trails(self, k):
-        """Poly-lines through the last ``trail`` time units, fading into the background."""
-        if self.trail <= 0 or k == 0:
+    def _trails(self, k, index):
+        """Line segments through the last ``trail`` time units of the spheres ``index``, fading
+        into the background; segments that cross a periodic boundary are left out."""
+        plan, f = self.plan, self.frames
+        if plan.trail <= 0 or k == 0 or len(index) == 0:
             return None
-        f = self.frames
-        first = int(np.searchsorted(f.time, f.time[k] - self.trail))
+        first = int(np.searchsorted(f.time, f.time[k] - plan.trail))
         if k - first < 1:
             return None
-        pts = f.position[first:k + 1]                      # (m, N, 3)
+        pts = plan.framing.place(f.position[first:k + 1][:, index])  # (m, n, 3)
         m, n = pts.shape[:2]
-        age = (f.time[k] - f.time[first:k + 1]) / self.trail  # 0 (now) .. 1 (oldest)
+        pts = np.ascontiguousarray(pts.transpose(1, 0, 2))            # (n, m, 3): particle-major
+        start = (np.arange(n)[:, None] * m + np.arange(m - 1)[None, :]).ravel()
+        keep = np.ones(len(start), dtype=bool)
+        box = getattr(f, "box", None)
+        if box is not None:
+            jump = np.abs(np.diff(pts, axis=1)).reshape(-1, 3) > box.size / 2
+            keep = ~np.any(jump & box.periodic, axis=1)
+        start = start[keep]
+        if len(start) == 0:
+            return None
+        age = (f.time[k] - f.time[first:k + 1]) / plan.trail  # 0 (now) .. 1 (oldest)
         bg = np.array(self.pv.Color(self.style.background).int_rgb, dtype=float)
         weight = (1.0 - np.clip(age, 0, 1))[None, :, None]
-        colours = bg + (self.colours[:, None, :].astype(float) - bg) * weight  # (N, m, 3)
-        lines = np.hstack([np.full((n, 1), m), np.arange(n * m).reshape(n, m)]).ravel()
-        mesh = self.pv.PolyData(np.ascontiguousarray(pts.transpose(1, 0, 2).reshape(-1, 3)), lines=lines)
+        own = plan.colouring.rgb(plan.colouring.values(k)[index]).astype(float)
+        colours = bg + (own[:, None, :] - bg) * weight  # (n, m, 3)
+        lines = np.column_stack([np.full(len(start), 2), start, start + 1]).ravel()
+        mesh = self.pv.PolyData(pts.reshape(-1, 3), lines=lines)
         mesh.point_data["colour"] = colours.reshape(-1, 3).astype(np.uint8)
         return mesh
 
