@@ -78,6 +78,7 @@ class Plan:
     groups: list
     periodic: tuple  # three bools
     growing: bool  # neighbour lists (mutable state, reference counting on)
+    sorted: bool = False  # particles re-sorted by cell now and then (internal order)
 
     @property
     def lists(self):
@@ -159,6 +160,8 @@ class _Source:
         lines = [f"{pad}for i in range({first}, {last}):",
                  f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
         if group.kind == "list":
+            lines.insert(1, f"{pad}    if start[i] == end[i]:")
+            lines.insert(2, f"{pad}        continue")
             lines.append(f"{pad}    for p in range(start[i], end[i]):")
             lines.append(f"{pad}        j = partner[p]")
         else:
@@ -246,7 +249,7 @@ class _Source:
         forces and torques in ``out``, then scatter them."""
         pad = " " * indent
         rows, _ = self.gathered_fields(group)
-        head = self.rows(group, indent, first, last)[:4]
+        head = self.rows(group, indent, first, last)[:6]
         open_, close = self.owner_sums(group, indent + 4, force, torque)
         cols = ["fx", "fy", "fz"] + (["tix", "tiy", "tiz", "tjx", "tjy", "tjz"] if group.torque else [])
         inner = pad + " " * 12
@@ -306,7 +309,8 @@ class _Source:
         rows = self.rows(group, indent, first, last)
         open_, close = self.owner_sums(group, indent + 4, force, torque)
         # the accumulators open right after the owner's coordinates are read
-        return rows[:4] + open_ + rows[4:] + self.force_body(group, indent + 8, force, torque) + close
+        cut = 6 if group.kind == "list" else 4
+        return rows[:cut] + open_ + rows[cut:] + self.force_body(group, indent + 8, force, torque) + close
 
     def loop(self, group, indent, first, last, force, torque, out, gather):
         if group.blocked:
@@ -403,6 +407,29 @@ class _Source:
             lines += ["    copy_rows(s.reference, s.position)",
                       "    s.counters[REBUILDS] += 1",
                       "    s.counters[WRAP_DUE] = 1"]
+        if plan.sorted:
+            history = [g for g in plan.lists if plan.groups[g].width]
+            width = min(plan.groups[g].reach for g in plan.lists)
+            lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
+                      '    """Re-order the particles by cell (memory locality) and rebuild the lists, carrying',
+                      '    their history by tag. Only between steps: every per-particle array moves."""']
+            lines += [f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)" for g in history]
+            lines += [f"    order = cell_order(s.position, s.box, s.periodic, {width!r} + s.skin)",
+                      "    n = order.shape[0]",
+                      "    vectors = np.empty((n, 3))",
+                      "    scalars = np.empty(n)",
+                      "    integers = np.empty(n, dtype=np.int64)",
+                      "    count = np.empty((n, 3), dtype=np.int64)"]
+            lines += [f"    permute_vectors(s.{name}, order, vectors)" for name in
+                      ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
+            lines += [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
+            lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)"]
+            for g in plan.lists:
+                lines.append(f"    build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)")
+                if g in history:
+                    lines.append(f"    restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})")
+                lines.append(f"    balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)")
+            lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         # forces
         lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
@@ -451,10 +478,14 @@ class _Source:
                   "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
                   '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
                   '    steps left until the next frame (recording frame step // stride when it is due)."""']
-        if plan.lists and any(plan.periodic):
-            lines += ["    if s.counters[WRAP_DUE] != 0:",
-                      "        wrap(s.position, s.reference, s.image, s.box, s.periodic)",
-                      "        s.counters[WRAP_DUE] = 0"]
+        if plan.lists and (any(plan.periodic) or plan.sorted):
+            lines += ["    if s.counters[WRAP_DUE] != 0:", "        s.counters[WRAP_DUE] = 0"]
+            if any(plan.periodic):
+                lines += ["        wrap(s.position, s.reference, s.image, s.box, s.periodic)"]
+            if plan.sorted:
+                lines += ["        if step - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
+                          "            sort_particles(s)",
+                          "            s.counters[LAST_SORT] = step"]
         if plan.lists:  # only list upkeep can flag a stop before the finiteness check
             lines += ["    if s.status[0] != OK:", "        s.status[2] = step", "        return -1"]
         lines += ["    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
@@ -472,8 +503,10 @@ class _Source:
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, KERNEL_OPTIONS)",
-                 "from demkit.neighbours import max_displacement, rebuild, copy_rows, wrap",
-                 "from demkit.state import OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE", ""]
+                 "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
+                 "                               permute_vectors, permute_scalars, saved_history, restore_history)",
+                 "from demkit.state import OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY",
+                 ""]
         if self.importable:
             for k, inter in enumerate(plan.interactions):
                 for kind, fn in zip(("force", "energy"), inter.pair_functions()):

@@ -423,3 +423,41 @@ def pairs_of(pl, tag):
     """(P, 2) array of the listed pairs as tags (owner first): for diagnostics and tests."""
     return np.stack([tag[entry_owners(pl)], tag[pl.partner[: pl.start[-1]]]], axis=1)
 
+
+
+@njit(cache=True)
+def cell_order(position, box, periodic, width):
+    """Permutation of the particles by cell (cells at least ``width`` wide, x slowest): particle
+    order[k] goes to place k."""
+    n = position.shape[0]
+    origin = np.empty(3)
+    size = np.empty(3)
+    ncell = np.empty(3, dtype=np.int64)
+    cell_grid(position, box, periodic, width, origin, size, ncell)
+    cell = np.empty(n, dtype=np.int64)
+    cell_start = np.empty(ncell[0] * ncell[1] * ncell[2] + 1, dtype=np.int64)
+    order = np.empty(n, dtype=np.int64)
+    bin_particles(position, box, periodic, origin, size, ncell, cell, cell_start, order)
+    return order
+
+
+@njit(**LOOP_OPTIONS)
+def permute_vectors(a, order, tmp):
+    """a[k] = a[order[k]] for the rows of an (N,3) array (skips an absent (0,3) field)."""
+    if a.shape[0] == 0:
+        return
+    for k in range(order.shape[0]):
+        for c in range(3):
+            tmp[k, c] = a[order[k], c]
+    for k in range(order.shape[0]):
+        for c in range(3):
+            a[k, c] = tmp[k, c]
+
+
+@njit(**LOOP_OPTIONS)
+def permute_scalars(a, order, tmp):
+    """a[k] = a[order[k]] for an (N,) array."""
+    for k in range(order.shape[0]):
+        tmp[k] = a[order[k]]
+    for k in range(order.shape[0]):
+        a[k] = tmp[k]

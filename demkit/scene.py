@@ -34,6 +34,12 @@ ALL_PAIRS_MAX = 64
 PARALLEL_MIN = 2000
 #: default skin of the neighbour lists, as a fraction of the mean diameter
 DEFAULT_SKIN = 0.3
+#: scenes with neighbour lists and at least this many spheres are re-sorted by cell (sort_every=None)
+SORT_MIN = 1000
+#: steps between re-sorts by default (done at the first list rebuild after that many steps)
+SORT_EVERY = 1000
+#: per-particle arrays of the state (kept in the internal order when the scene is sorted)
+PARTICLE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia", "image")
 #: an all-pairs history larger than this many bytes is refused (give the interaction a cutoff)
 MAX_ALL_PAIRS_HISTORY = 2**31
 
@@ -52,9 +58,13 @@ class Scene:
         follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops are cut into
         ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results do not depend on how many
         threads run them.
+    sort_every : re-order the spheres by cell every this many steps (at the next list rebuild) for
+        memory locality; None: every 1000 steps in scenes with lists and at least 1000 spheres, 0:
+        never. Invisible to the user: ``particles`` keeps its order, compiled code works on its
+        own copies, synchronised at the start and end of every run and for every diagnostic.
     """
 
-    def __init__(self, particles, interactions, box=None, skin=None, parallel=None):
+    def __init__(self, particles, interactions, box=None, skin=None, parallel=None, sort_every=None):
         if not isinstance(particles, Particles):
             raise TypeError(f"particles must be a demkit.Particles, got {type(particles).__name__}")
         if isinstance(interactions, PairInteraction):
@@ -84,6 +94,7 @@ class Scene:
         auto = self.chunks > 1 and len(particles) >= PARALLEL_MIN
         self.parallel = auto if parallel is None else bool(parallel)
         self.plan = self._plan()
+        self._sorting(sort_every)
         self.energy_kinds = energy_kinds(self.interactions)
         n = len(particles)
         self.force = np.zeros((n, 3))
@@ -91,8 +102,26 @@ class Scene:
         self.accum = np.zeros(1)  # accum[0]: work dissipated so far
         self.state = self._make_state()
         self.kernels = build_module(self.plan, TEMPLATES)
-        self.kernels.prepare(self.state)
         self.validate()
+        self.push()
+        if self.plan.sorted:
+            self.kernels.sort_particles(self.state)
+        self.pull()
+
+    def _sorting(self, sort_every):
+        plan, n = self.plan, len(self.particles)
+        can = plan.growing and not any(g.kind == "all" and g.width for g in plan.groups)
+        if sort_every is None:
+            every = SORT_EVERY if can and n >= SORT_MIN else 0
+        else:
+            every = int(sort_every)
+            if every < 0 or every != sort_every:
+                raise ValueError(f"sort_every must be a whole number of steps >= 0 (0: never), got {sort_every!r}")
+            if every and not can:
+                raise ValueError("sort_every needs neighbour lists and no all-pairs history (this scene has none "
+                                 "to sort by, or keeps history by particle index)")
+        plan.sorted = every > 0
+        self.sort_every = every
 
     # ---- set-up ----------------------------------------------------------------------------
     def _skin(self, skin):
@@ -163,13 +192,16 @@ class Scene:
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
         self.params = np.concatenate(params + [np.array(cut2)]) if params else np.zeros(0)
+        own = (lambda a: a.copy()) if plan.sorted else (lambda a: a)  # sorted: the kernels' own order
         fields = dict(
-            position=p.position, velocity=p.velocity, angular_velocity=omega, dipole=dipole,
-            radius=p.radius, mass=p.mass, inertia=p.inertia, tag=np.arange(n, dtype=np.int64), image=image,
+            position=own(p.position), velocity=own(p.velocity), angular_velocity=own(omega), dipole=own(dipole),
+            radius=own(p.radius), mass=own(p.mass), inertia=own(p.inertia), tag=np.arange(n, dtype=np.int64),
+            image=own(image),
             force=self.force, torque=self.torque, accum=self.accum, params=self.params,
             box=self.box.size.copy() if self.box is not None else np.zeros(3),
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
-            skin=self.skin, status=np.zeros(4, dtype=np.int64), counters=np.zeros(4, dtype=np.int64),
+            skin=self.skin, status=np.zeros(4, dtype=np.int64),
+            counters=np.array([0, 0, 0, 0, self.sort_every], dtype=np.int64),
             lists=tuple(lists), thread_force=np.zeros((threads, n, 3)), thread_torque=np.zeros((threads, n, 3)),
             thread_power=np.zeros(threads), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)))
@@ -178,6 +210,38 @@ class Scene:
         return State(*values) if growing else StateTuple(*values)
 
     # ---- state -----------------------------------------------------------------------------
+    def _pairs(self):
+        """(user array, kernel array) of each per-particle field present."""
+        p = self.particles
+        for name in PARTICLE_FIELDS:
+            user = getattr(p, name)
+            if user is not None:
+                yield user, self.arrays[name]
+
+    def push(self):
+        """Copy the user's particle arrays into the kernels' order (no-op unless sorted), then bring
+        the lists up to date and wrap periodic coordinates."""
+        if self.plan.sorted:
+            tag = self.arrays["tag"]
+            for user, own in self._pairs():
+                own[:] = user[tag]
+        self.kernels.prepare(self.state)
+
+    def pull(self):
+        """Copy the kernels' arrays back into the user's particle arrays (no-op unless sorted)."""
+        if self.plan.sorted:
+            tag = self.arrays["tag"]
+            for user, own in self._pairs():
+                user[tag] = own
+
+    def to_user_order(self, values):
+        """Per-particle values (kernel order) in the order of ``particles``."""
+        if not self.plan.sorted:
+            return values
+        out = np.empty_like(values)
+        out[self.arrays["tag"]] = values
+        return out
+
     @property
     def dissipated(self):
         """Work dissipated by the interactions since the scene was made."""
@@ -195,9 +259,9 @@ class Scene:
         """(P, 2) particle indices of the pairs closer than ``reach`` (minimum image), via a cell list."""
         p = self.particles
         pl = new_pair_list(reach, len(p), 0, 1)
-        box = self.arrays["box"]
-        neighbours.rebuild(pl, p.position, self.arrays["tag"], box, self.arrays["periodic"])
-        return neighbours.pairs_of(pl, self.arrays["tag"])
+        index = np.arange(len(p), dtype=np.int64)
+        neighbours.rebuild(pl, p.position, index, self.arrays["box"], self.arrays["periodic"])
+        return neighbours.pairs_of(pl, index)
 
     def separations(self, pairs):
         """Centre-to-centre vectors x_j - x_i (minimum image) of index pairs (P, 2)."""
@@ -238,14 +302,18 @@ class Scene:
         """(force, torque), each (N,3), at the current state; changes nothing (history included)."""
         n = len(self.particles)
         force, torque = np.zeros((n, 3)), np.zeros((n, 3))
+        self.push()
         self.kernels.compute_forces(self.state, force, torque, False, False)
-        return force, torque
+        self.pull()
+        return self.to_user_order(force), self.to_user_order(torque)
 
     def energy(self):
         """Energies: kinetic, rotational, one per energy kind (magnetic, contact, ...), total and
         dissipated. total = kinetic + rotational + potentials; total + dissipated is conserved."""
         out = np.zeros(2 + len(self.energy_kinds))
+        self.push()
         self.kernels.energies_of(self.state, out)
+        self.pull()
         return energy_dict(out, self.energy_kinds, self.dissipated)
 
     def pair_energies(self):
@@ -253,6 +321,7 @@ class Scene:
         reach (within its list or all pairs) and a (P, n_interactions) array of the potential
         energy of each pair under each interaction, in ``self.interactions`` order."""
         chunks = []
+        self.push()
         for g, group in enumerate(self.plan.groups):
             n = len(self.particles)
             size = n * (n - 1) // 2 if group.kind == "all" else self._list(g).size
@@ -290,7 +359,7 @@ class Scene:
         g, group, _ = self._group_of(interaction)
         tag = self.arrays["tag"]
         if group.kind == "list":
-            self.kernels.prepare(self.state)
+            self.push()
             return neighbours.pairs_of(self._list(g), tag)
         i, j = np.triu_indices(len(self.particles), k=1)
         return np.stack([tag[i], tag[j]], axis=1)

@@ -138,13 +138,14 @@ class Simulation:
         scene.validate()
         state = scene.state
         kern = scene.kernels
-        kern.prepare(state)
+        scene.push()
         nframes = nsteps // stride + 1
         extra_final = nsteps % stride != 0
         record = self._allocate(nframes + extra_final)
         kern.record_frame(0, state, record)
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
         if not self._opened:
+            scene.pull()
             for w in self.writers:
                 w.open(self)
                 w.write(self)
@@ -158,7 +159,10 @@ class Simulation:
             chunk = nsteps - done
             for ws in writer_steps:
                 chunk = min(chunk, ws - (start_step + done) % ws)
-            failed = self._loop(chunk, done, stride, dt, forces_ready, state, record)
+            try:
+                failed = self._loop(chunk, done, stride, dt, forces_ready, state, record)
+            finally:
+                scene.pull()
             forces_ready = True
             if failed >= 0:
                 self._fail(done + failed + 1, start_time, start_step, stride, record)
@@ -234,7 +238,7 @@ class Simulation:
         kept = (f"The {good_frames} frames recorded before it are kept in simulation.trajectory")
         if code == MOVED_TOO_FAR:
             k = int(scene.arrays["tag"][index])
-            speed = float(np.linalg.norm(p.velocity[index]))
+            speed = float(np.linalg.norm(p.velocity[k]))
             raise SimulationError(
                 f"particle id {p.ids[k]} moved more than the neighbour-list skin ({scene.skin:.6g}) between two "
                 f"rebuilds at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}, so {speed * dt:.6g} per "

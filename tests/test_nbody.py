@@ -118,6 +118,27 @@ def test_history_follows_its_pair_through_rebuilds_and_a_permutation():
     assert runs["permuted"][0] == counts
 
 
+def test_re_sorting_by_cell_is_invisible_and_keeps_history():
+    p, box = gas(n=400, phi=0.3, periodic=True, seed=14, speed=3.0)
+    finals, counts = [], []
+    for every in (0, 3):  # never, or at the first rebuild 3 steps after the last re-sort
+        counter = TouchCounter(cutoff=1.0)
+        scene = dk.Scene(p.copy(), [dk.Dipole(1.0, cutoff=3.0), dk.KelvinVoigt(1000.0), counter], box=box,
+                         sort_every=every)
+        sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+        traj = sim.run(duration=0.5, record_every=0.1)
+        if every:
+            assert scene.counters[2] > 10 and not np.array_equal(scene.arrays["tag"], np.arange(400))
+        finals.append((traj, scene.forces()[0], scene.particles.position.copy()))
+        counts.append(counts_by_ids(scene, counter))
+    (t0, f0, x0), (t1, f1, x1) = finals
+    # the same run up to round-off (sums in another order): positions and forces in the user's order
+    np.testing.assert_allclose(x1, x0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(t1.position, t0.position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(f1, f0, rtol=0, atol=1e-7 * np.abs(f0).max())
+    assert counts[1] == counts[0] and len(counts[0]) > 10
+
+
 def test_history_survives_rebuilds_exactly_as_an_all_pairs_history():
     """Open space: the same counter without a cutoff keeps its history for all pairs (no lists)."""
     p, _ = gas(n=100, phi=0.2, periodic=False, dipoles=False, seed=7, speed=3.0)
