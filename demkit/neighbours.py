@@ -150,15 +150,17 @@ def neighbour_cells(ncell, periodic, near, shift, counts):
 
 
 @njit(**LOOP_OPTIONS)
-def sorted_copy(position, box, periodic, members, xs):
-    """xs[m]: position of members[m], folded into the box along periodic axes."""
+def sorted_copy(position, tag, box, periodic, members, xs, ts):
+    """xs[:, m], ts[m]: position of members[m], folded into the box along periodic axes (rows x,
+    y, z), and its tag."""
     for m in range(members.shape[0]):
         j = members[m]
+        ts[m] = tag[j]
         for a in range(3):
             x = position[j, a]
             if periodic[a]:
                 x -= box[a] * math.floor(x / box[a])
-            xs[m, a] = x
+            xs[a, m] = x
 
 
 @njit(**LOOP_OPTIONS)
@@ -190,23 +192,23 @@ def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo
 
 
 @njit(**LOOP_OPTIONS)
-def fill_pairs(tag, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
-               end, partner, lo, hi, image):
+def fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+               end, partner, lo, hi, image, d2):
     """Write the pairs closer than ``reach`` into partner, the partners of particle i at
     start[i]:end[i], each pair in the row of its lower tag; returns how many pairs there are
-    (entries beyond len(partner) are counted, not written). Works cell by cell on the cell-sorted,
-    folded copy ``xs``; a periodic axis with fewer than 3 cells takes the minimum image per pair."""
+    (entries beyond len(partner) - 1 are counted, not written). Works cell by cell on the cell-sorted,
+    folded copy ``xs`` (rows x, y, z) and tags ``ts``: squared distances of a block of candidates in a loop the
+    compiler vectorises (into ``d2``), then the hits; a periodic axis with fewer than 3 cells takes
+    the minimum image per pair."""
     reach2 = reach * reach
-    capacity = partner.shape[0]
-    per_pair = False
-    for a in range(3):
-        per_pair = per_pair or (periodic[a] and ncell[a] < 3)
+    last = partner.shape[0] - 1
+    block = d2.shape[0]
     lx = box[0] if periodic[0] and ncell[0] < 3 else 0.0
     ly = box[1] if periodic[1] and ncell[1] < 3 else 0.0
     lz = box[2] if periodic[2] and ncell[2] < 3 else 0.0
-    ix = 1.0 / box[0] if lx > 0.0 else 0.0
-    iy = 1.0 / box[1] if ly > 0.0 else 0.0
-    iz = 1.0 / box[2] if lz > 0.0 else 0.0
+    hx = 0.5 * lx if lx > 0.0 else np.inf
+    hy = 0.5 * ly if ly > 0.0 else np.inf
+    hz = 0.5 * lz if lz > 0.0 else np.inf
     count = 0
     c = 0
     for cx in range(ncell[0]):
@@ -218,26 +220,25 @@ def fill_pairs(tag, xs, members, box, periodic, reach, ncell, cell_start, near, 
                 nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
                 for m in range(cell_start[c], cell_start[c + 1]):
                     i = members[m]
-                    ti = tag[i]
+                    ti = ts[m]
                     start[i] = count
                     for r in range(nr):
-                        xi = xs[m, 0] - image[r, 0]
-                        yi = xs[m, 1] - image[r, 1]
-                        zi = xs[m, 2] - image[r, 2]
-                        for q in range(lo[r], hi[r]):
-                            dx = xs[q, 0] - xi
-                            dy = xs[q, 1] - yi
-                            dz = xs[q, 2] - zi
-                            if per_pair:
-                                dx -= lx * math.floor(dx * ix + 0.5)
-                                dy -= ly * math.floor(dy * iy + 0.5)
-                                dz -= lz * math.floor(dz * iz + 0.5)
-                            if dx * dx + dy * dy + dz * dz < reach2:
-                                j = members[q]
-                                if tag[j] > ti:
-                                    if count < capacity:
-                                        partner[count] = j
-                                    count += 1
+                        xi = xs[0, m] - image[r, 0]
+                        yi = xs[1, m] - image[r, 1]
+                        zi = xs[2, m] - image[r, 2]
+                        for b0 in range(lo[r], hi[r], block):
+                            nb = min(block, hi[r] - b0)
+                            for u in range(nb):
+                                dx = xs[0, b0 + u] - xi
+                                dy = xs[1, b0 + u] - yi
+                                dz = xs[2, b0 + u] - zi
+                                dx = dx - lx if dx > hx else (dx + lx if dx < -hx else dx)
+                                dy = dy - ly if dy > hy else (dy + ly if dy < -hy else dy)
+                                dz = dz - lz if dz > hz else (dz + lz if dz < -hz else dz)
+                                d2[u] = dx * dx + dy * dy + dz * dz
+                            for u in range(nb):  # branch-free: always write, keep when it counts
+                                partner[min(count, last)] = members[b0 + u]
+                                count += (d2[u] < reach2) & (ts[b0 + u] > ti)
                     end[i] = count
                 c += 1
     start[start.shape[0] - 1] = count
@@ -261,17 +262,19 @@ def build(pl, position, tag, box, periodic):
     shift = np.empty((3, widest, 3), dtype=np.int64)
     counts = np.empty((3, widest), dtype=np.int64)
     neighbour_cells(ncell, periodic, near, shift, counts)
-    xs = np.empty((n, 3))
-    sorted_copy(position, box, periodic, members, xs)
+    xs = np.empty((3, n))
+    ts = np.empty(n, dtype=np.int64)
+    sorted_copy(position, tag, box, periodic, members, xs, ts)
     lo = np.empty(27, dtype=np.int64)
     hi = np.empty(27, dtype=np.int64)
     image = np.empty((27, 3))
-    count = fill_pairs(tag, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
-                       pl.start, pl.end, pl.partner, lo, hi, image)
-    if count > pl.partner.shape[0]:
+    d2 = np.empty(64)
+    count = fill_pairs(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
+                       pl.start, pl.end, pl.partner, lo, hi, image, d2)
+    if count >= pl.partner.shape[0]:  # the last slot is scratch for the branch-free fill
         pl.partner = np.empty(count + count // 2 + 16, dtype=np.int32)
-        fill_pairs(tag, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
-                   pl.start, pl.end, pl.partner, lo, hi, image)
+        fill_pairs(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
+                   pl.start, pl.end, pl.partner, lo, hi, image, d2)
 
 
 @njit(**LOOP_OPTIONS)
