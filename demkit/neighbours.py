@@ -9,8 +9,8 @@ Layout (:class:`demkit.state.PairList`): rows by owner, the partners of particle
 entries). The pair {i, j} is stored once, in the row of the particle with the lower *tag* (tags are persistent: they survive re-sorting), so
 a pair always meets its interaction in the same orientation. Per-pair history rows follow the
 entries; at a rebuild the non-zero rows are carried to the pair's new entry by tag (a pair that
-left the list loses its history, one that enters starts from zero). Lists grow (x1.5) instead of
-overflowing; ``bounds`` cuts the owners into chunks of equal pair counts for threads.
+left the list loses its history, one that enters starts from zero). Lists grow (by 1/8 more than they
+need) instead of overflowing; ``bounds`` cuts the owners into chunks of equal pair counts for threads.
 
 Cells are at least one reach wide: 27 neighbouring cells (fewer, de-duplicated, along a periodic
 axis with fewer than three cells; clipped along open axes, which span the particles' extent). The
@@ -30,6 +30,8 @@ from numba import njit
 
 #: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
 MAX_CELLS_PER_PARTICLE = 4
+#: a list that outgrows its arrays gets 1/GROWTH more room than it needs
+GROWTH = 8
 #: options of the loops below: no reference counting (they never allocate)
 LOOP_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
 
@@ -272,7 +274,7 @@ def build(pl, position, tag, box, periodic):
     count = fill_pairs(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
                        pl.start, pl.end, pl.partner, lo, hi, image, d2)
     if count >= pl.partner.shape[0]:  # the last slot is scratch for the branch-free fill
-        pl.partner = np.empty(count + count // 2 + 16, dtype=np.int32)
+        pl.partner = np.empty(count + count // GROWTH + 16, dtype=np.int32)
         fill_pairs(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
                    pl.start, pl.end, pl.partner, lo, hi, image, d2)
 
@@ -338,8 +340,8 @@ def put_rows(start, end, partner, history, total, where, owners, partners, rows)
 def restore_history(pl, tag, owners, partners, rows):
     """Size the history to the (new) list and put the saved rows back by tag."""
     total = pl.start[pl.start.shape[0] - 1]
-    if pl.history.shape[0] < pl.partner.shape[0]:
-        pl.history = np.zeros((pl.partner.shape[0], pl.history.shape[1]))
+    if pl.history.shape[0] < total:
+        pl.history = np.zeros((total + total // GROWTH + 16, pl.history.shape[1]))
     where = np.empty(tag.shape[0], dtype=np.int64)
     for i in range(tag.shape[0]):
         where[tag[i]] = i

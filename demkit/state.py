@@ -153,4 +153,4 @@ def new_pair_list(reach, n, history_width, chunks, capacity=None):
     capacity = max(4 * n, 16) if capacity is None else max(int(capacity), 16)
     return PairList(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                     np.zeros(capacity, dtype=np.int32),
-                    np.zeros((capacity, history_width)), np.zeros(chunks + 1, dtype=np.int64))
+                    np.zeros((0, history_width)), np.zeros(chunks + 1, dtype=np.int64))
