@@ -1,0 +1,251 @@
+"""N-body engine benchmarks, side by side with LAMMPS in one run. Writes benchmarks/results/nbody.json.
+
+Parts (all by default; name some to run only those):
+
+* ``speed``: the N = 8000 reference scene (benchmarks/reference_scene.py: periodic, phi = 0.2,
+  dipoles of 2, kT = 1), velocity Verlet dt = 0.001, skin 0.3, 1000 timed steps after a warm-up:
+  ``nofric`` (Dipole(prefactor=1, cutoff=4) + KelvinVoigt(1000, 1.5)) and ``nodip_nofric``
+  (KelvinVoigt only, spheres without dipoles or spins), demkit on 1 and 2 threads, LAMMPS
+  (benchmarks/lammps/in.reference, same data file) on 1 and 2 MPI ranks; best of 3 each.
+* ``memory``: bytes per sphere of the engine for contacts + dipoles + per-contact history (a
+  3-value history on the contact list, as friction keeps), counted array by array (recording excluded).
+* ``scaling``: contact-only cost per particle-step and peak memory for N = 1e3 ... 1e6 (one
+  process each), with a plot benchmarks/results/nbody_scaling.png.
+* ``allpairs``: the exact all-pairs dipole sum (no cutoff) of an open cluster: pair evaluations per
+  second on 2 threads.
+* ``unused``: what the N-body machinery costs a scene that does not use it: the seed paper's
+  two-sphere scene (open space, no lists, no threads) against its figure before the N-body engine.
+
+Usage: python benchmarks/bench_nbody.py [speed] [memory] [scaling] [allpairs] [unused] [--quick]
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+RESULTS = HERE / "results" / "nbody.json"
+DECK = HERE / "lammps" / "in.reference"
+N_REFERENCE = 8000
+STEPS = 1000
+
+# one demkit measurement in a fresh process (threads and peak memory are per process)
+CHILD = textwrap.dedent("""
+    import json, resource, sys, time
+    sys.path.insert(0, {here!r})
+    import numba, numpy as np, demkit as dk
+    from reference_scene import load_reference_scene, particles_and_box
+    numba.set_num_threads({threads})
+    scene_data = load_reference_scene({n}, {folder!r})
+    p, box = particles_and_box(scene_data)
+    if {model!r} == "nodip_nofric":
+        p = dk.Particles(position=p.position, velocity=p.velocity, radius=p.radius, mass=p.mass)
+        inters = [dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
+    else:
+        inters = [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
+    scene = dk.Scene(p, inters, box=box, skin=0.3)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+    sim.run(duration=0.02)  # compile or load the kernels, first list builds
+    best = None
+    for _ in range({repeats}):
+        sim.run(duration={steps} * 1e-3)
+        st = sim.statistics
+        if best is None or st["particle_steps_per_second"] > best["particle_steps_per_second"]:
+            best = st
+    best["peak_rss_bytes"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print("RESULT", json.dumps(best, default=float))
+""")
+
+
+def demkit_run(model, threads, n=N_REFERENCE, steps=STEPS, repeats=3, folder=None):
+    code = CHILD.format(here=str(HERE), threads=threads, n=n, folder=folder, model=model, steps=steps,
+                        repeats=repeats)
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(max(2, threads)))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")][-1]
+    return json.loads(line[len("RESULT "):])
+
+
+def lammps_rate(model, ranks, data, steps=STEPS, repeats=3):
+    from lammps_run import lammps_available, run_deck
+    if not lammps_available(ranks):
+        return None
+    rates = [run_deck(DECK, {"data": str(data), "model": model, "nsteps": steps}, ranks=ranks)["atom_steps_per_s"]
+             for _ in range(repeats)]
+    return max(rates)
+
+
+def part_speed(folder, quick):
+    from reference_scene import write_reference_scene
+    _, _, data = write_reference_scene(N_REFERENCE, folder)
+    rows = []
+    for model in ("nofric", "nodip_nofric"):
+        for cores in (1, 2):
+            steps = 300 if quick else (STEPS if model == "nofric" else 5 * STEPS)
+            ours = demkit_run(model, cores, steps=steps, folder=folder, repeats=1 if quick else 3)
+            theirs = lammps_rate(model, cores, data, steps=steps, repeats=1 if quick else 3)
+            rows.append({"model": model, "cores": cores, "demkit_particle_steps_per_s": ours["particle_steps_per_second"],
+                         "lammps_atom_steps_per_s": theirs,
+                         "ratio": None if theirs is None else ours["particle_steps_per_second"] / theirs,
+                         "steps_per_list_build": ours["steps_per_build"], "lists": ours["lists"]})
+            print(json.dumps(rows[-1], default=float))
+    return rows
+
+
+def part_memory(folder):
+    """Engine bytes per sphere, array by array (the state, the lists at their capacity, the user's
+    arrays when the kernels keep their own sorted copies)."""
+    import numpy as np
+
+    import demkit as dk
+    from reference_scene import load_reference_scene, particles_and_box
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    from test_nbody import TouchCounter
+
+    p, box = particles_and_box(load_reference_scene(N_REFERENCE, folder))
+
+    class History3(TouchCounter):
+        history_size = 3  # as much as a tangential spring keeps
+
+    scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(1000.0, 1.5), History3(cutoff=1.0)],
+                     box=box, skin=0.3)
+    dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3)).run(duration=0.2)
+    counted = {}
+    for name, value in scene.arrays.items():
+        if isinstance(value, np.ndarray):
+            counted[f"state.{name}"] = value.nbytes
+    for g, pl in enumerate(scene.state.lists):
+        for name in ("start", "end", "partner", "history", "bounds"):
+            counted[f"list{g}.{name}"] = getattr(pl, name).nbytes
+    if scene.plan.sorted:
+        for name in ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia", "ids", "image"):
+            value = getattr(scene.particles, name)
+            if value is not None:
+                counted[f"user.{name}"] = value.nbytes
+    n = len(p)
+    return {"bytes_per_sphere": sum(counted.values()) / n,
+            "by_array_per_sphere": {k: v / n for k, v in sorted(counted.items(), key=lambda kv: -kv[1])},
+            "lists": scene.neighbour_lists()}
+
+
+SCALING_CHILD = textwrap.dedent("""
+    import json, resource, sys, time
+    import numba, numpy as np, demkit as dk
+    numba.set_num_threads({threads})
+    n = {n}
+    box = dk.build.box_for(n, 0.5, 0.2, periodic=True)
+    rng = np.random.default_rng(1)
+    x = dk.build.random_packing(n, 0.5, box, seed=rng)
+    v = dk.build.thermal_velocities(n, 1.0, 1.0, seed=rng)
+    p = dk.Particles(position=x, velocity=v, radius=0.5, mass=1.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1000.0, damping=1.5)], box=box, skin=0.3)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+    sim.run(duration=0.01)
+    steps = max(20, min(2000, int(4e7 / n)))
+    sim.run(duration=steps * 1e-3)
+    st = sim.statistics
+    print("RESULT", json.dumps({{"n": n, "particle_steps_per_second": st["particle_steps_per_second"],
+        "ns_per_particle_step": 1e9 / st["particle_steps_per_second"], "steps": steps,
+        "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}}))
+""")
+
+
+def part_scaling(quick):
+    sizes = [1000, 10000, 100000] if quick else [1000, 10000, 100000, 1000000]
+    rows = []
+    for threads in (1, 2):
+        for n in sizes:
+            out = subprocess.run([sys.executable, "-c", SCALING_CHILD.format(n=n, threads=threads)],
+                                 capture_output=True, text=True, check=True,
+                                 env=dict(os.environ, NUMBA_NUM_THREADS="2"))
+            row = json.loads([ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")][-1][7:])
+            row["threads"] = threads
+            rows.append(row)
+            print(json.dumps(row))
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(5.5, 3.8))
+        for threads in (1, 2):
+            pts = [r for r in rows if r["threads"] == threads]
+            ax.plot([r["n"] for r in pts], [r["ns_per_particle_step"] for r in pts], "o-", label=f"{threads} thread(s)")
+        ax.set_xscale("log")
+        ax.set_ylim(bottom=0)
+        ax.set_xlabel("spheres N")
+        ax.set_ylabel("ns per particle-step")
+        ax.set_title("contact-only gas, phi = 0.2, periodic")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(HERE / "results" / "nbody_scaling.png", dpi=120)
+    except ImportError:
+        pass
+    return rows
+
+
+def part_allpairs():
+    code = textwrap.dedent("""
+        import json, time, numba, numpy as np, demkit as dk
+        numba.set_num_threads(2)
+        n = 4000
+        box = dk.build.box_for(n, 0.5, 0.05, periodic=False)
+        rng = np.random.default_rng(2)
+        x = dk.build.random_packing(n, 0.5, box, seed=rng)
+        p = dk.Particles(position=x, radius=0.5, dipole=dk.build.random_directions(n, seed=rng))
+        scene = dk.Scene(p, [dk.Dipole(prefactor=1.0)], parallel=True)
+        scene.forces()
+        t = time.perf_counter(); reps = 5
+        for _ in range(reps):
+            scene.forces()
+        el = (time.perf_counter() - t) / reps
+        print("RESULT", json.dumps({"n": n, "pairs": n * (n - 1) // 2, "seconds": el,
+                                    "pair_evaluations_per_second": n * (n - 1) / 2 / el}))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env=dict(os.environ, NUMBA_NUM_THREADS="2"))
+    return json.loads([ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")][-1][7:])
+
+
+def part_unused():
+    """The paper's two-sphere scene, Euler-Cromer dt = 0.01 (as bench_two_magnets.py), now."""
+    from bench_two_magnets import demkit_rate
+    before = json.loads((HERE / "results" / "two_magnets.json").read_text())["demkit_steps_per_s"]
+    now = demkit_rate(repeats=5)
+    return {"steps_per_s_now": now, "steps_per_s_before_nbody_engine": before, "ratio": now / before}
+
+
+def main(argv):
+    quick = "--quick" in argv
+    parts = [a for a in argv if not a.startswith("--")] or ["speed", "memory", "scaling", "allpairs", "unused"]
+    results = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    with tempfile.TemporaryDirectory() as folder:
+        for part in parts:
+            t = time.perf_counter()
+            if part == "speed":
+                results["speed"] = part_speed(folder, quick)
+            elif part == "memory":
+                results["memory"] = part_memory(folder)
+            elif part == "scaling":
+                results["scaling"] = part_scaling(quick)
+            elif part == "allpairs":
+                results["allpairs"] = part_allpairs()
+            elif part == "unused":
+                results["unused"] = part_unused()
+            else:
+                raise SystemExit(f"unknown part {part!r}")
+            print(f"{part}: {time.perf_counter() - t:.0f} s", flush=True)
+    results["machine"] = f"{os.uname().machine}, {os.cpu_count()} cores"
+    results["date"] = time.strftime("%Y-%m-%d")
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps(results, indent=2, default=float) + "\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
