@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 #: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
 MAX_CELLS_PER_PARTICLE = 4
@@ -195,15 +195,16 @@ def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo
 
 @njit(**LOOP_OPTIONS)
 def fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
-               end, partner, lo, hi, image, d2):
-    """Write the pairs closer than ``reach`` into partner, the partners of particle i at
-    start[i]:end[i], each pair in the row of its lower tag; returns how many pairs there are
-    (entries beyond len(partner) - 1 are counted, not written). Works cell by cell on the cell-sorted,
-    folded copy ``xs`` (rows x, y, z) and tags ``ts``: squared distances of a block of candidates in a loop the
-    compiler vectorises (into ``d2``), then the hits; a periodic axis with fewer than 3 cells takes
-    the minimum image per pair."""
+               end, partner, lo, hi, image, d2, first_cell, last_cell, base, limit):
+    """Write the pairs closer than ``reach`` whose owner lies in cells first_cell..last_cell-1 into
+    partner[base:limit], the partners of particle i at start[i]:end[i], each pair in the row of its
+    lower tag; returns how many entries that takes (those beyond limit - 1 are counted, not
+    written: slot limit - 1 is scratch). Works cell by cell on the cell-sorted, folded copy ``xs``
+    (rows x, y, z) and tags ``ts``: squared distances of a block of candidates in a loop the
+    compiler vectorises (into ``d2``), then the hits, kept without branches; a periodic axis with
+    fewer than 3 cells takes the minimum image per pair."""
     reach2 = reach * reach
-    last = partner.shape[0] - 1
+    last = limit - 1
     block = d2.shape[0]
     lx = box[0] if periodic[0] and ncell[0] < 3 else 0.0
     ly = box[1] if periodic[1] and ncell[1] < 3 else 0.0
@@ -211,45 +212,84 @@ def fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, s
     hx = 0.5 * lx if lx > 0.0 else np.inf
     hy = 0.5 * ly if ly > 0.0 else np.inf
     hz = 0.5 * lz if lz > 0.0 else np.inf
-    count = 0
+    count = base
+    for c in range(first_cell, last_cell):
+        if cell_start[c] == cell_start[c + 1]:
+            continue
+        cx = c // (ncell[1] * ncell[2])
+        cy = (c // ncell[2]) % ncell[1]
+        cz = c % ncell[2]
+        nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
+        for m in range(cell_start[c], cell_start[c + 1]):
+            i = members[m]
+            ti = ts[m]
+            start[i] = count
+            for r in range(nr):
+                xi = xs[0, m] - image[r, 0]
+                yi = xs[1, m] - image[r, 1]
+                zi = xs[2, m] - image[r, 2]
+                for b0 in range(lo[r], hi[r], block):
+                    nb = min(block, hi[r] - b0)
+                    for u in range(nb):
+                        dx = xs[0, b0 + u] - xi
+                        dy = xs[1, b0 + u] - yi
+                        dz = xs[2, b0 + u] - zi
+                        dx = dx - lx if dx > hx else (dx + lx if dx < -hx else dx)
+                        dy = dy - ly if dy > hy else (dy + ly if dy < -hy else dy)
+                        dz = dz - lz if dz > hz else (dz + lz if dz < -hz else dz)
+                        d2[u] = dx * dx + dy * dy + dz * dz
+                    for u in range(nb):  # branch-free: always write, keep when it counts
+                        partner[min(count, last)] = members[b0 + u]
+                        count += (d2[u] < reach2) & (ts[b0 + u] > ti)
+            end[i] = count
+    return count - base
+
+
+@njit(cache=True, _nrt=False, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")
+def fill_threads(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+                 end, partner, lo, hi, image, d2, cells, region, used):
+    """fill_pairs for each chunk t of cells cells[t]:cells[t+1] into its region
+    partner[region[t]:region[t+1]], chunks on threads; used[t]: entries chunk t needs."""
+    for t in prange(cells.shape[0] - 1):
+        used[t] = fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts,
+                             start, end, partner, lo[t], hi[t], image[t], d2[t], cells[t], cells[t + 1],
+                             region[t], region[t + 1])
+
+
+@njit(**LOOP_OPTIONS)
+def fill_chunks(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+                end, partner, lo, hi, image, d2, cells, region, used):
+    """fill_threads, or for a single chunk a plain call (a scene without threads never starts the
+    threading layer: GNU OpenMP, once started, makes fork() unsafe)."""
+    if cells.shape[0] > 2:
+        fill_threads(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start, end,
+                     partner, lo, hi, image, d2, cells, region, used)
+    else:
+        used[0] = fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+                             end, partner, lo[0], hi[0], image[0], d2[0], cells[0], cells[1], region[0], region[1])
+
+
+@njit(**LOOP_OPTIONS)
+def split_cells(cell_start, cells):
+    """Cut the cells into len(cells)-1 consecutive chunks holding equal numbers of particles."""
+    chunks = cells.shape[0] - 1
+    ncells = cell_start.shape[0] - 1
+    n = cell_start[ncells]
     c = 0
-    for cx in range(ncell[0]):
-        for cy in range(ncell[1]):
-            for cz in range(ncell[2]):
-                if cell_start[c] == cell_start[c + 1]:
-                    c += 1
-                    continue
-                nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
-                for m in range(cell_start[c], cell_start[c + 1]):
-                    i = members[m]
-                    ti = ts[m]
-                    start[i] = count
-                    for r in range(nr):
-                        xi = xs[0, m] - image[r, 0]
-                        yi = xs[1, m] - image[r, 1]
-                        zi = xs[2, m] - image[r, 2]
-                        for b0 in range(lo[r], hi[r], block):
-                            nb = min(block, hi[r] - b0)
-                            for u in range(nb):
-                                dx = xs[0, b0 + u] - xi
-                                dy = xs[1, b0 + u] - yi
-                                dz = xs[2, b0 + u] - zi
-                                dx = dx - lx if dx > hx else (dx + lx if dx < -hx else dx)
-                                dy = dy - ly if dy > hy else (dy + ly if dy < -hy else dy)
-                                dz = dz - lz if dz > hz else (dz + lz if dz < -hz else dz)
-                                d2[u] = dx * dx + dy * dy + dz * dz
-                            for u in range(nb):  # branch-free: always write, keep when it counts
-                                partner[min(count, last)] = members[b0 + u]
-                                count += (d2[u] < reach2) & (ts[b0 + u] > ti)
-                    end[i] = count
-                c += 1
-    start[start.shape[0] - 1] = count
-    return count
+    cells[0] = 0
+    for t in range(1, chunks):
+        target = (n * t) // chunks
+        while c < ncells and cell_start[c] < target:
+            c += 1
+        cells[t] = c
+    cells[chunks] = ncells
 
 
 @njit(cache=True)
 def build(pl, position, tag, box, periodic):
-    """Fill ``pl.start``/``pl.partner`` with every pair closer than ``pl.reach`` (grows the list)."""
+    """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
+    into len(pl.bounds) - 1 chunks filled side by side, each in its own region of ``partner``
+    (grown, and the regions resized, when one overflows)."""
     n = position.shape[0]
     origin = np.empty(3)
     size = np.empty(3)
@@ -267,27 +307,46 @@ def build(pl, position, tag, box, periodic):
     xs = np.empty((3, n))
     ts = np.empty(n, dtype=np.int64)
     sorted_copy(position, tag, box, periodic, members, xs, ts)
-    lo = np.empty(27, dtype=np.int64)
-    hi = np.empty(27, dtype=np.int64)
-    image = np.empty((27, 3))
-    d2 = np.empty(64)
-    count = fill_pairs(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
-                       pl.start, pl.end, pl.partner, lo, hi, image, d2)
-    if count >= pl.partner.shape[0]:  # the last slot is scratch for the branch-free fill
-        pl.partner = np.empty(count + count // GROWTH + 16, dtype=np.int32)
-        fill_pairs(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
-                   pl.start, pl.end, pl.partner, lo, hi, image, d2)
+    chunks = pl.bounds.shape[0] - 1
+    cells = np.empty(chunks + 1, dtype=np.int64)
+    split_cells(cell_start, cells)
+    lo = np.empty((chunks, 27), dtype=np.int64)
+    hi = np.empty((chunks, 27), dtype=np.int64)
+    image = np.empty((chunks, 27, 3))
+    d2 = np.empty((chunks, 64))
+    used = np.zeros(chunks, dtype=np.int64)
+    region = np.empty(chunks + 1, dtype=np.int64)
+    for t in range(chunks + 1):  # regions in proportion to the particles of each chunk
+        region[t] = (pl.partner.shape[0] * (cell_start[cells[t]] if t < chunks else n)) // max(n, 1)
+    region[chunks] = pl.partner.shape[0]
+    fill_chunks(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts, pl.start,
+                pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
+    full = False
+    for t in range(chunks):
+        full = full or used[t] >= region[t + 1] - region[t]
+    if full:  # room for what each chunk needs, and 1/GROWTH more
+        region[0] = 0
+        for t in range(chunks):
+            region[t + 1] = region[t] + used[t] + used[t] // GROWTH + 16
+        pl.partner = np.empty(region[chunks], dtype=np.int32)
+        fill_chunks(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
+                    pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
+    total = 0
+    for t in range(chunks):
+        total += used[t]
+    pl.start[n] = total  # the number of entries (rows may leave gaps between the chunks' regions)
 
 
 @njit(**LOOP_OPTIONS)
-def count_kept(history, total):
-    """How many of the first ``total`` history rows are not all zero."""
+def count_kept(start, end, history):
+    """How many entries have a history that is not all zero."""
     kept = 0
-    for p in range(total):
-        for h in range(history.shape[1]):
-            if history[p, h] != 0.0:
-                kept += 1
-                break
+    for i in range(end.shape[0]):
+        for p in range(start[i], end[i]):
+            for h in range(history.shape[1]):
+                if history[p, h] != 0.0:
+                    kept += 1
+                    break
     return kept
 
 
@@ -311,8 +370,7 @@ def save_rows(start, end, partner, history, tag, owners, partners, rows):
 @njit(cache=True)
 def saved_history(pl, tag):
     """(owner tags, partner tags, rows) of the list's entries whose history is not all zero."""
-    total = pl.start[pl.start.shape[0] - 1]
-    kept = count_kept(pl.history, total)
+    kept = count_kept(pl.start, pl.end, pl.history)
     owners = np.empty(kept, dtype=np.int64)
     partners = np.empty(kept, dtype=np.int64)
     rows = np.empty((kept, pl.history.shape[1]))
@@ -321,11 +379,12 @@ def saved_history(pl, tag):
 
 
 @njit(**LOOP_OPTIONS)
-def put_rows(start, end, partner, history, total, where, owners, partners, rows):
-    """Zero the first ``total`` rows, then put each saved row on its pair's entry, if listed."""
-    for p in range(total):
-        for h in range(history.shape[1]):
-            history[p, h] = 0.0
+def put_rows(start, end, partner, history, where, owners, partners, rows):
+    """Zero the history of every entry, then put each saved row on its pair's entry, if listed."""
+    for i in range(end.shape[0]):
+        for p in range(start[i], end[i]):
+            for h in range(history.shape[1]):
+                history[p, h] = 0.0
     for k in range(owners.shape[0]):
         i = where[owners[k]]
         j = where[partners[k]]
@@ -339,13 +398,12 @@ def put_rows(start, end, partner, history, total, where, owners, partners, rows)
 @njit(cache=True)
 def restore_history(pl, tag, owners, partners, rows):
     """Size the history to the (new) list and put the saved rows back by tag."""
-    total = pl.start[pl.start.shape[0] - 1]
-    if pl.history.shape[0] < total:
-        pl.history = np.zeros((total + total // GROWTH + 16, pl.history.shape[1]))
+    if pl.history.shape[0] < pl.partner.shape[0]:
+        pl.history = np.zeros((pl.partner.shape[0], pl.history.shape[1]))
     where = np.empty(tag.shape[0], dtype=np.int64)
     for i in range(tag.shape[0]):
         where[tag[i]] = i
-    put_rows(pl.start, pl.end, pl.partner, pl.history, total, where, owners, partners, rows)
+    put_rows(pl.start, pl.end, pl.partner, pl.history, where, owners, partners, rows)
 
 
 @njit(**LOOP_OPTIONS)
@@ -353,7 +411,7 @@ def balance(start, end, bounds):
     """Cut the owners (by index) into len(bounds)-1 consecutive chunks holding equal numbers of pairs."""
     n = end.shape[0]
     chunks = bounds.shape[0] - 1
-    total = start[n]
+    total = start[n]  # the number of entries
     i = 0
     done = 0
     bounds[0] = 0
@@ -416,17 +474,18 @@ def triangle_bounds(n, bounds):
 
 
 def entry_owners(pl):
-    """The owner (particle index) of each list entry, (P,)."""
-    start, end = pl.start, pl.end
-    owners = np.empty(start[-1], dtype=np.int64)
-    for i in range(len(end)):
-        owners[start[i]:end[i]] = i
-    return owners
+    """(owner, entry) of each list entry, row by row: two (P,) arrays."""
+    start, end = pl.start[:-1], pl.end
+    counts = end - start
+    owners = np.repeat(np.arange(len(end)), counts)
+    first = np.repeat(np.cumsum(counts) - counts, counts)  # where each owner's entries begin, row by row
+    return owners, start[owners] + np.arange(len(owners)) - first
 
 
 def pairs_of(pl, tag):
-    """(P, 2) array of the listed pairs as tags (owner first): for diagnostics and tests."""
-    return np.stack([tag[entry_owners(pl)], tag[pl.partner[: pl.start[-1]]]], axis=1)
+    """(P, 2) array of the listed pairs as tags (owner first), row by row: for diagnostics and tests."""
+    owners, entries = entry_owners(pl)
+    return np.stack([tag[owners], tag[pl.partner[entries]]], axis=1)
 
 
 

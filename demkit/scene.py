@@ -176,8 +176,9 @@ class Scene:
         lists = []
         for group in plan.groups:
             bounds = np.zeros(self.chunks + 1, dtype=np.int64)
-            if group.kind == "list":
-                lists.append(new_pair_list(group.reach + self.skin, n, group.width, self.chunks))
+            if group.kind == "list":  # a parallel group's lists are also built in chunks side by side
+                lists.append(new_pair_list(group.reach + self.skin, n, group.width,
+                                           self.chunks if group.parallel else 1))
                 continue
             neighbours.triangle_bounds(n, bounds)
             history = np.zeros((n * (n - 1) // 2 if group.width else 0, group.width))
@@ -370,8 +371,10 @@ class Scene:
         g, group, k = self._group_of(interaction)
         pairs = self.candidate_pairs(interaction)
         offset = group.offsets[k]
-        rows = self._list(g).history[: len(pairs), offset:offset + interaction.history_size]
-        return pairs, rows.copy()
+        history = self._list(g).history[:, offset:offset + interaction.history_size]
+        if group.kind == "list":
+            return pairs, history[neighbours.entry_owners(self._list(g))[1]]
+        return pairs, history[: len(pairs)].copy()
 
     def _list(self, g):
         return self.state.lists[g] if self.plan.growing else self.arrays["lists"][g]

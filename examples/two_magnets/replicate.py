@@ -239,8 +239,10 @@ def execute(tasks, workers):
     order = sorted(range(len(tasks)), key=lambda k: -tasks[k][0])
     if workers > 1:
         _importable()
+        # not "fork": once a parallel numba kernel has run (threaded N-body scenes), GNU OpenMP makes
+        # fork() unsafe; a fork server starts clean
         methods = mp.get_all_start_methods()
-        context = mp.get_context("fork" if "fork" in methods else None)
+        context = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
         pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context)
     else:
         pool = _Serial()
