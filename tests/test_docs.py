@@ -34,3 +34,14 @@ def test_guide_plugin_force_is_minus_energy_gradient(guide_namespace):
     force, _ = scene.forces()
     np.testing.assert_allclose(force[1], -energy_gradient(scene, "contact", 1, h=1e-6), rtol=1e-6)
     assert np.allclose(force[0], -force[1])
+
+
+def test_nbody_page_example_runs_as_described():
+    page = Path(__file__).resolve().parents[1] / "docs" / "nbody.md"
+    ns = {}
+    exec(compile(re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)[0], str(page), "exec"), ns)
+    traj, sim, box = ns["traj"], ns["sim"], ns["box"]
+    assert len(traj) == 6 and (traj.position >= 0).all() and (traj.position < box.size).all()
+    assert np.array_equal(traj.unwrapped(), traj.position + traj.image * box.size)
+    st = sim.statistics
+    assert st["neighbour_list_builds"] >= 1 and sorted(entry["cutoff"] for entry in st["lists"]) == [1.0, 4.0]
