@@ -157,6 +157,8 @@ class _Source:
         """Loop headers over the pairs of owners first..last-1 and the pair geometry; the body goes
         at indent + 8."""
         pad = " " * indent
+        if group.kind == "all" and last == "n":
+            last = "n - 1"  # the last row of the triangle is empty
         lines = [f"{pad}for i in range({first}, {last}):",
                  f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
         if group.kind == "list":
@@ -474,7 +476,8 @@ class _Source:
             lines.append("    wrap(s.position, s.reference, s.image, s.box, s.periodic)")
         lines.append("    return 0")
         # end of step and recording
-        lines += ["", "", "@njit(**OUTER)", "def record_frame(k, s, record):",
+        lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
+                  '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
                   "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
                   "                s.inertia, s.box, s.periodic, record)",
                   "    e = record[4]",
