@@ -337,34 +337,36 @@ class _Source:
             return lines
         lines += ["", "", "@njit(**PARALLEL)",
                   f"def group_{g}_forces_parallel({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
-                  '    """As the serial loop, owners cut into fixed chunks with their own buffers, summed in',
-                  '    chunk order (the same result for any number of threads)."""']
+                  '    """As the serial loop, owners cut into fixed chunks: chunk 0 adds into force/torque, the',
+                  '    others into buffers of their own, summed in chunk order (the same result for any number',
+                  '    of threads)."""']
         lines += self.prelude(group)
         lines += ["    chunks = bounds.shape[0] - 1",
                   "    for t in prange(chunks):",
-                  "        cf = chunk_force[t]",
-                  "        ct = chunk_torque[t]",
+                  "        cf = force if t == 0 else chunk_force[t - 1]",
+                  "        ct = torque if t == 0 else chunk_torque[t - 1]",
                   "        co = scratch[t]",
                   "        cg = gather[t]",
-                  "        for i in range(n):",
-                  "            for a in range(3):",
-                  "                cf[i, a] = 0.0"]
+                  "        if t > 0:",
+                  "            for i in range(n):",
+                  "                for a in range(3):",
+                  "                    cf[i, a] = 0.0"]
         if group.torque:
-            lines += ["                ct[i, a] = 0.0"]
+            lines += ["                    ct[i, a] = 0.0"]
         lines += ["        power = 0.0"]
         lines += self.loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
         lines += ["        chunk_power[t] = power",
                   "    for i in prange(n):",
                   "        for a in range(3):",
-                  "            total = 0.0",
-                  "            for t in range(chunks):",
+                  "            total = force[i, a]",
+                  "            for t in range(chunks - 1):",
                   "                total += chunk_force[t, i, a]",
-                  "            force[i, a] += total"]
+                  "            force[i, a] = total"]
         if group.torque:
-            lines += ["            total = 0.0",
-                      "            for t in range(chunks):",
+            lines += ["            total = torque[i, a]",
+                      "            for t in range(chunks - 1):",
                       "                total += chunk_torque[t, i, a]",
-                      "            torque[i, a] += total"]
+                      "            torque[i, a] = total"]
         lines += ["    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
                   "    return power"]
         return lines

@@ -203,8 +203,9 @@ class Scene:
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
             skin=self.skin, status=np.zeros(4, dtype=np.int64),
             counters=np.array([0, 0, 0, 0, self.sort_every], dtype=np.int64),
-            lists=tuple(lists), thread_force=np.zeros((threads, n, 3)), thread_torque=np.zeros((threads, n, 3)),
-            thread_power=np.zeros(threads), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
+            lists=tuple(lists), thread_force=np.zeros((max(threads - 1, 0), n, 3)),
+            thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
+            thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)))
         self.arrays = fields
         values = [fields[name] for name in STATE_FIELDS]
