@@ -518,6 +518,11 @@ class _Source:
                  "                               permute_vectors, permute_scalars, saved_history, restore_history)",
                  "from demkit.state import OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY",
                  ""]
+        if plan.growing and any(group.parallel for group in plan.groups):  # the per-step passes on threads
+            lines += ["from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
+                      "                           advance_spin_threads as advance_spin,",
+                      "                           state_is_finite_threads as state_is_finite)",
+                      "from demkit.neighbours import max_displacement_threads as max_displacement", ""]
         if self.importable:
             for k, inter in enumerate(plan.interactions):
                 for kind, fn in zip(("force", "energy"), inter.pair_functions()):

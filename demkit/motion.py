@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 #: numba options of every hot kernel: no reference counting (kernels never allocate; it costs
 #: ~2x on small scenes), fused multiply-add (exact NaN/inf semantics are kept, so the non-finite
@@ -187,3 +187,81 @@ def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mas
 def empty_vectors(dtype=np.float64):
     """Placeholder (0,3) array standing for an absent optional field."""
     return np.zeros((0, 3), dtype=dtype)
+
+
+# ---- the same passes on threads, for threaded scenes with neighbour lists (their generated module
+# imports these under the plain names, so integrator templates stay as they are)
+THREAD_OPTIONS = dict(cache=True, _nrt=False, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")
+
+
+@njit(**THREAD_OPTIONS)
+def kick_threads(velocity, force, mass, h):
+    """v += F/m h, particles split among threads."""
+    for i in prange(velocity.shape[0]):
+        s = h / mass[i]
+        velocity[i, 0] += s * force[i, 0]
+        velocity[i, 1] += s * force[i, 1]
+        velocity[i, 2] += s * force[i, 2]
+
+
+@njit(**THREAD_OPTIONS)
+def drift_threads(position, velocity, h):
+    """x += v h, particles split among threads."""
+    for i in prange(position.shape[0]):
+        position[i, 0] += h * velocity[i, 0]
+        position[i, 1] += h * velocity[i, 1]
+        position[i, 2] += h * velocity[i, 2]
+
+
+@njit(**THREAD_OPTIONS)
+def rotate_threads(vectors, angular_velocity, h):
+    """:func:`rotate`, particles split among threads."""
+    for i in prange(vectors.shape[0]):
+        wx = angular_velocity[i, 0] * h
+        wy = angular_velocity[i, 1] * h
+        wz = angular_velocity[i, 2] * h
+        theta2 = wx * wx + wy * wy + wz * wz
+        if theta2 == 0.0:
+            continue
+        s, q, c = rotation_coefficients(theta2)
+        vx = vectors[i, 0]
+        vy = vectors[i, 1]
+        vz = vectors[i, 2]
+        wv = q * (wx * vx + wy * vy + wz * vz)
+        vectors[i, 0] = c * vx + s * (wy * vz - wz * vy) + wv * wx
+        vectors[i, 1] = c * vy + s * (wz * vx - wx * vz) + wv * wy
+        vectors[i, 2] = c * vz + s * (wx * vy - wy * vx) + wv * wz
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
+def advance_spin_threads(angular_velocity, dipole, torque, inertia, kick_h, rotate_h):
+    """:func:`advance_spin` with its passes on threads."""
+    if angular_velocity.shape[0] == 0:
+        return
+    if kick_h != 0.0:
+        kick_threads(angular_velocity, torque, inertia, kick_h)
+    if rotate_h != 0.0 and dipole.shape[0] > 0:
+        rotate_threads(dipole, angular_velocity, rotate_h)
+
+
+@njit(**THREAD_OPTIONS)
+def clear_threads(force, torque):
+    """Zero the force and torque arrays, particles split among threads."""
+    for i in prange(force.shape[0]):
+        for a in range(3):
+            force[i, a] = 0.0
+    for i in prange(torque.shape[0]):
+        for a in range(3):
+            torque[i, a] = 0.0
+
+
+@njit(cache=True, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")  # reductions need NRT
+def state_is_finite_threads(position, velocity, angular_velocity):
+    """:func:`state_is_finite` on threads (a sum in any order is finite exactly when all terms are)."""
+    s = 0.0
+    for i in prange(position.shape[0]):
+        s += position[i, 0] + position[i, 1] + position[i, 2] + velocity[i, 0] + velocity[i, 1] + velocity[i, 2]
+    t = 0.0
+    for i in prange(angular_velocity.shape[0]):
+        t += angular_velocity[i, 0] + angular_velocity[i, 1] + angular_velocity[i, 2]
+    return math.isfinite(s + t)

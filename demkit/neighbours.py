@@ -52,6 +52,27 @@ def max_displacement(position, reference):
     return worst, k
 
 
+@njit(cache=True, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")  # reductions need NRT
+def max_displacement_threads(position, reference):
+    """:func:`max_displacement` on threads (the largest value on threads, its particle found serially)."""
+    worst = 0.0
+    for i in prange(position.shape[0]):
+        dx = position[i, 0] - reference[i, 0]
+        dy = position[i, 1] - reference[i, 1]
+        dz = position[i, 2] - reference[i, 2]
+        worst = max(worst, dx * dx + dy * dy + dz * dz)
+    k = 0
+    if worst > 0.0:
+        for i in range(position.shape[0]):
+            dx = position[i, 0] - reference[i, 0]
+            dy = position[i, 1] - reference[i, 1]
+            dz = position[i, 2] - reference[i, 2]
+            if dx * dx + dy * dy + dz * dz == worst:
+                k = i
+                break
+    return worst, k
+
+
 @njit(**LOOP_OPTIONS)
 def copy_rows(target, source):
     """target[:] = source for (N,3) arrays."""
