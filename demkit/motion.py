@@ -62,26 +62,30 @@ def rotation_coefficients(theta2):
 
 
 @njit(**KERNEL_OPTIONS)
-def rotate(vectors, angular_velocity, h):
-    """Rotate each row of ``vectors`` about its particle's omega by |omega| h (exact, norm-preserving).
+def rotate_one(vectors, angular_velocity, h, i):
+    """Rotate row i of ``vectors`` about its omega by |omega| h (exact, norm-preserving):
+    v' = cos(t) v + (sin t / t) (w x v) + ((1 - cos t)/t^2) (w.v) w,  w = omega h, t = |w|."""
+    wx = angular_velocity[i, 0] * h
+    wy = angular_velocity[i, 1] * h
+    wz = angular_velocity[i, 2] * h
+    theta2 = wx * wx + wy * wy + wz * wz
+    if theta2 == 0.0:
+        return
+    s, q, c = rotation_coefficients(theta2)
+    vx = vectors[i, 0]
+    vy = vectors[i, 1]
+    vz = vectors[i, 2]
+    wv = q * (wx * vx + wy * vy + wz * vz)
+    vectors[i, 0] = c * vx + s * (wy * vz - wz * vy) + wv * wx
+    vectors[i, 1] = c * vy + s * (wz * vx - wx * vz) + wv * wy
+    vectors[i, 2] = c * vz + s * (wx * vy - wy * vx) + wv * wz
 
-    v' = cos(t) v + (sin t / t) (w x v) + ((1 - cos t)/t^2) (w.v) w,  w = omega h, t = |w|.
-    """
+
+@njit(**KERNEL_OPTIONS)
+def rotate(vectors, angular_velocity, h):
+    """Rotate each row of ``vectors`` about its particle's omega by |omega| h (see :func:`rotate_one`)."""
     for i in range(vectors.shape[0]):
-        wx = angular_velocity[i, 0] * h
-        wy = angular_velocity[i, 1] * h
-        wz = angular_velocity[i, 2] * h
-        theta2 = wx * wx + wy * wy + wz * wz
-        if theta2 == 0.0:
-            continue
-        s, q, c = rotation_coefficients(theta2)
-        vx = vectors[i, 0]
-        vy = vectors[i, 1]
-        vz = vectors[i, 2]
-        wv = q * (wx * vx + wy * vy + wz * vz)
-        vectors[i, 0] = c * vx + s * (wy * vz - wz * vy) + wv * wx
-        vectors[i, 1] = c * vy + s * (wz * vx - wx * vz) + wv * wy
-        vectors[i, 2] = c * vz + s * (wx * vy - wy * vx) + wv * wz
+        rotate_one(vectors, angular_velocity, h, i)
 
 
 @njit(**KERNEL_OPTIONS)
@@ -217,20 +221,7 @@ def drift_threads(position, velocity, h):
 def rotate_threads(vectors, angular_velocity, h):
     """:func:`rotate`, particles split among threads."""
     for i in prange(vectors.shape[0]):
-        wx = angular_velocity[i, 0] * h
-        wy = angular_velocity[i, 1] * h
-        wz = angular_velocity[i, 2] * h
-        theta2 = wx * wx + wy * wy + wz * wz
-        if theta2 == 0.0:
-            continue
-        s, q, c = rotation_coefficients(theta2)
-        vx = vectors[i, 0]
-        vy = vectors[i, 1]
-        vz = vectors[i, 2]
-        wv = q * (wx * vx + wy * vy + wz * vz)
-        vectors[i, 0] = c * vx + s * (wy * vz - wz * vy) + wv * wx
-        vectors[i, 1] = c * vy + s * (wz * vx - wx * vz) + wv * wy
-        vectors[i, 2] = c * vz + s * (wx * vy - wy * vx) + wv * wz
+        rotate_one(vectors, angular_velocity, h, i)
 
 
 @njit(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
