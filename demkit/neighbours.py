@@ -13,7 +13,8 @@ left the list loses its history, one that enters starts from zero). Lists grow (
 need) instead of overflowing; ``bounds`` cuts the owners into chunks of equal pair counts for threads.
 
 Cells are at least one reach wide: 27 neighbouring cells (fewer, de-duplicated, along a periodic
-axis with fewer than three cells; clipped along open axes, which span the particles' extent). The
+axis with fewer than three cells; clipped along open axes, which span the particles' extent); for
+crowded cells (long lists such as dipoles') half a reach wide, 5 x 5 x 5 neighbouring cells. The
 build works cell by cell on a cell-sorted copy of the positions folded into the box, adding one
 image shift per neighbouring cell, so no pair needs a minimum-image test (except along a periodic
 axis with fewer than three cells).
@@ -32,6 +33,9 @@ from numba import njit, prange
 MAX_CELLS_PER_PARTICLE = 4
 #: a list that outgrows its arrays gets 1/GROWTH more room than it needs
 GROWTH = 8
+#: at this many particles per reach-wide cell the build uses cells half the reach wide: 5 x 5 x 5
+#: of them hold about half the candidates of 3 x 3 x 3 reach-wide ones
+DENSE_CELL = 8
 #: options of the loops below: no reference counting (they never allocate)
 LOOP_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
 
@@ -84,7 +88,8 @@ def copy_rows(target, source):
 
 @njit(**LOOP_OPTIONS)
 def cell_grid(position, box, periodic, reach, origin, size, ncell):
-    """Fill origin, size (3,) and ncell (3,) for cells at least ``reach`` wide."""
+    """Fill origin, size (3,) and ncell (3,) for cells at least ``reach`` wide (wider when the grid
+    would have more than MAX_CELLS_PER_PARTICLE cells per particle)."""
     n = position.shape[0]
     extent = size  # holds the extents until the cell sizes are known
     for a in range(3):
@@ -146,19 +151,20 @@ def bin_particles(position, box, periodic, origin, size, ncell, cell, cell_start
 
 
 @njit(**LOOP_OPTIONS)
-def neighbour_cells(ncell, periodic, near, shift, counts):
-    """near[a, c, :counts[a, c]]: the distinct cell coordinates c-1, c, c+1 along axis a (folded along
-    a periodic axis, clipped along an open one); shift[a, c, q] = -1, 0 or +1: the box lengths to add
-    to the coordinates of that cell's members to get their image nearest to cell c (0 when the axis
-    has fewer than 3 cells: candidates then take the minimum image one by one)."""
+def neighbour_cells(ncell, periodic, radius, near, shift, counts):
+    """near[a, c, :counts[a, c]]: the distinct cell coordinates c-radius .. c+radius along axis a
+    (folded along a periodic axis, clipped along an open one); shift[a, c, q] = -1, 0 or +1: the box
+    lengths to add to the coordinates of that cell's members to get their image nearest to cell c
+    (0 when a periodic axis has fewer than 2 radius + 1 cells: candidates then take the minimum
+    image one by one)."""
     for a in range(3):
         for c in range(ncell[a]):
             counts[a, c] = 0
-            for o in range(-1, 2):
+            for o in range(-radius, radius + 1):
                 k = c + o
                 s = 0
                 if periodic[a]:
-                    if ncell[a] >= 3:
+                    if ncell[a] >= 2 * radius + 1:
                         s = -1 if k < 0 else (1 if k >= ncell[a] else 0)
                     k %= ncell[a]
                 elif k < 0 or k >= ncell[a]:
@@ -215,21 +221,23 @@ def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo
 
 
 @njit(**LOOP_OPTIONS)
-def fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
                end, partner, lo, hi, image, d2, first_cell, last_cell, base, limit):
     """Write the pairs closer than ``reach`` whose owner lies in cells first_cell..last_cell-1 into
     partner[base:limit], the partners of particle i at start[i]:end[i], each pair in the row of its
     lower tag; returns how many entries that takes (those beyond limit - 1 are counted, not
     written: slot limit - 1 is scratch). Works cell by cell on the cell-sorted, folded copy ``xs``
     (rows x, y, z) and tags ``ts``: squared distances of a block of candidates in a loop the
-    compiler vectorises (into ``d2``), then the hits, kept without branches; a periodic axis with
-    fewer than 3 cells takes the minimum image per pair."""
+    compiler vectorises (into ``d2``), then the hits, kept without branches. Cells are 1/radius of
+    the reach wide (2 radius + 1 neighbouring cells per axis); a periodic axis with fewer than
+    2 radius + 1 cells takes the minimum image per pair."""
     reach2 = reach * reach
     last = limit - 1
     block = d2.shape[0]
-    lx = box[0] if periodic[0] and ncell[0] < 3 else 0.0
-    ly = box[1] if periodic[1] and ncell[1] < 3 else 0.0
-    lz = box[2] if periodic[2] and ncell[2] < 3 else 0.0
+    few = 2 * radius + 1
+    lx = box[0] if periodic[0] and ncell[0] < few else 0.0
+    ly = box[1] if periodic[1] and ncell[1] < few else 0.0
+    lz = box[2] if periodic[2] and ncell[2] < few else 0.0
     hx = 0.5 * lx if lx > 0.0 else np.inf
     hy = 0.5 * ly if ly > 0.0 else np.inf
     hz = 0.5 * lz if lz > 0.0 else np.inf
@@ -267,27 +275,28 @@ def fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, s
 
 
 @njit(cache=True, _nrt=False, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")
-def fill_threads(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+def fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
                  end, partner, lo, hi, image, d2, cells, region, used):
     """fill_pairs for each chunk t of cells cells[t]:cells[t+1] into its region
     partner[region[t]:region[t+1]], chunks on threads; used[t]: entries chunk t needs."""
     for t in prange(cells.shape[0] - 1):
-        used[t] = fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts,
-                             start, end, partner, lo[t], hi[t], image[t], d2[t], cells[t], cells[t + 1],
+        used[t] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift,
+                             counts, start, end, partner, lo[t], hi[t], image[t], d2[t], cells[t], cells[t + 1],
                              region[t], region[t + 1])
 
 
 @njit(**LOOP_OPTIONS)
-def fill_chunks(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
+def fill_chunks(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
                 end, partner, lo, hi, image, d2, cells, region, used):
     """fill_threads, or for a single chunk a plain call (a scene without threads never starts the
     threading layer: GNU OpenMP, once started, makes fork() unsafe)."""
     if cells.shape[0] > 2:
-        fill_threads(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start, end,
-                     partner, lo, hi, image, d2, cells, region, used)
+        fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
+                     end, partner, lo, hi, image, d2, cells, region, used)
     else:
-        used[0] = fill_pairs(ts, xs, members, box, periodic, reach, ncell, cell_start, near, shift, counts, start,
-                             end, partner, lo[0], hi[0], image[0], d2[0], cells[0], cells[1], region[0], region[1])
+        used[0] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts,
+                             start, end, partner, lo[0], hi[0], image[0], d2[0], cells[0], cells[1], region[0],
+                             region[1])
 
 
 @njit(**LOOP_OPTIONS)
@@ -316,32 +325,37 @@ def build(pl, position, tag, box, periodic):
     size = np.empty(3)
     ncell = np.empty(3, dtype=np.int64)
     cell_grid(position, box, periodic, pl.reach, origin, size, ncell)
+    radius = 1
+    if n >= DENSE_CELL * ncell[0] * ncell[1] * ncell[2]:  # crowded cells: halve them, 2 cells of reach
+        radius = 2
+        cell_grid(position, box, periodic, 0.5 * pl.reach, origin, size, ncell)
     cell = np.empty(n, dtype=np.int64)
     cell_start = np.empty(ncell[0] * ncell[1] * ncell[2] + 1, dtype=np.int64)
     members = np.empty(n, dtype=np.int64)
     bin_particles(position, box, periodic, origin, size, ncell, cell, cell_start, members)
     widest = max(ncell[0], ncell[1], ncell[2])
-    near = np.empty((3, widest, 3), dtype=np.int64)
-    shift = np.empty((3, widest, 3), dtype=np.int64)
+    side = 2 * radius + 1
+    near = np.empty((3, widest, side), dtype=np.int64)
+    shift = np.empty((3, widest, side), dtype=np.int64)
     counts = np.empty((3, widest), dtype=np.int64)
-    neighbour_cells(ncell, periodic, near, shift, counts)
+    neighbour_cells(ncell, periodic, radius, near, shift, counts)
     xs = np.empty((3, n))
     ts = np.empty(n, dtype=np.int64)
     sorted_copy(position, tag, box, periodic, members, xs, ts)
     chunks = pl.bounds.shape[0] - 1
     cells = np.empty(chunks + 1, dtype=np.int64)
     split_cells(cell_start, cells)
-    lo = np.empty((chunks, 27), dtype=np.int64)
-    hi = np.empty((chunks, 27), dtype=np.int64)
-    image = np.empty((chunks, 27, 3))
+    lo = np.empty((chunks, side**3), dtype=np.int64)
+    hi = np.empty((chunks, side**3), dtype=np.int64)
+    image = np.empty((chunks, side**3, 3))
     d2 = np.empty((chunks, 64))
     used = np.zeros(chunks, dtype=np.int64)
     region = np.empty(chunks + 1, dtype=np.int64)
     for t in range(chunks + 1):  # regions in proportion to the particles of each chunk
         region[t] = (pl.partner.shape[0] * (cell_start[cells[t]] if t < chunks else n)) // max(n, 1)
     region[chunks] = pl.partner.shape[0]
-    fill_chunks(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts, pl.start,
-                pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
+    fill_chunks(ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts,
+                pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
     full = False
     for t in range(chunks):
         full = full or used[t] >= region[t + 1] - region[t]
@@ -350,7 +364,7 @@ def build(pl, position, tag, box, periodic):
         for t in range(chunks):
             region[t + 1] = region[t] + used[t] + used[t] // GROWTH + 16
         pl.partner = np.empty(region[chunks], dtype=np.int32)
-        fill_chunks(ts, xs, members, box, periodic, pl.reach, ncell, cell_start, near, shift, counts,
+        fill_chunks(ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts,
                     pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
     total = 0
     for t in range(chunks):
