@@ -213,19 +213,35 @@ class Scene:
 
     # ---- state -----------------------------------------------------------------------------
     def _pairs(self):
-        """(user array, kernel array) of each per-particle field present."""
+        """(user array, kernel array) of each per-particle field present. An array the user replaced
+        (``particles.velocity = ...``) is checked and copied into the kernels' array, which the
+        attribute then names again (unsorted scenes share their arrays with ``particles``)."""
         p = self.particles
         for name in PARTICLE_FIELDS:
-            user = getattr(p, name)
-            if user is not None:
-                yield user, self.arrays[name]
+            user, own = getattr(p, name), self.arrays[name]
+            if user is None:
+                if own.size:
+                    raise ValueError(f"particles.{name} was removed, but this scene needs it")
+                continue
+            if not self.plan.sorted and user is not own:
+                value = np.asarray(user, dtype=own.dtype)
+                if value.shape != own.shape:
+                    raise ValueError(f"particles.{name} must keep the shape {own.shape}, got {value.shape}")
+                if not np.isfinite(value).all():
+                    raise ValueError(f"particles.{name} contains NaN or inf")
+                own[...] = value
+                setattr(p, name, own)
+                user = own
+            elif user.shape != own.shape:
+                raise ValueError(f"particles.{name} must keep the shape {own.shape}, got {user.shape}")
+            yield user, own
 
     def push(self):
-        """Copy the user's particle arrays into the kernels' order (no-op unless sorted), then bring
-        the lists up to date and wrap periodic coordinates."""
-        if self.plan.sorted:
-            tag = self.arrays["tag"]
-            for user, own in self._pairs():
+        """Copy the user's particle arrays into the kernels' order (when sorted; unsorted scenes share
+        them), then bring the lists up to date and wrap periodic coordinates."""
+        tag = self.arrays["tag"]
+        for user, own in self._pairs():
+            if self.plan.sorted:
                 own[:] = user[tag]
         self.kernels.prepare(self.state)
 

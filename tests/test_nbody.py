@@ -323,3 +323,19 @@ def test_bad_boxes_skins_and_cutoffs_are_refused_before_stepping():
     q.position[5] = [-1.0, 2.0, 2.0]
     with pytest.raises(ValueError, match="outside the box"):
         dk.Scene(q, [dk.KelvinVoigt(10.0)], box=closed)
+
+
+@pytest.mark.parametrize("n", [2, 1200])  # shared arrays (no lists), and re-sorted copies
+def test_replacing_a_particle_array_between_runs_takes_effect(n):
+    p, box = gas(n=n, periodic=False, dipoles=False, seed=15) if n > 2 else (
+        dk.Particles(position=[[0.0, 0, 0], [3.0, 0, 0]], radius=1.0), None)
+    scene = dk.Scene(p, [dk.KelvinVoigt(10.0)])
+    v = np.zeros((n, 3))
+    v[0] = [1.0, 0.0, 0.0]
+    x0 = p.position[0].copy()
+    scene.particles.velocity = v  # a new array, not an in-place edit
+    dk.Simulation(scene, dk.VelocityVerlet(0.001)).run(duration=0.05)
+    assert scene.particles.position[0, 0] == pytest.approx(x0[0] + 0.05, abs=1e-3)
+    scene.particles.velocity = np.zeros((n + 1, 3))
+    with pytest.raises(ValueError, match="shape"):
+        scene.forces()
