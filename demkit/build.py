@@ -194,65 +194,52 @@ def _rsa_place(candidates, k, radius, position, span, size, periodic, ncell, wid
             x[a] = xa
             c[a] = _cell_coordinate(xa, width[a], ncell[a])
         used += 1
-        own = (c[0] * ncell[1] + c[1]) * ncell[2] + c[2]
         ok = True
-        j = head[own]
-        while j >= 0:
-            d2 = 0.0
-            for a in range(3):
-                d = x[a] - position[j, a]
-                if periodic[a]:
-                    if d > 0.5 * size[a]:
-                        d -= size[a]
-                    elif d < -0.5 * size[a]:
-                        d += size[a]
-                d2 += d * d
-            reach = r + radius[j]
-            if d2 < reach * reach:
-                ok = False
-                break
-            j = link[j]
-        if not ok:
-            continue
         lo0, hi0 = _cell_range(c[0], ncell[0])
         lo1, hi1 = _cell_range(c[1], ncell[1])
         lo2, hi2 = _cell_range(c[2], ncell[2])
-        for o0 in range(lo0, hi0 + 1):
-            c0 = c[0] + o0
-            if c0 < 0 or c0 >= ncell[0]:
-                if not periodic[0]:
-                    continue
-                c0 %= ncell[0]
-            for o1 in range(lo1, hi1 + 1):
-                c1 = c[1] + o1
-                if c1 < 0 or c1 >= ncell[1]:
-                    if not periodic[1]:
+        for stage in range(2):  # the own cell first (most rejections are found there), then the others
+            a0, b0 = (0, 0) if stage == 0 else (lo0, hi0)
+            a1, b1 = (0, 0) if stage == 0 else (lo1, hi1)
+            a2, b2 = (0, 0) if stage == 0 else (lo2, hi2)
+            for o0 in range(a0, b0 + 1):
+                c0 = c[0] + o0
+                if c0 < 0 or c0 >= ncell[0]:
+                    if not periodic[0]:
                         continue
-                    c1 %= ncell[1]
-                for o2 in range(lo2, hi2 + 1):
-                    c2 = c[2] + o2
-                    if c2 < 0 or c2 >= ncell[2]:
-                        if not periodic[2]:
+                    c0 %= ncell[0]
+                for o1 in range(a1, b1 + 1):
+                    c1 = c[1] + o1
+                    if c1 < 0 or c1 >= ncell[1]:
+                        if not periodic[1]:
                             continue
-                        c2 %= ncell[2]
-                    if o0 == 0 and o1 == 0 and o2 == 0:
-                        continue
-                    j = head[(c0 * ncell[1] + c1) * ncell[2] + c2]
-                    while j >= 0:
-                        d2 = 0.0
-                        for a in range(3):
-                            d = x[a] - position[j, a]
-                            if periodic[a]:
-                                if d > 0.5 * size[a]:
-                                    d -= size[a]
-                                elif d < -0.5 * size[a]:
-                                    d += size[a]
-                            d2 += d * d
-                        reach = r + radius[j]
-                        if d2 < reach * reach:
-                            ok = False
+                        c1 %= ncell[1]
+                    for o2 in range(a2, b2 + 1):
+                        c2 = c[2] + o2
+                        if c2 < 0 or c2 >= ncell[2]:
+                            if not periodic[2]:
+                                continue
+                            c2 %= ncell[2]
+                        if stage == 1 and o0 == 0 and o1 == 0 and o2 == 0:
+                            continue
+                        j = head[(c0 * ncell[1] + c1) * ncell[2] + c2]
+                        while j >= 0:
+                            d2 = 0.0
+                            for a in range(3):
+                                d = x[a] - position[j, a]
+                                if periodic[a]:
+                                    if d > 0.5 * size[a]:
+                                        d -= size[a]
+                                    elif d < -0.5 * size[a]:
+                                        d += size[a]
+                                d2 += d * d
+                            reach = r + radius[j]
+                            if d2 < reach * reach:
+                                ok = False
+                                break
+                            j = link[j]
+                        if not ok:
                             break
-                        j = link[j]
                     if not ok:
                         break
                 if not ok:
