@@ -117,12 +117,13 @@ def _state_arrays(g, scratch=False):
     return f"{fields}, {{targets}}{lists}" + (", s.scratch, s.gather" if scratch else "")
 
 
-def _pair_call(k, inter, offset, kind, nparams):
-    """Source of the call to interaction k's force or energy function."""
-    args = ["i", "j", "dx", "dy", "dz", "r2", *inter.reads]
+def _pair_call(k, inter, offset, kind, owner="i", fields=""):
+    """Source of the call to interaction k's force or energy function. ``owner`` is the index of
+    particle i in the field arrays, which are named ``fields + <field name>``."""
+    args = [owner, "j", "dx", "dy", "dz", "r2", *(fields + name for name in inter.reads)]
     if inter.history_size:
         args += ["history", "p", str(offset), "commit" if kind == "force" else "False"]
-    args += [f"p{k}_{n}" for n in range(nparams)]
+    args += [f"p{k}_{n}" for n in range(len(inter.parameters))]
     return f"{kind}_{k}({', '.join(args)})"
 
 
@@ -214,7 +215,7 @@ class _Source:
             if inter.dissipative:
                 outs += ["w"]
                 acc += ["power += w"]
-            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force', len(inter.parameters))}"
+            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force')}"
             body += self.guarded(k, inter, [call] + acc, pad, group.offsets[k])
         body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
                  f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz"]
@@ -286,9 +287,7 @@ class _Source:
         body += [f"{inner}{c} = 0.0" for c in cols]
         for k, inter in group.members:
             outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if inter.torque else [])
-            call = _pair_call(k, inter, 0, "force", len(inter.parameters)).replace("(i, j,", "(0, j,", 1)
-            for name in inter.reads:
-                call = call.replace(f", {name},", f", g_{name},").replace(f", {name})", f", g_{name})")
+            call = _pair_call(k, inter, 0, "force", owner="0", fields="g_")  # the gathered columns
             body.append(f"{inner}{', '.join(outs)} = {call}")
             keep = ""
             if inter.cutoff_distance is not None and k != cut:
@@ -374,7 +373,7 @@ class _Source:
     def energy_statements(self, group, target):
         body = []
         for k, inter in group.members:
-            call = _pair_call(k, inter, group.offsets[k], "energy", len(inter.parameters))
+            call = _pair_call(k, inter, group.offsets[k], "energy")
             body += self.guarded(k, inter, [f"{target(k)} += {call}"], " " * 12)
         return body
 
