@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from .scene import energy_dict
-from .state import MOVED_TOO_FAR, NON_FINITE, OK, REBUILDS
+from .state import MOVED_TOO_FAR, OK, REBUILDS
 
 
 class SimulationError(RuntimeError):

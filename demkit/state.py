@@ -99,10 +99,6 @@ class State(structref.StructRefProxy):
     def lists(self):
         return _get_lists(self)
 
-    @property
-    def skin(self):
-        return _get_skin(self)
-
 
 structref.define_proxy(PairList, PairListType, list(PAIR_LIST_FIELDS))
 structref.define_proxy(State, StateType, list(STATE_FIELDS))
@@ -142,10 +138,6 @@ def _get_bounds(s):
 def _get_lists(s):
     return s.lists
 
-
-@njit(cache=True)
-def _get_skin(s):
-    return s.skin
 
 
 def new_pair_list(reach, n, history_width, chunks, capacity=None):
