@@ -107,7 +107,7 @@ def part_memory(folder):
     import demkit as dk
     from reference_scene import load_reference_scene, particles_and_box
     sys.path.insert(0, str(HERE.parent / "tests"))
-    from test_nbody import TouchCounter
+    from plugin_interactions import TouchCounter
 
     p, box = particles_and_box(load_reference_scene(N_REFERENCE, folder))
 

@@ -52,3 +52,30 @@ class Poison(dk.PairInteraction):
 
     def __init__(self, distance):
         self.limit = distance ** 2
+
+
+@njit
+def touch_counter_force(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, unit):
+    """No force; history = steps the pair has been touching without a break (0 when apart)."""
+    reach = radius[i] + radius[j]
+    if commit:
+        history[p, offset] = history[p, offset] + unit if r2 < reach * reach else 0.0
+    return 0.0, 0.0, 0.0
+
+
+@njit
+def touch_counter_energy(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, unit):
+    return 0.0
+
+
+class TouchCounter(dk.PairInteraction):
+    reads = ("radius",)
+    history_size = 1
+    energy_kind = "counter"
+    parameters = ("unit",)
+    force_function = touch_counter_force
+    energy_function = touch_counter_energy
+
+    def __init__(self, cutoff=None):
+        self.unit = 1.0
+        self.cutoff_distance = cutoff

@@ -6,11 +6,12 @@ import numba
 import numpy as np
 import pytest
 from numba import njit
+from plugin_interactions import TouchCounter
 from reference_forces import dipole_forces, kelvin_voigt_forces, pairs_within
 
 import demkit as dk
 from demkit import neighbours
-from demkit.state import new_pair_list
+from demkit.state import SORTS, new_pair_list
 
 
 def gas(n=300, phi=0.2, periodic=True, seed=1, uneven=False, dipoles=True, speed=1.0, moment=1.0):
@@ -68,33 +69,6 @@ def test_forces_torques_energies_equal_the_all_pairs_minimum_image_sum(kind):
     assert e["contact"] == pytest.approx(uc, rel=1e-12)
 
 
-@njit
-def touch_counter_force(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, unit):
-    """No force; history = steps the pair has been touching without a break (0 when apart)."""
-    reach = radius[i] + radius[j]
-    if commit:
-        history[p, offset] = history[p, offset] + unit if r2 < reach * reach else 0.0
-    return 0.0, 0.0, 0.0
-
-
-@njit
-def touch_counter_energy(i, j, dx, dy, dz, r2, radius, history, p, offset, commit, unit):
-    return 0.0
-
-
-class TouchCounter(dk.PairInteraction):
-    reads = ("radius",)
-    history_size = 1
-    energy_kind = "counter"
-    parameters = ("unit",)
-    force_function = touch_counter_force
-    energy_function = touch_counter_energy
-
-    def __init__(self, cutoff=None):
-        self.unit = 1.0
-        self.cutoff_distance = cutoff
-
-
 def counts_by_ids(scene, counter):
     pairs, values = scene.history(counter)
     ids = scene.particles.ids
@@ -128,7 +102,7 @@ def test_re_sorting_by_cell_is_invisible_and_keeps_history():
         sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
         traj = sim.run(duration=0.5, record_every=0.1)
         if every:
-            assert scene.counters[2] > 10 and not np.array_equal(scene.arrays["tag"], np.arange(400))
+            assert scene.counters[SORTS] > 10 and not np.array_equal(scene.arrays["tag"], np.arange(400))
         finals.append((traj, scene.forces()[0], scene.particles.position.copy()))
         counts.append(counts_by_ids(scene, counter))
     (t0, f0, x0), (t1, f1, x1) = finals
