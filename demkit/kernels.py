@@ -569,6 +569,10 @@ def _fingerprint(source, interactions):
     from . import motion, neighbours, state
     for module in (motion, neighbours, state):
         h.update(inspect.getsource(module).encode())
+    # demkit's pair functions call helpers of their package (friction, ...): a helper's edit must
+    # invalidate the cache too
+    for path in sorted((Path(__file__).parent / "interactions").glob("*.py")):
+        h.update(path.read_bytes())
     return h.hexdigest()[:20]
 
 

@@ -193,6 +193,11 @@ class Scene:
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
         self.params = np.concatenate(params + [np.array(cut2)]) if params else np.zeros(0)
+        # slots of parameters named "dt": the integrator's time step, set by each run
+        self.time_step_slots, slot = [], 0
+        for inter in self.interactions:
+            self.time_step_slots += [slot + m for m, name in enumerate(inter.parameters) if name == "dt"]
+            slot += len(inter.parameters)
         own = (lambda a: a.copy()) if plan.sorted else (lambda a: a)  # sorted: the kernels' own order
         fields = dict(
             position=own(p.position), velocity=own(p.velocity), angular_velocity=own(omega), dipole=own(dipole),
@@ -310,6 +315,10 @@ class Scene:
                 f"particles {p.ids[i[k]]} and {p.ids[j[k]]} overlap deeply: centre distance {r[k]:.6g} "
                 f"with radii {p.radius[i[k]]:.6g} and {p.radius[j[k]]:.6g} (overlap {overlap[k]:.3g} of the "
                 f"smaller radius; at most {MAX_INITIAL_OVERLAP} is accepted at the start)")
+
+    def set_time_step(self, dt):
+        """Hand the integrator's time step to the interactions that need it (parameter "dt")."""
+        self.params[self.time_step_slots] = dt
 
     def max_time_step(self):
         """Largest safe time step over all interactions (math.inf when none limits it)."""

@@ -136,6 +136,7 @@ class Simulation:
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
         scene = self.scene
         scene.validate()
+        scene.set_time_step(dt)
         state = scene.state
         kern = scene.kernels
         scene.push()

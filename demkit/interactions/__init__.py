@@ -1,6 +1,8 @@
 """Pair interactions: each module holds one kind of physics."""
 from .base import PairInteraction
 from .contact import KelvinVoigt
+from .friction import Friction
+from .hertz import Hertz
 from .dipole import Dipole, PowerLawDipole
 
-__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt"]
+__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "Hertz"]

@@ -21,6 +21,9 @@ Beyond ``cutoff_distance`` the pair functions are not called and, when committin
 history values are set to zero (a pair out of reach has no history). History survives
 neighbour-list rebuilds and re-sorting; a pair that leaves the list loses it, one that enters
 starts from zero. The pair is always presented in the same orientation (i, j).
+
+A parameter named ``dt`` receives the integrator's time step at the start of every run (0 before
+any run); history updates that integrate a rate over the step use it.
 """
 from __future__ import annotations
 

@@ -20,6 +20,7 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, non_negative, positive
+from .friction import HISTORY, Friction, clear_history, slip_velocity, spring_energy, tangential_force
 
 
 @njit(**KERNEL_OPTIONS)
@@ -55,6 +56,57 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
     return 0.5 * stiffness * overlap * overlap
 
 
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
+                                commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, dt):
+    """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
+    Coulomb friction (see :mod:`demkit.interactions.friction`)."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        if commit:
+            clear_history(history, p, offset)
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    r = math.sqrt(r2)
+    inv_r = 1.0 / r
+    nx = dx * inv_r
+    ny = dy * inv_r
+    nz = dz * inv_r
+    overlap = reach - r
+    vx = velocity[j, 0] - velocity[i, 0]
+    vy = velocity[j, 1] - velocity[i, 1]
+    vz = velocity[j, 2] - velocity[i, 2]
+    rate = -(vx * nx + vy * ny + vz * nz)
+    elastic = stiffness * overlap
+    fn = elastic + damping * rate
+    if no_tension > 0.0 and fn < 0.0:
+        fn = 0.0
+    power = (fn - elastic) * rate
+    ai = radius[i] - 0.5 * overlap
+    aj = radius[j] - 0.5 * overlap
+    shift = 0.5 * overlap * full_arm
+    tx, ty, tz = slip_velocity(nx, ny, nz, vx, vy, vz, ai + shift, angular_velocity, i, aj + shift,
+                               angular_velocity, j)
+    ftx, fty, ftz, lost = tangential_force(nx, ny, nz, tx, ty, tz, fn, mu, kt, eta_t, history, p, offset,
+                                           commit, dt)
+    # torque of the friction force at the contact point: tau_i = -a_i n x F_t, tau_j = -a_j n x F_t
+    cx = ny * ftz - nz * fty
+    cy = nz * ftx - nx * ftz
+    cz = nx * fty - ny * ftx
+    return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz, -ai * cx, -ai * cy, -ai * cz, -aj * cx, -aj * cy,
+            -aj * cz, power + lost)
+
+
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
+                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, dt):
+    """Elastic energy of the normal spring and of the tangential spring."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    overlap = reach - math.sqrt(r2)
+    return 0.5 * stiffness * overlap * overlap + spring_energy(history, p, offset)
+
+
 def contact_duration(stiffness, damping, m_eff):
     """Duration of a two-body Kelvin-Voigt contact that ends when the overlap returns to zero."""
     omega0 = math.sqrt(stiffness / m_eff)
@@ -78,6 +130,8 @@ class KelvinVoigt(PairInteraction):
     stiffness : k > 0, force per overlap length.
     damping : c >= 0, force per overlap rate (the paper's gamma = 2 Gamma m omega_0).
     no_tension : forbid the attractive end of the contact (F_n >= 0).
+    friction : a :class:`Friction` (Coulomb friction with a linear tangential spring, history per
+        contact), or None (frictionless: no history, no torque).
     """
 
     reads = ("velocity", "radius")
@@ -87,10 +141,30 @@ class KelvinVoigt(PairInteraction):
     force_function = kelvin_voigt_force
     energy_function = kelvin_voigt_energy
 
-    def __init__(self, stiffness, damping=0.0, no_tension=False):
+    def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None):
         self.stiffness = positive("KelvinVoigt stiffness", stiffness)
         self.damping = non_negative("KelvinVoigt damping", damping)
         self.no_tension = bool(no_tension)
+        if friction is not None and not isinstance(friction, Friction):
+            raise TypeError(f"friction must be a demkit.Friction or None, got {friction!r}")
+        self.friction = friction
+        if friction is not None:
+            self.reads = ("velocity", "angular_velocity", "radius")
+            self.torque = True
+            self.history_size = HISTORY
+            self.parameters = self.parameters + ("mu", "kt", "eta_t", "full_arm", "dt")
+            self.force_function = kelvin_voigt_friction_force
+            self.energy_function = kelvin_voigt_friction_energy
+            self.mu = friction.coefficient
+            self.kt = friction.stiffness if friction.stiffness is not None else 2.0 / 7.0 * self.stiffness
+            default = self.damping * math.sqrt(self.kt / self.stiffness)
+            self.eta_t = friction.damping if friction.damping is not None else default
+            self.full_arm = 1.0 if friction.slip_radius == "full" else 0.0
+            self.dt = 0.0
+
+    def __repr__(self):
+        return (f"KelvinVoigt(stiffness={self.stiffness!r}, damping={self.damping!r}, "
+                f"no_tension={self.no_tension!r}, friction={self.friction!r})")
 
     def cutoff(self, particles):
         return 2.0 * float(np.max(particles.radius))
@@ -103,9 +177,15 @@ class KelvinVoigt(PairInteraction):
         return float(m[0] * m[1] / (m[0] + m[1]))
 
     def max_time_step(self, particles):
-        """A tenth of the shortest contact duration (and, for heavy damping, 0.2 m_eff/c)."""
+        """A tenth of the shortest contact duration (and, for heavy damping, 0.2 m_eff/c); with
+        friction also of the tangential period and dashpot."""
         m_eff = self.lightest_pair_mass(particles)
         limit = 0.1 * contact_duration(self.stiffness, self.damping, m_eff)
         if self.damping > 0:
             limit = min(limit, 0.2 * m_eff / self.damping)
+        if self.friction is not None:
+            # the tangential spring acts on the contact points: effective mass m_eff * 2/7 for spheres
+            limit = min(limit, 0.1 * contact_duration(self.kt, self.eta_t, m_eff * 2.0 / 7.0))
+            if self.eta_t > 0:
+                limit = min(limit, 0.2 * m_eff * 2.0 / 7.0 / self.eta_t)
         return limit

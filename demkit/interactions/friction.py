@@ -1,0 +1,150 @@
+"""Coulomb friction with a tangential spring-dashpot, the elastic displacement kept per contact.
+
+A contact law (Kelvin-Voigt, Hertz) calls :func:`tangential_force` with its normal force. In the
+pair's orientation (n = (x_j - x_i)/r, overlap delta), the slip velocity of j's contact point
+relative to i's is
+
+    v_c = v_j - v_i - (a_i w_i + a_j w_j) x n,    v_t = v_c - (v_c.n) n,
+
+with lever arms a = R - delta/2 (the contact point; ``slip_radius="full"`` takes a = R there, as
+LAMMPS' pair granular does). The elastic tangential displacement xi (history, 3 values) is first
+turned into the current tangent plane keeping its length, then advanced by v_t dt; the trial force
+on j is F_t = -k_t xi - eta_t v_t. Beyond the Coulomb limit |F_t| > mu |F_n| the force is scaled
+to mu |F_n| and xi set to -(F_t + eta_t v_t)/k_t (the spring holds only the elastic part: gross
+sliding). The torques are tau_i = -a_i n x F_t, tau_j = -a_j n x F_t (both at the contact point, so
+angular momentum is conserved). This follows LAMMPS' ``tangential linear_history`` (Luding, Granular
+Matter 10, 235 (2008), eq. 17), including two details: the limit uses |F_n| (a dashpot-dominated
+pulling contact still has friction), and a trial force beyond the limit with no stored displacement
+(possible only in an evaluation that does not advance the history, such as the first of a run) is
+zero.
+
+Energy: the spring stores U_t = k_t |xi|^2 / 2 (reported with the contact energy); the dissipated
+power booked is P = -F_t.v_t - dU_t/dt, so kinetic + potential + dissipated is conserved. Hertz-
+Mindlin springs change k_t with the contact radius; the history's fourth value keeps the last k_t
+so that dU_t is exact.
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from ..motion import KERNEL_OPTIONS
+
+from .base import non_negative
+
+#: history values per contact: elastic displacement (3) and the spring stiffness at the last update
+HISTORY = 4
+#: a displacement is turned into the tangent plane only if its normal part matters (as in LAMMPS)
+EPSILON = 1e-10
+
+
+class Friction:
+    """Coulomb friction for a contact law.
+
+    coefficient : mu >= 0, |F_t| <= mu |F_n|.
+    stiffness : k_t > 0, tangential spring (force per length); None: 2/7 of the normal stiffness for
+        Kelvin-Voigt (equal normal and tangential periods of a sphere), Mindlin's 8 G* a for Hertz.
+    damping : eta_t >= 0, tangential dashpot (force per velocity); None: the same damping ratio as
+        the normal dashpot, eta_t = eta_n sqrt(k_t / k_n).
+    slip_radius : "contact" (lever arms R - delta/2 in the slip velocity, energy-consistent with the
+        torques) or "full" (R, LAMMPS' convention; the energy balance is then off by O(delta/R) of the
+        rolling work).
+    """
+
+    def __init__(self, coefficient, stiffness=None, damping=None, slip_radius="contact"):
+        self.coefficient = non_negative("Friction coefficient", coefficient)
+        if stiffness is not None:
+            stiffness = float(stiffness)
+            if not math.isfinite(stiffness) or stiffness <= 0:
+                raise ValueError(f"Friction stiffness must be a positive finite number or None, got {stiffness}")
+        self.stiffness = stiffness
+        self.damping = None if damping is None else non_negative("Friction damping", damping)
+        if slip_radius not in ("contact", "full"):
+            raise ValueError(f"Friction slip_radius must be 'contact' or 'full', got {slip_radius!r}")
+        self.slip_radius = slip_radius
+
+    def __repr__(self):
+        return (f"Friction(coefficient={self.coefficient!r}, stiffness={self.stiffness!r}, "
+                f"damping={self.damping!r}, slip_radius={self.slip_radius!r})")
+
+
+@njit(**KERNEL_OPTIONS)
+def slip_velocity(nx, ny, nz, vx, vy, vz, ai, wi, i, aj, wj, j):
+    """Tangential slip v_t of j's contact point relative to i's, given v = v_j - v_i and the arms."""
+    sx = ai * wi[i, 0] + aj * wj[j, 0]
+    sy = ai * wi[i, 1] + aj * wj[j, 1]
+    sz = ai * wi[i, 2] + aj * wj[j, 2]
+    cx = vx - (sy * nz - sz * ny)
+    cy = vy - (sz * nx - sx * nz)
+    cz = vz - (sx * ny - sy * nx)
+    cn = cx * nx + cy * ny + cz * nz
+    return cx - cn * nx, cy - cn * ny, cz - cn * nz
+
+
+@njit(**KERNEL_OPTIONS)
+def tangential_force(nx, ny, nz, tx, ty, tz, normal, mu, kt, eta, history, p, o, commit, dt):
+    """Friction force on j (3 values) and dissipated power for slip (tx, ty, tz), normal force
+    ``normal``, spring kt, dashpot eta; reads history[p, o:o+4] and writes it when ``commit``."""
+    sx = history[p, o]
+    sy = history[p, o + 1]
+    sz = history[p, o + 2]
+    old = 0.5 * history[p, o + 3] * (sx * sx + sy * sy + sz * sz)
+    limit = mu * abs(normal)
+    if commit:
+        sn = sx * nx + sy * ny + sz * nz
+        if abs(sn) * kt > EPSILON * limit:  # turn into the tangent plane, keeping the length
+            before = sx * sx + sy * sy + sz * sz
+            sx -= sn * nx
+            sy -= sn * ny
+            sz -= sn * nz
+            after = sx * sx + sy * sy + sz * sz
+            scale = math.sqrt(before / after) if after > 0.0 else 0.0
+            sx *= scale
+            sy *= scale
+            sz *= scale
+        sx += tx * dt
+        sy += ty * dt
+        sz += tz * dt
+    fx = -kt * sx - eta * tx
+    fy = -kt * sy - eta * ty
+    fz = -kt * sz - eta * tz
+    f = math.sqrt(fx * fx + fy * fy + fz * fz)
+    if f > limit:
+        if sx * sx + sy * sy + sz * sz > 0.0:
+            scale = limit / f
+            fx *= scale
+            fy *= scale
+            fz *= scale
+            sx = -(fx + eta * tx) / kt
+            sy = -(fy + eta * ty) / kt
+            sz = -(fz + eta * tz) / kt
+        else:
+            fx = 0.0
+            fy = 0.0
+            fz = 0.0
+    power = -(fx * tx + fy * ty + fz * tz)
+    if commit:
+        history[p, o] = sx
+        history[p, o + 1] = sy
+        history[p, o + 2] = sz
+        history[p, o + 3] = kt
+        if dt > 0.0:
+            power -= (0.5 * kt * (sx * sx + sy * sy + sz * sz) - old) / dt
+    return fx, fy, fz, power
+
+
+@njit(**KERNEL_OPTIONS)
+def spring_energy(history, p, o):
+    """Elastic energy k_t |xi|^2 / 2 stored in a contact's tangential spring."""
+    sx = history[p, o]
+    sy = history[p, o + 1]
+    sz = history[p, o + 2]
+    return 0.5 * history[p, o + 3] * (sx * sx + sy * sy + sz * sz)
+
+
+@njit(**KERNEL_OPTIONS)
+def clear_history(history, p, o):
+    """A contact that has ended keeps no displacement."""
+    for h in range(o, o + HISTORY):
+        history[p, h] = 0.0

@@ -1,0 +1,249 @@
+"""Hertz normal contact with a restitution-calibrated dashpot, optionally with Mindlin friction.
+
+For overlap delta = R_i + R_j - r > 0 between spheres of one material (Young's modulus E, Poisson
+ratio nu), with R* = R_i R_j/(R_i + R_j), m* = (1/m_i + 1/m_j)^-1, contact radius a = sqrt(R* delta),
+
+    E* = E / (2 (1 - nu^2)),  G* = G / (2 (2 - nu)),  G = E / (2 (1 + nu))
+    F_e = 4/3 E* a delta = 4/3 E* sqrt(R*) delta^(3/2),      U = 2/5 F_e delta
+    F_n = max(0, F_e + eta_n d(delta)/dt),  eta_n = gamma sqrt(m* S_n),  S_n = dF_e/d(delta) = 2 E* a
+
+(a rigid plane has E* = E/(1 - nu^2), G* = G/(2 - nu), R* = R, m* = m). The damping is that of
+Tsuji, Tanaka & Ishida (Powder Technol. 71, 239 (1992)), eta ~ delta^(1/4): the dimensionless
+equation of a collision, x'' = -x^(3/2) - gamma sqrt(3/2) x^(1/4) x' with the force clamped at
+zero (no attraction at the end of the contact), depends on gamma alone, so the restitution
+coefficient is the same for every pair, size, mass and impact speed. demkit finds gamma for the
+restitution asked for by solving that equation (scipy, relative tolerance 1e-11) instead of using
+a fitted formula: the restitution that comes out is the one that goes in.
+
+With :class:`Friction` and no friction stiffness the tangential spring is Mindlin's no-slip
+stiffness k_t = 8 G* a; the tangential dashpot has the normal damping ratio,
+eta_t = eta_n sqrt(k_t / S_n), unless given.
+
+The analytic elastic impact at approach speed v (Chung & Ooi 2011, tests 1-3):
+delta_max = (15 m* v^2 / (16 E* sqrt(R*)))^(2/5), contact time t_c = 2.94328 delta_max / v.
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from numba import njit
+
+from ..motion import KERNEL_OPTIONS
+
+from .base import PairInteraction, positive
+from .friction import HISTORY, Friction, clear_history, slip_velocity, spring_energy, tangential_force
+
+#: t_c = HERTZ_TIME * delta_max / v for an elastic Hertz impact (2 (2/5) B(2/5, 1/2))
+HERTZ_TIME = 2.9432812
+
+_ROOT_3_2 = math.sqrt(1.5)
+
+
+def restitution_of_damping(gamma):
+    """Restitution coefficient of a Hertz impact with Tsuji damping constant ``gamma`` (see module)."""
+    from scipy.integrate import solve_ivp
+    if gamma == 0.0:
+        return 1.0
+
+    def rhs(t, y):
+        x = max(y[0], 0.0)
+        f = x ** 1.5 + gamma * _ROOT_3_2 * x ** 0.25 * y[1]
+        return [y[1], -max(f, 0.0)]
+
+    def ended(t, y):
+        return y[0] if t > 1e-9 else 1.0
+
+    ended.terminal, ended.direction = True, -1
+    span = 50.0 * (1.0 + gamma)
+    sol = solve_ivp(rhs, (0.0, span), [0.0, 1.0], events=ended, method="DOP853", rtol=1e-11, atol=1e-13)
+    if not sol.t_events[0].size:  # the sphere came to rest inside the contact
+        return 0.0
+    return -float(sol.y_events[0][0][1])
+
+
+@functools.lru_cache(maxsize=256)
+def damping_for_restitution(restitution):
+    """The Tsuji damping constant gamma that gives this restitution coefficient (0 < e <= 1)."""
+    from scipy.optimize import brentq
+    if restitution == 1.0:
+        return 0.0
+    high = 1.0
+    while restitution_of_damping(high) > restitution:
+        high *= 2.0
+        if high > 1e4:
+            raise ValueError(f"restitution {restitution} is too small to calibrate (needs gamma > 1e4)")
+    return brentq(lambda g: restitution_of_damping(g) - restitution, 0.0, high, xtol=1e-13, rtol=1e-13)
+
+
+def hertz_impact(young_eff, radius_eff, mass_eff, speed):
+    """(maximum overlap, maximum force, contact time) of an elastic Hertz impact."""
+    delta = (15.0 * mass_eff * speed ** 2 / (16.0 * young_eff * math.sqrt(radius_eff))) ** 0.4
+    force = 4.0 / 3.0 * young_eff * math.sqrt(radius_eff) * delta ** 1.5
+    return delta, force, HERTZ_TIME * delta / speed
+
+
+@njit(**KERNEL_OPTIONS)
+def hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma):
+    """(F_n, elastic part, S_n, eta_n) of the damped Hertz law."""
+    a = math.sqrt(radius_eff * overlap)
+    elastic = 4.0 / 3.0 * young_eff * a * overlap
+    stiffness = 2.0 * young_eff * a
+    eta = gamma * math.sqrt(mass_eff * stiffness)
+    fn = elastic + eta * rate
+    if fn < 0.0:
+        fn = 0.0
+    return fn, elastic, stiffness, eta
+
+
+@njit(**KERNEL_OPTIONS)
+def hertz_force(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_eff, gamma):
+    """Force on j and dissipated power of a damped Hertz contact."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0, 0.0, 0.0, 0.0
+    r = math.sqrt(r2)
+    nx = dx / r
+    ny = dy / r
+    nz = dz / r
+    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
+             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    radius_eff = radius[i] * radius[j] / reach
+    mass_eff = 1.0 / (1.0 / mass[i] + 1.0 / mass[j])
+    fn, elastic, _, _ = hertz_normal(reach - r, rate, radius_eff, mass_eff, young_eff, gamma)
+    return fn * nx, fn * ny, fn * nz, (fn - elastic) * rate
+
+
+@njit(**KERNEL_OPTIONS)
+def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_eff, gamma):
+    """Elastic energy 8/15 E* sqrt(R*) delta^(5/2)."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    overlap = reach - math.sqrt(r2)
+    radius_eff = radius[i] * radius[j] / reach
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius_eff) * overlap ** 2.5
+
+
+@njit(**KERNEL_OPTIONS)
+def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, dt):
+    """Force on j, torques on i and j and dissipated power of a Hertz contact with friction
+    (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0)."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        if commit:
+            clear_history(history, p, offset)
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    r = math.sqrt(r2)
+    nx = dx / r
+    ny = dy / r
+    nz = dz / r
+    overlap = reach - r
+    vx = velocity[j, 0] - velocity[i, 0]
+    vy = velocity[j, 1] - velocity[i, 1]
+    vz = velocity[j, 2] - velocity[i, 2]
+    rate = -(vx * nx + vy * ny + vz * nz)
+    radius_eff = radius[i] * radius[j] / reach
+    mass_eff = 1.0 / (1.0 / mass[i] + 1.0 / mass[j])
+    fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma)
+    kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius_eff * overlap)
+    eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
+    ai = radius[i] - 0.5 * overlap
+    aj = radius[j] - 0.5 * overlap
+    shift = 0.5 * overlap * full_arm
+    tx, ty, tz = slip_velocity(nx, ny, nz, vx, vy, vz, ai + shift, angular_velocity, i, aj + shift,
+                               angular_velocity, j)
+    ftx, fty, ftz, lost = tangential_force(nx, ny, nz, tx, ty, tz, fn, mu, kt, eta_t, history, p, offset,
+                                           commit, dt)
+    cx = ny * ftz - nz * fty
+    cy = nz * ftx - nx * ftz
+    cz = nx * fty - ny * ftx
+    return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz, -ai * cx, -ai * cy, -ai * cz, -aj * cx, -aj * cy,
+            -aj * cz, (fn - elastic) * rate + lost)
+
+
+@njit(**KERNEL_OPTIONS)
+def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, dt):
+    """Elastic energy of the Hertz contact and of its tangential spring."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    overlap = reach - math.sqrt(r2)
+    radius_eff = radius[i] * radius[j] / reach
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius_eff) * overlap ** 2.5 + spring_energy(history, p, offset)
+
+
+class Hertz(PairInteraction):
+    """Hertz normal contact between spheres of one material, damped to a given restitution.
+
+    young : Young's modulus E > 0 (pressure units of the scene).
+    poisson : Poisson ratio nu in (-1, 0.5).
+    restitution : normal restitution coefficient e in (0, 1] (1: elastic).
+    friction : a :class:`Friction` (Mindlin spring unless a stiffness is given) or None.
+    rolling : reserved for rolling resistance (not implemented yet: must be None).
+    """
+
+    reads = ("velocity", "radius", "mass")
+    dissipative = True
+    energy_kind = "contact"
+    parameters = ("young_eff", "shear_eff", "gamma")
+    force_function = hertz_force
+    energy_function = hertz_energy
+
+    def __init__(self, young, poisson, restitution=1.0, friction=None, rolling=None):
+        self.young = positive("Hertz young (Young's modulus)", young)
+        poisson = float(poisson)
+        if not (-1.0 < poisson < 0.5):
+            raise ValueError(f"Hertz poisson (Poisson ratio) must lie in (-1, 0.5), got {poisson}")
+        self.poisson = poisson
+        restitution = float(restitution)
+        if not (0.0 < restitution <= 1.0):
+            raise ValueError(f"Hertz restitution must lie in (0, 1], got {restitution}")
+        self.restitution = restitution
+        if rolling is not None:
+            raise NotImplementedError("rolling resistance is not implemented yet")
+        self.rolling = rolling
+        shear = self.young / (2.0 * (1.0 + poisson))
+        self.young_eff = self.young / (2.0 * (1.0 - poisson ** 2))
+        self.shear_eff = shear / (2.0 * (2.0 - poisson))
+        self.gamma = damping_for_restitution(restitution)
+        if friction is not None and not isinstance(friction, Friction):
+            raise TypeError(f"friction must be a demkit.Friction or None, got {friction!r}")
+        self.friction = friction
+        if friction is not None:
+            self.reads = ("velocity", "angular_velocity", "radius", "mass")
+            self.torque = True
+            self.history_size = HISTORY
+            self.parameters = self.parameters + ("mu", "kt_fixed", "eta_t_fixed", "full_arm", "dt")
+            self.force_function = hertz_friction_force
+            self.energy_function = hertz_friction_energy
+            self.mu = friction.coefficient
+            self.kt_fixed = friction.stiffness if friction.stiffness is not None else 0.0
+            self.eta_t_fixed = friction.damping if friction.damping is not None else -1.0
+            self.full_arm = 1.0 if friction.slip_radius == "full" else 0.0
+            self.dt = 0.0
+
+    def __repr__(self):
+        return (f"Hertz(young={self.young!r}, poisson={self.poisson!r}, restitution={self.restitution!r}, "
+                f"friction={self.friction!r})")
+
+    def cutoff(self, particles):
+        return 2.0 * float(np.max(particles.radius))
+
+    def max_time_step(self, particles):
+        """A tenth of the elastic contact time of the two smallest spheres at twice the fastest speed
+        present (no limit while everything is at rest)."""
+        v = particles.velocity
+        speed = 2.0 * float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0
+        if speed == 0.0:
+            return math.inf
+        order = np.argsort(particles.radius)
+        a, b = order[0], order[min(1, len(order) - 1)]
+        r = particles.radius
+        m = particles.mass
+        radius_eff = r[a] * r[b] / (r[a] + r[b])
+        mass_eff = 1.0 / (1.0 / m[a] + 1.0 / m[b]) if a != b else 0.5 * m[a]
+        return 0.1 * hertz_impact(self.young_eff, radius_eff, mass_eff, speed)[2]
