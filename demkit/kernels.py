@@ -79,6 +79,20 @@ class Plan:
     periodic: tuple  # three bools
     growing: bool  # neighbour lists (mutable state, reference counting on)
     sorted: bool = False  # particles re-sorted by cell now and then (internal order)
+    effects: tuple = ()  # single-sphere interactions (walls, gravity, fields)
+
+    @property
+    def effect_offsets(self):
+        """History offset of each effect in the per-sphere history rows."""
+        offsets, width = [], 0
+        for effect in self.effects:
+            offsets.append(width)
+            width += effect.history_size
+        return offsets
+
+    @property
+    def effect_width(self):
+        return sum(effect.history_size for effect in self.effects)
 
     @property
     def lists(self):
@@ -132,13 +146,18 @@ class _Source:
 
     def __init__(self, plan, importable):
         self.plan = plan
-        self.kinds = energy_kinds(plan.interactions)
+        self.kinds = energy_kinds(plan.interactions + plan.effects)
         self.importable = importable
-        # parameter slots: each interaction's parameters, then one squared cutoff per interaction
+        # parameter slots: each interaction's parameters, each effect's, then one squared cutoff per
+        # interaction
         self.param_slot, slot = {}, 0
         for k, inter in enumerate(plan.interactions):
             self.param_slot[k] = slot
             slot += len(inter.parameters)
+        self.effect_slot = {}
+        for e, effect in enumerate(plan.effects):
+            self.effect_slot[e] = slot
+            slot += len(effect.parameters)
         self.cutoff_slot = {k: slot + k for k in range(len(plan.interactions))}
 
     # ---- pair loops ------------------------------------------------------------------------
@@ -393,6 +412,46 @@ class _Source:
         lines += self.energy_statements(group, lambda k: f"out[q, {k}]") + ["            q += 1"]
         return lines
 
+    # ---- single-sphere effects ---------------------------------------------------------------
+    def effect_call(self, e, effect, offset, kind):
+        args = ["i", "x", "y", "z", *effect.reads]
+        if effect.history_size:
+            args += ["history", "i", str(offset), "commit" if kind == "force" else "False"]
+        args += [f"q{e}_{m}" for m in range(len(effect.parameters))]
+        return f"s{kind}_{e}({', '.join(args)})"
+
+    def sphere_functions(self):
+        plan = self.plan
+        if not plan.effects:
+            return []
+        offsets = plan.effect_offsets
+        prelude = [f"    q{e}_{m} = params[{self.effect_slot[e] + m}]"
+                   for e, effect in enumerate(plan.effects) for m in range(len(effect.parameters))]
+        head = ["    n = position.shape[0]"] + prelude + ["    for i in range(n):", "        x = position[i, 0]",
+                                                          "        y = position[i, 1]", "        z = position[i, 2]"]
+        torque_on = any(effect.torque for effect in plan.effects)
+        lines = ["", "", "@njit(**INNER)",
+                 f"def sphere_forces({ARRAYS}, force, torque, history, commit):",
+                 '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
+                 "    power = 0.0"] + head
+        for e, effect in enumerate(plan.effects):
+            outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if effect.torque else []) + (
+                ["w"] if effect.dissipative else [])
+            lines.append(f"        {', '.join(outs)} = {self.effect_call(e, effect, offsets[e], 'force')}")
+            lines += [f"        force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
+            if effect.torque:
+                lines += [f"        torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
+            if effect.dissipative:
+                lines.append("        power += w")
+        lines.append("    return power")
+        lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out):",
+                  '    """Add the potential energies of the single-sphere effects to out[2 + kind]."""'] + head
+        for e, effect in enumerate(plan.effects):
+            slot = 2 + self.kinds.index(effect.energy_kind)
+            lines.append(f"        out[{slot}] += {self.effect_call(e, effect, offsets[e], 'energy')}")
+        del torque_on
+        return lines
+
     # ---- scene-level functions -----------------------------------------------------------------
     def group_call(self, g, group, kind, targets, extra):
         args = _state_arrays(g, scratch=kind.startswith("forces")).format(targets=targets)
@@ -400,7 +459,8 @@ class _Source:
 
     def scene_functions(self):
         plan = self.plan
-        lines = []
+        lines = self.sphere_functions()
+        spheres = "s.position, s.velocity, s.angular_velocity, s.dipole, s.radius, s.mass, s.box, s.params"
         if plan.lists:
             lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
                       '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
@@ -433,6 +493,8 @@ class _Source:
                       ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
             lines += [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
             lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)"]
+            if plan.effect_width:
+                lines.append("    permute_rows(s.sphere_history, order)")
             for g in plan.lists:
                 lines.append(f"    build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)")
                 if g in history:
@@ -451,6 +513,8 @@ class _Source:
                 lines.append("    power += " + self.group_call(g, group, "forces_parallel", "force, torque, ", extra))
             else:
                 lines.append("    power += " + self.group_call(g, group, "forces", "force, torque, ", ", commit"))
+        if plan.effects:
+            lines.append(f"    power += sphere_forces({spheres}, force, torque, s.sphere_history, commit)")
         lines += ["    return power",
                   "", "", "@njit(**OUTER)", "def forces_of(s, commit):",
                   '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""',
@@ -464,6 +528,8 @@ class _Source:
                   "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
         for g, group in enumerate(plan.groups):
             lines.append("    " + self.group_call(g, group, "energies", "", ", out"))
+        if plan.effects:
+            lines.append(f"    sphere_energies({spheres}, s.sphere_history, out)")
         for g, group in enumerate(plan.groups):
             lines += ["", "", "@njit(**OUTER)", f"def pair_energies_{g}(s, owners, partners, out):"]
             if plan.lists:
@@ -514,7 +580,8 @@ class _Source:
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, KERNEL_OPTIONS)",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
-                 "                               permute_vectors, permute_scalars, saved_history, restore_history)",
+                 "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
+                 "                               restore_history)",
                  "from demkit.state import OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY",
                  ""]
         if plan.growing and any(group.parallel for group in plan.groups):  # the per-step passes on threads
@@ -526,6 +593,9 @@ class _Source:
             for k, inter in enumerate(plan.interactions):
                 for kind, fn in zip(("force", "energy"), inter.pair_functions()):
                     lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
+            for e, effect in enumerate(plan.effects):
+                for kind, fn in zip(("force", "energy"), effect.pair_functions()):
+                    lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
         cache = self.importable
         fast = 'fastmath={"contract", "arcp"}, error_model="numpy"'
         nrt = "" if plan.growing else ", _nrt=False"
@@ -578,7 +648,7 @@ def _fingerprint(source, interactions):
 
 def build_module(plan, templates):
     """Return the compiled kernel module for this plan and these integrator templates."""
-    interactions = plan.interactions
+    interactions = plan.interactions + plan.effects
     for inter in interactions:
         for fn in inter.pair_functions():
             if not hasattr(fn, "py_func"):
@@ -625,9 +695,12 @@ def _load_in_memory(name, source, interactions):
     import types
     module = types.ModuleType(name)
     if interactions is not None:
-        for k, inter in enumerate(interactions):
-            force, energy = inter.pair_functions()
-            setattr(module, f"force_{k}", force)
-            setattr(module, f"energy_{k}", energy)
+        pairs = [inter for inter in interactions if not hasattr(inter, "bind")]
+        effects = [inter for inter in interactions if hasattr(inter, "bind")]
+        for prefix, members in (("", pairs), ("s", effects)):
+            for k, inter in enumerate(members):
+                force, energy = inter.pair_functions()
+                setattr(module, f"{prefix}force_{k}", force)
+                setattr(module, f"{prefix}energy_{k}", energy)
     exec(compile(source, f"<{name}>", "exec"), module.__dict__)
     return module

@@ -113,14 +113,16 @@ def state_is_finite(position, velocity, angular_velocity):
 
 @njit(**KERNEL_OPTIONS)
 def kinetic_energies(velocity, angular_velocity, mass, inertia):
-    """(sum m v^2/2, sum I w^2/2)."""
+    """(sum m v^2/2, sum I w^2/2); fixed spheres (infinite mass, at rest) count zero."""
     kin = 0.0
     for i in range(velocity.shape[0]):
-        kin += 0.5 * mass[i] * (velocity[i, 0] ** 2 + velocity[i, 1] ** 2 + velocity[i, 2] ** 2)
+        if mass[i] < math.inf:
+            kin += 0.5 * mass[i] * (velocity[i, 0] ** 2 + velocity[i, 1] ** 2 + velocity[i, 2] ** 2)
     rot = 0.0
     for i in range(angular_velocity.shape[0]):
-        rot += 0.5 * inertia[i] * (angular_velocity[i, 0] ** 2 + angular_velocity[i, 1] ** 2
-                                   + angular_velocity[i, 2] ** 2)
+        if inertia[i] < math.inf:
+            rot += 0.5 * inertia[i] * (angular_velocity[i, 0] ** 2 + angular_velocity[i, 1] ** 2
+                                       + angular_velocity[i, 2] ** 2)
     return kin, rot
 
 
@@ -166,9 +168,10 @@ def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mas
         ux = position[i, 0] + (image[i, 0] * box[0] if periodic[0] else 0.0)
         uy = position[i, 1] + (image[i, 1] * box[1] if periodic[1] else 0.0)
         uz = position[i, 2] + (image[i, 2] * box[2] if periodic[2] else 0.0)
-        px = mass[i] * velocity[i, 0]
-        py = mass[i] * velocity[i, 1]
-        pz = mass[i] * velocity[i, 2]
+        m = mass[i] if mass[i] < math.inf else 0.0  # fixed spheres (infinite mass) never move
+        px = m * velocity[i, 0]
+        py = m * velocity[i, 1]
+        pz = m * velocity[i, 2]
         lx += uy * pz - uz * py
         ly += uz * px - ux * pz
         lz += ux * py - uy * px
@@ -176,9 +179,10 @@ def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mas
         row = tag[i]
         for a in range(3):
             rec_omega[k, row, a] = angular_velocity[i, a]
-        lx += inertia[i] * angular_velocity[i, 0]
-        ly += inertia[i] * angular_velocity[i, 1]
-        lz += inertia[i] * angular_velocity[i, 2]
+        inertia_i = inertia[i] if inertia[i] < math.inf else 0.0
+        lx += inertia_i * angular_velocity[i, 0]
+        ly += inertia_i * angular_velocity[i, 1]
+        lz += inertia_i * angular_velocity[i, 2]
     for i in range(dipole.shape[0]):
         row = tag[i]
         for a in range(3):

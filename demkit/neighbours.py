@@ -540,6 +540,15 @@ def cell_order(position, box, periodic, width):
     return order
 
 
+@njit(cache=True)
+def permute_rows(a, order):
+    """a[k] = a[order[k]] for the rows of an (N, W) array."""
+    tmp = a.copy()
+    for k in range(order.shape[0]):
+        for c in range(a.shape[1]):
+            a[k, c] = tmp[order[k], c]
+
+
 @njit(**LOOP_OPTIONS)
 def permute_vectors(a, order, tmp):
     """a[k] = a[order[k]] for the rows of an (N,3) array (skips an absent (0,3) field)."""

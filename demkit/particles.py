@@ -43,6 +43,15 @@ def _images(value, n):
     return np.ascontiguousarray(arr, dtype=np.int64)
 
 
+def _flags(name, value, n):
+    arr = np.asarray(value)
+    if arr.dtype != np.bool_:
+        raise ValueError(f"{name} must be booleans (one per particle), got dtype {arr.dtype}")
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
+    return arr.copy()
+
+
 def _finite(name, arr):
     bad = ~np.isfinite(arr)
     if bad.any():
@@ -64,10 +73,12 @@ class Particles:
     angular_velocity : (N,3) array, rad/time, or None (created as zeros if a scene needs it).
     ids : (N,) integers, unique and persistent (default 0..N-1).
     image : (N,3) integers, periodic image counts, or None (created as zeros in a periodic box).
+    fixed : (N,) booleans or None: fixed spheres neither move nor turn (they must start at rest;
+        they still feel and exert forces: the scene gives them infinite mass and inertia).
     """
 
     def __init__(self, position, velocity=None, radius=1.0, mass=1.0, inertia_factor=0.4,
-                 dipole=None, angular_velocity=None, ids=None, image=None):
+                 dipole=None, angular_velocity=None, ids=None, image=None, fixed=None):
         self.position = _vectors("position", position, None)
         n = self.position.shape[0]
         if n < 1:
@@ -81,6 +92,7 @@ class Particles:
         self.angular_velocity = (None if angular_velocity is None
                                  else _vectors("angular_velocity", angular_velocity, n))
         self.image = None if image is None else _images(image, n)
+        self.fixed = None if fixed is None else _flags("fixed", fixed, n)
         if ids is None:
             self.ids = np.arange(n, dtype=np.int64)
         else:
@@ -101,6 +113,17 @@ class Particles:
             raise ValueError(f"unknown optional field {field!r}; known: {OPTIONAL_FIELDS}")
         if getattr(self, field) is None:
             setattr(self, field, np.zeros((self.n, 3), dtype=np.int64 if field == "image" else np.float64))
+
+    def check_fixed(self):
+        """Raise ValueError if a fixed sphere moves or turns."""
+        if self.fixed is None:
+            return
+        for name in ("velocity", "angular_velocity"):
+            arr = getattr(self, name)
+            if arr is not None and np.any(arr[self.fixed] != 0.0):
+                k = int(np.flatnonzero(self.fixed & np.any(arr != 0.0, axis=1))[0])
+                raise ValueError(f"fixed particle {self.ids[k]} has {name} {arr[k].tolist()}: fixed spheres "
+                                 f"neither move nor turn")
 
     def check_finite(self):
         """Raise ValueError if any state array holds NaN or inf."""

@@ -21,6 +21,7 @@ from . import neighbours
 from .box import Box
 from .integrators import TEMPLATES
 from .interactions.base import PairInteraction
+from .interactions.sphere import SphereInteraction
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
@@ -71,18 +72,25 @@ class Scene:
             interactions = [interactions]
         interactions = list(interactions)
         for inter in interactions:
-            if not isinstance(inter, PairInteraction):
-                raise TypeError(f"interactions must be PairInteraction objects, got {inter!r}")
+            if not isinstance(inter, (PairInteraction, SphereInteraction)):
+                raise TypeError(f"interactions must be PairInteraction or SphereInteraction objects (Wall, Gravity, "
+                                f"UniformField, ...), got {inter!r}")
+        effects = [inter for inter in interactions if isinstance(inter, SphereInteraction)]
+        interactions = [inter for inter in interactions if isinstance(inter, PairInteraction)]
+        for effect in effects:
+            effect.bind(interactions)
         if box is not None and not isinstance(box, Box):
             raise TypeError(f"box must be a demkit.Box or None, got {type(box).__name__}")
         if parallel not in (None, True, False):
             raise ValueError(f"parallel must be None (automatic), True or False, got {parallel!r}")
         self.particles = particles
+        self.has_fixed = particles.fixed is not None and bool(particles.fixed.any())
         self.interactions = tuple(interactions)
+        self.effects = tuple(effects)
         self.box = box
-        for inter in self.interactions:
+        for inter in self.interactions + self.effects:
             inter.check(particles)
-        if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions):
+        if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions + self.effects):
             particles.require("angular_velocity")
         self.periodic = tuple(bool(f) for f in box.periodic) if box is not None else (False,) * 3
         if any(self.periodic):
@@ -95,7 +103,7 @@ class Scene:
         self.parallel = auto if parallel is None else bool(parallel)
         self.plan = self._plan()
         self._sorting(sort_every)
-        self.energy_kinds = energy_kinds(self.interactions)
+        self.energy_kinds = energy_kinds(self.interactions + self.effects)
         n = len(particles)
         self.force = np.zeros((n, 3))
         self.torque = np.zeros((n, 3))
@@ -167,7 +175,8 @@ class Scene:
                     raise ValueError(f"{[type(i).__name__ for _, i in group.members]} keep history for every pair "
                                      f"of {n} spheres ({size / 2**30:.1f} GiB) because they have no cutoff: "
                                      f"give them a cutoff_distance")
-        return Plan(self.interactions, groups, self.periodic, any(g.kind == "list" for g in groups))
+        return Plan(self.interactions, groups, self.periodic, any(g.kind == "list" for g in groups),
+                    effects=self.effects)
 
     def _make_state(self):
         p, plan = self.particles, self.plan
@@ -189,19 +198,22 @@ class Scene:
         omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
         dipole = p.dipole if p.dipole is not None else empty_vectors()
         image = p.image if p.image is not None else empty_vectors(np.int64)
-        params = [inter.parameter_values() for inter in self.interactions]
+        params = [inter.parameter_values() for inter in self.interactions + self.effects]
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
         self.params = np.concatenate(params + [np.array(cut2)]) if params else np.zeros(0)
         # slots of parameters named "dt": the integrator's time step, set by each run
         self.time_step_slots, slot = [], 0
-        for inter in self.interactions:
+        for inter in self.interactions + self.effects:
             self.time_step_slots += [slot + m for m, name in enumerate(inter.parameters) if name == "dt"]
             slot += len(inter.parameters)
         own = (lambda a: a.copy()) if plan.sorted else (lambda a: a)  # sorted: the kernels' own order
+        mass, inertia = own(p.mass), own(p.inertia)
+        if self.has_fixed:  # fixed spheres: infinite mass and inertia in the kernels' copies
+            mass, inertia = np.where(p.fixed, np.inf, p.mass), np.where(p.fixed, np.inf, p.inertia)
         fields = dict(
             position=own(p.position), velocity=own(p.velocity), angular_velocity=own(omega), dipole=own(dipole),
-            radius=own(p.radius), mass=own(p.mass), inertia=own(p.inertia), tag=np.arange(n, dtype=np.int64),
+            radius=own(p.radius), mass=mass, inertia=inertia, tag=np.arange(n, dtype=np.int64),
             image=own(image),
             force=self.force, torque=self.torque, accum=self.accum, params=self.params,
             box=self.box.size.copy() if self.box is not None else np.zeros(3),
@@ -211,7 +223,8 @@ class Scene:
             lists=tuple(lists), thread_force=np.zeros((max(threads - 1, 0), n, 3)),
             thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
-            gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)))
+            gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)),
+            sphere_history=np.zeros((n, plan.effect_width)))
         self.arrays = fields
         values = [fields[name] for name in STATE_FIELDS]
         return State(*values) if growing else StateTuple(*values)
@@ -223,6 +236,8 @@ class Scene:
         attribute then names again (unsorted scenes share their arrays with ``particles``)."""
         p = self.particles
         for name in PARTICLE_FIELDS:
+            if self.has_fixed and name in ("mass", "inertia"):
+                continue  # kept apart (infinite for fixed spheres), see push
             user, own = getattr(p, name), self.arrays[name]
             if user is None:
                 if own.size:
@@ -248,6 +263,11 @@ class Scene:
         for user, own in self._pairs():
             if self.plan.sorted:
                 own[:] = user[tag]
+        if self.has_fixed:
+            p = self.particles
+            fixed = p.fixed[tag]
+            self.arrays["mass"][:] = np.where(fixed, np.inf, p.mass[tag])
+            self.arrays["inertia"][:] = np.where(fixed, np.inf, p.inertia[tag])
         self.kernels.prepare(self.state)
 
     def pull(self):
@@ -296,6 +316,7 @@ class Scene:
         outside the box. O(N): overlaps are found with a cell list."""
         p = self.particles
         p.check_finite()
+        p.check_fixed()
         if self.box is not None:
             self._check_geometry()
         if len(p) < 2:
@@ -322,7 +343,8 @@ class Scene:
 
     def max_time_step(self):
         """Largest safe time step over all interactions (math.inf when none limits it)."""
-        return min([inter.max_time_step(self.particles) for inter in self.interactions] + [math.inf])
+        return min([inter.max_time_step(self.particles) for inter in self.interactions + self.effects]
+                   + [math.inf])
 
     # ---- diagnostics ---------------------------------------------------------------------
     def forces(self):

@@ -3,6 +3,10 @@ from .base import PairInteraction
 from .contact import KelvinVoigt
 from .friction import Friction
 from .hertz import Hertz
+from .sphere import SphereInteraction
+from .fields import Gravity, UniformField
+from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 
-__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "Hertz"]
+__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "Hertz", "SphereInteraction",
+           "Gravity", "UniformField", "Wall"]

@@ -20,7 +20,7 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, non_negative, positive
-from .friction import HISTORY, Friction, clear_history, slip_velocity, spring_energy, tangential_force
+from .friction import HISTORY, Friction, clear_history, friction_on_j, spring_energy
 
 
 @njit(**KERNEL_OPTIONS)
@@ -83,17 +83,14 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     power = (fn - elastic) * rate
     ai = radius[i] - 0.5 * overlap
     aj = radius[j] - 0.5 * overlap
-    shift = 0.5 * overlap * full_arm
-    tx, ty, tz = slip_velocity(nx, ny, nz, vx, vy, vz, ai + shift, angular_velocity, i, aj + shift,
-                               angular_velocity, j)
-    ftx, fty, ftz, lost = tangential_force(nx, ny, nz, tx, ty, tz, fn, mu, kt, eta_t, history, p, offset,
-                                           commit, dt)
-    # torque of the friction force at the contact point: tau_i = -a_i n x F_t, tau_j = -a_j n x F_t
-    cx = ny * ftz - nz * fty
-    cy = nz * ftx - nx * ftz
-    cz = nx * fty - ny * ftx
-    return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz, -ai * cx, -ai * cy, -ai * cz, -aj * cx, -aj * cy,
-            -aj * cz, power + lost)
+    shift = 0.5 * overlap * full_arm  # "full": slip from the full radii, as LAMMPS
+    bi = ai + shift
+    bj = aj + shift
+    w = angular_velocity
+    ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = friction_on_j(
+        nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1], bi * w[i, 2] + bj * w[j, 2],
+        ai, aj, fn, mu, kt, eta_t, history, p, offset, commit, dt)
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, power + lost
 
 
 @njit(**KERNEL_OPTIONS)

@@ -70,16 +70,20 @@ class Friction:
 
 
 @njit(**KERNEL_OPTIONS)
-def slip_velocity(nx, ny, nz, vx, vy, vz, ai, wi, i, aj, wj, j):
-    """Tangential slip v_t of j's contact point relative to i's, given v = v_j - v_i and the arms."""
-    sx = ai * wi[i, 0] + aj * wj[j, 0]
-    sy = ai * wi[i, 1] + aj * wj[j, 1]
-    sz = ai * wi[i, 2] + aj * wj[j, 2]
+def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, eta, history, p, o, commit, dt):
+    """Friction force on j, torques on i and j (at the contact point, arms ai and aj) and dissipated
+    power, for relative velocity v = v_j - v_i and lever sum s = a_i w_i + a_j w_j (the slip is
+    v_c = v - s x n, its tangential part drives the spring; see :func:`tangential_force`)."""
     cx = vx - (sy * nz - sz * ny)
     cy = vy - (sz * nx - sx * nz)
     cz = vz - (sx * ny - sy * nx)
     cn = cx * nx + cy * ny + cz * nz
-    return cx - cn * nx, cy - cn * ny, cz - cn * nz
+    fx, fy, fz, lost = tangential_force(nx, ny, nz, cx - cn * nx, cy - cn * ny, cz - cn * nz, normal, mu, kt, eta,
+                                        history, p, o, commit, dt)
+    qx = ny * fz - nz * fy
+    qy = nz * fx - nx * fz
+    qz = nx * fy - ny * fx
+    return fx, fy, fz, -ai * qx, -ai * qy, -ai * qz, -aj * qx, -aj * qy, -aj * qz, lost
 
 
 @njit(**KERNEL_OPTIONS)

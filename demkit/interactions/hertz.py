@@ -33,7 +33,7 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, positive
-from .friction import HISTORY, Friction, clear_history, slip_velocity, spring_energy, tangential_force
+from .friction import HISTORY, Friction, clear_history, friction_on_j, spring_energy
 
 #: t_c = HERTZ_TIME * delta_max / v for an elastic Hertz impact (2 (2/5) B(2/5, 1/2))
 HERTZ_TIME = 2.9432812
@@ -91,7 +91,7 @@ def hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma):
     elastic = 4.0 / 3.0 * young_eff * a * overlap
     stiffness = 2.0 * young_eff * a
     eta = gamma * math.sqrt(mass_eff * stiffness)
-    fn = elastic + eta * rate
+    fn = elastic + (eta * rate if rate != 0.0 else 0.0)  # two fixed spheres: infinite eta, zero rate
     if fn < 0.0:
         fn = 0.0
     return fn, elastic, stiffness, eta
@@ -152,16 +152,14 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
     ai = radius[i] - 0.5 * overlap
     aj = radius[j] - 0.5 * overlap
-    shift = 0.5 * overlap * full_arm
-    tx, ty, tz = slip_velocity(nx, ny, nz, vx, vy, vz, ai + shift, angular_velocity, i, aj + shift,
-                               angular_velocity, j)
-    ftx, fty, ftz, lost = tangential_force(nx, ny, nz, tx, ty, tz, fn, mu, kt, eta_t, history, p, offset,
-                                           commit, dt)
-    cx = ny * ftz - nz * fty
-    cy = nz * ftx - nx * ftz
-    cz = nx * fty - ny * ftx
-    return (fn * nx + ftx, fn * ny + fty, fn * nz + ftz, -ai * cx, -ai * cy, -ai * cz, -aj * cx, -aj * cy,
-            -aj * cz, (fn - elastic) * rate + lost)
+    shift = 0.5 * overlap * full_arm  # "full": slip from the full radii, as LAMMPS
+    bi = ai + shift
+    bj = aj + shift
+    w = angular_velocity
+    ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = friction_on_j(
+        nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1], bi * w[i, 2] + bj * w[j, 2],
+        ai, aj, fn, mu, kt, eta_t, history, p, offset, commit, dt)
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, (fn - elastic) * rate + lost
 
 
 @njit(**KERNEL_OPTIONS)

@@ -1,0 +1,227 @@
+"""Infinite plane walls with the scene's contact law, friction history per sphere.
+
+A wall through ``point`` with unit ``normal`` n bounds the half-space (x - p).n > 0 where spheres
+live. A sphere of radius R at height h = (x - p).n overlaps it by delta = R - h; the contact is the
+pair contact with the wall as a partner of infinite mass and radius (R* = R, m* = m) whose
+material is rigid (Hertz: E* = E/(1 - nu^2), G* = G/(2 - nu)). The wall may slide in its own plane
+with ``velocity`` (a conveyor or shear plate; its geometry does not change). Friction keeps each
+sphere's tangential spring against the wall in per-sphere history.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..motion import KERNEL_OPTIONS
+
+from .contact import KelvinVoigt
+from .friction import HISTORY, clear_history, friction_on_j, spring_energy
+from .hertz import Hertz, hertz_normal
+from .sphere import SphereInteraction, vector
+
+#: a sphere may start overlapping a wall by at most this fraction of its radius
+MAX_INITIAL_OVERLAP = 0.5
+
+
+@njit(**KERNEL_OPTIONS)
+def _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz):
+    """(overlap, overlap rate, relative velocity) of sphere i against the wall."""
+    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    vx = velocity[i, 0] - ux
+    vy = velocity[i, 1] - uy
+    vz = velocity[i, 2] - uz
+    return overlap, -(vx * nx + vy * ny + vz * nz), vx, vy, vz
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping,
+                            no_tension):
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+    if overlap <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    elastic = stiffness * overlap
+    fn = elastic + damping * rate
+    if no_tension > 0.0 and fn < 0.0:
+        fn = 0.0
+    return fn * nx, fn * ny, fn * nz, (fn - elastic) * rate
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping,
+                             no_tension):
+    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    return 0.5 * stiffness * overlap * overlap if overlap > 0.0 else 0.0
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                     px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
+                                     eta_t, full_arm, dt):
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+    if overlap <= 0.0:
+        if commit:
+            clear_history(history, p, offset)
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    elastic = stiffness * overlap
+    fn = elastic + damping * rate
+    if no_tension > 0.0 and fn < 0.0:
+        fn = 0.0
+    a = radius[i] - overlap  # the contact point lies on the wall
+    b = radius[i] if full_arm > 0.0 else a  # "full": slip from the full radius
+    w = angular_velocity
+    ftx, fty, ftz, _, _, _, tx, ty, tz, lost = friction_on_j(
+        nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1], b * w[i, 2], 0.0, a, fn, mu, kt, eta_t, history, p,
+        offset, commit, dt)
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                      px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
+                                      eta_t, full_arm, dt):
+    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    if overlap <= 0.0:
+        return 0.0
+    return 0.5 * stiffness * overlap * overlap + spring_energy(history, p, offset)
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_hertz_force(i, x, y, z, velocity, radius, mass, px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
+                     gamma):
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+    if overlap <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    fn, elastic, _, _ = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
+    return fn * nx, fn * ny, fn * nz, (fn - elastic) * rate
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_hertz_energy(i, x, y, z, velocity, radius, mass, px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
+                      gamma):
+    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    if overlap <= 0.0:
+        return 0.0
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                              px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
+                              eta_t_fixed, full_arm, dt):
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+    if overlap <= 0.0:
+        if commit:
+            clear_history(history, p, offset)
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
+    kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius[i] * overlap)
+    eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
+    a = radius[i] - overlap
+    b = radius[i] if full_arm > 0.0 else a
+    w = angular_velocity
+    ftx, fty, ftz, _, _, _, tx, ty, tz, lost = friction_on_j(
+        nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1], b * w[i, 2], 0.0, a, fn, mu, kt, eta_t, history, p,
+        offset, commit, dt)
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                               px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
+                               eta_t_fixed, full_arm, dt):
+    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    if overlap <= 0.0:
+        return 0.0
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + spring_energy(history, p, offset)
+
+
+_GEOMETRY = ("px", "py", "pz", "nx", "ny", "nz", "ux", "uy", "uz")
+_FUNCTIONS = {
+    (KelvinVoigt, False): (wall_kelvin_voigt_force, wall_kelvin_voigt_energy),
+    (KelvinVoigt, True): (wall_kelvin_voigt_friction_force, wall_kelvin_voigt_friction_energy),
+    (Hertz, False): (wall_hertz_force, wall_hertz_energy),
+    (Hertz, True): (wall_hertz_friction_force, wall_hertz_friction_energy),
+}
+
+
+class Wall(SphereInteraction):
+    """An infinite plane wall (see module docstring).
+
+    point : a point of the plane; normal : points into the half-space of the spheres (any length
+    > 0); velocity : in-plane velocity of the wall surface (default at rest); contact : the contact
+    law (a :class:`KelvinVoigt` or :class:`Hertz`), default the scene's own (which must then have
+    exactly one).
+    """
+
+    dissipative = True
+    energy_kind = "wall"
+
+    def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None):
+        self.point = vector("Wall point", point)
+        normal = vector("Wall normal", normal)
+        length = float(np.linalg.norm(normal))
+        if length == 0.0:
+            raise ValueError("Wall normal has zero length")
+        self.normal = normal / length
+        self.velocity = vector("Wall velocity", velocity)
+        along = float(self.velocity @ self.normal)
+        if abs(along) > 1e-12 * max(1.0, float(np.linalg.norm(self.velocity))):
+            raise ValueError(f"Wall velocity must lie in the wall's plane (it has {along:.6g} along the normal): "
+                             f"an infinite plane can only slide in itself")
+        if contact is not None and not isinstance(contact, (KelvinVoigt, Hertz)):
+            raise TypeError(f"Wall contact must be a KelvinVoigt or Hertz contact law, got {contact!r}")
+        self.contact = contact
+        self.px, self.py, self.pz = (float(c) for c in self.point)
+        self.nx, self.ny, self.nz = (float(c) for c in self.normal)
+        self.ux, self.uy, self.uz = (float(c) for c in self.velocity)
+        if contact is not None:
+            self._adopt(contact)
+
+    def bind(self, interactions):
+        if self.contact is not None:
+            return
+        laws = [inter for inter in interactions if isinstance(inter, (KelvinVoigt, Hertz))]
+        if len(laws) != 1:
+            raise ValueError(f"Wall needs the scene's contact law, but the scene has {len(laws)} "
+                             f"(KelvinVoigt or Hertz): pass Wall(..., contact=...)")
+        self._adopt(laws[0])
+
+    def _adopt(self, law):
+        """Take the contact law's functions and parameters (the wall itself is rigid)."""
+        self.law = law
+        friction = law.friction is not None
+        self.force_function, self.energy_function = _FUNCTIONS[(type(law), friction)]
+        self.reads = law.reads
+        self.torque = friction
+        self.history_size = HISTORY if friction else 0
+        names = list(law.parameters)
+        self.parameters = _GEOMETRY + tuple(names)
+        for name in names:
+            setattr(self, name, getattr(law, name))
+        if isinstance(law, Hertz):  # a rigid wall: only the sphere's compliance
+            self.young_eff = 2.0 * law.young_eff
+            self.shear_eff = 2.0 * law.shear_eff
+
+    def heights(self, position):
+        """Signed distance of each centre from the plane (positive on the spheres' side)."""
+        return (np.asarray(position) - self.point) @ self.normal
+
+    def check(self, particles):
+        super().check(particles)
+        if not hasattr(self, "law"):
+            raise ValueError("Wall has no contact law yet: add it to a Scene with one, or pass contact=...")
+        overlap = (particles.radius - self.heights(particles.position)) / particles.radius
+        k = int(np.argmax(overlap))
+        if overlap[k] > MAX_INITIAL_OVERLAP:
+            raise ValueError(f"particle {particles.ids[k]} at {particles.position[k].tolist()} starts "
+                             f"{'behind' if overlap[k] > 1 else 'deep inside'} the wall through {self.point.tolist()} "
+                             f"with normal {self.normal.tolist()} (overlap {overlap[k]:.3g} of its radius; at "
+                             f"most {MAX_INITIAL_OVERLAP} is accepted at the start)")
+
+    def max_time_step(self, particles):
+        return self.law.max_time_step(particles)
+
+    def __repr__(self):
+        return f"Wall(point={self.point.tolist()}, normal={self.normal.tolist()}, velocity={self.velocity.tolist()})"
