@@ -79,3 +79,31 @@ class TouchCounter(dk.PairInteraction):
     def __init__(self, cutoff=None):
         self.unit = 1.0
         self.cutoff_distance = cutoff
+
+
+@njit
+def pull_small_force(i, x, y, z, radius, mass, size, gx, gy, gz):
+    """Gravity on the spheres smaller than ``size`` only."""
+    if radius[i] < size:
+        return mass[i] * gx, mass[i] * gy, mass[i] * gz
+    return 0.0, 0.0, 0.0
+
+
+@njit
+def pull_small_energy(i, x, y, z, radius, mass, size, gx, gy, gz):
+    if radius[i] < size:
+        return -mass[i] * (gx * x + gy * y + gz * z)
+    return 0.0
+
+
+class PullSmall(dk.SphereInteraction):
+    """A user-style single-sphere plug-in: gravity that acts only on spheres below a size."""
+    reads = ("radius", "mass")
+    energy_kind = "gravity"
+    parameters = ("size", "gx", "gy", "gz")
+    force_function = pull_small_force
+    energy_function = pull_small_energy
+
+    def __init__(self, size, g):
+        self.size = size
+        self.gx, self.gy, self.gz = g

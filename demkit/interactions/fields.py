@@ -1,10 +1,13 @@
 """Uniform body forces and fields: gravity and a uniform magnetic field.
 
 Gravity g:          F_i = m_i g,   U_i = -m_i g.x_i  (x: the wrapped position in periodic boxes, so
-                    gravity along a periodic axis makes that energy jump at the boundary).
+                    gravity along a periodic axis makes that energy jump at the boundary; fixed
+                    spheres are held and count zero).
 Uniform field B:    tau_i = m_i x B,   U_i = -m_i.B,   no force (a uniform field does not pull).
 """
 from __future__ import annotations
+
+import math
 
 from numba import njit
 
@@ -15,13 +18,14 @@ from .sphere import SphereInteraction, vector
 
 @njit(**KERNEL_OPTIONS)
 def gravity_force(i, x, y, z, mass, gx, gy, gz):
-    m = mass[i]
+    m = mass[i] if mass[i] < math.inf else 0.0  # a fixed sphere (infinite mass) is held
     return m * gx, m * gy, m * gz
 
 
 @njit(**KERNEL_OPTIONS)
 def gravity_energy(i, x, y, z, mass, gx, gy, gz):
-    return -mass[i] * (gx * x + gy * y + gz * z)
+    m = mass[i] if mass[i] < math.inf else 0.0
+    return -m * (gx * x + gy * y + gz * z)
 
 
 class Gravity(SphereInteraction):

@@ -10,13 +10,16 @@ with lever arms a = R - delta/2 (the contact point; ``slip_radius="full"`` takes
 LAMMPS' pair granular does). The elastic tangential displacement xi (history, 3 values) is first
 turned into the current tangent plane keeping its length, then advanced by v_t dt; the trial force
 on j is F_t = -k_t xi - eta_t v_t. Beyond the Coulomb limit |F_t| > mu |F_n| the force is scaled
-to mu |F_n| and xi set to -(F_t + eta_t v_t)/k_t (the spring holds only the elastic part: gross
-sliding). The torques are tau_i = -a_i n x F_t, tau_j = -a_j n x F_t (both at the contact point, so
+to mu |F_n| and xi set to -F_t/k_t: while sliding, the spring holds the whole Coulomb force. The torques are tau_i = -a_i n x F_t, tau_j = -a_j n x F_t (both at the contact point, so
 angular momentum is conserved). This follows LAMMPS' ``tangential linear_history`` (Luding, Granular
 Matter 10, 235 (2008), eq. 17), including two details: the limit uses |F_n| (a dashpot-dominated
 pulling contact still has friction), and a trial force beyond the limit with no stored displacement
 (possible only in an evaluation that does not advance the history, such as the first of a run) is
-zero.
+zero. One place differs on purpose: LAMMPS sets xi = -(F_t + eta_t v_t)/k_t when sliding, so that
+the spring holds the Coulomb force minus the dashpot's part; when the dashpot alone exceeds the limit
+(the first steps of a fast contact) the spring then stores a force pointing along the slip, which a
+growing Mindlin stiffness turns into a friction force that drives the slip (measured: Chung & Ooi
+test 6 lost 13 % of its friction impulse that way). demkit's spring holds the whole Coulomb force.
 
 Energy: the spring stores U_t = k_t |xi|^2 / 2 (reported with the contact energy); the dissipated
 power booked is P = -F_t.v_t - dU_t/dt, so kinetic + potential + dissipated is conserved. Hertz-
@@ -120,9 +123,9 @@ def tangential_force(nx, ny, nz, tx, ty, tz, normal, mu, kt, eta, history, p, o,
             fx *= scale
             fy *= scale
             fz *= scale
-            sx = -(fx + eta * tx) / kt
-            sy = -(fy + eta * ty) / kt
-            sz = -(fz + eta * tz) / kt
+            sx = -fx / kt  # sliding: the spring holds the whole Coulomb force
+            sy = -fy / kt
+            sz = -fz / kt
         else:
             fx = 0.0
             fy = 0.0
