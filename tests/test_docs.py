@@ -45,3 +45,16 @@ def test_nbody_page_example_runs_as_described():
     assert np.array_equal(traj.unwrapped(), traj.position + traj.image * box.size)
     st = sim.statistics
     assert st["neighbour_list_builds"] >= 1 and sorted(entry["cutoff"] for entry in st["lists"]) == [1.0, 4.0]
+
+
+def test_contacts_page_example_runs_as_described():
+    page = Path(__file__).resolve().parents[1] / "docs" / "contacts.md"
+    ns = {"__name__": "contacts_page"}
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    traj = ns["traj"]
+    assert {"wall", "gravity", "field", "magnetic", "contact"} <= set(traj.energy)
+    e = traj.energy
+    balance = np.abs(e["total"] + e["dissipated"] - e["total"][0]).max()
+    assert balance < 1e-3 * (abs(e["kinetic"][0]) + e["dissipated"][-1])
+    assert (traj.position[:, :, 2] > 0).all()  # on the floor, not through it
