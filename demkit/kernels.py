@@ -124,9 +124,14 @@ ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, param
 LIST_ARRAYS = "start, end, partner, history"
 
 
+def _state_fields():
+    """Call arguments handing the ARRAYS over from the state ``s``."""
+    return ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
+
+
 def _state_arrays(g, scratch=False):
     """Call arguments handing group g's arrays over from the state ``s``."""
-    fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
+    fields = _state_fields()
     lists = ", ".join(f"s.lists[{g}].{name}" for name in LIST_ARRAYS.split(", "))
     return f"{fields}, {{targets}}{lists}" + (", s.scratch, s.gather" if scratch else "")
 
@@ -429,7 +434,6 @@ class _Source:
                    for e, effect in enumerate(plan.effects) for m in range(len(effect.parameters))]
         head = ["    n = position.shape[0]"] + prelude + ["    for i in range(n):", "        x = position[i, 0]",
                                                           "        y = position[i, 1]", "        z = position[i, 2]"]
-        torque_on = any(effect.torque for effect in plan.effects)
         lines = ["", "", "@njit(**INNER)",
                  f"def sphere_forces({ARRAYS}, force, torque, history, commit):",
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
@@ -449,7 +453,6 @@ class _Source:
         for e, effect in enumerate(plan.effects):
             slot = 2 + self.kinds.index(effect.energy_kind)
             lines.append(f"        out[{slot}] += {self.effect_call(e, effect, offsets[e], 'energy')}")
-        del torque_on
         return lines
 
     # ---- scene-level functions -----------------------------------------------------------------
@@ -460,7 +463,7 @@ class _Source:
     def scene_functions(self):
         plan = self.plan
         lines = self.sphere_functions()
-        spheres = "s.position, s.velocity, s.angular_velocity, s.dipole, s.radius, s.mass, s.box, s.params"
+        spheres = _state_fields()
         if plan.lists:
             lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
                       '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
@@ -665,7 +668,7 @@ def build_module(plan, templates):
     if importable:
         module = _load_from_file(name, source)
     else:
-        module = _load_in_memory(name, source, interactions)
+        module = _load_in_memory(name, source, plan)
     module.source = source
     _MODULES[key] = module
     return module
@@ -690,14 +693,12 @@ def _load_from_file(name, source):
     return module
 
 
-def _load_in_memory(name, source, interactions):
+def _load_in_memory(name, source, plan):
     """Compile without a file (pair functions defined in __main__ or notebooks): no disk cache."""
     import types
     module = types.ModuleType(name)
-    if interactions is not None:
-        pairs = [inter for inter in interactions if not hasattr(inter, "bind")]
-        effects = [inter for inter in interactions if hasattr(inter, "bind")]
-        for prefix, members in (("", pairs), ("s", effects)):
+    if plan is not None:
+        for prefix, members in (("", plan.interactions), ("s", plan.effects)):
             for k, inter in enumerate(members):
                 force, energy = inter.pair_functions()
                 setattr(module, f"{prefix}force_{k}", force)

@@ -183,7 +183,7 @@ def test_friction_history_survives_rebuilds_and_sorting():
     chosen = grid[np.linalg.norm(grid[:, 1:] - centre[1:], axis=1) > 4.0]
     # the resting sphere sits on the fixed one's flank at 30 degrees from the top, pressed by gravity
     tilt = math.radians(30.0)
-    on_top = centre + 0.9995 * np.array([math.sin(tilt), 0.0, math.cos(tilt)])
+    on_top = centre + 0.9495 * np.array([math.sin(tilt), 0.0, math.cos(tilt)])  # radii 0.5 and 0.45
     pos = np.vstack([chosen, centre, on_top])
     n = len(pos)
     vel = np.zeros((n, 3))
@@ -196,8 +196,6 @@ def test_friction_history_survives_rebuilds_and_sorting():
     mass = np.ones(n)
     radius = np.full(n, 0.5)
     radius[-1] = 0.45
-    on_top = centre + 0.9495 * np.array([math.sin(tilt), 0.0, math.cos(tilt)])
-    pos[-1] = on_top
     p = dk.Particles(position=pos, velocity=vel, radius=radius, mass=mass, inertia_factor=inertia, fixed=fixed)
     law = dk.KelvinVoigt(1e4, 150.0, friction=dk.Friction(0.8, damping=80.0))  # settles in ~0.05 s
     field = PullSmall(0.49, (0.0, 0.0, -9.81))  # gravity on the resting sphere only: the gas floats

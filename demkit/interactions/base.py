@@ -35,27 +35,21 @@ import numpy as np
 FIELDS = ("velocity", "angular_velocity", "dipole", "radius", "mass")
 
 
-class PairInteraction:
-    """Base class of pair interactions (subclass it to plug in new physics)."""
+class Interaction:
+    """What pair and single-sphere interactions share: declarations and two numba functions."""
 
-    #: particle arrays the pair functions read, from :data:`FIELDS`
+    #: particle arrays the functions read, from :data:`FIELDS`
     reads: tuple = ()
-    #: does the force function also return torques on i and j?
+    #: does the force function also return torques?
     torque: bool = False
     #: does the force function also return a dissipated power (>= 0)?
     dissipative: bool = False
-    #: number of history values kept per pair
+    #: number of history values kept per pair (per sphere for single-sphere interactions)
     history_size: int = 0
     #: energy category reported by Scene.energy() ("magnetic", "contact", ...)
     energy_kind: str = "potential"
-    #: names of the scalar parameters passed to the pair functions, in order
+    #: names of the scalar parameters passed to the functions, in order
     parameters: tuple = ()
-    #: the pair functions have no branches (and no history): the pair loop then evaluates blocks of
-    #: pairs in a loop the compiler can vectorise, and applies the cutoff as a mask
-    branch_free: bool = False
-    #: centre distance beyond which the pair loop skips this interaction (None: never skipped;
-    #: contact laws test their own reach instead)
-    cutoff_distance = None
     #: numba functions (set by subclasses)
     force_function = None
     energy_function = None
@@ -73,10 +67,6 @@ class PairInteraction:
         """The values of :attr:`parameters` as a float64 array."""
         return np.array([float(getattr(self, name)) for name in self.parameters], dtype=np.float64)
 
-    def cutoff(self, particles):
-        """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""
-        return math.inf if self.cutoff_distance is None else self.cutoff_distance
-
     def max_time_step(self, particles):
         """Largest time step this interaction can be integrated with safely (math.inf: no limit)."""
         return math.inf
@@ -92,6 +82,21 @@ class PairInteraction:
     def __repr__(self):
         args = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.parameters)
         return f"{type(self).__name__}({args})"
+
+
+class PairInteraction(Interaction):
+    """Base class of pair interactions (subclass it to plug in new physics)."""
+
+    #: the pair functions have no branches (and no history): the pair loop then evaluates blocks of
+    #: pairs in a loop the compiler can vectorise, and applies the cutoff as a mask
+    branch_free: bool = False
+    #: centre distance beyond which the pair loop skips this interaction (None: never skipped;
+    #: contact laws test their own reach instead)
+    cutoff_distance = None
+
+    def cutoff(self, particles):
+        """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""
+        return math.inf if self.cutoff_distance is None else self.cutoff_distance
 
 
 def positive(name, value):

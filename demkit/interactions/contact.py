@@ -20,7 +20,17 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, non_negative, positive
-from .friction import HISTORY, Friction, clear_history, friction_on_j, spring_energy
+from .friction import HISTORY, Friction, clear_history, pair_friction, spring_energy
+
+
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension):
+    """(F_n, elastic part k delta) of the spring-dashpot, F_n clamped at 0 with ``no_tension``."""
+    elastic = stiffness * overlap
+    fn = elastic + damping * rate
+    if no_tension > 0.0 and fn < 0.0:
+        fn = 0.0
+    return fn, elastic
 
 
 @njit(**KERNEL_OPTIONS)
@@ -38,10 +48,7 @@ def kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampin
     # d(overlap)/dt = -(v_j - v_i).n
     rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
              + (velocity[j, 2] - velocity[i, 2]) * nz)
-    elastic = stiffness * overlap
-    fn = elastic + damping * rate
-    if no_tension > 0.0 and fn < 0.0:
-        fn = 0.0
+    fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     power = (fn - elastic) * rate
     return fn * nx, fn * ny, fn * nz, power
 
@@ -76,20 +83,11 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     vy = velocity[j, 1] - velocity[i, 1]
     vz = velocity[j, 2] - velocity[i, 2]
     rate = -(vx * nx + vy * ny + vz * nz)
-    elastic = stiffness * overlap
-    fn = elastic + damping * rate
-    if no_tension > 0.0 and fn < 0.0:
-        fn = 0.0
+    fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     power = (fn - elastic) * rate
-    ai = radius[i] - 0.5 * overlap
-    aj = radius[j] - 0.5 * overlap
-    shift = 0.5 * overlap * full_arm  # "full": slip from the full radii, as LAMMPS
-    bi = ai + shift
-    bj = aj + shift
-    w = angular_velocity
-    ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = friction_on_j(
-        nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1], bi * w[i, 2] + bj * w[j, 2],
-        ai, aj, fn, mu, kt, eta_t, history, p, offset, commit, dt)
+    ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
+        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, history, p,
+        offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, power + lost
 
 

@@ -90,6 +90,33 @@ def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, et
 
 
 @njit(**KERNEL_OPTIONS)
+def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, full_arm, normal, mu, kt, eta, history, p, o,
+                  commit, dt):
+    """:func:`friction_on_j` for two spheres: arms R - delta/2 (the slip uses the full radii when
+    ``full_arm`` is 1, as LAMMPS)."""
+    ai = radius[i] - 0.5 * overlap
+    aj = radius[j] - 0.5 * overlap
+    shift = 0.5 * overlap * full_arm
+    bi = ai + shift
+    bj = aj + shift
+    return friction_on_j(nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1],
+                         bi * w[i, 2] + bj * w[j, 2], ai, aj, normal, mu, kt, eta, history, p, o, commit, dt)
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, full_arm, normal, mu, kt, eta, history, p, o,
+                  commit, dt):
+    """:func:`friction_on_j` for sphere i on a rigid wall (the contact point lies on the wall, R - delta
+    from the centre; the slip uses R when ``full_arm`` is 1): force, torque on the sphere, power."""
+    a = radius[i] - overlap
+    b = radius[i] if full_arm > 0.0 else a
+    fx, fy, fz, _, _, _, tx, ty, tz, lost = friction_on_j(nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1],
+                                                          b * w[i, 2], 0.0, a, normal, mu, kt, eta, history, p, o,
+                                                          commit, dt)
+    return fx, fy, fz, tx, ty, tz, lost
+
+
+@njit(**KERNEL_OPTIONS)
 def tangential_force(nx, ny, nz, tx, ty, tz, normal, mu, kt, eta, history, p, o, commit, dt):
     """Friction force on j (3 values) and dissipated power for slip (tx, ty, tz), normal force
     ``normal``, spring kt, dashpot eta; reads history[p, o:o+4] and writes it when ``commit``."""

@@ -33,7 +33,7 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, positive
-from .friction import HISTORY, Friction, clear_history, friction_on_j, spring_energy
+from .friction import HISTORY, Friction, clear_history, pair_friction, spring_energy
 
 #: t_c = HERTZ_TIME * delta_max / v for an elastic Hertz impact (2 (2/5) B(2/5, 1/2))
 HERTZ_TIME = 2.9432812
@@ -150,15 +150,9 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma)
     kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius_eff * overlap)
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
-    ai = radius[i] - 0.5 * overlap
-    aj = radius[j] - 0.5 * overlap
-    shift = 0.5 * overlap * full_arm  # "full": slip from the full radii, as LAMMPS
-    bi = ai + shift
-    bj = aj + shift
-    w = angular_velocity
-    ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = friction_on_j(
-        nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1], bi * w[i, 2] + bj * w[j, 2],
-        ai, aj, fn, mu, kt, eta_t, history, p, offset, commit, dt)
+    ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
+        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, history, p,
+        offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, (fn - elastic) * rate + lost
 
 

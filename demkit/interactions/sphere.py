@@ -17,52 +17,19 @@ receives the integrator's time step.
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
-from .base import FIELDS
+from .base import Interaction
 
 
-class SphereInteraction:
+class SphereInteraction(Interaction):
     """Base class of single-sphere effects (subclass it to plug in new surroundings)."""
 
-    reads: tuple = ()
-    torque: bool = False
-    dissipative: bool = False
-    history_size: int = 0
     energy_kind: str = "external"
-    parameters: tuple = ()
-    force_function = None
-    energy_function = None
-
-    def pair_functions(self):
-        """(force_function, energy_function) as plain numba dispatchers (name shared with pairs)."""
-        return (inspect.getattr_static(self, "force_function"),
-                inspect.getattr_static(self, "energy_function"))
-
-    def parameter_values(self):
-        return np.array([float(getattr(self, name)) for name in self.parameters], dtype=np.float64)
 
     def bind(self, interactions):
         """Called by the scene with its pair interactions before anything else (walls find their
         contact law here)."""
-
-    def check(self, particles):
-        """Raise ValueError if the particles lack something this effect needs, or start in a
-        state it cannot handle."""
-        unknown = set(self.reads) - set(FIELDS)
-        if unknown:
-            raise ValueError(f"{type(self).__name__} reads unknown fields {sorted(unknown)}; known: {FIELDS}")
-        if "dipole" in self.reads and particles.dipole is None:
-            raise ValueError(f"{type(self).__name__} needs particle dipole moments: pass dipole=... to Particles")
-
-    def max_time_step(self, particles):
-        return float("inf")
-
-    def __repr__(self):
-        args = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.parameters)
-        return f"{type(self).__name__}({args})"
 
 
 def vector(name, value):

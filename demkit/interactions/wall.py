@@ -16,8 +16,8 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
-from .contact import KelvinVoigt
-from .friction import HISTORY, clear_history, friction_on_j, spring_energy
+from .contact import KelvinVoigt, kelvin_voigt_normal
+from .friction import HISTORY, clear_history, spring_energy, wall_friction
 from .hertz import Hertz, hertz_normal
 from .sphere import SphereInteraction, vector
 
@@ -41,10 +41,7 @@ def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         return 0.0, 0.0, 0.0, 0.0
-    elastic = stiffness * overlap
-    fn = elastic + damping * rate
-    if no_tension > 0.0 and fn < 0.0:
-        fn = 0.0
+    fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     return fn * nx, fn * ny, fn * nz, (fn - elastic) * rate
 
 
@@ -64,16 +61,9 @@ def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, rad
         if commit:
             clear_history(history, p, offset)
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    elastic = stiffness * overlap
-    fn = elastic + damping * rate
-    if no_tension > 0.0 and fn < 0.0:
-        fn = 0.0
-    a = radius[i] - overlap  # the contact point lies on the wall
-    b = radius[i] if full_arm > 0.0 else a  # "full": slip from the full radius
-    w = angular_velocity
-    ftx, fty, ftz, _, _, _, tx, ty, tz, lost = friction_on_j(
-        nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1], b * w[i, 2], 0.0, a, fn, mu, kt, eta_t, history, p,
-        offset, commit, dt)
+    fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
+    ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
+                                                    full_arm, fn, mu, kt, eta_t, history, p, offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
@@ -118,12 +108,8 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
     kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius[i] * overlap)
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
-    a = radius[i] - overlap
-    b = radius[i] if full_arm > 0.0 else a
-    w = angular_velocity
-    ftx, fty, ftz, _, _, _, tx, ty, tz, lost = friction_on_j(
-        nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1], b * w[i, 2], 0.0, a, fn, mu, kt, eta_t, history, p,
-        offset, commit, dt)
+    ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
+                                                    full_arm, fn, mu, kt, eta_t, history, p, offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
