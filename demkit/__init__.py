@@ -3,7 +3,7 @@ from . import units
 from .box import Box
 from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, PairInteraction, PowerLawDipole,
-                           SphereInteraction, UniformField, Wall)
+                           RollingResistance, SphereInteraction, UniformField, Wall)
 from .particles import Particles
 from .scene import Scene
 from .simulation import Simulation, SimulationError, Trajectory
@@ -15,7 +15,7 @@ from . import build  # starting scenes: random packings, lattices, chains, rings
 __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
-           "PowerLawDipole", "KelvinVoigt", "Friction", "Hertz", "PairInteraction",
+           "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
            "SphereInteraction", "Wall", "Gravity", "UniformField", "EulerCromer", "VelocityVerlet",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build"]

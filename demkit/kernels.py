@@ -143,7 +143,20 @@ def _pair_call(k, inter, offset, kind, owner="i", fields=""):
     if inter.history_size:
         args += ["history", "p", str(offset), "commit" if kind == "force" else "False"]
     args += [f"p{k}_{n}" for n in range(len(inter.parameters))]
-    return f"{kind}_{k}({', '.join(args)})"
+    return f"{kind}_{k}({', '.join(_callable_arguments(inter, args))})"
+
+
+#: Python 3.11 compiles a call with more arguments than this into a form numba cannot inline
+MAX_ARGUMENTS = 30
+
+
+def _callable_arguments(inter, args):
+    """The call's arguments, refused clearly when there are too many for the compiler."""
+    if len(args) > MAX_ARGUMENTS:
+        raise TypeError(f"{type(inter).__name__}: its functions take {len(args)} arguments, more than the "
+                        f"{MAX_ARGUMENTS} numba can inline (Python compiles longer calls as f(*args)); "
+                        f"combine parameters")
+    return args
 
 
 class _Source:
@@ -423,7 +436,7 @@ class _Source:
         if effect.history_size:
             args += ["history", "i", str(offset), "commit" if kind == "force" else "False"]
         args += [f"q{e}_{m}" for m in range(len(effect.parameters))]
-        return f"s{kind}_{e}({', '.join(args)})"
+        return f"s{kind}_{e}({', '.join(_callable_arguments(effect, args))})"
 
     def sphere_functions(self):
         plan = self.plan

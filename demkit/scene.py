@@ -424,6 +424,23 @@ class Scene:
             return pairs, history[neighbours.entry_owners(self._list(g))[1]]
         return pairs, history[: len(pairs)].copy()
 
+    def sphere_history(self, effect):
+        """(N, history_size) per-sphere history values of a single-sphere effect (user order)."""
+        for e, mine in enumerate(self.effects):
+            if mine is effect:
+                self.push()
+                o = self.plan.effect_offsets[e]
+                values = self.arrays["sphere_history"][:, o:o + effect.history_size]  # permuted in place
+                return self.to_user_order(values.copy())
+        raise ValueError(f"{effect!r} is not an effect of this scene")
+
+    def contacts(self):
+        """Every contact now (pairs of spheres under the contact laws, spheres on walls): geometry,
+        forces, torques, sliding state, dissipated power (a :class:`demkit.contacts.Contacts`).
+        Changes nothing."""
+        from .contacts import contacts_of
+        return contacts_of(self)
+
     def _list(self, g):
         return self.state.lists[g] if self.plan.growing else self.arrays["lists"][g]
 

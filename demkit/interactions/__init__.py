@@ -3,10 +3,11 @@ from .base import PairInteraction
 from .contact import KelvinVoigt
 from .friction import Friction
 from .hertz import Hertz
+from .rolling import RollingResistance
 from .sphere import SphereInteraction
 from .fields import Gravity, UniformField
 from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 
-__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "Hertz", "SphereInteraction",
+__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "SphereInteraction",
            "Gravity", "UniformField", "Wall"]

@@ -20,7 +20,8 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, non_negative, positive
-from .friction import HISTORY, Friction, clear_history, pair_friction, spring_energy
+from .friction import HISTORY, Friction, pair_friction, release, springs_energy
+from .rolling import STIFFNESS_FACTOR, RollingResistance
 
 
 @njit(**KERNEL_OPTIONS)
@@ -65,14 +66,13 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, dt):
+                                commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, mu_r, kr, eta_r, dt):
     """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
-    Coulomb friction (see :mod:`demkit.interactions.friction`)."""
+    Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
-        if commit:
-            clear_history(history, p, offset)
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     r = math.sqrt(r2)
     inv_r = 1.0 / r
     nx = dx * inv_r
@@ -86,20 +86,20 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     power = (fn - elastic) * rate
     ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
-        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, history, p,
-        offset, commit, dt)
+        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r,
+        history, p, offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, power + lost
 
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, dt):
-    """Elastic energy of the normal spring and of the tangential spring."""
+                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, mu_r, kr, eta_r, dt):
+    """Elastic energy of the normal spring, of the tangential spring and of the rolling spring."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         return 0.0
     overlap = reach - math.sqrt(r2)
-    return 0.5 * stiffness * overlap * overlap + spring_energy(history, p, offset)
+    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
 
 
 def contact_duration(stiffness, damping, m_eff):
@@ -127,6 +127,7 @@ class KelvinVoigt(PairInteraction):
     no_tension : forbid the attractive end of the contact (F_n >= 0).
     friction : a :class:`Friction` (Coulomb friction with a linear tangential spring, history per
         contact), or None (frictionless: no history, no torque).
+    rolling : a :class:`RollingResistance` (needs friction) or None.
     """
 
     reads = ("velocity", "radius")
@@ -136,18 +137,16 @@ class KelvinVoigt(PairInteraction):
     force_function = kelvin_voigt_force
     energy_function = kelvin_voigt_energy
 
-    def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None):
+    def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None, rolling=None):
         self.stiffness = positive("KelvinVoigt stiffness", stiffness)
         self.damping = non_negative("KelvinVoigt damping", damping)
         self.no_tension = bool(no_tension)
-        if friction is not None and not isinstance(friction, Friction):
-            raise TypeError(f"friction must be a demkit.Friction or None, got {friction!r}")
-        self.friction = friction
+        self.friction, self.rolling = check_tangential("KelvinVoigt", friction, rolling)
         if friction is not None:
             self.reads = ("velocity", "angular_velocity", "radius")
             self.torque = True
-            self.history_size = HISTORY
-            self.parameters = self.parameters + ("mu", "kt", "eta_t", "full_arm", "dt")
+            self.history_size = HISTORY * (2 if self.rolling is not None else 1)
+            self.parameters = self.parameters + ("mu", "kt", "eta_t", "full_arm", "mu_r", "kr", "eta_r", "dt")
             self.force_function = kelvin_voigt_friction_force
             self.energy_function = kelvin_voigt_friction_energy
             self.mu = friction.coefficient
@@ -155,11 +154,18 @@ class KelvinVoigt(PairInteraction):
             default = self.damping * math.sqrt(self.kt / self.stiffness)
             self.eta_t = friction.damping if friction.damping is not None else default
             self.full_arm = 1.0 if friction.slip_radius == "full" else 0.0
+            self.mu_r = self.kr = self.eta_r = 0.0
+            if self.rolling is not None:
+                self.mu_r = rolling.coefficient
+                default = STIFFNESS_FACTOR * self.mu_r ** 2 * self.stiffness
+                self.kr = rolling.stiffness if rolling.stiffness is not None else default
+                default = self.damping * math.sqrt(self.kr / self.stiffness)
+                self.eta_r = rolling.damping if rolling.damping is not None else default
             self.dt = 0.0
 
     def __repr__(self):
         return (f"KelvinVoigt(stiffness={self.stiffness!r}, damping={self.damping!r}, "
-                f"no_tension={self.no_tension!r}, friction={self.friction!r})")
+                f"no_tension={self.no_tension!r}, friction={self.friction!r}, rolling={self.rolling!r})")
 
     def cutoff(self, particles):
         return 2.0 * float(np.max(particles.radius))
@@ -183,4 +189,23 @@ class KelvinVoigt(PairInteraction):
             limit = min(limit, 0.1 * contact_duration(self.kt, self.eta_t, m_eff * 2.0 / 7.0))
             if self.eta_t > 0:
                 limit = min(limit, 0.2 * m_eff * 2.0 / 7.0 / self.eta_t)
+        if self.rolling is not None:
+            # the rolling spring turns the spheres against each other: effective mass <= 0.4 m_eff
+            limit = min(limit, 0.1 * contact_duration(self.kr, self.eta_r, 0.4 * m_eff))
+            if self.eta_r > 0:
+                limit = min(limit, 0.2 * 0.4 * m_eff / self.eta_r)
         return limit
+
+
+def check_tangential(law, friction, rolling):
+    """(friction, rolling) of a contact law, checked; rolling with a zero coefficient is None."""
+    if friction is not None and not isinstance(friction, Friction):
+        raise TypeError(f"{law} friction must be a demkit.Friction or None, got {friction!r}")
+    if rolling is not None and not isinstance(rolling, RollingResistance):
+        raise TypeError(f"{law} rolling must be a demkit.RollingResistance or None, got {rolling!r}")
+    if rolling is not None and friction is None:
+        raise ValueError(f"{law} rolling resistance needs friction (a sphere rolls only on a contact that "
+                         f"grips): pass friction=demkit.Friction(...) too")
+    if rolling is not None and rolling.coefficient == 0.0:
+        rolling = None
+    return friction, rolling

@@ -1,13 +1,15 @@
 """Coulomb friction with a tangential spring-dashpot, the elastic displacement kept per contact.
 
-A contact law (Kelvin-Voigt, Hertz) calls :func:`tangential_force` with its normal force. In the
+A contact law (Kelvin-Voigt, Hertz) calls :func:`pair_friction` (or :func:`wall_friction`) with its
+normal force; the same call adds rolling resistance (:mod:`.rolling`) when the law has it. In the
 pair's orientation (n = (x_j - x_i)/r, overlap delta), the slip velocity of j's contact point
 relative to i's is
 
     v_c = v_j - v_i - (a_i w_i + a_j w_j) x n,    v_t = v_c - (v_c.n) n,
 
 with lever arms a = R - delta/2 (the contact point; ``slip_radius="full"`` takes a = R there, as
-LAMMPS' pair granular does). The elastic tangential displacement xi (history, 3 values) is first
+LAMMPS' pair granular does). The slip drives the spring-dashpot-slider of :mod:`.spring`: the
+elastic tangential displacement xi (history, 3 values) is first
 turned into the current tangent plane keeping its length, then advanced by v_t dt; the trial force
 on j is F_t = -k_t xi - eta_t v_t. Beyond the Coulomb limit |F_t| > mu |F_n| the force is scaled
 to mu |F_n| and xi set to -F_t/k_t: while sliding, the spring holds the whole Coulomb force. The torques are tau_i = -a_i n x F_t, tau_j = -a_j n x F_t (both at the contact point, so
@@ -35,11 +37,8 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import non_negative
-
-#: history values per contact: elastic displacement (3) and the spring stiffness at the last update
-HISTORY = 4
-#: a displacement is turned into the tangent plane only if its normal part matters (as in LAMMPS)
-EPSILON = 1e-10
+from .rolling import rolling_on_i
+from .spring import HISTORY, release, spring_energy, spring_force  # noqa: F401 (re-exported for the laws)
 
 
 class Friction:
@@ -76,13 +75,13 @@ class Friction:
 def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, eta, history, p, o, commit, dt):
     """Friction force on j, torques on i and j (at the contact point, arms ai and aj) and dissipated
     power, for relative velocity v = v_j - v_i and lever sum s = a_i w_i + a_j w_j (the slip is
-    v_c = v - s x n, its tangential part drives the spring; see :func:`tangential_force`)."""
+    v_c = v - s x n, its tangential part drives the spring of :mod:`.spring`)."""
     cx = vx - (sy * nz - sz * ny)
     cy = vy - (sz * nx - sx * nz)
     cz = vz - (sx * ny - sy * nx)
     cn = cx * nx + cy * ny + cz * nz
-    fx, fy, fz, lost = tangential_force(nx, ny, nz, cx - cn * nx, cy - cn * ny, cz - cn * nz, normal, mu, kt, eta,
-                                        history, p, o, commit, dt)
+    fx, fy, fz, lost = spring_force(nx, ny, nz, cx - cn * nx, cy - cn * ny, cz - cn * nz, mu * abs(normal), kt, eta,
+                                    history, p, o, commit, dt)
     qx = ny * fz - nz * fy
     qy = nz * fx - nx * fz
     qz = nx * fy - ny * fx
@@ -90,95 +89,57 @@ def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, et
 
 
 @njit(**KERNEL_OPTIONS)
-def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, full_arm, normal, mu, kt, eta, history, p, o,
-                  commit, dt):
+def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, full_arm, normal, mu, kt, eta, mu_r, kr, eta_r,
+                  history, p, o, commit, dt):
     """:func:`friction_on_j` for two spheres: arms R - delta/2 (the slip uses the full radii when
-    ``full_arm`` is 1, as LAMMPS)."""
+    ``full_arm`` is 1, as LAMMPS), and rolling resistance when mu_r > 0 (history o + 4 .. o + 8)."""
     ai = radius[i] - 0.5 * overlap
     aj = radius[j] - 0.5 * overlap
     shift = 0.5 * overlap * full_arm
     bi = ai + shift
     bj = aj + shift
-    return friction_on_j(nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1],
-                         bi * w[i, 2] + bj * w[j, 2], ai, aj, normal, mu, kt, eta, history, p, o, commit, dt)
+    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, lost = friction_on_j(
+        nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1], bi * w[i, 2] + bj * w[j, 2],
+        ai, aj, normal, mu, kt, eta, history, p, o, commit, dt)
+    if mu_r > 0.0:
+        mx, my, mz, rolled = rolling_on_i(nx, ny, nz, w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2],
+                                          radius[i] * radius[j] / (radius[i] + radius[j]), normal, mu_r, kr, eta_r,
+                                          history, p, o + HISTORY, commit, dt)
+        tix += mx
+        tiy += my
+        tiz += mz
+        tjx -= mx
+        tjy -= my
+        tjz -= mz
+        lost += rolled
+    return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, lost
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, full_arm, normal, mu, kt, eta, history, p, o,
-                  commit, dt):
+def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, full_arm, normal, mu, kt, eta, mu_r, kr, eta_r,
+                  history, p, o, commit, dt):
     """:func:`friction_on_j` for sphere i on a rigid wall (the contact point lies on the wall, R - delta
-    from the centre; the slip uses R when ``full_arm`` is 1): force, torque on the sphere, power."""
+    from the centre; the slip uses R when ``full_arm`` is 1), with rolling resistance when mu_r > 0
+    (rolling radius R): force, torque on the sphere, power."""
     a = radius[i] - overlap
     b = radius[i] if full_arm > 0.0 else a
     fx, fy, fz, _, _, _, tx, ty, tz, lost = friction_on_j(nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1],
                                                           b * w[i, 2], 0.0, a, normal, mu, kt, eta, history, p, o,
                                                           commit, dt)
+    if mu_r > 0.0:  # the wall is "i" (no spin), the sphere "j"
+        mx, my, mz, rolled = rolling_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], radius[i], normal, mu_r, kr,
+                                          eta_r, history, p, o + HISTORY, commit, dt)
+        tx -= mx
+        ty -= my
+        tz -= mz
+        lost += rolled
     return fx, fy, fz, tx, ty, tz, lost
 
 
 @njit(**KERNEL_OPTIONS)
-def tangential_force(nx, ny, nz, tx, ty, tz, normal, mu, kt, eta, history, p, o, commit, dt):
-    """Friction force on j (3 values) and dissipated power for slip (tx, ty, tz), normal force
-    ``normal``, spring kt, dashpot eta; reads history[p, o:o+4] and writes it when ``commit``."""
-    sx = history[p, o]
-    sy = history[p, o + 1]
-    sz = history[p, o + 2]
-    old = 0.5 * history[p, o + 3] * (sx * sx + sy * sy + sz * sz)
-    limit = mu * abs(normal)
-    if commit:
-        sn = sx * nx + sy * ny + sz * nz
-        if abs(sn) * kt > EPSILON * limit:  # turn into the tangent plane, keeping the length
-            before = sx * sx + sy * sy + sz * sz
-            sx -= sn * nx
-            sy -= sn * ny
-            sz -= sn * nz
-            after = sx * sx + sy * sy + sz * sz
-            scale = math.sqrt(before / after) if after > 0.0 else 0.0
-            sx *= scale
-            sy *= scale
-            sz *= scale
-        sx += tx * dt
-        sy += ty * dt
-        sz += tz * dt
-    fx = -kt * sx - eta * tx
-    fy = -kt * sy - eta * ty
-    fz = -kt * sz - eta * tz
-    f = math.sqrt(fx * fx + fy * fy + fz * fz)
-    if f > limit:
-        if sx * sx + sy * sy + sz * sz > 0.0:
-            scale = limit / f
-            fx *= scale
-            fy *= scale
-            fz *= scale
-            sx = -fx / kt  # sliding: the spring holds the whole Coulomb force
-            sy = -fy / kt
-            sz = -fz / kt
-        else:
-            fx = 0.0
-            fy = 0.0
-            fz = 0.0
-    power = -(fx * tx + fy * ty + fz * tz)
-    if commit:
-        history[p, o] = sx
-        history[p, o + 1] = sy
-        history[p, o + 2] = sz
-        history[p, o + 3] = kt
-        if dt > 0.0:
-            power -= (0.5 * kt * (sx * sx + sy * sy + sz * sz) - old) / dt
-    return fx, fy, fz, power
-
-
-@njit(**KERNEL_OPTIONS)
-def spring_energy(history, p, o):
-    """Elastic energy k_t |xi|^2 / 2 stored in a contact's tangential spring."""
-    sx = history[p, o]
-    sy = history[p, o + 1]
-    sz = history[p, o + 2]
-    return 0.5 * history[p, o + 3] * (sx * sx + sy * sy + sz * sz)
-
-
-@njit(**KERNEL_OPTIONS)
-def clear_history(history, p, o):
-    """A contact that has ended keeps no displacement."""
-    for h in range(o, o + HISTORY):
-        history[p, h] = 0.0
+def springs_energy(history, p, offset, mu_r):
+    """Energy of the tangential spring and, with rolling resistance, of the rolling spring."""
+    energy = spring_energy(history, p, offset)
+    if mu_r > 0.0:
+        energy += spring_energy(history, p, offset + HISTORY)
+    return energy

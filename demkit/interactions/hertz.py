@@ -33,7 +33,9 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, positive
-from .friction import HISTORY, Friction, clear_history, pair_friction, spring_energy
+from .contact import check_tangential, contact_duration
+from .friction import HISTORY, pair_friction, release, springs_energy
+from .rolling import STIFFNESS_FACTOR
 
 #: t_c = HERTZ_TIME * delta_max / v for an elastic Hertz impact (2 (2/5) B(2/5, 1/2))
 HERTZ_TIME = 2.9432812
@@ -128,14 +130,15 @@ def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_
 
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, dt):
+                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, mu_r, kr_fixed,
+                         eta_r_fixed, dt):
     """Force on j, torques on i and j and dissipated power of a Hertz contact with friction
-    (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0)."""
+    (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0) and rolling
+    resistance when mu_r > 0 (k_r = 2.25 mu_r^2 S_n when kr_fixed is 0, damping ratio likewise)."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
-        if commit:
-            clear_history(history, p, offset)
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     r = math.sqrt(r2)
     nx = dx / r
     ny = dy / r
@@ -150,22 +153,34 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma)
     kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius_eff * overlap)
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
+    kr, eta_r = rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta)
     ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
-        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, history, p,
-        offset, commit, dt)
+        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r,
+        history, p, offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, (fn - elastic) * rate + lost
 
 
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, dt):
-    """Elastic energy of the Hertz contact and of its tangential spring."""
+                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, mu_r, kr_fixed,
+                          eta_r_fixed, dt):
+    """Elastic energy of the Hertz contact, of its tangential spring and of its rolling spring."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         return 0.0
     overlap = reach - math.sqrt(r2)
     radius_eff = radius[i] * radius[j] / reach
-    return 8.0 / 15.0 * young_eff * math.sqrt(radius_eff) * overlap ** 2.5 + spring_energy(history, p, offset)
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius_eff) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
+
+
+@njit(**KERNEL_OPTIONS)
+def rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta):
+    """(k_r, eta_r) of Hertz rolling resistance at contact stiffness S_n and normal damping eta_n."""
+    if mu_r == 0.0:
+        return 0.0, 0.0
+    kr = kr_fixed if kr_fixed > 0.0 else STIFFNESS_FACTOR * mu_r * mu_r * stiffness
+    return kr, (eta_r_fixed if eta_r_fixed >= 0.0 else eta * math.sqrt(kr / stiffness))
+
 
 
 class Hertz(PairInteraction):
@@ -175,7 +190,7 @@ class Hertz(PairInteraction):
     poisson : Poisson ratio nu in (-1, 0.5).
     restitution : normal restitution coefficient e in (0, 1] (1: elastic).
     friction : a :class:`Friction` (Mindlin spring unless a stiffness is given) or None.
-    rolling : reserved for rolling resistance (not implemented yet: must be None).
+    rolling : a :class:`RollingResistance` (needs friction; default stiffness 2.25 mu_r^2 S_n) or None.
     """
 
     reads = ("velocity", "radius", "mass")
@@ -195,32 +210,32 @@ class Hertz(PairInteraction):
         if not (0.0 < restitution <= 1.0):
             raise ValueError(f"Hertz restitution must lie in (0, 1], got {restitution}")
         self.restitution = restitution
-        if rolling is not None:
-            raise NotImplementedError("rolling resistance is not implemented yet")
-        self.rolling = rolling
         shear = self.young / (2.0 * (1.0 + poisson))
         self.young_eff = self.young / (2.0 * (1.0 - poisson ** 2))
         self.shear_eff = shear / (2.0 * (2.0 - poisson))
         self.gamma = damping_for_restitution(restitution)
-        if friction is not None and not isinstance(friction, Friction):
-            raise TypeError(f"friction must be a demkit.Friction or None, got {friction!r}")
-        self.friction = friction
+        self.friction, self.rolling = check_tangential("Hertz", friction, rolling)
         if friction is not None:
             self.reads = ("velocity", "angular_velocity", "radius", "mass")
             self.torque = True
-            self.history_size = HISTORY
-            self.parameters = self.parameters + ("mu", "kt_fixed", "eta_t_fixed", "full_arm", "dt")
+            self.history_size = HISTORY * (2 if self.rolling is not None else 1)
+            self.parameters = self.parameters + ("mu", "kt_fixed", "eta_t_fixed", "full_arm", "mu_r", "kr_fixed",
+                                                 "eta_r_fixed", "dt")
             self.force_function = hertz_friction_force
             self.energy_function = hertz_friction_energy
             self.mu = friction.coefficient
             self.kt_fixed = friction.stiffness if friction.stiffness is not None else 0.0
             self.eta_t_fixed = friction.damping if friction.damping is not None else -1.0
             self.full_arm = 1.0 if friction.slip_radius == "full" else 0.0
+            rolling = self.rolling
+            self.mu_r = rolling.coefficient if rolling is not None else 0.0
+            self.kr_fixed = rolling.stiffness if rolling is not None and rolling.stiffness is not None else 0.0
+            self.eta_r_fixed = rolling.damping if rolling is not None and rolling.damping is not None else -1.0
             self.dt = 0.0
 
     def __repr__(self):
         return (f"Hertz(young={self.young!r}, poisson={self.poisson!r}, restitution={self.restitution!r}, "
-                f"friction={self.friction!r})")
+                f"friction={self.friction!r}, rolling={self.rolling!r})")
 
     def cutoff(self, particles):
         return 2.0 * float(np.max(particles.radius))
@@ -230,12 +245,13 @@ class Hertz(PairInteraction):
         present (no limit while everything is at rest)."""
         v = particles.velocity
         speed = 2.0 * float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0
-        if speed == 0.0:
-            return math.inf
         order = np.argsort(particles.radius)
         a, b = order[0], order[min(1, len(order) - 1)]
         r = particles.radius
         m = particles.mass
         radius_eff = r[a] * r[b] / (r[a] + r[b])
         mass_eff = 1.0 / (1.0 / m[a] + 1.0 / m[b]) if a != b else 0.5 * m[a]
-        return 0.1 * hertz_impact(self.young_eff, radius_eff, mass_eff, speed)[2]
+        limit = 0.1 * hertz_impact(self.young_eff, radius_eff, mass_eff, speed)[2] if speed > 0.0 else math.inf
+        if self.friction is not None and self.kr_fixed > 0.0:  # a given rolling stiffness (see KelvinVoigt)
+            limit = min(limit, 0.1 * contact_duration(self.kr_fixed, 0.0, 0.4 * mass_eff))
+        return limit

@@ -17,7 +17,8 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .contact import KelvinVoigt, kelvin_voigt_normal
-from .friction import HISTORY, clear_history, spring_energy, wall_friction
+from .friction import release, springs_energy, wall_friction
+from .hertz import rolling_spring
 from .hertz import Hertz, hertz_normal
 from .sphere import SphereInteraction, vector
 
@@ -26,9 +27,9 @@ MAX_INITIAL_OVERLAP = 0.5
 
 
 @njit(**KERNEL_OPTIONS)
-def _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz):
+def _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz):
     """(overlap, overlap rate, relative velocity) of sphere i against the wall."""
-    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     vx = velocity[i, 0] - ux
     vy = velocity[i, 1] - uy
     vz = velocity[i, 2] - uz
@@ -36,9 +37,9 @@ def _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy,
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping,
+def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz, stiffness, damping,
                             no_tension):
-    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         return 0.0, 0.0, 0.0, 0.0
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
@@ -46,41 +47,41 @@ def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping,
+def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz, stiffness, damping,
                              no_tension):
-    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     return 0.5 * stiffness * overlap * overlap if overlap > 0.0 else 0.0
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                     px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                     eta_t, full_arm, dt):
-    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+                                     plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
+                                     eta_t, full_arm, mu_r, kr, eta_r, dt):
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
-        if commit:
-            clear_history(history, p, offset)
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
-                                                    full_arm, fn, mu, kt, eta_t, history, p, offset, commit, dt)
+                                                    full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
+                                                    commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                      px, py, pz, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                      eta_t, full_arm, dt):
-    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+                                      plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
+                                      eta_t, full_arm, mu_r, kr, eta_r, dt):
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
-    return 0.5 * stiffness * overlap * overlap + spring_energy(history, p, offset)
+    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_hertz_force(i, x, y, z, velocity, radius, mass, px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
+def wall_hertz_force(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
                      gamma):
-    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         return 0.0, 0.0, 0.0, 0.0
     fn, elastic, _, _ = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
@@ -88,9 +89,9 @@ def wall_hertz_force(i, x, y, z, velocity, radius, mass, px, py, pz, nx, ny, nz,
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_hertz_energy(i, x, y, z, velocity, radius, mass, px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
+def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
                       gamma):
-    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
     return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5
@@ -98,32 +99,33 @@ def wall_hertz_energy(i, x, y, z, velocity, radius, mass, px, py, pz, nx, ny, nz
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                              px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
-                              eta_t_fixed, full_arm, dt):
-    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, px, py, pz, nx, ny, nz, ux, uy, uz)
+                              plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
+                              eta_t_fixed, full_arm, mu_r, kr_fixed, eta_r_fixed, dt):
+    overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
-        if commit:
-            clear_history(history, p, offset)
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
     kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius[i] * overlap)
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
+    kr, eta_r = rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
-                                                    full_arm, fn, mu, kt, eta_t, history, p, offset, commit, dt)
+                                                    full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
+                                                    commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                               px, py, pz, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
-                               eta_t_fixed, full_arm, dt):
-    overlap = radius[i] - ((x - px) * nx + (y - py) * ny + (z - pz) * nz)
+                               plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
+                               eta_t_fixed, full_arm, mu_r, kr_fixed, eta_r_fixed, dt):
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
-    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + spring_energy(history, p, offset)
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
 
 
-_GEOMETRY = ("px", "py", "pz", "nx", "ny", "nz", "ux", "uy", "uz")
+_GEOMETRY = ("plane", "nx", "ny", "nz", "ux", "uy", "uz")
 _FUNCTIONS = {
     (KelvinVoigt, False): (wall_kelvin_voigt_force, wall_kelvin_voigt_energy),
     (KelvinVoigt, True): (wall_kelvin_voigt_friction_force, wall_kelvin_voigt_friction_energy),
@@ -159,7 +161,7 @@ class Wall(SphereInteraction):
         if contact is not None and not isinstance(contact, (KelvinVoigt, Hertz)):
             raise TypeError(f"Wall contact must be a KelvinVoigt or Hertz contact law, got {contact!r}")
         self.contact = contact
-        self.px, self.py, self.pz = (float(c) for c in self.point)
+        self.plane = float(self.point @ self.normal)  # the plane is x.n = plane
         self.nx, self.ny, self.nz = (float(c) for c in self.normal)
         self.ux, self.uy, self.uz = (float(c) for c in self.velocity)
         if contact is not None:
@@ -181,7 +183,7 @@ class Wall(SphereInteraction):
         self.force_function, self.energy_function = _FUNCTIONS[(type(law), friction)]
         self.reads = law.reads
         self.torque = friction
-        self.history_size = HISTORY if friction else 0
+        self.history_size = law.history_size
         names = list(law.parameters)
         self.parameters = _GEOMETRY + tuple(names)
         for name in names:

@@ -28,11 +28,12 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 class SeriesFolder:
     """The files of one series (see the module docstring); checks and claims the folder."""
 
-    def __init__(self, folder, name="particles", overwrite=False, box=None):
+    def __init__(self, folder, name="particles", overwrite=False, box=None, extension="vtu"):
         if not isinstance(name, str) or not _NAME.match(name):
             raise ValueError(f"series name must be letters, digits, '_', '.' or '-', got {name!r}")
         self.folder = Path(folder)
         self.name = name
+        self.extension = extension
         if self.folder.exists() and not self.folder.is_dir():
             raise ValueError(f"output folder {self.folder} exists and is not a folder")
         try:
@@ -64,7 +65,7 @@ class SeriesFolder:
 
     def own_files(self):
         """Files of this series now in the folder."""
-        frame = re.compile(rf"^{re.escape(self.name)}_\d+\.vtu$")
+        frame = re.compile(rf"^{re.escape(self.name)}_\d+\.{self.extension}$")
         own = [p for p in self.folder.iterdir() if p.is_file() and frame.match(p.name)]
         return own + [p for p in (self.pvd, self.trails) if p.exists()]
 
@@ -76,7 +77,7 @@ class SeriesFolder:
 
     def add_frame(self, time, write):
         """Call ``write(path)`` for the next frame file, then record it in the .pvd (rewritten)."""
-        path = self.folder / f"{self.name}_{len(self.entries):06d}.vtu"
+        path = self.folder / f"{self.name}_{len(self.entries):06d}.{self.extension}"
         write(path)
         self.entries.append((float(time), path.name))
         write_pvd(self.pvd, self.entries, self.box)

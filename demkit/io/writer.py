@@ -76,10 +76,13 @@ class VTKWriter:
         The scene's box (``scene.box``) is stored in the .pvd, and the trails are unwrapped.
     dtype : 'float64' (default) or 'float32' (half the bytes).
     name : base name of the series files.
+    contacts : also write the contact network of every frame (``<name>_contacts.pvd`` and
+        ``<name>_contacts_000000.vtp``, ...: one line per contact with its forces, overlap, sliding
+        state and dissipated power, see :mod:`demkit.contacts`), to draw force chains in ParaView.
     """
 
     def __init__(self, folder, every, compress=False, trails=True, fields=None, dtype="float64",
-                 name="particles", overwrite=False):
+                 name="particles", overwrite=False, contacts=False):
         try:
             every = float(every)
         except (TypeError, ValueError):
@@ -92,6 +95,7 @@ class VTKWriter:
             choose_fields(VECTOR_FIELDS, fields)  # reject unknown names now
         self._requested = fields
         self.series = SeriesFolder(folder, name, overwrite)
+        self.contact_series = SeriesFolder(folder, name + "_contacts", overwrite, extension="vtp") if contacts else None
         self.trails = bool(trails)
         self._trails = None
         self.fields = None
@@ -114,6 +118,11 @@ class VTKWriter:
         if "force" in self.fields or "torque" in self.fields:
             force, torque = simulation.scene.forces()
         self.write_state(simulation.time, simulation.scene.particles, force, torque)
+        if self.contact_series is not None:
+            contacts = simulation.scene.contacts()
+            particles = simulation.scene.particles
+            self.contact_series.add_frame(simulation.time, lambda path: contacts.write_vtk(
+                path, particles, compress=bool(self._frames.compression)))
 
     def close(self):
         """Finish the series: write the trails file (once). The frames and .pvd are complete already."""
@@ -129,6 +138,9 @@ class VTKWriter:
         if self.fields is not None or self._closed:
             raise ValueError("this VTKWriter has been used already: create a new one for a new run")
         self.series.check_unclaimed()
+        if self.contact_series is not None:
+            self.contact_series.check_unclaimed()
+            self.contact_series.box = box
         available = [f for f in ("velocity", "angular_velocity", "dipole")
                      if getattr(particles, f) is not None]
         available += ["force"] * has_force + ["torque"] * has_torque
