@@ -5,8 +5,9 @@ from .friction import Friction
 from .hertz import Hertz
 from .sphere import SphereInteraction
 from .fields import Gravity, UniformField
+from .magnets import MagnetField
 from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "Hertz", "SphereInteraction",
-           "Gravity", "UniformField", "Wall"]
+           "Gravity", "UniformField", "MagnetField", "Wall"]
