@@ -2,8 +2,8 @@
 from . import units
 from .box import Box
 from .integrators import EulerCromer, Integrator, VelocityVerlet
-from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, PairInteraction, PowerLawDipole,
-                           RollingResistance, SphereInteraction, UniformField, Wall)
+from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, MagnetField, PairInteraction,
+                           PowerLawDipole, RollingResistance, SphereInteraction, UniformField, Wall)
 from .particles import Particles
 from .scene import Scene
 from .simulation import Simulation, SimulationError, Trajectory
@@ -16,6 +16,6 @@ __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
-           "SphereInteraction", "Wall", "Gravity", "UniformField", "EulerCromer", "VelocityVerlet",
+           "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build"]

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numba
+import numpy as np
 
 ENERGY_KINDS = ("magnetic", "contact")
 #: pairs per block of a blocked pair loop (the scratch buffers hold one block)
@@ -167,7 +168,7 @@ class _Source:
         self.kinds = energy_kinds(plan.interactions + plan.effects)
         self.importable = importable
         # parameter slots: each interaction's parameters, each effect's, then one squared cutoff per
-        # interaction
+        # interaction, then the effects' tables (Scene builds params in this order)
         self.param_slot, slot = {}, 0
         for k, inter in enumerate(plan.interactions):
             self.param_slot[k] = slot
@@ -177,6 +178,12 @@ class _Source:
             self.effect_slot[e] = slot
             slot += len(effect.parameters)
         self.cutoff_slot = {k: slot + k for k in range(len(plan.interactions))}
+        self.table_slot, slot = {}, slot + len(plan.interactions)
+        for e, effect in enumerate(plan.effects):
+            size = np.size(effect.table_values())
+            if size:
+                self.table_slot[e] = slot
+                slot += size
 
     # ---- pair loops ------------------------------------------------------------------------
     def prelude(self, group):
@@ -435,6 +442,8 @@ class _Source:
         args = ["i", "x", "y", "z", *effect.reads]
         if effect.history_size:
             args += ["history", "i", str(offset), "commit" if kind == "force" else "False"]
+        if e in self.table_slot:
+            args += ["params", str(self.table_slot[e])]
         args += [f"q{e}_{m}" for m in range(len(effect.parameters))]
         return f"s{kind}_{e}({', '.join(_callable_arguments(effect, args))})"
 

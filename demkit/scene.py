@@ -201,7 +201,8 @@ class Scene:
         params = [inter.parameter_values() for inter in self.interactions + self.effects]
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
-        self.params = np.concatenate(params + [np.array(cut2)]) if params else np.zeros(0)
+        tables = [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.effects]  # kernels._Source
+        self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
         # slots of parameters named "dt": the integrator's time step, set by each run
         self.time_step_slots, slot = [], 0
         for inter in self.interactions + self.effects:

@@ -251,6 +251,13 @@ class Simulation:
         for arr in arrays:
             bad |= ~np.isfinite(arr).all(axis=1)
         k = int(np.argmax(bad))
+        where = p.position[k] if np.isfinite(p.position[k]).all() else None
+        hints = [hint for effect in scene.effects if (hint := effect.stop_hint(where))]
+        if hints:  # an effect knows why (a sphere left a tabulated field, ...)
+            raise SimulationError(
+                f"the run stopped at step {self.step} (t = {self.time:.6g}): particle id {p.ids[k]} "
+                f"{' '.join(hints)} {kept}.",
+                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         raise SimulationError(
             f"the run became non-finite (NaN or inf) at step {self.step} (t = {self.time:.6g}) for "
             f"particle id {p.ids[k]}: position {p.position[k].tolist()}, velocity {p.velocity[k].tolist()}. "

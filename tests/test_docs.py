@@ -58,3 +58,15 @@ def test_contacts_page_example_runs_as_described():
     balance = np.abs(e["total"] + e["dissipated"] - e["total"][0]).max()
     assert balance < 1e-3 * (abs(e["kinetic"][0]) + e["dissipated"][-1])
     assert (traj.position[:, :, 2] > 0).all()  # on the floor, not through it
+
+
+def test_fields_page_example_runs_as_described():
+    pytest.importorskip("magpylib")
+    page = Path(__file__).resolve().parents[1] / "docs" / "fields.md"
+    ns = {"__name__": "fields_page"}
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    field, traj, e = ns["field"], ns["traj"], ns["e"]
+    assert np.abs(field.field(ns["points"]) - ns["exact"]).max() < 1e-3 * np.abs(ns["exact"]).max()  # 3e-4
+    assert np.ptp(e["total"]) < 1e-4 * np.ptp(e["field"])  # 1.2e-5 said on the page
+    assert field.inside(traj.position.reshape(-1, 3)).all() and traj.position[-1, 0, 0] > 0.015  # across

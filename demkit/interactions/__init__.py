@@ -6,8 +6,9 @@ from .hertz import Hertz
 from .rolling import RollingResistance
 from .sphere import SphereInteraction
 from .fields import Gravity, UniformField
+from .magnets import MagnetField
 from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 
-__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "SphereInteraction",
-           "Gravity", "UniformField", "Wall"]
+__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz",
+           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall"]

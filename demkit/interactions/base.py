@@ -23,7 +23,8 @@ neighbour-list rebuilds and re-sorting; a pair that leaves the list loses it, on
 starts from zero. The pair is always presented in the same orientation (i, j).
 
 A parameter named ``dt`` receives the integrator's time step at the start of every run (0 before
-any run); history updates that integrate a rate over the step use it.
+any run); history updates that integrate a rate over the step use it. Single-sphere effects
+(:mod:`demkit.interactions.sphere`) may in addition read a table of floats from ``params``.
 """
 from __future__ import annotations
 

@@ -14,6 +14,14 @@ then the scalars named in ``parameters``::
 History is kept per sphere (``history_size`` values, e.g. a wall contact's tangential spring),
 carried through re-sorting, written only when ``commit`` is True. A parameter named ``dt``
 receives the integrator's time step.
+
+An effect may also carry a *table* of floats (a tabulated field, say): :meth:`table_values`
+returns it as a 1-D float64 array. The scene appends every table to its ``params`` array (after
+all scalar parameters and cutoffs), and the functions then receive ``params, start`` after the
+history arguments and before the scalars, ``start`` being the literal index of the table's first
+value: they read ``params[start:start + len(table)]`` at run time, so the table's values are never
+compiled into the code. An effect without a table (the default, an empty array) is called exactly
+as above.
 """
 from __future__ import annotations
 
@@ -30,6 +38,16 @@ class SphereInteraction(Interaction):
     def bind(self, interactions):
         """Called by the scene with its pair interactions before anything else (walls find their
         contact law here)."""
+
+    def table_values(self):
+        """The effect's table of floats (1-D float64; empty: no table, see the module docstring)."""
+        return np.zeros(0)
+
+    def stop_hint(self, position):
+        """Why a sphere now at ``position`` (None if not finite) made a run go non-finite because of
+        this effect, as words completing "particle id <n> ..." (e.g. "left the region of ..."), or
+        None. The run's error message then leads with them."""
+        return None
 
 
 def vector(name, value):
