@@ -139,6 +139,7 @@ def test_rolling_resistance_defaults_follow_the_normal_law():
     (lambda: dk.RollingResistance(0.1, damping=-1.0), ValueError, "RollingResistance damping"),
     (lambda: dk.Hertz(1e7, 0.3, rolling=dk.RollingResistance(0.1)), ValueError, "needs friction"),
     (lambda: dk.KelvinVoigt(1.0, rolling=0.1), TypeError, "RollingResistance"),
+    (lambda: dk.Friction(0.3, sliding="stick"), ValueError, "Friction sliding"),
 ])
 def test_bad_rolling_input(make, error, message):
     with pytest.raises(error, match=message):

@@ -66,7 +66,7 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, mu_r, kr, eta_r, dt):
+                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
     """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
     Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0."""
     reach = radius[i] + radius[j]
@@ -86,14 +86,14 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     power = (fn - elastic) * rate
     ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
-        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r,
+        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, style, fn, mu, kt, eta_t, mu_r, kr, eta_r,
         history, p, offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, power + lost
 
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, full_arm, mu_r, kr, eta_r, dt):
+                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
     """Elastic energy of the normal spring, of the tangential spring and of the rolling spring."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -146,14 +146,14 @@ class KelvinVoigt(PairInteraction):
             self.reads = ("velocity", "angular_velocity", "radius")
             self.torque = True
             self.history_size = HISTORY * (2 if self.rolling is not None else 1)
-            self.parameters = self.parameters + ("mu", "kt", "eta_t", "full_arm", "mu_r", "kr", "eta_r", "dt")
+            self.parameters = self.parameters + ("mu", "kt", "eta_t", "style", "mu_r", "kr", "eta_r", "dt")
             self.force_function = kelvin_voigt_friction_force
             self.energy_function = kelvin_voigt_friction_energy
             self.mu = friction.coefficient
             self.kt = friction.stiffness if friction.stiffness is not None else 2.0 / 7.0 * self.stiffness
             default = self.damping * math.sqrt(self.kt / self.stiffness)
             self.eta_t = friction.damping if friction.damping is not None else default
-            self.full_arm = 1.0 if friction.slip_radius == "full" else 0.0
+            self.style = friction.style
             self.mu_r = self.kr = self.eta_r = 0.0
             if self.rolling is not None:
                 self.mu_r = rolling.coefficient

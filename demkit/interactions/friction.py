@@ -21,7 +21,8 @@ zero. One place differs on purpose: LAMMPS sets xi = -(F_t + eta_t v_t)/k_t when
 the spring holds the Coulomb force minus the dashpot's part; when the dashpot alone exceeds the limit
 (the first steps of a fast contact) the spring then stores a force pointing along the slip, which a
 growing Mindlin stiffness turns into a friction force that drives the slip (measured: Chung & Ooi
-test 6 lost 13 % of its friction impulse that way). demkit's spring holds the whole Coulomb force.
+test 6 lost 13 % of its friction impulse that way). demkit's spring holds the whole Coulomb force;
+``Friction(sliding="lammps")`` keeps LAMMPS' rule for side-by-side comparisons.
 
 Energy: the spring stores U_t = k_t |xi|^2 / 2 (reported with the contact energy); the dissipated
 power booked is P = -F_t.v_t - dU_t/dt, so kinetic + potential + dissipated is conserved. Hertz-
@@ -52,9 +53,12 @@ class Friction:
     slip_radius : "contact" (lever arms R - delta/2 in the slip velocity, energy-consistent with the
         torques) or "full" (R, LAMMPS' convention; the energy balance is then off by O(delta/R) of the
         rolling work).
+    sliding : "coulomb" (while sliding the spring holds the whole Coulomb force) or "lammps" (it holds
+        the Coulomb force minus the dashpot's part, xi = -(F_t + eta_t v_t)/k_t, as LAMMPS'
+        linear_history and rolling sds: for side-by-side comparisons; see the module docstring).
     """
 
-    def __init__(self, coefficient, stiffness=None, damping=None, slip_radius="contact"):
+    def __init__(self, coefficient, stiffness=None, damping=None, slip_radius="contact", sliding="coulomb"):
         self.coefficient = non_negative("Friction coefficient", coefficient)
         if stiffness is not None:
             stiffness = float(stiffness)
@@ -65,14 +69,22 @@ class Friction:
         if slip_radius not in ("contact", "full"):
             raise ValueError(f"Friction slip_radius must be 'contact' or 'full', got {slip_radius!r}")
         self.slip_radius = slip_radius
+        if sliding not in ("coulomb", "lammps"):
+            raise ValueError(f"Friction sliding must be 'coulomb' or 'lammps', got {sliding!r}")
+        self.sliding = sliding
+
+    @property
+    def style(self):
+        """The kernels' flags: 1 for slip_radius "full", + 2 for sliding "lammps"."""
+        return (1.0 if self.slip_radius == "full" else 0.0) + (2.0 if self.sliding == "lammps" else 0.0)
 
     def __repr__(self):
         return (f"Friction(coefficient={self.coefficient!r}, stiffness={self.stiffness!r}, "
-                f"damping={self.damping!r}, slip_radius={self.slip_radius!r})")
+                f"damping={self.damping!r}, slip_radius={self.slip_radius!r}, sliding={self.sliding!r})")
 
 
 @njit(**KERNEL_OPTIONS)
-def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, eta, history, p, o, commit, dt):
+def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, eta, share, history, p, o, commit, dt):
     """Friction force on j, torques on i and j (at the contact point, arms ai and aj) and dissipated
     power, for relative velocity v = v_j - v_i and lever sum s = a_i w_i + a_j w_j (the slip is
     v_c = v - s x n, its tangential part drives the spring of :mod:`.spring`)."""
@@ -81,7 +93,7 @@ def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, et
     cz = vz - (sx * ny - sy * nx)
     cn = cx * nx + cy * ny + cz * nz
     fx, fy, fz, lost = spring_force(nx, ny, nz, cx - cn * nx, cy - cn * ny, cz - cn * nz, mu * abs(normal), kt, eta,
-                                    history, p, o, commit, dt)
+                                    share, history, p, o, commit, dt)
     qx = ny * fz - nz * fy
     qy = nz * fx - nx * fz
     qz = nx * fy - ny * fx
@@ -89,22 +101,24 @@ def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, et
 
 
 @njit(**KERNEL_OPTIONS)
-def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, full_arm, normal, mu, kt, eta, mu_r, kr, eta_r,
+def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, style, normal, mu, kt, eta, mu_r, kr, eta_r,
                   history, p, o, commit, dt):
     """:func:`friction_on_j` for two spheres: arms R - delta/2 (the slip uses the full radii when
-    ``full_arm`` is 1, as LAMMPS), and rolling resistance when mu_r > 0 (history o + 4 .. o + 8)."""
+    ``style`` is odd, as LAMMPS; LAMMPS' sliding rule when ``style`` >= 2, see :class:`Friction`),
+    and rolling resistance when mu_r > 0 (history o + 4 .. o + 8)."""
     ai = radius[i] - 0.5 * overlap
     aj = radius[j] - 0.5 * overlap
-    shift = 0.5 * overlap * full_arm
+    shift = 0.5 * overlap * (style % 2.0)
+    share = 1.0 if style >= 2.0 else 0.0
     bi = ai + shift
     bj = aj + shift
     fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, lost = friction_on_j(
         nx, ny, nz, vx, vy, vz, bi * w[i, 0] + bj * w[j, 0], bi * w[i, 1] + bj * w[j, 1], bi * w[i, 2] + bj * w[j, 2],
-        ai, aj, normal, mu, kt, eta, history, p, o, commit, dt)
+        ai, aj, normal, mu, kt, eta, share, history, p, o, commit, dt)
     if mu_r > 0.0:
         mx, my, mz, rolled = rolling_on_i(nx, ny, nz, w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2],
                                           radius[i] * radius[j] / (radius[i] + radius[j]), normal, mu_r, kr, eta_r,
-                                          history, p, o + HISTORY, commit, dt)
+                                          share, history, p, o + HISTORY, commit, dt)
         tix += mx
         tiy += my
         tiz += mz
@@ -116,19 +130,20 @@ def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, full_arm, no
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, full_arm, normal, mu, kt, eta, mu_r, kr, eta_r,
+def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, style, normal, mu, kt, eta, mu_r, kr, eta_r,
                   history, p, o, commit, dt):
     """:func:`friction_on_j` for sphere i on a rigid wall (the contact point lies on the wall, R - delta
-    from the centre; the slip uses R when ``full_arm`` is 1), with rolling resistance when mu_r > 0
-    (rolling radius R): force, torque on the sphere, power."""
+    from the centre; the slip uses R when ``style`` is odd; LAMMPS' sliding rule when >= 2), with
+    rolling resistance when mu_r > 0 (rolling radius R): force, torque on the sphere, power."""
     a = radius[i] - overlap
-    b = radius[i] if full_arm > 0.0 else a
+    b = radius[i] if style % 2.0 > 0.0 else a
+    share = 1.0 if style >= 2.0 else 0.0
     fx, fy, fz, _, _, _, tx, ty, tz, lost = friction_on_j(nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1],
-                                                          b * w[i, 2], 0.0, a, normal, mu, kt, eta, history, p, o,
-                                                          commit, dt)
+                                                          b * w[i, 2], 0.0, a, normal, mu, kt, eta, share, history,
+                                                          p, o, commit, dt)
     if mu_r > 0.0:  # the wall is "i" (no spin), the sphere "j"
         mx, my, mz, rolled = rolling_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], radius[i], normal, mu_r, kr,
-                                          eta_r, history, p, o + HISTORY, commit, dt)
+                                          eta_r, share, history, p, o + HISTORY, commit, dt)
         tx -= mx
         ty -= my
         tz -= mz

@@ -130,7 +130,7 @@ def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_
 
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, mu_r, kr_fixed,
+                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
                          eta_r_fixed, dt):
     """Force on j, torques on i and j and dissipated power of a Hertz contact with friction
     (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0) and rolling
@@ -155,14 +155,14 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
     kr, eta_r = rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta)
     ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
-        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r,
+        nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, style, fn, mu, kt, eta_t, mu_r, kr, eta_r,
         history, p, offset, commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, (fn - elastic) * rate + lost
 
 
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, full_arm, mu_r, kr_fixed,
+                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
                           eta_r_fixed, dt):
     """Elastic energy of the Hertz contact, of its tangential spring and of its rolling spring."""
     reach = radius[i] + radius[j]
@@ -219,14 +219,14 @@ class Hertz(PairInteraction):
             self.reads = ("velocity", "angular_velocity", "radius", "mass")
             self.torque = True
             self.history_size = HISTORY * (2 if self.rolling is not None else 1)
-            self.parameters = self.parameters + ("mu", "kt_fixed", "eta_t_fixed", "full_arm", "mu_r", "kr_fixed",
+            self.parameters = self.parameters + ("mu", "kt_fixed", "eta_t_fixed", "style", "mu_r", "kr_fixed",
                                                  "eta_r_fixed", "dt")
             self.force_function = hertz_friction_force
             self.energy_function = hertz_friction_energy
             self.mu = friction.coefficient
             self.kt_fixed = friction.stiffness if friction.stiffness is not None else 0.0
             self.eta_t_fixed = friction.damping if friction.damping is not None else -1.0
-            self.full_arm = 1.0 if friction.slip_radius == "full" else 0.0
+            self.style = friction.style
             rolling = self.rolling
             self.mu_r = rolling.coefficient if rolling is not None else 0.0
             self.kr_fixed = rolling.stiffness if rolling is not None and rolling.stiffness is not None else 0.0

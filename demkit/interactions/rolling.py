@@ -62,12 +62,13 @@ class RollingResistance:
 
 
 @njit(**KERNEL_OPTIONS)
-def rolling_on_i(nx, ny, nz, wx, wy, wz, rolling_radius, normal, mu_r, kr, eta_r, history, p, o, commit, dt):
+def rolling_on_i(nx, ny, nz, wx, wy, wz, rolling_radius, normal, mu_r, kr, eta_r, share, history, p, o, commit, dt):
     """Rolling-resistance torque on i (the torque on j is its negative) and dissipated power, for
     relative spin w = w_i - w_j and rolling radius R*."""
     ux = rolling_radius * (wy * nz - wz * ny)
     uy = rolling_radius * (wz * nx - wx * nz)
     uz = rolling_radius * (wx * ny - wy * nx)
-    fx, fy, fz, lost = spring_force(nx, ny, nz, ux, uy, uz, mu_r * abs(normal), kr, eta_r, history, p, o, commit, dt)
+    fx, fy, fz, lost = spring_force(nx, ny, nz, ux, uy, uz, mu_r * abs(normal), kr, eta_r, share, history, p, o, commit,
+                                    dt)
     return (rolling_radius * (ny * fz - nz * fy), rolling_radius * (nz * fx - nx * fz),
             rolling_radius * (nx * fy - ny * fx), lost)

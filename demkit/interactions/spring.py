@@ -8,7 +8,8 @@ velocity for rolling resistance), one committed update
    LAMMPS does: |xi.n| k > EPSILON limit),
 2. advances xi += u dt,
 3. forms the trial force F = -k xi - eta u and, beyond the limit |F| > limit, scales F to the limit
-   and sets xi = -F/k (while sliding the spring holds the whole limiting force).
+   and sets xi = -F/k (while sliding the spring holds the whole limiting force; LAMMPS' rule,
+   xi = -(F + eta u)/k, is available for comparisons: ``Friction(sliding="lammps")``).
 
 Energy: the spring stores U = k |xi|^2 / 2. A committed update books the dissipated power
 P = -F.u - dU/dt (dU over the step), so kinetic + potential + dissipated is conserved. An
@@ -32,9 +33,10 @@ EPSILON = 1e-10
 
 
 @njit(**KERNEL_OPTIONS)
-def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, history, p, o, commit, dt):
+def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, share, history, p, o, commit, dt):
     """Force (3 values) and dissipated power of the spring-dashpot-slider for rate (tx, ty, tz) and
-    force limit ``limit``; reads history[p, o:o+4] and writes it when ``commit``."""
+    force limit ``limit``; reads history[p, o:o+4] and writes it when ``commit``. ``share`` 1 keeps
+    LAMMPS' sliding rule xi = -(F + eta u)/k instead of xi = -F/k."""
     sx = history[p, o]
     sy = history[p, o + 1]
     sz = history[p, o + 2]
@@ -65,9 +67,9 @@ def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, history, p, o, commit, d
             fx *= scale
             fy *= scale
             fz *= scale
-            sx = -fx / k  # sliding: the spring holds the whole limiting force
-            sy = -fy / k
-            sz = -fz / k
+            sx = -(fx + share * eta * tx) / k  # sliding: the spring holds the whole limiting force
+            sy = -(fy + share * eta * ty) / k  # (LAMMPS, share 1: minus the dashpot's part)
+            sz = -(fz + share * eta * tz) / k
         else:  # no stored displacement (only when not committing): no force, as LAMMPS
             fx = 0.0
             fy = 0.0

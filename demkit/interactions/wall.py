@@ -56,14 +56,14 @@ def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux
 @njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                      plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                     eta_t, full_arm, mu_r, kr, eta_r, dt):
+                                     eta_t, style, mu_r, kr, eta_r, dt):
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
-                                                    full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
+                                                    style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
                                                     commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
@@ -71,7 +71,7 @@ def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, rad
 @njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                       plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                      eta_t, full_arm, mu_r, kr, eta_r, dt):
+                                      eta_t, style, mu_r, kr, eta_r, dt):
     overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
@@ -100,7 +100,7 @@ def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux,
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
-                              eta_t_fixed, full_arm, mu_r, kr_fixed, eta_r_fixed, dt):
+                              eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -110,7 +110,7 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
     eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
     kr, eta_r = rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
-                                                    full_arm, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
+                                                    style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
                                                     commit, dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
@@ -118,7 +118,7 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                                plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
-                               eta_t_fixed, full_arm, mu_r, kr_fixed, eta_r_fixed, dt):
+                               eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
     overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
