@@ -7,6 +7,24 @@ Hooke contacts k_n = 1000 with a velocity dashpot 1.5, velocity Verlet dt = 0.00
 * Forces and torques at step 0 agree to 1e-10 of the largest one: the same sums in another order.
 * Positions after 100 steps agree to 1e-6 (measured ~2e-7): LAMMPS' `fix nve/sphere update dipole`
   turns each dipole by a renormalised Euler step, demkit rotates it exactly (docs/nbody.md).
+
+With friction (the `full` physics: + tangential spring k_t = 2/7 k_n with history, tangential
+dashpot 0.5 x 1.5, Coulomb mu = 0.5; demkit `Friction(0.5, 2/7 k_n, 0.75, slip_radius="full")`),
+from a state with many contacts and spinning spheres: LAMMPS runs the reference scene 2000 steps
+(1162 contacts, |omega| up to 8.3), that state (x, v, omega, mu) becomes a data file, and both codes
+start from it with no tangential history.
+
+* Forces and torques at step 0 agree to 1e-10 of the largest (measured 3e-14 and 5e-15).
+* LAMMPS turns the dipoles with `update dipole/dlm` here: its default Euler step is first order
+  for a sphere whose spin has a component along its dipole, and with these spins it alone moves
+  positions by 4e-5 in 100 steps (2e-7 from the resting start of the test above); dipole/dlm, 8e-8.
+* demkit's friction with LAMMPS' sliding rule (tests/lammps_rule.py: the engine's own code with
+  the three sliding assignments swapped) agrees after 100 steps to 7e-8 with dipoles (< 1e-6
+  asserted) and to round-off without them (6e-14; the `nodip` physics), while 715 of the contacts
+  slide at some step.
+* The engine's own rule (while sliding the spring holds the whole Coulomb force, docs/contacts.md)
+  agrees with LAMMPS for the first step and parts from it once a contact has slid: positions
+  differ by 9e-3 after 100 steps. That is the one deliberate difference.
 """
 import shutil
 import subprocess
@@ -26,16 +44,27 @@ pytestmark = pytest.mark.skipif(shutil.which("lmp") is None,
 
 
 def read_dump(path):
-    """{step: (N, 16) array sorted by id} from a LAMMPS custom dump (id xu yu zu vx vy vz fx fy fz tq* mu*)."""
+    """{step: (N, 19) array sorted by id} from a LAMMPS custom dump of benchmarks/lammps/in.reference
+    (id xu yu zu vx vy vz fx fy fz tqx tqy tqz mux muy muz omegax omegay omegaz)."""
     frames, lines = {}, Path(path).read_text().splitlines()
     k = 0
     while k < len(lines):
         step = int(lines[k + 1])
         n = int(lines[k + 3])
-        rows = np.array([[float(v) for v in ln.split()] for ln in lines[k + 9:k + 9 + n]])
+        rows = np.array(" ".join(lines[k + 9:k + 9 + n]).split(), dtype=float).reshape(n, -1)
         frames[step] = rows[np.argsort(rows[:, 0])]
         k += 9 + n
     return frames
+
+
+def run_lammps(folder, data, model, nsteps, dump, dumpevery, update="dipole"):
+    """Run benchmarks/lammps/in.reference in ``folder`` and return its dumped frames."""
+    subprocess.run(["lmp", "-in", str(ROOT / "benchmarks" / "lammps" / "in.reference"), "-screen", "none",
+                    "-log", str(folder / f"log.{dump}"), "-var", "data", str(data), "-var", "model", model,
+                    "-var", "nsteps", str(nsteps), "-var", "dump", str(folder / dump),
+                    "-var", "dumpevery", str(dumpevery), "-var", "upd", update],
+                   cwd=folder, check=True, capture_output=True, timeout=300)
+    return read_dump(folder / dump)
 
 
 @pytest.fixture(scope="module")
@@ -43,12 +72,7 @@ def lammps_run(tmp_path_factory):
     from reference_scene import write_reference_scene
     folder = tmp_path_factory.mktemp("lammps")
     scene, _, data = write_reference_scene(1000, folder)
-    dump = folder / "state.dump"
-    subprocess.run(["lmp", "-in", str(ROOT / "benchmarks" / "lammps" / "in.reference"), "-screen", "none",
-                    "-log", str(folder / "log.lammps"), "-var", "data", str(data), "-var", "model", "nofric",
-                    "-var", "nsteps", "100", "-var", "dump", str(dump), "-var", "dumpevery", "100"],
-                   cwd=folder, check=True, capture_output=True, timeout=300)
-    return scene, read_dump(dump)
+    return scene, run_lammps(folder, data, "nofric", 100, "state.dump", 100)
 
 
 def demkit_scene(scene):
@@ -83,3 +107,163 @@ def test_positions_after_100_steps_agree_to_1e_6(lammps_run):
     mu = frames[100][:, 13:16]
     np.testing.assert_allclose(np.linalg.norm(traj.dipole[-1], axis=1), 2.0, rtol=1e-12)  # exact: norms kept
     assert np.abs(np.linalg.norm(mu, axis=1) - 2.0).max() < 1e-12  # LAMMPS renormalises
+
+
+# ---- friction: the `full` physics from a state with many contacts -------------------------------
+
+EQUILIBRATION = 2000  # LAMMPS steps of the full model from the reference scene
+KN, ETA_N, DT = 1000.0, 1.5, 1e-3
+FRICTION = dict(coefficient=0.5, stiffness=2.0 / 7.0 * KN, damping=0.5 * ETA_N, slip_radius="full")
+
+
+@pytest.fixture(scope="module")
+def friction_start(tmp_path_factory):
+    """(folder, start state dict, data file): the reference scene after EQUILIBRATION steps of the
+    full model in LAMMPS, wrapped into the box, as a LAMMPS data file with x, v, omega, mu."""
+    from reference_scene import write_lammps_data, write_reference_scene
+    folder = tmp_path_factory.mktemp("lammps_friction")
+    scene, _, data = write_reference_scene(1000, folder)
+    last = run_lammps(folder, data, "full", EQUILIBRATION, "equilibration.dump", EQUILIBRATION)[EQUILIBRATION]
+    start = dict(scene, x=last[:, 1:4] % scene["L"], v=last[:, 4:7].copy(), mu=last[:, 13:16].copy(),
+                 omega=last[:, 16:19].copy())
+    path = folder / "start.data"
+    write_lammps_data(start, path, comment=f"after {EQUILIBRATION} steps of the full model")
+    return folder, start, path
+
+
+@pytest.fixture(scope="module")
+def lammps_full(friction_start):
+    """LAMMPS frames 0..100 of the full physics (dipoles turned by dipole/dlm) from the start state."""
+    folder, _, data = friction_start
+    return run_lammps(folder, data, "full", 100, "full.dump", 1, update="dipole/dlm")
+
+
+@pytest.fixture(scope="module")
+def lammps_nodip(friction_start):
+    """LAMMPS frames 0 and 100 of contacts with friction, no dipoles, from the start state."""
+    folder, _, data = friction_start
+    return run_lammps(folder, data, "nodip", 100, "nodip.dump", 100)
+
+
+def friction_scene(start, dipoles=True, rule="demkit", folder=None):
+    """demkit's scene of the start state: the engine's friction (rule "demkit") or the engine's code
+    with LAMMPS' sliding rule (rule "lammps", see tests/lammps_rule.py)."""
+    from reference_scene import particles_and_box
+    p, box = particles_and_box(start)
+    if not dipoles:
+        p = dk.Particles(position=p.position, velocity=p.velocity, radius=p.radius, mass=p.mass,
+                         angular_velocity=p.angular_velocity)
+    laws = dk
+    if rule == "lammps":
+        from lammps_rule import lammps_rule_contact
+        laws = lammps_rule_contact(folder)
+    contact = laws.KelvinVoigt(KN, ETA_N, friction=laws.Friction(**FRICTION))
+    interactions = [dk.Dipole(prefactor=1.0, cutoff=4.0), contact] if dipoles else [contact]
+    return dk.Scene(p, interactions, box=box, skin=0.3), contact
+
+
+class SlidingCounter:
+    """Writer that counts, after every step, the contacts whose friction sits at the Coulomb limit
+    (LAMMPS' rule: |k_t xi + eta_t v_t| = mu |F_n|, the force and slip rebuilt from the half-step
+    velocities the step's force evaluation saw)."""
+
+    every = DT
+
+    def __init__(self, contact, side):
+        self.contact, self.side = contact, side
+        self.pairs, self.contact_steps, self.sliding_steps = set(), 0, 0
+
+    def open(self, simulation):
+        pass
+
+    def close(self):
+        pass
+
+    def write(self, simulation):
+        if simulation.step == 0:
+            return
+        scene, p = simulation.scene, simulation.scene.particles
+        pairs, history = scene.history(self.contact)
+        v = p.velocity - scene.to_user_order(scene.force) / p.mass[:, None] * DT / 2
+        w = p.angular_velocity - scene.to_user_order(scene.torque) / p.inertia[:, None] * DT / 2
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = p.position[j] - p.position[i]
+        d -= self.side * np.round(d / self.side)
+        r = np.linalg.norm(d, axis=1)
+        touching = r < 1.0
+        i, j, d, r, xi = i[touching], j[touching], d[touching], r[touching], history[touching, :3]
+        n = d / r[:, None]
+        u = v[j] - v[i]
+        normal = KN * (1.0 - r) - ETA_N * np.einsum("ij,ij->i", u, n)
+        slip = u - np.cross(0.5 * (w[i] + w[j]), n)
+        slip -= np.einsum("ij,ij->i", slip, n)[:, None] * n
+        held = np.linalg.norm(FRICTION["stiffness"] * xi + FRICTION["damping"] * slip, axis=1)
+        limit = FRICTION["coefficient"] * np.abs(normal)
+        sliding = np.abs(held - limit) < 1e-8 * limit
+        self.contact_steps += int(touching.sum())
+        self.sliding_steps += int(sliding.sum())
+        self.pairs |= set(zip(i[sliding].tolist(), j[sliding].tolist()))
+
+
+def contact_count(start):
+    from scipy.spatial import cKDTree
+    return len(cKDTree(start["x"], boxsize=start["L"]).query_pairs(1.0))
+
+
+def test_friction_start_has_many_contacts_and_spins(friction_start):
+    _, start, _ = friction_start
+    assert contact_count(start) > 1000  # 1162 after 2000 steps (0 in the built scene)
+    assert np.linalg.norm(start["omega"], axis=1).max() > 5.0  # 8.3: rolling and sliding matter
+
+
+def test_friction_forces_and_torques_at_step_0_agree_to_1e_10(friction_start, lammps_full, lammps_nodip):
+    _, start, _ = friction_start
+    first = lammps_full[0]
+    scene, _ = friction_scene(start)
+    np.testing.assert_array_equal(scene.particles.position, first[:, 1:4] % start["L"])
+    force, torque = scene.forces()
+    lf, lt = first[:, 7:10], first[:, 10:13]
+    np.testing.assert_allclose(force, lf, rtol=0, atol=1e-10 * np.abs(lf).max())
+    np.testing.assert_allclose(torque, lt, rtol=0, atol=1e-10 * np.abs(lt).max())
+    # friction is there at step 0 (tangential dashpots; no spring is stretched yet): LAMMPS' torques
+    # without dipoles are friction torques alone, 1.5 against 8 with dipoles
+    assert np.abs(lammps_nodip[0][:, 10:13]).max() > 0.1 * np.abs(lt).max()
+
+
+def test_friction_with_lammps_sliding_rule_positions_after_100_steps_agree_to_1e_6(friction_start, lammps_full):
+    folder, start, _ = friction_start
+    scene, contact = friction_scene(start, rule="lammps", folder=folder)
+    counter = SlidingCounter(contact, start["L"])
+    traj = dk.Simulation(scene, dk.VelocityVerlet(dt=DT), writers=[counter]).run(duration=100 * DT)
+    theirs = lammps_full[100]
+    difference = np.abs(traj.unwrapped()[-1] - theirs[:, 1:4]).max()
+    assert difference < 1e-6  # 7e-8: the dipole updates (exact rotation vs dipole/dlm)
+    assert np.abs(traj.velocity[-1] - theirs[:, 4:7]).max() < 1e-5  # 1.5e-6
+    assert np.abs(traj.angular_velocity[-1] - theirs[:, 16:19]).max() < 1e-4  # 1.3e-5
+    assert len(counter.pairs) > 300  # 715 contacts slide at some step
+    assert counter.sliding_steps > 0.1 * counter.contact_steps  # 19 %
+
+
+def test_friction_with_lammps_sliding_rule_without_dipoles_agrees_to_round_off(friction_start, lammps_nodip):
+    folder, start, _ = friction_start
+    scene, _ = friction_scene(start, dipoles=False, rule="lammps", folder=folder)
+    lf = lammps_nodip[0][:, 7:10]
+    np.testing.assert_allclose(scene.forces()[0], lf, rtol=0, atol=1e-13 * np.abs(lf).max())  # 2e-14
+    traj = dk.Simulation(scene, dk.VelocityVerlet(dt=DT)).run(duration=100 * DT)
+    theirs = lammps_nodip[100]
+    assert np.abs(traj.unwrapped()[-1] - theirs[:, 1:4]).max() < 1e-11  # 6e-14
+    assert np.abs(traj.velocity[-1] - theirs[:, 4:7]).max() < 1e-11  # 3e-14
+    assert np.abs(traj.angular_velocity[-1] - theirs[:, 16:19]).max() < 1e-11  # 7e-14
+
+
+def test_friction_demkit_sliding_rule_parts_from_lammps_once_a_contact_has_slid(friction_start, lammps_full):
+    _, start, _ = friction_start
+    scene, _ = friction_scene(start)
+    traj = dk.Simulation(scene, dk.VelocityVerlet(dt=DT)).run(duration=100 * DT, record_every=DT)
+    ours = traj.unwrapped()
+    # step 1 advances every spring from zero by the same slip: no stored sliding spring is used yet
+    assert np.abs(traj.velocity[1] - lammps_full[1][:, 4:7]).max() < 1e-8  # 4e-10
+    assert np.abs(ours[2] - lammps_full[2][:, 1:4]).max() < 1e-11  # 8e-13
+    # from step 2 the springs of the contacts that slid at step 1 differ by eta_t v_t / k_t
+    assert np.abs(traj.velocity[2] - lammps_full[2][:, 4:7]).max() > 1e-5  # 1.1e-4
+    assert np.abs(ours[100] - lammps_full[100][:, 1:4]).max() > 1e-4  # 9e-3
