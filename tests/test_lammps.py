@@ -18,8 +18,7 @@ start from it with no tangential history.
 * LAMMPS turns the dipoles with `update dipole/dlm` here: its default Euler step is first order
   for a sphere whose spin has a component along its dipole, and with these spins it alone moves
   positions by 4e-5 in 100 steps (2e-7 from the resting start of the test above); dipole/dlm, 8e-8.
-* demkit's friction with LAMMPS' sliding rule (tests/lammps_rule.py: the engine's own code with
-  the three sliding assignments swapped) agrees after 100 steps to 7e-8 with dipoles (< 1e-6
+* demkit's friction with LAMMPS' sliding rule (`Friction(..., sliding="lammps")`) agrees after 100 steps to 7e-8 with dipoles (< 1e-6
   asserted) and to round-off without them (6e-14; the `nodip` physics), while 715 of the contacts
   slide at some step.
 * The engine's own rule (while sliding the spring holds the whole Coulomb force, docs/contacts.md)
@@ -146,18 +145,15 @@ def lammps_nodip(friction_start):
 
 
 def friction_scene(start, dipoles=True, rule="demkit", folder=None):
-    """demkit's scene of the start state: the engine's friction (rule "demkit") or the engine's code
-    with LAMMPS' sliding rule (rule "lammps", see tests/lammps_rule.py)."""
+    """demkit's scene of the start state: the engine's friction (rule "demkit") or LAMMPS' sliding
+    rule (rule "lammps": Friction(sliding="lammps"))."""
     from reference_scene import particles_and_box
     p, box = particles_and_box(start)
     if not dipoles:
         p = dk.Particles(position=p.position, velocity=p.velocity, radius=p.radius, mass=p.mass,
                          angular_velocity=p.angular_velocity)
-    laws = dk
-    if rule == "lammps":
-        from lammps_rule import lammps_rule_contact
-        laws = lammps_rule_contact(folder)
-    contact = laws.KelvinVoigt(KN, ETA_N, friction=laws.Friction(**FRICTION))
+    sliding = "lammps" if rule == "lammps" else "coulomb"
+    contact = dk.KelvinVoigt(KN, ETA_N, friction=dk.Friction(**FRICTION, sliding=sliding))
     interactions = [dk.Dipole(prefactor=1.0, cutoff=4.0), contact] if dipoles else [contact]
     return dk.Scene(p, interactions, box=box, skin=0.3), contact
 
