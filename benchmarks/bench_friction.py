@@ -25,7 +25,8 @@ Parts (all by default; name some to run only those):
   of ``--repeats``. Friction's cost is full/nofric and nodip/nodip_nofric in each code.
 * ``unused``: what friction's presence in the code costs scenes that do not use it: ``nofric`` and
   ``nodip_nofric`` with this tree against the tree before friction existed (commit c4f06a3, taken
-  with ``git archive``), runs alternating between the two, best of ``--repeats``.
+  with ``git archive``), runs alternating between the two, best of ``--repeats`` (and the ratio of
+  the medians).
 * ``profile``: where a friction step's time goes: the contact kernel alone (forces only, no
   integration) with and without friction on the settled state.
 
@@ -40,6 +41,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -232,7 +234,8 @@ def targets(results):
     unused = results.get("unused", [])
     if unused:
         out["no friction: <= 2 % slower than before friction"] = {
-            "measured": {f"{u['model']} {u['cores']}": u["cost"] for u in unused},
+            "measured": {f"{u['model']} {u['cores']}": {"best": u["cost"], "median": u.get("cost_of_medians")}
+                         for u in unused},
             "met": max(u["cost"] for u in unused) <= 0.02}
     return out
 
@@ -252,7 +255,9 @@ def part_unused(files, repeats, quick):
                     now.append(demkit_run(npz, model, cores, steps, 1)["particle_steps_per_second"])
                     before.append(demkit_run(npz, model, cores, steps, 1, tree=Path(old))["particle_steps_per_second"])
                 row = {"model": model, "cores": cores, "now": max(now), "before_friction": max(before),
-                       "cost": max(before) / max(now) - 1.0, "all_now": now, "all_before": before}
+                       "cost": max(before) / max(now) - 1.0,
+                       "cost_of_medians": statistics.median(before) / statistics.median(now) - 1.0,
+                       "all_now": now, "all_before": before}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     return rows
