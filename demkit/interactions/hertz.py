@@ -151,9 +151,8 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     radius_eff = radius[i] * radius[j] / reach
     mass_eff = 1.0 / (1.0 / mass[i] + 1.0 / mass[j])
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma)
-    kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius_eff * overlap)
-    eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
-    kr, eta_r = rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta)
+    kt, eta_t, kr, eta_r = tangential_springs(kt_fixed, eta_t_fixed, mu_r, kr_fixed, eta_r_fixed, shear_eff,
+                                              radius_eff, overlap, stiffness, eta)
     ftx, fty, ftz, tix, tiy, tiz, tjx, tjy, tjz, lost = pair_friction(
         nx, ny, nz, vx, vy, vz, angular_velocity, i, j, radius, overlap, style, fn, mu, kt, eta_t, mu_r, kr, eta_r,
         history, p, offset, commit, dt)
@@ -174,12 +173,17 @@ def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radi
 
 
 @njit(**KERNEL_OPTIONS)
-def rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta):
-    """(k_r, eta_r) of Hertz rolling resistance at contact stiffness S_n and normal damping eta_n."""
+def tangential_springs(kt_fixed, eta_t_fixed, mu_r, kr_fixed, eta_r_fixed, shear_eff, radius_eff, overlap, stiffness,
+                       eta):
+    """(k_t, eta_t, k_r, eta_r) of a Hertz contact with contact stiffness S_n and normal damping eta_n:
+    Mindlin's k_t = 8 G* sqrt(R* delta) unless fixed, the normal damping ratio unless fixed, and the
+    rolling spring 2.25 mu_r^2 S_n (none when mu_r is 0)."""
+    kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius_eff * overlap)
+    eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
     if mu_r == 0.0:
-        return 0.0, 0.0
+        return kt, eta_t, 0.0, 0.0
     kr = kr_fixed if kr_fixed > 0.0 else STIFFNESS_FACTOR * mu_r * mu_r * stiffness
-    return kr, (eta_r_fixed if eta_r_fixed >= 0.0 else eta * math.sqrt(kr / stiffness))
+    return kt, eta_t, kr, (eta_r_fixed if eta_r_fixed >= 0.0 else eta * math.sqrt(kr / stiffness))
 
 
 

@@ -18,8 +18,7 @@ from ..motion import KERNEL_OPTIONS
 
 from .contact import KelvinVoigt, kelvin_voigt_normal
 from .friction import release, springs_energy, wall_friction
-from .hertz import rolling_spring
-from .hertz import Hertz, hertz_normal
+from .hertz import Hertz, hertz_normal, tangential_springs
 from .sphere import SphereInteraction, vector
 
 #: a sphere may start overlapping a wall by at most this fraction of its radius
@@ -106,9 +105,8 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
-    kt = kt_fixed if kt_fixed > 0.0 else 8.0 * shear_eff * math.sqrt(radius[i] * overlap)
-    eta_t = eta_t_fixed if eta_t_fixed >= 0.0 else eta * math.sqrt(kt / stiffness)
-    kr, eta_r = rolling_spring(mu_r, kr_fixed, eta_r_fixed, stiffness, eta)
+    kt, eta_t, kr, eta_r = tangential_springs(kt_fixed, eta_t_fixed, mu_r, kr_fixed, eta_r_fixed, shear_eff,
+                                              radius[i], overlap, stiffness, eta)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
                                                     style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
                                                     commit, dt)
