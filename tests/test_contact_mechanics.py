@@ -132,7 +132,7 @@ def test_chung_ooi_5_oblique_impact_in_gross_sliding(E, nu, rho, spin_tolerance,
 
 # Chung & Ooi test 5, steel, below gross sliding: x -> Omega from LAMMPS 29 Sep 2021, pair_style granular
 # hertz/material (E doubled, as LIGGGHTS-PFM does for the rigid plane) tangential mindlin NULL 0 0.3 against a
-# frozen sphere of radius 1e-2 (R* = 0.999 R), 2000 steps a contact (notes in the chung-ooi branch)
+# frozen sphere of radius 1e-2 (R* = 0.999 R), 2000 steps a contact (deck: docs/data/chung_ooi/in.test5)
 TEST5_LAMMPS_MINDLIN = {0.35: 0.012, 0.99: 0.230, 2.0: 1.629, 3.0: 2.858, 4.0: 3.854, 5.0: 4.591}
 
 
