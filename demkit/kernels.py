@@ -247,7 +247,15 @@ class _Source:
     def force_body(self, group, indent, force, torque):
         pad = " " * indent
         torque_on = group.torque
-        body = [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"]
+        body = []
+        if all(inter.contact_reach for _, inter in group.members):
+            # contact laws only: a pair that does not touch and holds no history costs a distance
+            # test, not calls and accumulations of zeros (a pair that held history goes through
+            # its law once more, which releases the springs and books their energy)
+            test = f"r2 >= (radius[i] + radius[j]) * (radius[i] + radius[j])"
+            test += "".join(f" and history[p, {h}] == 0.0" for h in range(group.width))
+            body += [f"{pad}if {test}:", f"{pad}    continue"]
+        body += [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"]
         if torque_on:
             body += [f"{pad}{c} = 0.0" for c in ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")]
         for k, inter in group.members:

@@ -94,6 +94,9 @@ class PairInteraction(Interaction):
     #: centre distance beyond which the pair loop skips this interaction (None: never skipped;
     #: contact laws test their own reach instead)
     cutoff_distance = None
+    #: no force beyond r = R_i + R_j: when every interaction of a pair loop says so, the loop skips
+    #: such pairs before any call or accumulation (a pair still holding history is passed to its law once more)
+    contact_reach: bool = False
 
     def cutoff(self, particles):
         """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""

@@ -133,6 +133,7 @@ class KelvinVoigt(PairInteraction):
     reads = ("velocity", "radius")
     dissipative = True
     energy_kind = "contact"
+    contact_reach = True
     parameters = ("stiffness", "damping", "no_tension")
     force_function = kelvin_voigt_force
     energy_function = kelvin_voigt_energy

@@ -200,6 +200,7 @@ class Hertz(PairInteraction):
     reads = ("velocity", "radius", "mass")
     dissipative = True
     energy_kind = "contact"
+    contact_reach = True
     parameters = ("young_eff", "shear_eff", "gamma")
     force_function = hertz_force
     energy_function = hertz_energy
