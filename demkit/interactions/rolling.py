@@ -25,7 +25,7 @@ import math
 
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..motion import HELPER_OPTIONS
 
 from .base import non_negative
 from .spring import spring_force
@@ -61,7 +61,7 @@ class RollingResistance:
                 f"damping={self.damping!r})")
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**HELPER_OPTIONS)
 def rolling_on_i(nx, ny, nz, wx, wy, wz, rolling_radius, normal, mu_r, kr, eta_r, share, history, p, o, commit, dt):
     """Rolling-resistance torque on i (the torque on j is its negative) and dissipated power, for
     relative spin w = w_i - w_j and rolling radius R*."""

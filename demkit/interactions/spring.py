@@ -24,7 +24,7 @@ import math
 
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..motion import HELPER_OPTIONS
 
 #: history values per spring: displacement (3) and the stiffness at the last update
 HISTORY = 4
@@ -32,7 +32,7 @@ HISTORY = 4
 EPSILON = 1e-10
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**HELPER_OPTIONS)
 def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, share, history, p, o, commit, dt):
     """Force (3 values) and dissipated power of the spring-dashpot-slider for rate (tx, ty, tz) and
     force limit ``limit``; reads history[p, o:o+4] and writes it when ``commit``. ``share`` 1 keeps
@@ -87,7 +87,7 @@ def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, share, history, p, o, co
     return fx, fy, fz, power
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**HELPER_OPTIONS)
 def spring_energy(history, p, o):
     """Elastic energy k |xi|^2 / 2 stored in a spring."""
     sx = history[p, o]
@@ -96,7 +96,7 @@ def spring_energy(history, p, o):
     return 0.5 * history[p, o + 3] * (sx * sx + sy * sy + sz * sz)
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**HELPER_OPTIONS)
 def release(history, p, o, springs, dt):
     """A contact that has ended keeps no displacement (``springs`` springs of HISTORY values); the
     energy its springs still held is dissipated: returns it as a power over the step."""
