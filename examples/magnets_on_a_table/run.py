@@ -24,9 +24,9 @@ HERE = Path(__file__).resolve().parent
 
 # The balls: sintered NdFeB, nickel plated, as sold in 5 mm magnetic-ball puzzles.
 R = 2.5e-3  # radius, m (5 mm diameter)
-DENSITY = 7500.0  # kg/m^3, sintered NdFeB (7.4-7.6 g/cm^3 in makers' data sheets)
-REMANENCE = 1.3  # T, grade N42-N45 (Br 1.28-1.37 T)
-YOUNG, POISSON = 160e9, 0.24  # Pa and -, sintered NdFeB (data sheets give 150-160 GPa, 0.24)
+DENSITY = 7500.0  # kg/m^3, sintered NdFeB (makers' data sheets: 7.5 g/cm^3)
+REMANENCE = 1.3  # T, between grades N42 (Br 1.28-1.32 T) and N45 (1.32-1.38 T)
+YOUNG, POISSON = 160e9, 0.24  # Pa and -, sintered NdFeB (data sheets: 1.6e11 N/m^2, 0.24)
 RESTITUTION = 0.5  # normal restitution of a ball-ball and ball-table impact (a chosen, plausible value)
 FRICTION = 0.3  # sliding friction coefficient, ball on ball and ball on table
 ROLLING = 0.02  # ball on ball rolling resistance: the largest rolling torque is ROLLING * R* * F_n
