@@ -289,6 +289,8 @@ def test_colour_fields():
     assert plan(source, color_by=values).colouring.values(1)[7] == 7
     assert plan(source, color_by=np.stack([values, 2 * values])).colouring.values(1)[7] == 14
     assert plan(source, color_by="velocity").colouring.title == "velocity (magnitude)"
+    assert plan(source, color_by=values).colouring.title == "value"
+    assert plan(source, color_by=values, color_label="angle (deg)").colouring.title == "angle (deg)"
     colours = speed.rgb(np.array([0.0, 0.02, np.nan]))
     assert colours[0].tolist() == [68, 1, 84] and colours[1].tolist() == [253, 231, 36]
     assert colours[2].tolist() == [128, 128, 128]
@@ -305,6 +307,7 @@ def test_bad_drawing_arguments_are_clear_value_errors(tmp_path):
              (dict(bounds=(0, 1, 0, 1)), "6 finite numbers"),
              (dict(bounds=(0, 1, 2, 1, 0, 1)), "min < max"),
              (dict(zoom=0), "zoom must be a positive"),
+             (dict(color_label=3), "color_label must be a string"),
              (dict(zoom="near"), "zoom must be a positive"),
              (dict(frame="box"), "needs a source with a box"),
              (dict(frame="middle"), "frame must be one of"),

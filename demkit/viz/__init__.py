@@ -51,6 +51,7 @@ DRAWING = """
         (m_z/|m|, the z component of the unit moment, -1..1), 'radius', the name of a point field
         of the source ('velocity', 'angular_velocity', 'force', 'torque': magnitudes; 'mass'), or
         an (N,) or (T, N) array of values. A colour bar shows the field.
+    color_label : the colour bar's title (default: the field's name; 'value' for an array).
     cmap : a matplotlib colour map name (default 'viridis'; 'coolwarm' for 'dipole').
     clim : (low, high) colour range (default: the range over the frames shown).
     subset : the spheres to draw: indices (into the particle axis of the source), a boolean mask
@@ -72,7 +73,7 @@ def _plan(frames, shown, **style):
 
 def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size=(1024, 768),
              background="white", arrows=True, view="auto", label=True, frame="auto", bounds=None,
-             zoom=1.0, color_by=None, cmap=None, clim=None, subset=None):
+             zoom=1.0, color_by=None, color_label=None, cmap=None, clim=None, subset=None):
     """Draw one frame of ``source`` to an image file (PNG, JPEG, ... by the suffix of ``path``).
 
     time : draw the frame nearest this simulation time (overrides ``frame_index``, default the last).
@@ -96,7 +97,7 @@ def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size
         k = frame_index % n
     plan = _plan(frames, np.array([k]), trail=trail, window_size=window_size, background=background,
                  arrows=arrows, view=view, label=label, frame=frame, bounds=bounds, zoom=zoom,
-                 color_by=color_by, cmap=cmap, clim=clim, subset=subset)
+                 color_by=color_by, color_label=color_label, cmap=cmap, clim=clim, subset=subset)
     ensure_rendering()
     drawer = FrameDrawer(plan)
     try:
@@ -109,7 +110,7 @@ def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size
 
 def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None, window_size=(800, 600),
             background="white", arrows=True, view="auto", label=True, frame="auto", bounds=None,
-            zoom=1.0, color_by=None, cmap=None, clim=None, subset=None):
+            zoom=1.0, color_by=None, color_label=None, cmap=None, clim=None, subset=None):
     """Render the frames of ``source`` to an animation, ``path`` ending in .gif or .mp4.
 
     max_frames : at most this many frames, evenly chosen from those in ``time_range``
@@ -132,7 +133,7 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None
         index = index[np.unique(np.round(np.linspace(0, len(index) - 1, int(max_frames))).astype(int))]
     plan = _plan(frames, index, trail=trail, window_size=window_size, background=background,
                  arrows=arrows, view=view, label=label, frame=frame, bounds=bounds, zoom=zoom,
-                 color_by=color_by, cmap=cmap, clim=clim, subset=subset)
+                 color_by=color_by, color_label=color_label, cmap=cmap, clim=clim, subset=subset)
     ensure_rendering()
     drawer = FrameDrawer(plan)
     try:

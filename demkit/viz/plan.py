@@ -357,7 +357,7 @@ class Style:
 
     def __init__(self, trail=None, window_size=(960, 720), background="white", arrows=True,
                  view="auto", label=True, frame="auto", bounds=None, zoom=1.0, color_by=None,
-                 cmap=None, clim=None, subset=None, sphere_resolution=None):
+                 cmap=None, clim=None, subset=None, sphere_resolution=None, color_label=None):
         if view not in ("auto", "xy", "xz", "yz", "iso"):
             raise ValueError(f"view must be 'auto', 'xy', 'xz', 'yz' or 'iso', got {view!r}")
         if trail is not None and (not np.isfinite(trail) or trail < 0):
@@ -371,7 +371,10 @@ class Style:
         self.trail, self.window_size, self.background = trail, tuple(window_size), background
         self.arrows, self.view, self.label = arrows, view, label
         self.frame, self.bounds, self.zoom = check_frame(frame), check_bounds(bounds), check_zoom(zoom)
+        if color_label is not None and not isinstance(color_label, str):
+            raise ValueError(f"color_label must be a string, got {color_label!r}")
         self.color_by, self.cmap, self.clim, self.subset = color_by, cmap, clim, subset
+        self.color_label = color_label
         self.sphere_resolution = sphere_resolution
 
 
@@ -402,6 +405,8 @@ class Plan:
         self.framing = Framing(frames, style.frame, style.bounds, self.mask, span, reach, style.subset)
         self.colouring = Colouring(frames, style.color_by, style.cmap, style.clim, shown, self.in_view,
                                    self.mask)
+        if style.color_label is not None:
+            self.colouring.title = style.color_label
         self.view = style.view
         if self.view == "auto":  # a plane view when the framed centres lie in a plane
             flat = int(np.argmin(self.framing.extent))

@@ -226,7 +226,8 @@ def main(argv=None):
     movie, picture = args.output / "table.gif", args.output / "final.png"
     # Top view of every ball, coloured by the direction of its moment in the table's plane, in
     # degrees (a cyclic colour map: a ring shows every colour once).
-    look = dict(view="xy", frame="all", color_by=dipole_angle(writer.pvd), cmap="twilight", clim=(-180, 180))
+    look = dict(view="xy", frame="all", color_by=dipole_angle(writer.pvd), cmap="twilight", clim=(-180, 180),
+                color_label="azimuth (deg)")
     try:
         dk.viz.animate(writer.pvd, movie, max_frames=args.frames, fps=12, window_size=(600, 540),
                        trail=args.duration / 10, **look)
