@@ -18,16 +18,17 @@ binding them to local names makes numba count references at every use. It record
 ``first_step + n + 1``) and returns -1, or the index n of the step after which the run stopped.
 Per-particle arrays may be re-ordered or wrapped only in ``end_step``, between steps.
 
-Planned without rework: a 4th-order symplectic composition (velocity-Verlet sub-steps with
-Yoshida coefficients, same template shape), classic RK4 (stages on copies of the state arrays),
-an adaptive reference solver (scipy on ``forces_of``), and multiple time stepping (the kernel
-generator emits one ``forces_of`` per interaction group: stiff contacts inside, dipoles outside).
+Methods: :class:`EulerCromer` (order 1), :class:`VelocityVerlet` (2), :class:`ForestRuth` (4,
+symplectic composition of velocity-Verlet sub-steps) and :class:`RK4` (4, not symplectic; its
+stages work on copies of the state in ``s.stage``). The adaptive reference solver used as the truth
+is in :mod:`demkit.accuracy`.
 """
 from __future__ import annotations
 
 import math
 
-from .motion import advance_spin, drift, kick  # noqa: F401 (used by templates)
+from .motion import advance_spin, drift, kick, rk_finish, rk_save, rk_stage  # noqa: F401 (used by templates)
+
 
 
 def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, record):
@@ -61,18 +62,78 @@ def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, re
     return -1
 
 
+def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record):
+    w1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
+    w0 = 1.0 - 2.0 * w1
+    if not forces_ready:
+        forces_of(s, False)  # noqa: F821
+    countdown = stride - first_step % stride  # steps until the next recorded frame
+    for n in range(nsteps):
+        for k in range(3):
+            h = w0 * dt if k == 1 else w1 * dt
+            kick(s.velocity, s.force, s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, h)
+            drift(s.position, s.velocity, h)
+            s.accum[0] += h * forces_of(s, False)  # noqa: F821
+            kick(s.velocity, s.force, s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, 0.0)
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+        if countdown < 0:
+            return n
+    return -1
+
+
+def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
+    countdown = stride - first_step % stride  # steps until the next recorded frame
+    for n in range(nsteps):
+        rk_save(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole)
+        p1 = forces_of(s, False)  # noqa: F821
+        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
+                 s.inertia, 1.0 / 6.0, 0.5 * dt)
+        p2 = forces_of(s, False)  # noqa: F821
+        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
+                 s.inertia, 1.0 / 3.0, 0.5 * dt)
+        p3 = forces_of(s, False)  # noqa: F821
+        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
+                 s.inertia, 1.0 / 3.0, dt)
+        p4 = forces_of(s, False)  # noqa: F821
+        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
+                 s.inertia, 1.0 / 6.0, 0.0)
+        rk_finish(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, dt)
+        s.accum[0] += dt * (p1 + 2.0 * p2 + 2.0 * p3 + p4) / 6.0  # Simpson-like quadrature of the power
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+        if countdown < 0:
+            forces_of(s, False)  # noqa: F821 (forces of the state reached, for writers and diagnostics)
+            return n
+    forces_of(s, False)  # noqa: F821
+    return -1
+
+
 #: every loop template, compiled lazily into each scene's kernel module
 TEMPLATES = {
     "euler_cromer": euler_cromer_template,
     "velocity_verlet": velocity_verlet_template,
+    "forest_ruth": forest_ruth_template,
+    "rk4": rk4_template,
 }
 
 
 class Integrator:
-    """Base class: a fixed time step ``dt`` and the name of a loop template in :data:`TEMPLATES`."""
+    """Base class: a fixed time step ``dt`` and the name of a loop template in :data:`TEMPLATES`.
+
+    Class attributes: ``order`` (of the trajectory, for smooth forces), ``evaluations_per_step``
+    (force evaluations per step), ``symplectic``, ``stage_arrays`` ((N,3) working arrays the scene
+    must hold, :meth:`demkit.Scene.reserve_stages`) and ``history`` (whether it integrates
+    per-contact history: friction and rolling springs advance by one step at each force evaluation,
+    which only fits methods that evaluate forces once per step at increasing times).
+    """
 
     template = None
     order = None
+    evaluations_per_step = 1
+    symplectic = True
+    stage_arrays = 0
+    history = True
 
     def __init__(self, dt):
         dt = float(dt)
@@ -103,3 +164,37 @@ class VelocityVerlet(Integrator):
 
     template = "velocity_verlet"
     order = 2
+
+
+class ForestRuth(Integrator):
+    """Fourth-order symplectic composition (Forest & Ruth 1990; Yoshida 1990): three velocity-Verlet
+    sub-steps of w1 dt, w0 dt, w1 dt with w1 = 1/(2 - 2^(1/3)) = 1.3512, w0 = 1 - 2 w1 = -1.7024.
+
+    Three force evaluations per step; exact free rotation of the dipoles in every sub-step. Fourth
+    order for smooth conservative forces; the jumps of a dashpot at contact onset cap it, as they
+    cap every method (docs/accuracy.md). The middle sub-step runs backwards in time, so contact
+    history (friction, rolling resistance) is refused.
+    """
+
+    template = "forest_ruth"
+    order = 4
+    evaluations_per_step = 3
+    history = False
+
+
+class RK4(Integrator):
+    """Classic fourth-order Runge-Kutta, with the dipoles carried by Runge-Kutta-Munthe-Kaas: each
+    stage turns m0 by a rotation vector theta (exp(theta) m0, exact rotations, so |m| is kept to
+    round-off), whose rate is dexp^-1_theta(omega). Four force evaluations per step.
+
+    Not symplectic: over long conservative runs its energy error drifts instead of staying bounded
+    (kept for comparison). The dissipated work is summed with RK4's weights (b = 1/6, 1/3, 1/3, 1/6),
+    so the energy balance is fourth order too between contact events. No contact history.
+    """
+
+    template = "rk4"
+    order = 4
+    evaluations_per_step = 4
+    symplectic = False
+    stage_arrays = 9
+    history = False

@@ -611,7 +611,7 @@ class _Source:
         plan = self.plan
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
-                 "                           store_frame, clear, KERNEL_OPTIONS)",
+                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, KERNEL_OPTIONS)",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",

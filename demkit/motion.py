@@ -105,6 +105,85 @@ def advance_spin(angular_velocity, dipole, torque, inertia, kick_h, rotate_h):
 
 
 @njit(**KERNEL_OPTIONS)
+def rotation_rate(tx, ty, tz, wx, wy, wz):
+    """dexp^-1_theta(omega) = omega - (theta x omega)/2 + theta x (theta x omega)/12: the rate of the
+    rotation vector theta of a body turning at omega (series truncated after the terms RK4's
+    fourth order needs; exact for theta parallel to omega)."""
+    cx = ty * wz - tz * wy
+    cy = tz * wx - tx * wz
+    cz = tx * wy - ty * wx
+    return (wx - 0.5 * cx + (ty * cz - tz * cy) * (1.0 / 12), wy - 0.5 * cy + (tz * cx - tx * cz) * (1.0 / 12),
+            wz - 0.5 * cz + (tx * cy - ty * cx) * (1.0 / 12))
+
+
+@njit(**KERNEL_OPTIONS)
+def rk_save(stage, position, velocity, angular_velocity, dipole):
+    """Start an RK step: stage[0..3] = x0, v0, w0, m0; the sums stage[4..7] and theta stage[8] = 0."""
+    for i in range(position.shape[0]):
+        for a in range(3):
+            stage[0, i, a] = position[i, a]
+            stage[1, i, a] = velocity[i, a]
+            for k in range(4, 9):
+                stage[k, i, a] = 0.0
+    for i in range(angular_velocity.shape[0]):
+        for a in range(3):
+            stage[2, i, a] = angular_velocity[i, a]
+    for i in range(dipole.shape[0]):
+        for a in range(3):
+            stage[3, i, a] = dipole[i, a]
+
+
+@njit(**KERNEL_OPTIONS)
+def rk_stage(stage, position, velocity, angular_velocity, dipole, force, torque, mass, inertia, b, c):
+    """One Runge-Kutta-Munthe-Kaas stage after its forces: with the stage slopes k = (v, F/m, tau/I,
+    dexp^-1_theta(w)) add b k to the sums stage[4..7], and move the arrays to the next stage
+    x0 + c k, v0 + c k, w0 + c k, theta = c k, m = exp(theta) m0 (c: the next stage's step, 0 at
+    the last; stage[8] holds each sphere's theta)."""
+    for i in range(position.shape[0]):
+        inv = 1.0 / mass[i]
+        for a in range(3):
+            kx = velocity[i, a]
+            kv = force[i, a] * inv
+            stage[4, i, a] += b * kx
+            stage[5, i, a] += b * kv
+            position[i, a] = stage[0, i, a] + c * kx
+            velocity[i, a] = stage[1, i, a] + c * kv
+    dipoles = dipole.shape[0] > 0
+    for i in range(angular_velocity.shape[0]):
+        rate = rotation_rate(stage[8, i, 0], stage[8, i, 1], stage[8, i, 2], angular_velocity[i, 0],
+                             angular_velocity[i, 1], angular_velocity[i, 2])
+        inv = 1.0 / inertia[i]
+        for a in range(3):
+            kw = torque[i, a] * inv
+            stage[6, i, a] += b * kw
+            stage[7, i, a] += b * rate[a]
+            angular_velocity[i, a] = stage[2, i, a] + c * kw
+            stage[8, i, a] = c * rate[a]
+        if dipoles:
+            for a in range(3):
+                dipole[i, a] = stage[3, i, a]
+            rotate_one(dipole, stage[8], 1.0, i)
+
+
+@njit(**KERNEL_OPTIONS)
+def rk_finish(stage, position, velocity, angular_velocity, dipole, h):
+    """End an RK step: x = x0 + h sum(b k), likewise v and w, m = exp(h sum(b dexp^-1)) m0."""
+    for i in range(position.shape[0]):
+        for a in range(3):
+            position[i, a] = stage[0, i, a] + h * stage[4, i, a]
+            velocity[i, a] = stage[1, i, a] + h * stage[5, i, a]
+    dipoles = dipole.shape[0] > 0
+    for i in range(angular_velocity.shape[0]):
+        for a in range(3):
+            angular_velocity[i, a] = stage[2, i, a] + h * stage[6, i, a]
+            stage[8, i, a] = h * stage[7, i, a]
+        if dipoles:
+            for a in range(3):
+                dipole[i, a] = stage[3, i, a]
+            rotate_one(dipole, stage[8], 1.0, i)
+
+
+@njit(**KERNEL_OPTIONS)
 def state_is_finite(position, velocity, angular_velocity):
     """True if no position, velocity or angular velocity is NaN or inf."""
     s = 0.0

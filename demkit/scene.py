@@ -225,7 +225,7 @@ class Scene:
             thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)),
-            sphere_history=np.zeros((n, plan.effect_width)))
+            sphere_history=np.zeros((n, plan.effect_width)), stage=np.zeros((0, 0, 3)))
         self.arrays = fields
         values = [fields[name] for name in STATE_FIELDS]
         return State(*values) if growing else StateTuple(*values)
@@ -337,6 +337,17 @@ class Scene:
                 f"particles {p.ids[i[k]]} and {p.ids[j[k]]} overlap deeply: centre distance {r[k]:.6g} "
                 f"with radii {p.radius[i[k]]:.6g} and {p.radius[j[k]]:.6g} (overlap {overlap[k]:.3g} of the "
                 f"smaller radius; at most {MAX_INITIAL_OVERLAP} is accepted at the start)")
+
+    def reserve_stages(self, count):
+        """Give the kernels ``count`` (N,3) arrays of integrator working storage (``s.stage``; RK4
+        keeps 9), or none for ``count`` = 0: only a scene stepped by such an integrator holds them."""
+        stage = self.arrays["stage"]
+        n = len(self.particles)
+        if stage.shape[0] == count and (count == 0 or stage.shape[1] == n):
+            return
+        self.arrays["stage"] = np.zeros((count, n if count else 0, 3))
+        values = [self.arrays[name] for name in STATE_FIELDS]
+        self.state = State(*values) if self.plan.growing else StateTuple(*values)
 
     def set_time_step(self, dt):
         """Hand the integrator's time step to the interactions that need it (parameter "dt")."""

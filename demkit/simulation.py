@@ -113,6 +113,14 @@ class Simulation:
             raise ValueError(
                 f"time step dt = {integrator.dt:.6g} is too large for the stiffest contact: the largest "
                 f"safe value is {limit:.6g} (a tenth of the shortest contact duration)")
+        if not integrator.history:
+            kept = [inter for inter in scene.interactions + scene.effects if inter.history_size]
+            if kept:
+                raise ValueError(
+                    f"{type(integrator).__name__} cannot integrate per-contact history, which {kept[0]!r} keeps "
+                    f"(friction or rolling springs advance one step per force evaluation): use VelocityVerlet "
+                    f"or EulerCromer for this scene")
+        scene.reserve_stages(integrator.stage_arrays)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 
     def _steps(self, interval, what):

@@ -17,6 +17,9 @@ Hot loops never take these objects: they are compiled without reference counting
 plain arrays (``s.position``, ...), because numba's counting of array references costs more than
 a pair interaction when it happens in an inner loop.
 
+``stage`` is (K, N, 3) working storage of integrators that keep copies of the state within a step
+(RK4: K = 9), and (0, 0, 3) for the others: a scene holds it only while such an integrator uses it.
+
 Codes written to ``status[0]`` by the compiled loop (``status[1]`` holds the internal particle index,
 ``status[2]`` the global step): :data:`OK`, :data:`NON_FINITE`, :data:`MOVED_TOO_FAR`.
 """
@@ -38,7 +41,7 @@ PAIR_LIST_FIELDS = ("reach", "start", "end", "partner", "history", "bounds")
 STATE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia",
                 "tag", "image", "force", "torque", "accum", "params", "box", "periodic", "reference",
                 "skin", "status", "counters", "lists", "thread_force", "thread_torque", "thread_power",
-                "scratch", "gather", "sphere_history")
+                "scratch", "gather", "sphere_history", "stage")
 
 StateTuple = namedtuple("StateTuple", STATE_FIELDS)
 PairListTuple = namedtuple("PairListTuple", PAIR_LIST_FIELDS)
