@@ -1,7 +1,7 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
 from . import units
 from .box import Box
-from .integrators import RK4, EulerCromer, ForestRuth, Integrator, VelocityVerlet
+from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet
 from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, MagnetField, PairInteraction,
                            PowerLawDipole, RollingResistance, SphereInteraction, UniformField, Wall)
 from .particles import Particles
@@ -16,6 +16,6 @@ __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
-           "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4",
+           "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build"]

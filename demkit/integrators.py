@@ -27,7 +27,10 @@ from __future__ import annotations
 
 import math
 
-from .motion import advance_spin, drift, kick, rk_finish, rk_save, rk_stage  # noqa: F401 (used by templates)
+import numpy as np
+
+from .motion import add_rows, advance_spin, drift, kick, rk_finish, rk_save, rk_stage  # noqa: F401 (templates)
+from .state import INNER_STEPS  # noqa: F401 (used by templates)
 
 
 
@@ -109,12 +112,45 @@ def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     return -1
 
 
+def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s, record):
+    # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque (kept between chunks)
+    inner = s.counters[INNER_STEPS]  # noqa: F821
+    h = dt / inner
+    if not forces_ready:
+        slow_forces_of(s, s.stage[0], s.stage[1], False)  # noqa: F821
+        fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
+    countdown = stride - first_step % stride  # steps until the next recorded frame
+    for n in range(nsteps):
+        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
+        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        for m in range(inner):
+            kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, h)
+            drift(s.position, s.velocity, h)
+            s.accum[0] += h * fast_forces_of(s, s.stage[2], s.stage[3], True)  # noqa: F821
+            kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, 0.0)
+        s.accum[0] += dt * slow_forces_of(s, s.stage[0], s.stage[1], True)  # noqa: F821
+        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
+        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+        if countdown < 0:
+            add_rows(s.force, s.stage[0], s.stage[2])
+            add_rows(s.torque, s.stage[1], s.stage[3])
+            return n
+    # the total force and torque, for writers and diagnostics
+    add_rows(s.force, s.stage[0], s.stage[2])
+    add_rows(s.torque, s.stage[1], s.stage[3])
+    return -1
+
+
 #: every loop template, compiled lazily into each scene's kernel module
 TEMPLATES = {
     "euler_cromer": euler_cromer_template,
     "velocity_verlet": velocity_verlet_template,
     "forest_ruth": forest_ruth_template,
     "rk4": rk4_template,
+    "multiple_time_step": multiple_time_step_template,
 }
 
 
@@ -135,11 +171,29 @@ class Integrator:
     stage_arrays = 0
     history = True
 
+    #: inner steps per step (only multiple time stepping has more than one)
+    inner = 1
+
     def __init__(self, dt):
         dt = float(dt)
         if not math.isfinite(dt) or dt <= 0:
             raise ValueError(f"time step dt must be a positive finite number, got {dt}")
         self.dt = dt
+
+    @property
+    def contact_step(self):
+        """The step the stiff forces are integrated with (and contact history advances by)."""
+        return self.dt / self.inner
+
+    def check(self, scene):
+        """Raise ValueError if this method cannot integrate ``scene``."""
+        if not self.history:
+            kept = [inter for inter in scene.interactions + scene.effects if inter.history_size]
+            if kept:
+                raise ValueError(
+                    f"{type(self).__name__} cannot integrate per-contact history, which {kept[0]!r} keeps "
+                    f"(friction or rolling springs advance one step per force evaluation): use VelocityVerlet "
+                    f"or EulerCromer for this scene")
 
     def __repr__(self):
         return f"{type(self).__name__}(dt={self.dt!r})"
@@ -198,3 +252,42 @@ class RK4(Integrator):
     symplectic = False
     stage_arrays = 9
     history = False
+
+
+class MultipleTimeStep(Integrator):
+    """Multiple time stepping (r-RESPA, Tuckerman, Berne & Martyna 1992): the slow forces (dipoles,
+    ``Interaction.slow``) kick on the outer step ``dt``, the fast ones (contacts, walls, gravity,
+    fields) drive ``inner`` velocity-Verlet sub-steps of dt/inner in between:
+
+        kick_slow(dt/2) [kick_fast(h/2) drift(h) kick_fast(h/2)] x inner  kick_slow(dt/2),  h = dt/inner.
+
+    Symmetric and symplectic, second order. Each step costs ``inner`` fast force evaluations and one
+    slow one: where dipoles dominate the cost (dense magnetic scenes), dt can grow to what the
+    dipoles need while the contacts keep their short step. Contact history advances by the inner
+    step. Slow forces are assumed smooth: with dt much longer than their own time scale, resonances
+    of r-RESPA appear (keep dt below a third of the fastest dipolar period).
+    """
+
+    template = "multiple_time_step"
+    order = 2
+    stage_arrays = 4
+
+    def __init__(self, dt, inner=4):
+        super().__init__(dt)
+        if isinstance(inner, bool) or not isinstance(inner, (int, np.integer)) or inner < 1:
+            raise ValueError(f"inner must be a whole number of sub-steps >= 1, got {inner!r}")
+        self.inner = int(inner)
+
+    @property
+    def evaluations_per_step(self):
+        """Force evaluations per step: ``inner`` fast ones and a slow one (counted as one each)."""
+        return self.inner + 1
+
+    def check(self, scene):
+        slow_history = [inter for inter in scene.interactions if inter.slow and inter.history_size]
+        if slow_history:
+            raise ValueError(f"{slow_history[0]!r} is a slow interaction that keeps history: "
+                             f"MultipleTimeStep evaluates slow forces once per outer step and cannot advance it")
+
+    def __repr__(self):
+        return f"MultipleTimeStep(dt={self.dt!r}, inner={self.inner})"

@@ -377,9 +377,10 @@ class _Source:
                     + self.blocked_loop(group, indent, first, last, force, torque, out, gather))
         return self.force_loop(group, indent, first, last, force, torque)
 
-    def group_forces(self, g, group):
+    def group_forces(self, g, group, name=None):
+        name = name or f"group_{g}"
         signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
-        lines = ["", "", "@njit(**INNER)", f"def group_{g}_forces({signature}):",
+        lines = ["", "", "@njit(**INNER)", f"def {name}_forces({signature}):",
                  f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
         lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
         lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
@@ -387,7 +388,7 @@ class _Source:
         if not group.parallel:
             return lines
         lines += ["", "", "@njit(**PARALLEL)",
-                  f"def group_{g}_forces_parallel({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
+                  f"def {name}_forces_parallel({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
                   '    """As the serial loop, owners cut into fixed chunks: chunk 0 adds into force/torque, the',
                   '    others into buffers of their own, summed in chunk order (the same result for any number',
                   '    of threads)."""']
@@ -486,9 +487,51 @@ class _Source:
         return lines
 
     # ---- scene-level functions -----------------------------------------------------------------
-    def group_call(self, g, group, kind, targets, extra):
+    def group_call(self, g, group, kind, targets, extra, name=None):
         args = _state_arrays(g, scratch=kind.startswith("forces")).format(targets=targets)
-        return f"group_{g}_{kind}({args}{extra})"
+        return f"{name or f'group_{g}'}_{kind}({args}{extra})"
+
+    def parts(self):
+        """The fast and slow parts of each group, for multiple time stepping: (g, name, subgroup,
+        speed) for every group holding both kinds of interaction (a group of one kind is used whole).
+        Empty unless the scene has slow interactions without history next to fast ones."""
+        plan = self.plan
+        slow = [inter.slow for inter in plan.interactions]
+        if not any(slow):
+            return []
+        if any(inter.slow and inter.history_size for inter in plan.interactions):
+            return []  # refused by MultipleTimeStep (slow forces cannot keep per-step history)
+        out = []
+        for g, group in enumerate(plan.groups):
+            kinds = {inter.slow for _, inter in group.members}
+            if len(kinds) == 2:
+                for speed in ("fast", "slow"):
+                    members = [(k, inter) for k, inter in group.members if inter.slow == (speed == "slow")]
+                    out.append((g, f"group_{g}_{speed}", Group(members, group.kind, group.reach, group.parallel),
+                                speed))
+        return out
+
+    def force_calls(self, speed):
+        """Statements adding the forces of the groups (or group parts) of one speed ('fast', 'slow'
+        or None: all) into force/torque and their dissipated power into ``power``."""
+        plan = self.plan
+        split = {g: (name, sub) for g, name, sub, s in self.parts() if s == speed}
+        lines = []
+        for g, group in enumerate(plan.groups):
+            name, sub = None, group
+            if speed is not None:
+                if g in split:
+                    name, sub = split[g]
+                elif any(inter.slow != (speed == "slow") for _, inter in group.members):
+                    continue
+            if sub.parallel:
+                extra = f", commit, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
+                lines.append("    power += " + self.group_call(g, sub, "forces_parallel", "force, torque, ", extra, name))
+            else:
+                lines.append("    power += " + self.group_call(g, sub, "forces", "force, torque, ", ", commit", name))
+        if plan.effects and speed != "slow":
+            lines.append(f"    power += sphere_forces({_state_fields()}, force, torque, s.sphere_history, commit)")
+        return lines
 
     def scene_functions(self):
         plan = self.plan
@@ -525,7 +568,9 @@ class _Source:
             lines += [f"    permute_vectors(s.{name}, order, vectors)" for name in
                       ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
             lines += [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
-            lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)"]
+            lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
+                      "    for k in range(s.stage.shape[0]):  # integrators' arrays that outlive a step",
+                      "        permute_vectors(s.stage[k], order, vectors)"]
             if plan.effect_width:
                 lines.append("    permute_rows(s.sphere_history, order)")
             for g in plan.lists:
@@ -539,19 +584,17 @@ class _Source:
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
         if plan.lists:
             lines.append("    maintain_lists(s, strict)")
-        lines += ["    clear(force, torque)", "    power = 0.0"]
-        for g, group in enumerate(plan.groups):
-            if group.parallel:
-                extra = f", commit, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
-                lines.append("    power += " + self.group_call(g, group, "forces_parallel", "force, torque, ", extra))
-            else:
-                lines.append("    power += " + self.group_call(g, group, "forces", "force, torque, ", ", commit"))
-        if plan.effects:
-            lines.append(f"    power += sphere_forces({spheres}, force, torque, s.sphere_history, commit)")
+        lines += ["    clear(force, torque)", "    power = 0.0"] + self.force_calls(None)
         lines += ["    return power",
                   "", "", "@njit(**OUTER)", "def forces_of(s, commit):",
                   '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""',
                   "    return compute_forces(s, s.force, s.torque, commit, True)"]
+        for speed in ("fast", "slow"):  # multiple time stepping: compiled only when called
+            lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(s, force, torque, commit):",
+                      f'    """The {speed} forces and torques only (see Interaction.slow) into force/torque."""']
+            if plan.lists:
+                lines.append("    maintain_lists(s, True)")
+            lines += ["    clear(force, torque)", "    power = 0.0"] + self.force_calls(speed) + ["    return power"]
         # energies
         lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
@@ -611,11 +654,12 @@ class _Source:
         plan = self.plan
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
-                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, KERNEL_OPTIONS)",
+                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, add_rows, KERNEL_OPTIONS)",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",
-                 "from demkit.state import OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY",
+                 "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
+                 "                          INNER_STEPS)",
                  ""]
         if plan.growing and any(group.parallel for group in plan.groups):  # the per-step passes on threads
             lines += ["from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
@@ -642,6 +686,8 @@ class _Source:
                   f"LOOP = dict(cache={cache}, {fast}{nrt})"]
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group)
+        for g, name, sub, _ in self.parts():
+            lines += self.group_forces(g, sub, name)
         lines += self.scene_functions()
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))

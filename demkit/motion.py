@@ -211,6 +211,15 @@ def kinetic_energies(velocity, angular_velocity, mass, inertia):
 
 
 @njit(**KERNEL_OPTIONS)
+def add_rows(out, a, b):
+    """out = a + b, row by row (arrays of the same shape)."""
+    for i in range(out.shape[0]):
+        out[i, 0] = a[i, 0] + b[i, 0]
+        out[i, 1] = a[i, 1] + b[i, 1]
+        out[i, 2] = a[i, 2] + b[i, 2]
+
+
+@njit(**KERNEL_OPTIONS)
 def clear(force, torque):
     """Zero the force and torque arrays."""
     for i in range(force.shape[0]):

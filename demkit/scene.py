@@ -220,7 +220,7 @@ class Scene:
             box=self.box.size.copy() if self.box is not None else np.zeros(3),
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
             skin=self.skin, status=np.zeros(4, dtype=np.int64),
-            counters=np.array([0, 0, 0, 0, self.sort_every], dtype=np.int64),
+            counters=np.array([0, 0, 0, 0, self.sort_every, 1], dtype=np.int64),
             lists=tuple(lists), thread_force=np.zeros((max(threads - 1, 0), n, 3)),
             thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),

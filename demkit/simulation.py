@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 from .scene import energy_dict
-from .state import MOVED_TOO_FAR, OK, REBUILDS
+from .state import INNER_STEPS, MOVED_TOO_FAR, OK, REBUILDS
 
 
 class SimulationError(RuntimeError):
@@ -109,17 +109,13 @@ class Simulation:
         self.statistics = {}
         self._opened = False
         limit = scene.max_time_step()
-        if integrator.dt > limit:
+        step = integrator.contact_step
+        if step > limit:
+            which = "time step dt" if integrator.inner == 1 else "inner time step dt/inner"
             raise ValueError(
-                f"time step dt = {integrator.dt:.6g} is too large for the stiffest contact: the largest "
+                f"{which} = {step:.6g} is too large for the stiffest contact: the largest "
                 f"safe value is {limit:.6g} (a tenth of the shortest contact duration)")
-        if not integrator.history:
-            kept = [inter for inter in scene.interactions + scene.effects if inter.history_size]
-            if kept:
-                raise ValueError(
-                    f"{type(integrator).__name__} cannot integrate per-contact history, which {kept[0]!r} keeps "
-                    f"(friction or rolling springs advance one step per force evaluation): use VelocityVerlet "
-                    f"or EulerCromer for this scene")
+        integrator.check(scene)
         scene.reserve_stages(integrator.stage_arrays)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 
@@ -144,7 +140,8 @@ class Simulation:
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
         scene = self.scene
         scene.validate()
-        scene.set_time_step(dt)
+        scene.set_time_step(self.integrator.contact_step)
+        scene.counters[INNER_STEPS] = self.integrator.inner
         state = scene.state
         kern = scene.kernels
         scene.push()

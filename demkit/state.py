@@ -34,8 +34,9 @@ from numba.experimental import structref
 
 OK, NON_FINITE, MOVED_TOO_FAR = 0, 1, 2
 #: slots of ``State.counters``: list builds, rebuilt this step (wrap and maybe sort at its end),
-#: re-sorts, step of the last re-sort, steps between re-sorts
-REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY = 0, 1, 2, 3, 4
+#: re-sorts, step of the last re-sort, steps between re-sorts, inner steps per step of multiple
+#: time stepping
+REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY, INNER_STEPS = 0, 1, 2, 3, 4, 5
 
 PAIR_LIST_FIELDS = ("reach", "start", "end", "partner", "history", "bounds")
 STATE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia",

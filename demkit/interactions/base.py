@@ -97,6 +97,9 @@ class PairInteraction(Interaction):
     #: no force beyond r = R_i + R_j: when every interaction of a pair loop says so, the loop skips
     #: such pairs before any call or accumulation (a pair still holding history is passed to its law once more)
     contact_reach: bool = False
+    #: a smooth, slowly varying force (dipoles): :class:`demkit.MultipleTimeStep` evaluates it once
+    #: per outer step, the others (contacts, walls, gravity, fields) on every inner step
+    slow: bool = False
 
     def cutoff(self, particles):
         """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""

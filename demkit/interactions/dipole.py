@@ -211,6 +211,7 @@ class Dipole(PairInteraction):
     energy_kind = "magnetic"
     parameters = ("prefactor",)
     branch_free = True
+    slow = True
     force_function = dipole_force
     energy_function = dipole_energy
     #: (force, energy) pair functions of the switched form; their parameters are
