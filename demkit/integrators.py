@@ -144,6 +144,46 @@ def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s,
     return -1
 
 
+def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready, s, record):
+    # s.stage[0], [1]: half-step velocities and spins; s.stage[2, 0, 0]: the dissipated power at the
+    # last force evaluation (the trapezoidal rule sums the dissipated work)
+    tiny = 1e-6 * dt  # a crossing is stepped over in a sub-step this long
+    if not forces_ready:
+        s.stage[2, 0, 0] = forces_of(s, False)  # noqa: F821
+    countdown = stride - first_step % stride  # steps until the next recorded frame
+    for n in range(nsteps):
+        left = dt
+        events = 0
+        while left > 0.0:
+            h = left
+            if events < 8:  # at most 8 contact events per step are located; then plain sub-steps
+                tau = next_contact_event(s, left)  # noqa: F821
+                if tau < left:
+                    events += 1
+                    h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
+            kick(s.velocity, s.force, s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, h)
+            drift(s.position, s.velocity, h)
+            # the forces see velocities predicted to the end of the sub-step (second order for
+            # dashpots), then the half-step ones are restored for the closing kick
+            copy_vectors(s.stage[0], s.velocity)
+            copy_vectors(s.stage[1], s.angular_velocity)
+            kick(s.velocity, s.force, s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, 0.0)
+            power = forces_of(s, False)  # noqa: F821
+            s.accum[0] += 0.5 * h * (s.stage[2, 0, 0] + power)
+            s.stage[2, 0, 0] = power
+            copy_vectors(s.velocity, s.stage[0])
+            copy_vectors(s.angular_velocity, s.stage[1])
+            kick(s.velocity, s.force, s.mass, 0.5 * h)
+            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, 0.0)
+            left -= h
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+        if countdown < 0:
+            return n
+    return -1
+
+
 #: every loop template, compiled lazily into each scene's kernel module
 TEMPLATES = {
     "euler_cromer": euler_cromer_template,
@@ -151,6 +191,7 @@ TEMPLATES = {
     "forest_ruth": forest_ruth_template,
     "rk4": rk4_template,
     "multiple_time_step": multiple_time_step_template,
+    "velocity_verlet_events": velocity_verlet_events_template,
 }
 
 
@@ -214,10 +255,31 @@ class VelocityVerlet(Integrator):
 
     v += F/m dt/2, w += tau/I dt/2; x += v dt, dipoles rotate by |w| dt; new F, tau; v, w += dt/2.
     Velocity-dependent forces (dashpots) see the half-step velocities.
+
+    resolve_contacts : locate every contact onset and release within a step (:mod:`demkit.events`)
+        and end a sub-step there, stepping over the crossing itself in a sub-step of 1e-6 dt; the
+        forces see velocities predicted to the end of each sub-step (v + F/m h, so a dashpot is
+        second order too) and the dissipated work is summed by the trapezoidal rule. With it, the
+        state and the energy balance of colliding spheres converge at second order instead of
+        first, for one extra O(N) pass and an event search per step (all pairs in scenes without
+        neighbour lists, the contact list otherwise). Sphere-wall contacts are not located, and
+        contact history is refused (sub-steps of varying length).
     """
 
     template = "velocity_verlet"
     order = 2
+
+    def __init__(self, dt, resolve_contacts=False):
+        super().__init__(dt)
+        if resolve_contacts not in (True, False):
+            raise ValueError(f"resolve_contacts must be True or False, got {resolve_contacts!r}")
+        self.resolve_contacts = bool(resolve_contacts)
+        if self.resolve_contacts:
+            self.template, self.stage_arrays, self.history = "velocity_verlet_events", 3, False
+
+    def __repr__(self):
+        extra = ", resolve_contacts=True" if self.resolve_contacts else ""
+        return f"VelocityVerlet(dt={self.dt!r}{extra})"
 
 
 class ForestRuth(Integrator):

@@ -595,6 +595,21 @@ class _Source:
             if plan.lists:
                 lines.append("    maintain_lists(s, True)")
             lines += ["    clear(force, torque)", "    power = 0.0"] + self.force_calls(speed) + ["    return power"]
+        # contact events (VelocityVerlet(resolve_contacts=True)): compiled only when called
+        lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, horizon):",
+                  '    """Earliest time in (0, horizon] at which a pair of a contact law starts or stops',
+                  '    touching along the velocity-Verlet path (math.inf: none; see demkit.events)."""',
+                  "    earliest = math.inf"]
+        for g, group in enumerate(plan.groups):
+            if not any(inter.contact_reach for _, inter in group.members):
+                continue
+            args = "s.position, s.velocity, s.force, s.mass, s.radius, s.box, s.periodic"
+            if group.kind == "all":
+                lines.append(f"    earliest = min(earliest, earliest_crossing_all({args}, horizon))")
+            else:
+                lines.append(f"    earliest = min(earliest, earliest_crossing_list({args}, s.lists[{g}].start, "
+                             f"s.lists[{g}].end, s.lists[{g}].partner, horizon))")
+        lines.append("    return earliest")
         # energies
         lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
@@ -654,7 +669,9 @@ class _Source:
         plan = self.plan
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
-                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, add_rows, KERNEL_OPTIONS)",
+                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, add_rows, copy_vectors,",
+                 "                           KERNEL_OPTIONS)",
+                 "from demkit.events import earliest_crossing_all, earliest_crossing_list",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",

@@ -211,6 +211,15 @@ def kinetic_energies(velocity, angular_velocity, mass, inertia):
 
 
 @njit(**KERNEL_OPTIONS)
+def copy_vectors(out, a):
+    """out[:n] = a[:n] for (N,3) arrays, n the smaller length (an absent field is (0,3))."""
+    for i in range(min(out.shape[0], a.shape[0])):
+        out[i, 0] = a[i, 0]
+        out[i, 1] = a[i, 1]
+        out[i, 2] = a[i, 2]
+
+
+@njit(**KERNEL_OPTIONS)
 def add_rows(out, a, b):
     """out = a + b, row by row (arrays of the same shape)."""
     for i in range(out.shape[0]):
