@@ -100,3 +100,32 @@ def earliest_crossing_list(position, velocity, force, mass, radius, box, periodi
             if tau < earliest:
                 earliest = tau
     return earliest
+
+
+@njit(**KERNEL_OPTIONS)
+def earliest_wall_crossing(position, velocity, force, mass, radius, plane, nx, ny, nz, horizon):
+    """Earliest time in (0, horizon] at which a sphere starts or stops touching the wall
+    x.n = plane (its height (x.n - plane) passes R along the Verlet path), or math.inf."""
+    earliest = math.inf
+    for i in range(position.shape[0]):
+        h = position[i, 0] * nx + position[i, 1] * ny + position[i, 2] * nz - plane - radius[i]
+        u = velocity[i, 0] * nx + velocity[i, 1] * ny + velocity[i, 2] * nz
+        a = (force[i, 0] * nx + force[i, 1] * ny + force[i, 2] * nz) / mass[i]
+        if h - horizon * (abs(u) + 0.5 * horizon * abs(a)) > 0.0:
+            continue  # cannot reach the wall within the horizon
+        now = h < 0.0
+        if (h + horizon * u + 0.5 * horizon * horizon * a < 0.0) == now:
+            continue
+        low, high = 0.0, min(horizon, earliest)
+        if (h + high * u + 0.5 * high * high * a < 0.0) == now:
+            continue  # crosses, but after an event already found
+        for _ in range(BISECTIONS):
+            middle = 0.5 * (low + high)
+            if middle <= low or middle >= high:
+                break
+            if (h + middle * u + 0.5 * middle * middle * a < 0.0) == now:
+                low = middle
+            else:
+                high = middle
+        earliest = high
+    return earliest

@@ -262,8 +262,8 @@ class VelocityVerlet(Integrator):
         second order too) and the dissipated work is summed by the trapezoidal rule. With it, the
         state and the energy balance of colliding spheres converge at second order instead of
         first, for one extra O(N) pass and an event search per step (all pairs in scenes without
-        neighbour lists, the contact list otherwise). Sphere-wall contacts are not located, and
-        contact history is refused (sub-steps of varying length).
+        neighbour lists, the contact list otherwise, and every sphere against every wall).
+        Contact history is refused (sub-steps of varying length).
     """
 
     template = "velocity_verlet"

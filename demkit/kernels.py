@@ -609,6 +609,12 @@ class _Source:
             else:
                 lines.append(f"    earliest = min(earliest, earliest_crossing_list({args}, s.lists[{g}].start, "
                              f"s.lists[{g}].end, s.lists[{g}].partner, horizon))")
+        for e, effect in enumerate(plan.effects):
+            if getattr(effect, "plane_contact", False):  # walls: parameters plane, nx, ny, nz first
+                q = self.effect_slot[e]
+                lines.append(f"    earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, s.force, "
+                             f"s.mass, s.radius, s.params[{q}], s.params[{q + 1}], s.params[{q + 2}], "
+                             f"s.params[{q + 3}], horizon))")
         lines.append("    return earliest")
         # energies
         lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
@@ -671,7 +677,7 @@ class _Source:
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, add_rows, copy_vectors,",
                  "                           KERNEL_OPTIONS)",
-                 "from demkit.events import earliest_crossing_all, earliest_crossing_list",
+                 "from demkit.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",

@@ -109,3 +109,23 @@ def test_resolve_contacts_refuses_history_and_bad_values():
     with pytest.raises(ValueError, match="resolve_contacts must be True or False"):
         dk.VelocityVerlet(1e-3, resolve_contacts="yes")
     assert repr(dk.VelocityVerlet(0.5, resolve_contacts=True)) == "VelocityVerlet(dt=0.5, resolve_contacts=True)"
+
+
+def test_a_ball_bouncing_on_a_wall_under_gravity_converges_at_second_order():
+    def bounce(integrator):
+        p = dk.Particles(position=[[0.0, 0.0, 0.6]], velocity=[[0.3, 0.0, -1.0]], radius=0.5, mass=M)
+        floor = dk.Wall(point=(0, 0, 0), normal=(0, 0, 1))
+        scene = dk.Scene(p, [dk.KelvinVoigt(K, C), floor, dk.Gravity((0, 0, -1.0))])
+        traj = dk.Simulation(scene, integrator).run(1.5)  # three bounces
+        budget = traj.energy["total"] + traj.energy["dissipated"]
+        return traj.position[-1], abs(budget[-1] - budget[0])
+
+    reference, _ = bounce(dk.VelocityVerlet(1e-3 / 16, resolve_contacts=True))
+    runs = [bounce(dk.VelocityVerlet(dt, resolve_contacts=True)) for dt in (4e-3, 2e-3, 1e-3)]
+    errors = [np.abs(x - reference).max() for x, _ in runs]
+    # the wall contact's onset and release are located too: second order in state and balance
+    # (measured ratios 3.94-3.99; plain velocity Verlet: errors 1.4e-2, 3.4e-3, 1.8e-3, balance
+    # 2.1e-3, 9.2e-4, 3.3e-4: first order, 17x and 3x worse at dt = 1e-3)
+    assert [a / b for a, b in zip(errors, errors[1:])] == pytest.approx([4, 4], rel=0.15)
+    balances = [b for _, b in runs]
+    assert [a / b for a, b in zip(balances, balances[1:])] == pytest.approx([4, 4], rel=0.15)

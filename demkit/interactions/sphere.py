@@ -34,6 +34,9 @@ class SphereInteraction(Interaction):
     """Base class of single-sphere effects (subclass it to plug in new surroundings)."""
 
     energy_kind: str = "external"
+    #: a plane contact whose first four parameters are (plane, nx, ny, nz), the wall x.n = plane:
+    #: VelocityVerlet(resolve_contacts=True) locates the moments spheres reach and leave it
+    plane_contact: bool = False
 
     def bind(self, interactions):
         """Called by the scene with its pair interactions before anything else (walls find their

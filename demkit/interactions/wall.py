@@ -143,6 +143,7 @@ class Wall(SphereInteraction):
 
     dissipative = True
     energy_kind = "wall"
+    plane_contact = True
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None):
         self.point = vector("Wall point", point)
