@@ -677,13 +677,15 @@ class _Source:
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, add_rows, copy_vectors,",
                  "                           KERNEL_OPTIONS)",
-                 "from demkit.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
+                 "from demkit.events import earliest_crossing_all, earliest_crossing_list",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
                  "                          INNER_STEPS)",
                  ""]
+        if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
+            lines += ["from demkit.events import earliest_wall_crossing", ""]
         if plan.growing and any(group.parallel for group in plan.groups):  # the per-step passes on threads
             lines += ["from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
                       "                           advance_spin_threads as advance_spin,",
