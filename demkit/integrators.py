@@ -29,7 +29,8 @@ import math
 
 import numpy as np
 
-from .motion import add_rows, advance_spin, drift, kick, rk_finish, rk_save, rk_stage  # noqa: F401 (templates)
+from .motion import (add_rows, advance_spin, copy_vectors, drift, kick, rk_finish, rk_save,  # noqa: F401
+                     rk_stage)
 from .state import INNER_STEPS  # noqa: F401 (used by templates)
 
 
@@ -157,7 +158,7 @@ def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready
         while left > 0.0:
             h = left
             if events < 8:  # at most 8 contact events per step are located; then plain sub-steps
-                tau = next_contact_event(s, left)  # noqa: F821
+                tau = next_contact_event(s, s.force, left)  # noqa: F821
                 if tau < left:
                     events += 1
                     h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
@@ -184,6 +185,56 @@ def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready
     return -1
 
 
+def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_ready, s, record):
+    # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque; [4], [5]: half-step
+    # velocities and spins; [6, 0, 0]: the fast dissipated power at the last evaluation
+    inner = s.counters[INNER_STEPS]  # noqa: F821
+    tiny = 1e-6 * dt / inner  # a crossing is stepped over in a sub-step this long
+    if not forces_ready:
+        slow_forces_of(s, s.stage[0], s.stage[1], False)  # noqa: F821
+        s.stage[6, 0, 0] = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
+    countdown = stride - first_step % stride  # steps until the next recorded frame
+    for n in range(nsteps):
+        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
+        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        for m in range(inner):
+            left = dt / inner
+            events = 0
+            while left > 0.0:
+                h = left
+                if events < 8:
+                    tau = next_contact_event(s, s.stage[2], left)  # noqa: F821
+                    if tau < left:
+                        events += 1
+                        h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
+                kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
+                advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, h)
+                drift(s.position, s.velocity, h)
+                copy_vectors(s.stage[4], s.velocity)
+                copy_vectors(s.stage[5], s.angular_velocity)
+                kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
+                advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, 0.0)
+                power = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
+                s.accum[0] += 0.5 * h * (s.stage[6, 0, 0] + power)
+                s.stage[6, 0, 0] = power
+                copy_vectors(s.velocity, s.stage[4])
+                copy_vectors(s.angular_velocity, s.stage[5])
+                kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
+                advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, 0.0)
+                left -= h
+        s.accum[0] += dt * slow_forces_of(s, s.stage[0], s.stage[1], True)  # noqa: F821
+        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
+        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+        if countdown < 0:
+            add_rows(s.force, s.stage[0], s.stage[2])
+            add_rows(s.torque, s.stage[1], s.stage[3])
+            return n
+    add_rows(s.force, s.stage[0], s.stage[2])
+    add_rows(s.torque, s.stage[1], s.stage[3])
+    return -1
+
+
 #: every loop template, compiled lazily into each scene's kernel module
 TEMPLATES = {
     "euler_cromer": euler_cromer_template,
@@ -192,6 +243,7 @@ TEMPLATES = {
     "rk4": rk4_template,
     "multiple_time_step": multiple_time_step_template,
     "velocity_verlet_events": velocity_verlet_events_template,
+    "multiple_time_step_events": multiple_time_step_events_template,
 }
 
 
@@ -214,6 +266,8 @@ class Integrator:
 
     #: inner steps per step (only multiple time stepping has more than one)
     inner = 1
+    #: contact onsets and releases located (VelocityVerlet and MultipleTimeStep can)
+    resolve_contacts = False
 
     def __init__(self, dt):
         dt = float(dt)
@@ -328,17 +382,26 @@ class MultipleTimeStep(Integrator):
     dipoles need while the contacts keep their short step. Contact history advances by the inner
     step. Slow forces are assumed smooth: with dt much longer than their own time scale, resonances
     of r-RESPA appear (keep dt below a third of the fastest dipolar period).
+
+    resolve_contacts : the inner sub-steps as ``VelocityVerlet(resolve_contacts=True)``'s: contact
+        onsets and releases located, dashpots seeing predicted velocities, dissipated work by the
+        trapezoidal rule (no contact history then).
     """
 
     template = "multiple_time_step"
     order = 2
     stage_arrays = 4
 
-    def __init__(self, dt, inner=4):
+    def __init__(self, dt, inner=4, resolve_contacts=False):
         super().__init__(dt)
         if isinstance(inner, bool) or not isinstance(inner, (int, np.integer)) or inner < 1:
             raise ValueError(f"inner must be a whole number of sub-steps >= 1, got {inner!r}")
+        if resolve_contacts not in (True, False):
+            raise ValueError(f"resolve_contacts must be True or False, got {resolve_contacts!r}")
         self.inner = int(inner)
+        self.resolve_contacts = bool(resolve_contacts)
+        if self.resolve_contacts:
+            self.template, self.stage_arrays, self.history = "multiple_time_step_events", 7, False
 
     @property
     def evaluations_per_step(self):
@@ -346,10 +409,12 @@ class MultipleTimeStep(Integrator):
         return self.inner + 1
 
     def check(self, scene):
+        super().check(scene)
         slow_history = [inter for inter in scene.interactions if inter.slow and inter.history_size]
         if slow_history:
             raise ValueError(f"{slow_history[0]!r} is a slow interaction that keeps history: "
                              f"MultipleTimeStep evaluates slow forces once per outer step and cannot advance it")
 
     def __repr__(self):
-        return f"MultipleTimeStep(dt={self.dt!r}, inner={self.inner})"
+        extra = ", resolve_contacts=True" if self.resolve_contacts else ""
+        return f"MultipleTimeStep(dt={self.dt!r}, inner={self.inner}{extra})"

@@ -596,14 +596,14 @@ class _Source:
                 lines.append("    maintain_lists(s, True)")
             lines += ["    clear(force, torque)", "    power = 0.0"] + self.force_calls(speed) + ["    return power"]
         # contact events (VelocityVerlet(resolve_contacts=True)): compiled only when called
-        lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, horizon):",
+        lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
                   '    """Earliest time in (0, horizon] at which a pair of a contact law starts or stops',
-                  '    touching along the velocity-Verlet path (math.inf: none; see demkit.events)."""',
+                  '    touching along the velocity-Verlet path under ``force`` (math.inf: none; see demkit.events)."""',
                   "    earliest = math.inf"]
         for g, group in enumerate(plan.groups):
             if not any(inter.contact_reach for _, inter in group.members):
                 continue
-            args = "s.position, s.velocity, s.force, s.mass, s.radius, s.box, s.periodic"
+            args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
             if group.kind == "all":
                 lines.append(f"    earliest = min(earliest, earliest_crossing_all({args}, horizon))")
             else:
@@ -612,7 +612,7 @@ class _Source:
         for e, effect in enumerate(plan.effects):
             if getattr(effect, "plane_contact", False):  # walls: parameters plane, nx, ny, nz first
                 q = self.effect_slot[e]
-                lines.append(f"    earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, s.force, "
+                lines.append(f"    earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, force, "
                              f"s.mass, s.radius, s.params[{q}], s.params[{q + 1}], s.params[{q + 2}], "
                              f"s.params[{q + 3}], horizon))")
         lines.append("    return earliest")
