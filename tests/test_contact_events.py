@@ -129,3 +129,25 @@ def test_a_ball_bouncing_on_a_wall_under_gravity_converges_at_second_order():
     assert [a / b for a, b in zip(errors, errors[1:])] == pytest.approx([4, 4], rel=0.15)
     balances = [b for _, b in runs]
     assert [a / b for a, b in zip(balances, balances[1:])] == pytest.approx([4, 4], rel=0.15)
+
+
+def test_multiple_time_stepping_with_resolved_contacts_is_second_order_through_the_paper_collision():
+    collision = TwoMagnets(b_over_R=4.0, x0=40.0)
+    duration = collision.approach_time() + 300.0
+
+    def run(integrator):
+        traj = dk.Simulation(collision.scene(), integrator).run(duration)
+        budget = traj.energy["total"] + traj.energy["dissipated"]
+        return traj.position[-1], abs(budget[-1] - budget[0])
+
+    reference, _ = run(dk.VelocityVerlet(0.2 / 2**7, resolve_contacts=True))
+    runs = [run(dk.MultipleTimeStep(dt, inner=4, resolve_contacts=True)) for dt in (0.2, 0.1, 0.05)]
+    errors = [np.abs(x - reference).max() for x, _ in runs]
+    balances = [b for _, b in runs]
+    # second order in the outer step (measured ratios 4.05, 4.48 in state, 3.95, 3.96 in balance)
+    assert [a / b for a, b in zip(errors, errors[1:])] == pytest.approx([4, 4], rel=0.2)
+    assert [a / b for a, b in zip(balances, balances[1:])] == pytest.approx([4, 4], rel=0.1)
+    # the dipoles are slow here: four inner steps of 0.05 are as accurate as velocity Verlet at 0.05
+    # (measured 1.31e-2 and 1.30e-2 at 300 time units after the first contact)
+    same_step, _ = run(dk.VelocityVerlet(0.05, resolve_contacts=True))
+    assert errors[0] == pytest.approx(np.abs(same_step - reference).max(), rel=0.2)
