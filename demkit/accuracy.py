@@ -1015,10 +1015,15 @@ class WorkPrecision:
         import matplotlib.pyplot as plt
         if x not in ("seconds", "evaluations"):
             raise ValueError(f"x must be 'seconds' or 'evaluations', got {x!r}")
+        from matplotlib.ticker import NullFormatter
         measures = self.measures()
-        fig, axes = plt.subplots(1, len(measures), figsize=(4.2 * len(measures), 3.8), squeeze=False)
+        ncols = min(3, len(measures))
+        nrows = -(-len(measures) // ncols)
+        fig, axes = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 3.7 * nrows), squeeze=False)
+        for ax in axes.ravel()[len(measures):]:
+            ax.set_visible(False)
         methods = list(dict.fromkeys(r["method"] for r in self.rows))
-        for ax, measure in zip(axes[0], measures):
+        for ax, measure in zip(axes.ravel(), measures):
             key = MEASURES[measure][0]
             for method in methods:
                 rows = [r for r in self.rows if r["method"] == method and r["stable"] and not r.get("is_reference")
@@ -1032,7 +1037,8 @@ class WorkPrecision:
                                 xytext=(3, 3), textcoords="offset points")
             floor = self.floor(measure)
             if floor is not None and floor > 0:
-                ax.axhline(floor, color="grey", ls="--", lw=1, label="spread (chaos floor)")
+                ax.axhline(floor, color="grey", ls="--", lw=1, label="spread of perturbed references")
+            ax.xaxis.set_minor_formatter(NullFormatter())
             ax.set_xlabel("wall time [s]" if x == "seconds" else "force evaluations")
             label = {"energy": f"energy balance error / {self.energy_scale:.3g}"}.get(measure, MEASURES[measure][1])
             if measure == "observable":
@@ -1217,7 +1223,7 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
     for row, traj in zip(rows, runs):
         if not row["stable"] or traj is None or row["is_reference"]:
             continue
-        pos, vel = 0.0, 0.0
+        pos, vel = [], []
         dt = row["dt"]
         for t in times:
             tk = round(t / dt) * dt
@@ -1225,9 +1231,10 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
             x = traj.unwrapped()[k] if traj.image is not None else traj.position[k]
             xr, _ = _at(ref, traj.time[k])
             vr, _ = _at(ref, traj.time[k], "velocity")
-            pos = max(pos, float(np.max(np.linalg.norm(x - xr, axis=1))))
-            vel = max(vel, float(np.max(np.linalg.norm(traj.velocity[k] - vr, axis=1))))
-        row["position_error"], row["velocity_error"] = pos, vel
+            pos.append(float(np.max(np.linalg.norm(x - xr, axis=1))))
+            vel.append(float(np.max(np.linalg.norm(traj.velocity[k] - vr, axis=1))))
+        row["position_error"], row["velocity_error"] = max(pos), max(vel)
+        row["position_errors"], row["velocity_errors"] = pos, vel  # at each check time
         row["energy_error"] = float(np.max(_balance(traj))) / scale
         if conserves:
             row["angular_momentum_drift"] = float(np.max(np.linalg.norm(
@@ -1284,3 +1291,79 @@ def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, ob
         out["observable_range"] = float(np.ptp(finite)) if len(finite) > 1 else None
         out["observable_std"] = float(np.std(finite, ddof=1)) if len(finite) > 1 else None
     return out
+
+
+@dataclass
+class DtSuggestion:
+    """What :func:`suggest_dt` found: the time step (None when the pilot showed no convergence), the
+    fitted error model error = constant * dt^order * (duration / pilot)^growth, the pilot report
+    and an explanation."""
+
+    dt: float | None
+    order: float
+    constant: float
+    growth: float
+    predicted: float
+    report: WorkPrecision
+    message: str
+
+    def __str__(self):
+        return self.message
+
+
+def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", dt=None, duration=None,
+               reference="auto"):
+    """A time step for ``method`` to reach an error ``target`` in ``measure`` ("position",
+    "velocity", "energy" or "angular_momentum"), from a short pilot.
+
+    The pilot is a :func:`work_precision` run of ``pilot`` time units with dt, dt/2 and dt/4 (dt:
+    default half the scene's largest safe step). It fits error = C dt^p over the stable runs; for a
+    ``duration`` longer than the pilot, position and velocity errors are scaled by
+    (duration/pilot)^q, q fitted to how the finest pilot run's error grew over the pilot's check
+    times (clipped to [0, 3]). The suggestion is capped at the scene's largest safe step. This is
+    an extrapolation: errors that grow exponentially (chaotic scenes, many-body collisions) or jump
+    at events the pilot did not reach are not predicted; check with a work_precision run at the
+    suggested dt. Returns a :class:`DtSuggestion`.
+    """
+    if measure not in MEASURES or measure == "observable":
+        raise ValueError(f"measure must be one of position, velocity, energy, angular_momentum; got {measure!r}")
+    pilot = float(pilot)
+    limit = scene.max_time_step()
+    if dt is None:
+        if not math.isfinite(limit):
+            raise ValueError("this scene sets no largest safe time step: pass dt=...")
+        dt = 0.5 * limit
+    dts = [dt, dt / 2, dt / 4]
+    times = pilot * np.array([0.25, 0.5, 0.75, 1.0])
+    report = work_precision(scene, pilot, methods=[method], dts=dts, reference=reference, times=times)
+    key = MEASURES[measure][0]
+    rows = [r for r in report.rows if r["stable"] and not r["is_reference"] and math.isfinite(r[key]) and r[key] > 0]
+    if len(rows) < 2:
+        return DtSuggestion(None, math.nan, math.nan, math.nan, math.nan, report,
+                            f"the pilot gave fewer than two usable runs (stable, error > 0): {report.table()}")
+    x = np.log([r["dt"] for r in rows])
+    y = np.log([r[key] for r in rows])
+    order, log_c = np.polyfit(x, y, 1)
+    growth, factor = 0.0, 1.0
+    if duration is not None and float(duration) > pilot and measure in ("position", "velocity"):
+        finest = min(rows, key=lambda r: r["dt"])
+        per_time = np.array(finest[f"{measure}_errors"])
+        ok = per_time > 0
+        if ok.sum() >= 2:
+            growth = float(np.clip(np.polyfit(np.log(times[ok]), np.log(per_time[ok]), 1)[0], 0.0, 3.0))
+        factor = (float(duration) / pilot) ** growth
+    if order < 0.5:
+        return DtSuggestion(None, float(order), math.exp(log_c), growth, math.nan, report,
+                            f"the pilot's {measure} errors do not converge with dt (fitted order {order:.2f}): they "
+                            f"may be at round-off, chaotic or dominated by events; see the pilot report:\n"
+                            f"{report.table()}")
+    constant = math.exp(log_c)
+    suggested = (target / (constant * factor)) ** (1.0 / order)
+    capped = min(suggested, limit)
+    predicted = constant * capped ** order * factor
+    span = f" over {float(duration):.6g} (error growth ~ t^{growth:.2f} from the pilot)" if factor != 1.0 else ""
+    message = (f"{report.rows[0]['method']}: dt = {capped:.4g} for a {measure} error of about {predicted:.3g}{span} "
+               f"(pilot of {pilot:.6g}: error = {constant:.3g} dt^{order:.2f})")
+    if capped < suggested:
+        message += f"; capped at the scene's largest safe step {limit:.4g}"
+    return DtSuggestion(float(capped), float(order), constant, growth, predicted, report, message)
