@@ -27,7 +27,6 @@ from .interactions.hertz import Hertz
 from .interactions.wall import Wall
 from .scene import Scene, energy_dict
 from .simulation import Simulation, SimulationError, Trajectory
-from .state import REBUILDS
 
 #: the reference refuses scenes with more spheres (it integrates every coordinate in Python)
 MAX_PARTICLES = 200
@@ -1186,7 +1185,9 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
         ref = reference
         info = {"kind": "given", "description": f"the trajectory given ({len(ref)} frames)"}
     elif mode == "adaptive":
-        ref = _adaptive(scene, duration, times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
+        # runs end on whole steps, which may lie a little beyond duration
+        horizon = max([duration] + all_check)
+        ref = _adaptive(scene, horizon, times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
         info = {"kind": "adaptive", "description": f"adaptive DOP853, rtol={rtol:g} ({ref.evaluations} force "
                                                    f"evaluations, {ref.restarts} restarts at events, "
                                                    f"{ref.seconds:.3g} s)",
@@ -1271,8 +1272,8 @@ def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, ob
         p.position = p.position + step
         fresh = copy_scene(scene, p)
         if mode == "adaptive":
-            other = reference(fresh, duration, times=np.unique(np.concatenate([[0.0], all_check, frame_grid])),
-                              rtol=rtol)
+            other = reference(fresh, max([duration] + list(all_check)),
+                              times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
         else:
             other, _, _, _, message = _run(fresh, best[1], dt, duration, all_check, record_every)
             if message:

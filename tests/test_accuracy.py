@@ -73,7 +73,7 @@ def test_reference_matches_the_analytic_kelvin_voigt_impact(no_tension):
         assert speed == pytest.approx(restitution(K, C, M_EFF) * U, rel=1e-10)
     e = ref.energy
     balance = np.abs(e["total"] + e["dissipated"] - e["total"][0] - e["dissipated"][0]).max()
-    assert balance < 1e-10 * e["kinetic"][0]  # measured 6e-12 of the initial kinetic energy
+    assert balance < 1e-10 * e["kinetic"][0]  # measured 7e-12 of the initial kinetic energy
     assert e["dissipated"][-1] > 0.1 * e["kinetic"][0]  # the dashpot did dissipate (restitution 0.8)
     assert ref.restarts == len(ref.events) and ref.evaluations > 0
 
@@ -155,7 +155,7 @@ def test_reference_conserves_energy_and_angular_momentum(smooth_reference):
     ref = smooth_reference
     e = ref.energy
     scale = np.abs(e["magnetic"]).max()
-    # rtol 1e-12: measured 1e-13 of the largest |magnetic energy|
+    # rtol 1e-12: measured 1.4e-12 of the largest |magnetic energy|, 4e-14 of |L|, 2e-12 of |m|
     assert np.abs(e["total"] - e["total"][0]).max() < 1e-10 * scale
     L = ref.angular_momentum
     assert np.abs(L - L[0]).max() < 1e-10 * np.linalg.norm(L[0])
@@ -236,3 +236,11 @@ def test_suggest_dt_meets_the_target_on_the_smooth_pair():
     error = np.linalg.norm(run.position[-1] - truth.position[-1], axis=1).max()
     # an extrapolation from a quarter of the run (measured 1.5e-6 for 1e-6): within a factor 3
     assert target / 3 < error < 3 * target
+
+
+def test_runs_ending_past_duration_on_a_whole_step_are_compared_there():
+    # 4.0 / 0.045 = 88.9: the run takes 89 steps and ends at 4.005; its check time is 4.005
+    report = dk.accuracy.work_precision(smooth_scene(), SMOOTH_T, methods=[dk.VelocityVerlet], dts=[0.045, 0.0225])
+    assert all(r["stable"] for r in report.rows)
+    coarse, fine = report.rows
+    assert 3.5 < coarse["position_error"] / fine["position_error"] < 4.5  # second order at the shifted times
