@@ -244,3 +244,33 @@ def test_runs_ending_past_duration_on_a_whole_step_are_compared_there():
     assert all(r["stable"] for r in report.rows)
     coarse, fine = report.rows
     assert 3.5 < coarse["position_error"] / fine["position_error"] < 4.5  # second order at the shifted times
+
+
+def test_reference_wall_impact_matches_the_closed_form():
+    """A sphere hitting a Kelvin-Voigt wall: the pair formulas with m* = m (the wall is immovable)."""
+    p = dk.Particles(position=[[0, 0, 1.05]], velocity=[[0, 0, -0.1]], radius=1.0, mass=1.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(K, C), dk.Wall((0, 0, 0), (0, 0, 1))])
+    ref = dk.accuracy.reference(scene, 6.0)
+    assert [e["kind"] for e in ref.events] == ["wall contact", "wall contact"]
+    onset, release = ref.events[0]["time"], ref.events[1]["time"]
+    assert onset == pytest.approx(0.5, abs=1e-11)
+    # measured 2e-12 and 8e-12 relative
+    assert release - onset == pytest.approx(contact_duration(K, C, 1.0), rel=1e-10)
+    assert ref.velocity[-1, 0, 2] == pytest.approx(0.1 * restitution(K, C, 1.0), rel=1e-10)
+
+
+class ThreeStageVerlet(dk.VelocityVerlet):
+    """A stand-in for another team's integrator: declares its cost and order, runs velocity Verlet."""
+
+    evaluations_per_step = 3
+    order = 4
+
+
+def test_work_precision_takes_any_integrator_and_its_declared_cost():
+    report = dk.accuracy.work_precision(smooth_scene(), SMOOTH_T, dts=[0.04, 0.02], reference="finest",
+                                        methods={"EC": dk.EulerCromer, "three": lambda dt: ThreeStageVerlet(dt)})
+    assert [r["method"] for r in report.rows] == ["EC", "EC", "three", "three"]
+    assert [r["evaluations"] for r in report.rows] == [100, 200, 300, 600]
+    # the finest run of the highest declared order is the reference
+    assert report.reference["method"] == "three" and report.rows[-1]["is_reference"]
+    assert math.isnan(report.rows[-1]["position_error"]) and report.rows[2]["position_error"] > 0
