@@ -274,3 +274,19 @@ def test_work_precision_takes_any_integrator_and_its_declared_cost():
     # the finest run of the highest declared order is the reference
     assert report.reference["method"] == "three" and report.rows[-1]["is_reference"]
     assert math.isnan(report.rows[-1]["position_error"]) and report.rows[2]["position_error"] > 0
+
+
+def test_reference_sphere_on_a_fixed_sphere_and_hertz_restitution():
+    # a fixed sphere has infinite mass in the kernels: the pair formulas with m* = m, and it stays put
+    p = dk.Particles(position=[[0, 0, 0], [2.1, 0, 0]], velocity=[[0, 0, 0], [-0.1, 0, 0]], radius=1.0,
+                     fixed=np.array([True, False]))
+    ref = dk.accuracy.reference(dk.Scene(p, [dk.KelvinVoigt(K, C)]), 6.0, times=np.linspace(0, 6, 7))
+    assert np.array_equal(ref.position[:, 0], np.zeros((7, 3)))
+    assert ref.velocity[-1, 1, 0] == pytest.approx(0.1 * restitution(K, C, 1.0), rel=1e-10)  # measured 8e-13
+    # Hertz: its dashpot is clamped at zero force before the overlap closes (an event), and the
+    # restitution it comes out with is the one its damping was calibrated for (scipy, rtol 1e-11)
+    p = dk.Particles(position=[[-1.001, 0, 0], [1.001, 0, 0]], velocity=[[0.1, 0, 0], [-0.1, 0, 0]], radius=1.0)
+    ref = dk.accuracy.reference(dk.Scene(p, [dk.Hertz(young=1e4, poisson=0.3, restitution=0.7)]), 1.0)
+    assert [e["kind"] for e in ref.events] == ["contact", "dashpot clamp", "contact"]
+    speed = ref.velocity[-1, 1, 0] - ref.velocity[-1, 0, 0]
+    assert speed == pytest.approx(0.7 * 0.2, rel=1e-8)  # measured 8e-11
