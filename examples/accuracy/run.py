@@ -6,7 +6,7 @@ velocity Verlet against demkit.accuracy's adaptive reference.
 Two reports, both on dk.two_magnets.TwoMagnets(b_over_R=4.0) (the paper's settings):
 
 * approach: the first 24000 time units, before the first contact (dipole forces only, smooth);
-* collision: the whole 60000 time units (24 bounces, then the barbell turns), with the final spin
+* collision: the whole 60000 time units (23 bounces, then the pair sticks and turns), with the final spin
   omega_f as the observable, and the spread of references started 1e-9 apart (``--samples``).
 
 Writes, under DIR (default: the repository root), docs/figures/accuracy/{approach,collision}.png and
