@@ -257,18 +257,20 @@ class _Switches:
             d = d - np.round(d / np.where(eq.periodic, eq.size, 1.0)) * size
         return d
 
-    def build(self, y):
-        """Items of the switching functions that can change sign before a sphere moves skin/2."""
+    def build(self, y, skin=None):
+        """Items of the switching functions that can change sign before a sphere moves skin/2
+        (``skin``: default :attr:`skin`; a larger one covers a step already taken)."""
         eq = self.eq
         x = eq.part(y, "position")
         self.anchor = x.copy()
+        self.reach = skin = self.skin if skin is None else float(skin)
         kinds, I, J, thresholds, extra = [], [], [], [], []
         if (self.contact or self.cutoffs) and len(self.all_i):
             d = self.separations(x, self.all_i, self.all_j)
             r = np.sqrt((d * d).sum(axis=1))
             reach = self.radius[self.all_i] + self.radius[self.all_j]
             if self.contact:
-                near = r - reach < self.skin
+                near = r - reach < skin
                 ci, cj = self.all_i[near], self.all_j[near]
                 kinds.append(np.full(len(ci), GAP)), I.append(ci), J.append(cj)
                 thresholds.append(reach[near]), extra.append(np.zeros(len(ci)))
@@ -278,7 +280,7 @@ class _Switches:
                     kinds.append(np.full(len(ki), KINK)), I.append(ki), J.append(kj)
                     thresholds.append((self.radius[ki] + self.radius[kj])), extra.append(np.full(len(ki), k))
             for rc in self.cutoffs:
-                near = np.abs(r - rc) < self.skin
+                near = np.abs(r - rc) < skin
                 kinds.append(np.full(int(near.sum()), CUTOFF)), I.append(self.all_i[near]), J.append(self.all_j[near])
                 thresholds.append(np.full(int(near.sum()), rc)), extra.append(np.zeros(int(near.sum())))
         spheres = np.flatnonzero(self.movable)
@@ -300,7 +302,33 @@ class _Switches:
 
     def moved_too_far(self, y):
         x = self.eq.part(y, "position")
-        return float(np.max(np.abs(x - self.anchor).sum(axis=1))) > 0.5 * self.skin if self.n else False
+        return float(np.max(np.abs(x - self.anchor).sum(axis=1))) > 0.5 * self.reach if self.n else False
+
+    def step_reach(self, y0, y1, h):
+        """A skin covering every pair that can have switched during the step y0 -> y1 of length h:
+        the normal skin plus twice the farthest any sphere can have gone from its start (the larger
+        of its displacement and its speed at either end times h, with a margin for curved paths)."""
+        eq = self.eq
+        x0, x1 = eq.part(y0, "position"), eq.part(y1, "position")
+        v0, v1 = eq.part(y0, "velocity"), eq.part(y1, "velocity")
+        reach = np.maximum(np.linalg.norm(x1 - x0, axis=1),
+                           h * np.maximum(np.linalg.norm(v0, axis=1), np.linalg.norm(v1, axis=1)))
+        return self.skin + 2.0 * 1.5 * float(np.max(reach)) if self.n else self.skin
+
+    def touching(self, y):
+        """False for the clamp items whose pair (or sphere and wall) no longer overlaps at y."""
+        out = np.ones(len(self.kind), dtype=bool)
+        x = self.eq.part(y, "position")
+        m = self.masks[KINK]
+        if len(m):
+            d = self.separations(x, self.i[m], self.j[m])
+            out[m] = np.sqrt((d * d).sum(axis=1)) < self.threshold[m]
+        m = self.masks[WALL_KINK]
+        if len(m):
+            planes = np.array([wall[0] for wall in self.walls])[self.j[m]]
+            normals = np.array([wall[1] for wall in self.walls])[self.j[m]]
+            out[m] = (x[self.i[m]] * normals).sum(axis=1) - planes < self.threshold[m]
+        return out
 
     def keys(self):
         return list(zip(self.kind.tolist(), self.i.tolist(), self.j.tolist(), self.extra.tolist()))
@@ -394,23 +422,27 @@ def _negative(g):
 
 
 def _grazing(g0, g1, d0, d1, h):
-    """Items whose cubic Hermite interpolant over the step changes sign inside although both ends
-    agree (a graze: the gap dips below zero and comes back within one step)."""
+    """(flags, extrema): items whose cubic Hermite interpolant over the step (from g and dg/dt at
+    both ends) changes sign inside although both ends agree (a graze: the gap dips below zero and
+    comes back within one step), and where in the step (fractions, NaN: none) its extrema lie."""
     c0, c1 = g0, h * d0
     c2 = 3.0 * (g1 - g0) - h * (2.0 * d0 + d1)
     c3 = 2.0 * (g0 - g1) + h * (d0 + d1)
     out = np.zeros(len(g0), dtype=bool)
+    extrema = np.full((len(g0), 2), np.nan)
     with np.errstate(all="ignore"):
-        a, b, c = 3.0 * c3, 2.0 * c2, c1
+        a, b, c = 3.0 * c3, 2.0 * c2, c1  # p'(s) = a s^2 + b s + c
         disc = b * b - 4.0 * a * c
         ok = np.isfinite(disc) & (disc >= 0)
-        root = np.sqrt(np.where(ok, disc, 0.0))
-        for sign in (1.0, -1.0):
-            s = np.where(np.abs(a) > 1e-300, (-b + sign * root) / (2.0 * a), -c / np.where(b != 0, b, np.inf))
-            inside = ok & (s > 0) & (s < 1)
+        # the stable pair of roots q/a and c/q (no cancellation when a is tiny, as for a quadratic g)
+        q = -0.5 * (b + np.copysign(np.sqrt(np.where(ok, disc, 0.0)), b))
+        for col, s in enumerate((q / a, c / q)):
+            inside = ok & np.isfinite(s) & (s > 0) & (s < 1)
             p = c0 + s * (c1 + s * (c2 + s * c3))
             out |= inside & (_negative(p) != _negative(g0))
-    return out & (_negative(g0) == _negative(g1)) & np.isfinite(d0) & np.isfinite(d1)
+            extrema[:, col] = np.where(inside, s, np.nan)
+    out &= (_negative(g0) == _negative(g1)) & np.isfinite(d0) & np.isfinite(d1)
+    return out, extrema
 
 
 # ---------------------------------------------------------------------------------------------
@@ -470,12 +502,20 @@ class _Reference:
                 raise RuntimeError(f"the reference solver failed at t = {tp:.9g}: {message}")
             tn, yn = solver.t, solver.y
             h = tn - tp
+            widened = sw.moved_too_far(yn)
+            if widened:  # a sphere went beyond the items' skin: redo the step's check with all the
+                # pairs it can have brought to a switch (chosen at the step's start)
+                sw.build(yp, sw.step_reach(yp, yn, h))
+                keys = None
+                g0, _, d0 = sw.values(yp, rates=True)
             g1, _, d1 = sw.values(yn, rates=True)
-            flagged = (_negative(g0) != _negative(g1)) | _grazing(g0, g1, d0, d1, h)
+            grazes, extrema = _grazing(g0, g1, d0, d1, h)
+            flagged = (_negative(g0) != _negative(g1)) | grazes
             dense = None
             if flagged.any():
                 dense = solver.dense_output()
-                hit = self.first_root(dense, tp, tn, g0, np.flatnonzero(flagged))
+                items = np.flatnonzero(flagged)
+                hit = self.first_root(dense, tp, tn, g0, items, extrema[items])
                 if hit is not None:
                     when, k = hit
                     if keys is None:
@@ -489,39 +529,51 @@ class _Reference:
                 return cache["d"]
             self.emit(tp, tn, yn, interpolant)
             last = getattr(solver, "h_abs", h)
-            if sw.moved_too_far(yn):
+            if widened or sw.moved_too_far(yn):
                 sw.build(yn)
                 keys = None
                 g1, _, d1 = sw.values(yn, rates=True)
             g0, d0 = g1, d1
         return solver.t, solver.y.copy(), last
 
-    def first_root(self, dense, tp, tn, g0, items):
+    def first_root(self, dense, tp, tn, g0, items, extrema):
         """(time, item) of the earliest sign change of the flagged items inside [tp, tn] on the
-        step's dense output, or None (a graze that the accurate interpolant does not confirm)."""
-        from scipy.optimize import brentq
+        step's dense output, or None (a graze that the accurate interpolant does not confirm). The
+        output is sampled at SAMPLES + 1 times and, for a graze, at the extremum of g near where its
+        Hermite cubic has one (``extrema``: fractions of the step), so a narrow dip is not missed."""
+        from scipy.optimize import brentq, minimize_scalar
         sw = self.switches
+        h = tn - tp
         ts = np.linspace(tp, tn, SAMPLES + 1)
         states = dense(ts)
         values = np.array([sw.values(states[:, s])[0][items] for s in range(SAMPLES + 1)])
         values[0] = g0[items]
         best = None
         for col, k in enumerate(items):
-            side = _negative(values[:, col])
-            change = np.flatnonzero(side[1:] != side[0])
-            if not len(change):
-                continue
-            s = int(change[0]) + 1
-            a, b = ts[s - 1], ts[s]
-            if best is not None and a >= best[0]:
-                continue
-            fa = values[s - 1, col]
             def f(t, k=k):
                 return sw.value(dense(t), k)
-            if fa == 0.0:
-                root = a
-            else:
-                root = brentq(f, a, b, xtol=4 * np.spacing(max(abs(a), abs(b))), rtol=8.9e-16)
+            old = _negative(g0[k])
+            times, gs = list(ts), list(values[:, col])
+            for fraction in extrema[col]:
+                if not math.isfinite(fraction):
+                    continue
+                centre = tp + fraction * h
+                lo, hi = max(tp, centre - 0.1 * h), min(tn, centre + 0.1 * h)
+                towards = 1.0 if not old else -1.0  # push g towards the other side
+                found = minimize_scalar(lambda t: towards * f(t), bounds=(lo, hi), method="bounded",
+                                        options={"xatol": 1e-13 * max(h, abs(tp))})
+                times.append(float(found.x))
+                gs.append(f(found.x))
+            order = np.argsort(times, kind="stable")
+            times, gs = np.array(times)[order], np.array(gs)[order]
+            change = np.flatnonzero(_negative(gs) != old)
+            if not len(change):
+                continue
+            s = int(change[0])
+            a, b = times[s - 1], times[s]
+            if best is not None and a >= best[0]:
+                continue
+            root = a if gs[s - 1] == 0.0 else brentq(f, a, b, xtol=4 * np.spacing(max(abs(a), abs(b))), rtol=8.9e-16)
             if best is None or root < best[0]:
                 best = (root, k)
         return best
@@ -559,7 +611,7 @@ class _Reference:
                 yc = y1 + eps * f_new
                 gc = sw.value(yc, k)
                 if _negative(gc) != old and abs(gc) >= 0.5 * margin:
-                    return t + remaining + eps, yc
+                    return t + remaining + eps, yc, t + remaining
             eps *= 2.0
         raise RuntimeError(f"the reference could not cross the {sw.describe(k)[0]} event at t = {t:.9g}")
 
@@ -597,12 +649,20 @@ class _Reference:
                 newton = self.distance(t, y, k, natural)
                 remaining = newton[0]
                 if close or 0.0 <= remaining <= 1e-2 * math.sqrt(self.rtol) * natural:
-                    what, ids, wall = self.switches.describe(k)
+                    sw = self.switches
+                    before = _negative(sw.values(y)[0])
                     t_old = t
-                    t, y = self.cross(t, y, k, natural, newton)
+                    t, y, when = self.cross(t, y, k, natural, newton)
                     self.emit(t_old, t, y, lambda: (lambda s: y))
                     self.restarts += 1
-                    self.events.append({"time": t, "kind": what, "particles": ids, "wall": wall})
+                    # this switch, and any other that switched at the same instant (a clamp only
+                    # counts while its pair still touches: beyond, its function means nothing)
+                    touching = sw.touching(y)
+                    changed = (before != _negative(sw.values(y)[0])) & touching
+                    changed[k] |= touching[k]
+                    for item in np.flatnonzero(changed) if changed.any() else [k]:
+                        what, ids, wall = sw.describe(item)
+                        self.events.append({"time": when, "kind": what, "particles": ids, "wall": wall})
                     step = None  # the law changed: let the solver choose its first step afresh
                     break
                 if 0.0 < remaining < math.inf:  # still some way off: Newton's estimate is the new bound

@@ -290,3 +290,23 @@ def test_reference_sphere_on_a_fixed_sphere_and_hertz_restitution():
     assert [e["kind"] for e in ref.events] == ["contact", "dashpot clamp", "contact"]
     speed = ref.velocity[-1, 1, 0] - ref.velocity[-1, 0, 0]
     assert speed == pytest.approx(0.7 * 0.2, rel=1e-8)  # measured 8e-11
+
+
+def test_reference_catches_grazes_within_one_step_and_simultaneous_contacts():
+    law = dk.KelvinVoigt(K, C)
+    # free flight past a sphere with an overlap of 1e-8 radii for 4e-4 time units, inside one
+    # adaptive step of several time units: found by the Hermite check of the gap
+    p = dk.Particles(position=[[0, 0, 0], [-5, 2.0 - 1e-8, 0]], velocity=[[0, 0, 0], [1.0, 0, 0]], radius=1.0)
+    ref = dk.accuracy.reference(dk.Scene(p, [law]), 10.0)
+    onset, release = (e["time"] for e in ref.events)
+    assert onset == pytest.approx(5.0 - math.sqrt(4.0 - (2.0 - 1e-8) ** 2), abs=1e-9)
+    assert 5.0 < release < 5.0003
+    p = dk.Particles(position=[[0, 0, 0], [-5, 2.0, 0]], velocity=[[0, 0, 0], [1.0, 0, 0]], radius=1.0)
+    assert dk.accuracy.reference(dk.Scene(p, [law]), 10.0).events == []  # touching exactly is no contact
+    # a sphere at rest hit from both sides at once: both contacts are events of the same restart
+    p = dk.Particles(position=[[-2.1, 0, 0], [0, 0, 0], [2.1, 0, 0]], velocity=[[0.1, 0, 0], [0, 0, 0], [-0.1, 0, 0]],
+                     radius=1.0)
+    ref = dk.accuracy.reference(dk.Scene(p, [law]), 10.0)
+    assert ref.restarts == 2 and [e["particles"] for e in ref.events] == [(0, 1), (1, 2)] * 2
+    assert np.allclose(ref.velocity[-1, :, 0], [-0.1 * restitution(K, C, 1.0), 0, 0.1 * restitution(K, C, 1.0)],
+                       rtol=1e-10, atol=1e-14)
