@@ -1,0 +1,1430 @@
+"""What accuracy costs: an adaptive reference solution and work-precision reports.
+
+:func:`reference` integrates a small scene's equations of motion with scipy's DOP853 (8th order,
+adaptive step) on the scene's own compiled forces, restarting exactly at every point where a force
+law is not smooth (a contact begins or ends, a dashpot's clamp engages, a plain cutoff is crossed),
+so that no DOP853 step straddles a jump. It is the truth against which fixed-step runs are measured.
+
+:func:`work_precision` runs a scene with several integrators and time steps from the same initial
+state and tabulates, for every run, its error against a reference (positions, velocities, the
+energy balance, angular momentum, an observable of your choice) against what it cost (wall time,
+force evaluations). ``report.suggest(target)`` names the cheapest run meeting a target;
+:func:`suggest_dt` proposes a time step from a short pilot. See docs/accuracy.md.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .integrators import EulerCromer, Integrator, VelocityVerlet
+from .interactions.contact import KelvinVoigt
+from .interactions.hertz import Hertz
+from .interactions.wall import Wall
+from .scene import Scene, energy_dict
+from .simulation import Simulation, SimulationError, Trajectory
+
+#: the reference refuses scenes with more spheres (it integrates every coordinate in Python)
+MAX_PARTICLES = 200
+#: an event is moved across its switching surface until its function is this far (relative to the
+#: function's scale) on the new side, so that the compiled law sees the new regime despite round-off
+CROSSING_MARGIN = 1e-12
+#: approach attempts of one event before the reference gives up
+MAX_APPROACHES = 40
+#: points at which the dense output of a flagged step is sampled to find the first sign change
+SAMPLES = 16
+
+
+# ---------------------------------------------------------------------------------------------
+# the equations of motion, on the scene's compiled forces
+# ---------------------------------------------------------------------------------------------
+class _Equations:
+    """y = [positions (unwrapped), velocities, angular velocities?, dipoles?, dissipated work], all
+    in the kernels' particle order; dy/dt from ``kernels.compute_forces`` at y."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        a = scene.arrays
+        self.state, self.kernels = scene.state, scene.kernels
+        self.n = n = len(scene.particles)
+        self.position, self.velocity = a["position"], a["velocity"]
+        self.omega = a["angular_velocity"] if a["angular_velocity"].shape[0] else None
+        self.dipole = a["dipole"] if a["dipole"].shape[0] else None
+        self.mass, self.inertia = a["mass"], a["inertia"]  # infinite for fixed spheres
+        self.tag = a["tag"]
+        self.periodic = np.array(scene.periodic, dtype=bool)
+        self.size = a["box"].copy()
+        self.force, self.torque = np.zeros((n, 3)), np.zeros((n, 3))
+        parts = [("position", 3 * n), ("velocity", 3 * n)]
+        if self.omega is not None:
+            parts.append(("angular_velocity", 3 * n))
+        if self.dipole is not None:
+            parts.append(("dipole", 3 * n))
+        parts.append(("dissipated", 1))
+        self.slices, start = {}, 0
+        for name, size in parts:
+            self.slices[name] = slice(start, start + size)
+            start += size
+        self.size_y = start
+        self.evaluations = 0
+        self.kinds = scene.energy_kinds
+        self._energies = np.zeros(2 + len(self.kinds))
+
+    def part(self, y, name):
+        s = self.slices[name]
+        return y[s] if name == "dissipated" else y[s].reshape(self.n, 3)
+
+    def initial(self):
+        """y from the kernels' arrays (positions unwrapped with the image counts)."""
+        y = np.zeros(self.size_y)
+        x = self.position.copy()
+        if self.periodic.any():
+            x += self.scene.arrays["image"] * np.where(self.periodic, self.size, 0.0)
+        y[self.slices["position"]] = x.ravel()
+        y[self.slices["velocity"]] = self.velocity.ravel()
+        if self.omega is not None:
+            y[self.slices["angular_velocity"]] = self.omega.ravel()
+        if self.dipole is not None:
+            y[self.slices["dipole"]] = self.dipole.ravel()
+        y[self.slices["dissipated"]] = self.scene.accum[0]
+        return y
+
+    def wrapped(self, x):
+        if not self.periodic.any():
+            return x
+        folded = x - np.floor(x / np.where(self.size > 0, self.size, 1.0)) * self.size
+        return np.where(self.periodic, folded, x)
+
+    def load(self, y):
+        """Write the state y into the kernels' arrays (periodic coordinates folded into the box)."""
+        self.position[...] = self.wrapped(self.part(y, "position"))
+        self.velocity[...] = self.part(y, "velocity")
+        if self.omega is not None:
+            self.omega[...] = self.part(y, "angular_velocity")
+        if self.dipole is not None:
+            self.dipole[...] = self.part(y, "dipole")
+
+    def __call__(self, t, y):
+        self.load(y)
+        power = self.kernels.compute_forces(self.state, self.force, self.torque, False, False)
+        self.evaluations += 1
+        dy = np.empty_like(y)
+        dy[self.slices["position"]] = y[self.slices["velocity"]]
+        dy[self.slices["velocity"]] = (self.force / self.mass[:, None]).ravel()
+        if self.omega is not None:
+            w = self.part(y, "angular_velocity")
+            dy[self.slices["angular_velocity"]] = (self.torque / self.inertia[:, None]).ravel()
+            if self.dipole is not None:
+                dy[self.slices["dipole"]] = np.cross(w, self.part(y, "dipole")).ravel()
+        elif self.dipole is not None:
+            dy[self.slices["dipole"]] = 0.0
+        dy[self.slices["dissipated"]] = power
+        return dy
+
+    def energies(self, y):
+        """[kinetic, rotational, potentials by kind] at y (the kernels' own energy sums)."""
+        self.load(y)
+        self.kernels.energies_of(self.state, self._energies)
+        return self._energies.copy()
+
+    def frame(self, y):
+        """(position folded, image, velocity, omega, dipole, energies, L) in the user's order."""
+        x = self.part(y, "position")
+        order = self.tag
+        def user(values):
+            out = np.empty_like(values)
+            out[order] = values
+            return out
+        image = None
+        position = x
+        if self.periodic.any():
+            length = np.where(self.size > 0, self.size, 1.0)
+            shift = np.where(self.periodic, np.floor(x / length), 0.0)
+            position = x - shift * self.size
+            image = user(shift.astype(np.int64))
+        v = self.part(y, "velocity")
+        finite = np.where(np.isfinite(self.mass), self.mass, 0.0)
+        momentum = np.cross(x, finite[:, None] * v).sum(axis=0)
+        omega = dipole = None
+        if self.omega is not None:
+            omega = self.part(y, "angular_velocity")
+            inertia = np.where(np.isfinite(self.inertia), self.inertia, 0.0)
+            momentum = momentum + (inertia[:, None] * omega).sum(axis=0)
+            omega = user(omega)
+        if self.dipole is not None:
+            dipole = user(self.part(y, "dipole"))
+        return (user(position), image, user(v), omega, dipole, self.energies(y), momentum)
+
+
+class _Borrowed:
+    """Lend a scene's kernel arrays to the reference and give them back as they were."""
+
+    NAMES = ("position", "velocity", "angular_velocity", "dipole", "image", "force", "torque", "accum",
+             "status", "counters")
+
+    def __init__(self, scene):
+        self.scene = scene
+
+    def __enter__(self):
+        scene = self.scene
+        scene.validate()
+        scene.push()
+        self.saved = {name: scene.arrays[name].copy() for name in self.NAMES}
+        p = scene.particles
+        self.user = {name: getattr(p, name).copy() for name in ("position", "velocity", "angular_velocity",
+                                                                   "dipole", "image")
+                     if getattr(p, name) is not None}
+        return _Equations(scene)
+
+    def __exit__(self, *exc):
+        scene = self.scene
+        for name, value in self.saved.items():
+            scene.arrays[name][...] = value
+        for name, value in self.user.items():
+            getattr(scene.particles, name)[...] = value
+        if scene.plan.lists:  # the lists were built around trial states: rebuild them at the restored one
+            scene.arrays["reference"][...] = np.inf
+        scene.push()
+        scene.arrays["counters"][...] = self.saved["counters"]
+        scene.arrays["status"][...] = self.saved["status"]
+        return False
+
+
+# ---------------------------------------------------------------------------------------------
+# where the force laws are not smooth
+# ---------------------------------------------------------------------------------------------
+GAP, CUTOFF, WALL, KINK, WALL_KINK = range(5)
+KIND_NAMES = {GAP: "contact", CUTOFF: "cutoff", WALL: "wall contact", KINK: "dashpot clamp",
+              WALL_KINK: "wall dashpot clamp"}
+
+
+def history_keepers(scene):
+    """Interactions and effects of the scene that keep per-contact (or per-sphere) history."""
+    return [inter for inter in tuple(scene.interactions) + tuple(scene.effects) if inter.history_size > 0]
+
+
+class _Switches:
+    """The switching functions g of a scene, as vectors over *items*: g changes sign exactly where a
+    force law changes regime. Convention: g >= 0 is the regime the compiled law uses when the
+    quantity is zero (out of contact, beyond the cutoff, unclamped dashpot)."""
+
+    def __init__(self, scene, eq, skin=None):
+        self.eq = eq
+        p = scene.particles
+        a = scene.arrays
+        self.radius = a["radius"]
+        self.movable = np.isfinite(eq.mass)
+        self.contact = any(inter.contact_reach for inter in scene.interactions)
+        self.cutoffs = sorted({float(inter.cutoff_distance) for inter in scene.interactions
+                               if inter.cutoff_distance is not None and getattr(inter, "switch_width", None) is None})
+        # dashpots whose force is clamped at zero: (law kind, parameters)
+        self.kinks = []
+        for inter in scene.interactions:
+            if isinstance(inter, KelvinVoigt) and inter.no_tension and inter.damping > 0:
+                self.kinks.append(("kv", inter.stiffness, inter.damping))
+            elif isinstance(inter, Hertz) and inter.gamma > 0:
+                self.kinks.append(("hertz", inter.young_eff, inter.gamma))
+        self.walls = []
+        for effect in scene.effects:
+            if isinstance(effect, Wall):
+                law = effect.law
+                kink = None
+                if isinstance(law, KelvinVoigt) and law.no_tension and law.damping > 0:
+                    kink = ("kv", law.stiffness, law.damping)
+                elif isinstance(law, Hertz) and law.gamma > 0:
+                    kink = ("hertz", effect.young_eff, law.gamma)
+                self.walls.append((effect.plane, effect.normal.copy(), kink))
+        n = len(p)
+        self.n = n
+        i, j = np.triu_indices(n, k=1)
+        keep = self.movable[i] | self.movable[j]
+        self.all_i, self.all_j = i[keep], j[keep]
+        self.skin = float(skin) if skin is not None else 0.5 * float(np.min(self.radius))
+        self.anchor = None
+        self.build(eq.initial())
+
+    # ---- geometry -----------------------------------------------------------------------------
+    def separations(self, x, i, j):
+        """x_j - x_i, minimum image along periodic axes."""
+        d = x[j] - x[i]
+        eq = self.eq
+        if eq.periodic.any():
+            size = np.where(eq.periodic, eq.size, 0.0)
+            d = d - np.round(d / np.where(eq.periodic, eq.size, 1.0)) * size
+        return d
+
+    def build(self, y, skin=None):
+        """Items of the switching functions that can change sign before a sphere moves skin/2
+        (``skin``: default :attr:`skin`; a larger one covers a step already taken)."""
+        eq = self.eq
+        x = eq.part(y, "position")
+        self.anchor = x.copy()
+        self.reach = skin = self.skin if skin is None else float(skin)
+        kinds, I, J, thresholds, extra = [], [], [], [], []
+        if (self.contact or self.cutoffs) and len(self.all_i):
+            d = self.separations(x, self.all_i, self.all_j)
+            r = np.sqrt((d * d).sum(axis=1))
+            reach = self.radius[self.all_i] + self.radius[self.all_j]
+            if self.contact:
+                near = r - reach < skin
+                ci, cj = self.all_i[near], self.all_j[near]
+                kinds.append(np.full(len(ci), GAP)), I.append(ci), J.append(cj)
+                thresholds.append(reach[near]), extra.append(np.zeros(len(ci)))
+                touching = r[near] < reach[near]
+                for k, kink in enumerate(self.kinks):
+                    ki, kj = ci[touching], cj[touching]
+                    kinds.append(np.full(len(ki), KINK)), I.append(ki), J.append(kj)
+                    thresholds.append((self.radius[ki] + self.radius[kj])), extra.append(np.full(len(ki), k))
+            for rc in self.cutoffs:
+                near = np.abs(r - rc) < skin
+                kinds.append(np.full(int(near.sum()), CUTOFF)), I.append(self.all_i[near]), J.append(self.all_j[near])
+                thresholds.append(np.full(int(near.sum()), rc)), extra.append(np.zeros(int(near.sum())))
+        spheres = np.flatnonzero(self.movable)
+        for w, (plane, normal, kink) in enumerate(self.walls):
+            kinds.append(np.full(len(spheres), WALL)), I.append(spheres), J.append(np.full(len(spheres), w))
+            thresholds.append(self.radius[spheres]), extra.append(np.zeros(len(spheres)))
+            if kink is not None:
+                h = x[spheres] @ normal - plane
+                on = spheres[h < self.radius[spheres]]
+                kinds.append(np.full(len(on), WALL_KINK)), I.append(on), J.append(np.full(len(on), w))
+                thresholds.append(self.radius[on]), extra.append(np.zeros(len(on)))
+        cat = (lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype))
+        self.kind = cat(kinds, np.int64)
+        self.i, self.j = cat(I, np.int64), cat(J, np.int64)
+        self.threshold = cat(thresholds, np.float64)
+        self.extra = cat(extra, np.int64)
+        self.masks = {k: np.flatnonzero(self.kind == k) for k in KIND_NAMES}
+        return self
+
+    def moved_too_far(self, y):
+        x = self.eq.part(y, "position")
+        return float(np.max(np.abs(x - self.anchor).sum(axis=1))) > 0.5 * self.reach if self.n else False
+
+    def step_reach(self, y0, y1, h):
+        """A skin covering every pair that can have switched during the step y0 -> y1 of length h:
+        the normal skin plus twice the farthest any sphere can have gone from its start (the larger
+        of its displacement and its speed at either end times h, with a margin for curved paths)."""
+        eq = self.eq
+        x0, x1 = eq.part(y0, "position"), eq.part(y1, "position")
+        v0, v1 = eq.part(y0, "velocity"), eq.part(y1, "velocity")
+        reach = np.maximum(np.linalg.norm(x1 - x0, axis=1),
+                           h * np.maximum(np.linalg.norm(v0, axis=1), np.linalg.norm(v1, axis=1)))
+        return self.skin + 2.0 * 1.5 * float(np.max(reach)) if self.n else self.skin
+
+    def touching(self, y):
+        """False for the clamp items whose pair (or sphere and wall) no longer overlaps at y."""
+        out = np.ones(len(self.kind), dtype=bool)
+        x = self.eq.part(y, "position")
+        m = self.masks[KINK]
+        if len(m):
+            d = self.separations(x, self.i[m], self.j[m])
+            out[m] = np.sqrt((d * d).sum(axis=1)) < self.threshold[m]
+        m = self.masks[WALL_KINK]
+        if len(m):
+            planes = np.array([wall[0] for wall in self.walls])[self.j[m]]
+            normals = np.array([wall[1] for wall in self.walls])[self.j[m]]
+            out[m] = (x[self.i[m]] * normals).sum(axis=1) - planes < self.threshold[m]
+        return out
+
+    def keys(self):
+        return list(zip(self.kind.tolist(), self.i.tolist(), self.j.tolist(), self.extra.tolist()))
+
+    def index(self, key):
+        hit = np.flatnonzero((self.kind == key[0]) & (self.i == key[1]) & (self.j == key[2]) & (self.extra == key[3]))
+        return int(hit[0]) if len(hit) else None
+
+    # ---- values -------------------------------------------------------------------------------
+    def values(self, y, rates=False):
+        """(g, scale, dg/dt) of every item at y; dg/dt only for the geometric items (NaN otherwise)
+        and only when ``rates``."""
+        eq = self.eq
+        x = eq.part(y, "position")
+        v = eq.part(y, "velocity")
+        g = np.zeros(len(self.kind))
+        scale = np.ones(len(self.kind))
+        dg = np.full(len(self.kind), np.nan) if rates else None
+        for kind in (GAP, CUTOFF, KINK):
+            m = self.masks[kind]
+            if not len(m):
+                continue
+            i, j = self.i[m], self.j[m]
+            d = self.separations(x, i, j)
+            r2 = (d * d).sum(axis=1)
+            thr = self.threshold[m]
+            if kind != KINK:
+                g[m] = r2 - thr * thr  # the kernels test r2 against reach^2 (or cutoff^2)
+                scale[m] = thr * thr
+                if rates:
+                    dg[m] = 2.0 * ((v[j] - v[i]) * d).sum(axis=1)
+                continue
+            r = np.sqrt(r2)
+            n = d / r[:, None]
+            overlap = thr - r
+            rate = -((v[j] - v[i]) * n).sum(axis=1)
+            for k, (law, a, b) in enumerate(self.kinks):
+                s = self.extra[m] == k
+                elastic, damped = self._normal(law, a, b, overlap[s], rate[s], i[s], j[s])
+                g[m[s]] = elastic + damped
+                scale[m[s]] = np.abs(elastic) + np.abs(damped)
+        for kind in (WALL, WALL_KINK):
+            m = self.masks[kind]
+            if not len(m):
+                continue
+            i, w = self.i[m], self.j[m]
+            planes = np.array([wall[0] for wall in self.walls])[w]
+            normals = np.array([wall[1] for wall in self.walls])[w]
+            h = (x[i] * normals).sum(axis=1) - planes
+            if kind == WALL:
+                g[m] = h - self.threshold[m]
+                scale[m] = self.threshold[m]
+                if rates:
+                    dg[m] = (v[i] * normals).sum(axis=1)
+                continue
+            overlap = self.threshold[m] - h
+            rate = -(v[i] * normals).sum(axis=1)
+            for idx in range(len(m)):
+                law, a, b = self.walls[w[idx]][2]
+                elastic, damped = self._normal(law, a, b, overlap[idx:idx + 1], rate[idx:idx + 1], i[idx:idx + 1],
+                                               None)
+                g[m[idx]] = elastic[0] + damped[0]
+                scale[m[idx]] = abs(elastic[0]) + abs(damped[0])
+        return g, scale, dg
+
+    def _normal(self, law, a, b, overlap, rate, i, j):
+        """(elastic, dashpot) parts of the unclamped normal force, as the compiled laws compute them."""
+        if law == "kv":
+            return a * overlap, b * rate
+        radius = self.radius[i] if j is None else self.radius[i] * self.radius[j] / (self.radius[i] + self.radius[j])
+        mass = self.eq.mass[i] if j is None else 1.0 / (1.0 / self.eq.mass[i] + 1.0 / self.eq.mass[j])
+        contact = np.sqrt(radius * np.maximum(overlap, 0.0))
+        elastic = 4.0 / 3.0 * a * contact * overlap
+        eta = b * np.sqrt(mass * 2.0 * a * contact)
+        return elastic, np.where(rate != 0.0, eta * rate, 0.0)
+
+    def value(self, y, k):
+        return self.values(y)[0][k]
+
+    def describe(self, k):
+        kind, i, j = int(self.kind[k]), int(self.i[k]), int(self.j[k])
+        ids = self.eq.scene.particles.ids
+        tag = self.eq.tag
+        if kind in (WALL, WALL_KINK):
+            return KIND_NAMES[kind], (int(ids[tag[i]]),), j
+        return KIND_NAMES[kind], (int(ids[tag[i]]), int(ids[tag[j]])), None
+
+
+def _negative(g):
+    return g < 0.0
+
+
+def _grazing(g0, g1, d0, d1, h):
+    """(flags, extrema): items whose cubic Hermite interpolant over the step (from g and dg/dt at
+    both ends) changes sign inside although both ends agree (a graze: the gap dips below zero and
+    comes back within one step), and where in the step (fractions, NaN: none) its extrema lie."""
+    c0, c1 = g0, h * d0
+    c2 = 3.0 * (g1 - g0) - h * (2.0 * d0 + d1)
+    c3 = 2.0 * (g0 - g1) + h * (d0 + d1)
+    out = np.zeros(len(g0), dtype=bool)
+    extrema = np.full((len(g0), 2), np.nan)
+    with np.errstate(all="ignore"):
+        a, b, c = 3.0 * c3, 2.0 * c2, c1  # p'(s) = a s^2 + b s + c
+        disc = b * b - 4.0 * a * c
+        ok = np.isfinite(disc) & (disc >= 0)
+        # the stable pair of roots q/a and c/q (no cancellation when a is tiny, as for a quadratic g)
+        q = -0.5 * (b + np.copysign(np.sqrt(np.where(ok, disc, 0.0)), b))
+        for col, s in enumerate((q / a, c / q)):
+            inside = ok & np.isfinite(s) & (s > 0) & (s < 1)
+            p = c0 + s * (c1 + s * (c2 + s * c3))
+            out |= inside & (_negative(p) != _negative(g0))
+            extrema[:, col] = np.where(inside, s, np.nan)
+    out &= (_negative(g0) == _negative(g1)) & np.isfinite(d0) & np.isfinite(d1)
+    return out, extrema
+
+
+# ---------------------------------------------------------------------------------------------
+# the driver
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class _Crossing:
+    t0: float  # start of the step in which it was found (a clean state)
+    y0: np.ndarray
+    time: float  # located event time
+    key: tuple
+    step: float  # the natural step size there
+
+
+class _Reference:
+    def __init__(self, eq, switches, rtol, atol, times):
+        from scipy.integrate import DOP853
+        self.DOP853 = DOP853
+        self.eq, self.switches = eq, switches
+        self.rtol, self.atol = rtol, atol
+        self.times = times
+        self.next_out = 0
+        self.out = []
+        self.steps = 0
+        self.restarts = 0
+        self.segments = 0
+        self.events = []
+
+    # outputs ------------------------------------------------------------------------------------
+    def emit(self, t0, t1, y1, dense):
+        """Record the requested times in (t0, t1] (dense: a callable for interior times)."""
+        while self.next_out < len(self.times) and self.times[self.next_out] <= t1:
+            t = self.times[self.next_out]
+            y = y1 if t == t1 else dense()(t)
+            self.out.append((t, np.array(y, dtype=np.float64)))
+            self.next_out += 1
+
+    # one stretch of smooth integration ----------------------------------------------------------
+    def segment(self, t0, y0, bound, first_step):
+        """Integrate from (t0, y0) towards ``bound``; return (t, y, step) at the bound or a _Crossing
+        for the first step in which a switching function changed sign (that step is discarded)."""
+        sw = self.switches
+        sw.build(y0)
+        keys = None
+        g0, _, d0 = sw.values(y0, rates=True)
+        self.segments += 1
+        if bound - t0 <= 0.0:
+            return t0, y0, first_step
+        if first_step is not None:
+            first_step = min(first_step, bound - t0)
+        solver = self.DOP853(self.eq, t0, y0, bound, rtol=self.rtol, atol=self.atol, first_step=first_step)
+        last = first_step
+        while solver.status == "running":
+            tp, yp = solver.t, solver.y.copy()
+            message = solver.step()
+            if solver.status == "failed":
+                raise RuntimeError(f"the reference solver failed at t = {tp:.9g}: {message}")
+            tn, yn = solver.t, solver.y
+            h = tn - tp
+            widened = sw.moved_too_far(yn)
+            if widened:  # a sphere went beyond the items' skin: redo the step's check with all the
+                # pairs it can have brought to a switch (chosen at the step's start)
+                sw.build(yp, sw.step_reach(yp, yn, h))
+                keys = None
+                g0, _, d0 = sw.values(yp, rates=True)
+            g1, _, d1 = sw.values(yn, rates=True)
+            grazes, extrema = _grazing(g0, g1, d0, d1, h)
+            flagged = (_negative(g0) != _negative(g1)) | grazes
+            dense = None
+            if flagged.any():
+                dense = solver.dense_output()
+                items = np.flatnonzero(flagged)
+                hit = self.first_root(dense, tp, tn, g0, items, extrema[items])
+                if hit is not None:
+                    when, k = hit
+                    if keys is None:
+                        keys = sw.keys()
+                    return _Crossing(tp, yp, when, keys[k], h)
+            self.steps += 1
+            cache = {}
+            def interpolant():
+                if "d" not in cache:
+                    cache["d"] = dense if dense is not None else solver.dense_output()
+                return cache["d"]
+            self.emit(tp, tn, yn, interpolant)
+            last = getattr(solver, "h_abs", h)
+            if widened or sw.moved_too_far(yn):
+                sw.build(yn)
+                keys = None
+                g1, _, d1 = sw.values(yn, rates=True)
+            g0, d0 = g1, d1
+        return solver.t, solver.y.copy(), last
+
+    def first_root(self, dense, tp, tn, g0, items, extrema):
+        """(time, item) of the earliest sign change of the flagged items inside [tp, tn] on the
+        step's dense output, or None (a graze that the accurate interpolant does not confirm). The
+        output is sampled at SAMPLES + 1 times and, for a graze, at the extremum of g near where its
+        Hermite cubic has one (``extrema``: fractions of the step), so a narrow dip is not missed."""
+        from scipy.optimize import brentq, minimize_scalar
+        sw = self.switches
+        h = tn - tp
+        ts = np.linspace(tp, tn, SAMPLES + 1)
+        states = dense(ts)
+        values = np.array([sw.values(states[:, s])[0][items] for s in range(SAMPLES + 1)])
+        values[0] = g0[items]
+        best = None
+        for col, k in enumerate(items):
+            def f(t, k=k):
+                return sw.value(dense(t), k)
+            old = _negative(g0[k])
+            times, gs = list(ts), list(values[:, col])
+            for fraction in extrema[col]:
+                if not math.isfinite(fraction):
+                    continue
+                centre = tp + fraction * h
+                lo, hi = max(tp, centre - 0.1 * h), min(tn, centre + 0.1 * h)
+                towards = 1.0 if not old else -1.0  # push g towards the other side
+                found = minimize_scalar(lambda t: towards * f(t), bounds=(lo, hi), method="bounded",
+                                        options={"xatol": 1e-13 * max(h, abs(tp))})
+                times.append(float(found.x))
+                gs.append(f(found.x))
+            order = np.argsort(times, kind="stable")
+            times, gs = np.array(times)[order], np.array(gs)[order]
+            change = np.flatnonzero(_negative(gs) != old)
+            if not len(change):
+                continue
+            s = int(change[0])
+            a, b = times[s - 1], times[s]
+            if best is not None and a >= best[0]:
+                continue
+            root = a if gs[s - 1] == 0.0 else brentq(f, a, b, xtol=4 * np.spacing(max(abs(a), abs(b))), rtol=8.9e-16)
+            if best is None or root < best[0]:
+                best = (root, k)
+        return best
+
+    # crossing an event -----------------------------------------------------------------------------
+    def distance(self, t, y, k, step):
+        """Newton estimate of the time left until item k changes sign (backward difference of g)."""
+        sw = self.switches
+        f = self.eq(t, y)
+        g = sw.value(y, k)
+        tau = 1e-6 * step
+        rate = (g - sw.value(y - tau * f, k)) / tau
+        if rate == 0.0 or not math.isfinite(rate):
+            return math.inf, f, rate
+        return -g / rate, f, rate
+
+    def cross(self, t, y, k, step, newton):
+        """Move from (t, y), just before item k's switching surface, to just beyond it: first order
+        with the old law up to the surface (``newton``: the :meth:`distance` there), then a tiny
+        interval with the new law, so that the next solver starts inside the new regime (error
+        O(interval^2))."""
+        sw = self.switches
+        remaining, f_old, rate = newton
+        remaining = max(remaining, 0.0) if math.isfinite(remaining) else 0.0
+        y1 = y + remaining * f_old
+        g1, scale, _ = sw.values(y1)
+        old = _negative(sw.value(y, k))
+        margin = CROSSING_MARGIN * scale[k]
+        eps = margin / abs(rate) if rate and math.isfinite(rate) else 1e-12 * step
+        eps = max(eps, 4 * np.spacing(t + remaining + step))
+        for _ in range(80):
+            probe = y1 + eps * f_old
+            if _negative(sw.value(probe, k)) != old:
+                f_new = self.eq(t, probe)
+                yc = y1 + eps * f_new
+                gc = sw.value(yc, k)
+                if _negative(gc) != old and abs(gc) >= 0.5 * margin:
+                    return t + remaining + eps, yc, t + remaining
+            eps *= 2.0
+        raise RuntimeError(f"the reference could not cross the {sw.describe(k)[0]} event at t = {t:.9g}")
+
+    def run(self, duration):
+        eq = self.eq
+        t, y = 0.0, eq.initial()
+        self.emit(-math.inf, 0.0, y, None)
+        step = None
+        while t < duration:
+            result = self.segment(t, y, duration, step)
+            if not isinstance(result, _Crossing):
+                t, y, step = result
+                continue
+            natural = result.step
+            crossing = result
+            for _ in range(MAX_APPROACHES):  # redo the straddling step in clean pieces up to the event
+                tp, yp, key = crossing.t0, crossing.y0, crossing.key
+                tiny = 64 * np.spacing(max(abs(tp), natural))
+                # stop a hair before the located root, so that the clean pieces end on the old side
+                bound = crossing.time - 1e-9 * (crossing.time - tp) - tiny
+                close = bound - tp <= tiny
+                if not close:
+                    result = self.segment(tp, yp, bound, min(natural, bound - tp))
+                    if isinstance(result, _Crossing):
+                        crossing = result  # the same (or an earlier) event, from a shorter straddle
+                        continue
+                    t, y, _ = result
+                else:
+                    t, y = tp, yp
+                    self.switches.build(y)
+                k = self.switches.index(key)
+                if k is None:  # no longer a candidate: nothing to cross
+                    step = natural
+                    break
+                newton = self.distance(t, y, k, natural)
+                remaining = newton[0]
+                if close or 0.0 <= remaining <= 1e-2 * math.sqrt(self.rtol) * natural:
+                    sw = self.switches
+                    before = _negative(sw.values(y)[0])
+                    t_old = t
+                    t, y, when = self.cross(t, y, k, natural, newton)
+                    self.emit(t_old, t, y, lambda: (lambda s: y))
+                    self.restarts += 1
+                    # this switch, and any other that switched at the same instant (a clamp only
+                    # counts while its pair still touches: beyond, its function means nothing)
+                    touching = sw.touching(y)
+                    changed = (before != _negative(sw.values(y)[0])) & touching
+                    changed[k] |= touching[k]
+                    for item in np.flatnonzero(changed) if changed.any() else [k]:
+                        what, ids, wall = sw.describe(item)
+                        self.events.append({"time": when, "kind": what, "particles": ids, "wall": wall})
+                    step = None  # the law changed: let the solver choose its first step afresh
+                    break
+                if 0.0 < remaining < math.inf:  # still some way off: Newton's estimate is the new bound
+                    crossing = _Crossing(t, y, t + remaining, key, natural)
+                    continue
+                step = natural  # moving away (a graze the clean trajectory does not make): carry on
+                break
+            else:
+                raise RuntimeError(f"the reference could not locate an event near t = {crossing.time:.12g}")
+        return self.out
+
+
+def _default_atol(eq, y, rtol, duration):
+    """rtol times a scale per kind of component (lengths: the smallest radius; speeds: the fastest
+    sphere or the speed its share of the energy gives; ...)."""
+    radius = float(np.min(eq.scene.arrays["radius"]))
+    movable = np.isfinite(eq.mass)
+    mass = float(np.min(eq.mass[movable])) if movable.any() else 1.0
+    e = eq.energies(y)
+    energy = float(np.sum(np.abs(e)))
+    v = eq.part(y, "velocity")
+    speed = max(float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0, math.sqrt(2.0 * energy / mass),
+                radius / duration)
+    scales = {"position": radius, "velocity": speed, "angular_velocity": speed / radius,
+              "dissipated": max(energy, mass * speed * speed)}
+    if "dipole" in eq.slices:
+        m = np.linalg.norm(eq.part(y, "dipole"), axis=1)
+        scales["dipole"] = float(np.max(m)) if m.size and np.max(m) > 0 else 1.0
+    if "angular_velocity" in eq.slices:
+        w = np.linalg.norm(eq.part(y, "angular_velocity"), axis=1)
+        scales["angular_velocity"] = max(scales["angular_velocity"], float(np.max(w)) if w.size else 0.0)
+    return scales
+
+
+class ReferenceTrajectory(Trajectory):
+    """A :class:`demkit.Trajectory` computed by :func:`reference`, with what it cost:
+
+    evaluations (force evaluations), steps (accepted DOP853 steps), restarts (events crossed),
+    events (list of dicts: time, kind, particles (ids), wall (index of the wall effect or None)),
+    seconds (wall time), rtol, atol (dict of absolute tolerances by component).
+    """
+
+    evaluations = steps = restarts = 0
+    seconds = 0.0
+    events = ()
+    rtol = atol = None
+
+    def __repr__(self):
+        return (f"ReferenceTrajectory({len(self)} frames, {self.position.shape[1]} particles, "
+                f"t = {self.time[0]:.6g} .. {self.time[-1]:.6g}; {self.evaluations} force evaluations, "
+                f"{self.restarts} restarts)")
+
+
+def reference(scene, duration, times=None, rtol=1e-12, atol=None):
+    """Adaptive reference solution of a small scene (at most :data:`MAX_PARTICLES` spheres) from its
+    current state, with scipy's DOP853 on the scene's own compiled forces.
+
+    State: positions, velocities, angular velocities (if the scene has them), dipoles
+    (dm/dt = omega x m) and the dissipated work W (dW/dt = the dissipated power the forces report),
+    so the result carries the energy balance. Fixed spheres stay put. The integration restarts
+    exactly at every switch of a force law (contact onset and release of pairs and walls, the zero
+    crossing of a clamped dashpot's force, plain cutoffs): the step in which a switching function
+    changed sign is discarded, redone in clean pieces up to the event, and the state carried across
+    it (see docs/accuracy.md). Periodic boxes are followed with unwrapped coordinates.
+
+    duration : time to integrate; times : output times in [0, duration] (default: 0 and duration).
+    rtol : DOP853's relative tolerance; atol : absolute tolerance: None (rtol times a scale per
+        kind of component: the smallest radius, the largest speed, ...), a number, or a dict by
+        component ("position", "velocity", "angular_velocity", "dipole", "dissipated").
+
+    Returns a :class:`ReferenceTrajectory`. The scene is left exactly as it was (state, dissipated
+    work, neighbour lists rebuilt around it). Refuses (ValueError) scenes of more than
+    :data:`MAX_PARTICLES` spheres and scenes whose interactions keep per-contact history
+    (friction, rolling resistance), whose springs advance with the integrator's own step.
+    """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"reference needs a demkit.Scene, got {type(scene).__name__}")
+    n = len(scene.particles)
+    if n > MAX_PARTICLES:
+        raise ValueError(f"the reference solver handles at most {MAX_PARTICLES} spheres, this scene has {n}: it "
+                         f"integrates every coordinate with scipy in Python (cost grows as N^2 per evaluation and "
+                         f"the adaptive step shrinks with N); compare against the finest fixed-step run instead "
+                         f"(work_precision does so for reference='auto')")
+    keepers = history_keepers(scene)
+    if keepers:
+        raise ValueError(f"the reference solver cannot integrate {', '.join(type(k).__name__ for k in keepers)} with "
+                         f"per-contact history (friction or rolling resistance springs): their springs advance with "
+                         f"the integrator's own time step, which an adaptive solver cannot reproduce; compare against "
+                         f"the finest fixed-step run instead (work_precision does so for reference='auto')")
+    duration = float(duration)
+    if not math.isfinite(duration) or duration <= 0:
+        raise ValueError(f"duration must be a positive finite time, got {duration}")
+    rtol = float(rtol)
+    if not (0 < rtol < 1e-3):
+        raise ValueError(f"rtol must lie in (0, 1e-3), got {rtol}")
+    if times is None:
+        times = np.array([0.0, duration])
+    times = np.unique(np.asarray(times, dtype=np.float64).ravel())
+    if len(times) == 0 or times[0] < 0 or times[-1] > duration * (1 + 1e-12) or not np.isfinite(times).all():
+        raise ValueError(f"times must lie in [0, duration = {duration:.6g}]")
+    times = np.minimum(times, duration)
+    clock = _time.perf_counter()
+    with _Borrowed(scene) as eq:
+        y0 = eq.initial()
+        scales = _default_atol(eq, y0, rtol, duration)
+        if atol is None:
+            atols = {name: rtol * value for name, value in scales.items()}
+        elif isinstance(atol, dict):
+            unknown = set(atol) - set(eq.slices)
+            if unknown:
+                raise ValueError(f"atol names unknown components {sorted(unknown)}; known: {list(eq.slices)}")
+            atols = {name: float(atol.get(name, rtol * scales[name])) for name in eq.slices}
+        else:
+            atols = {name: float(atol) for name in eq.slices}
+        vector = np.zeros(eq.size_y)
+        for name, s in eq.slices.items():
+            vector[s] = atols[name]
+        switches = _Switches(scene, eq)
+        driver = _Reference(eq, switches, rtol, vector, times)
+        frames = driver.run(duration)
+        records = [eq.frame(y) for _, y in frames]
+        evaluations = eq.evaluations
+    seconds = _time.perf_counter() - clock
+    p = scene.particles
+    stack = lambda k: np.array([r[k] for r in records])  # noqa: E731
+    energies = stack(5)
+    dissipated = np.array([y[eq.slices["dissipated"]][0] for _, y in frames])
+    traj = ReferenceTrajectory(
+        time=np.array([t for t, _ in frames]), position=stack(0), velocity=stack(2),
+        angular_velocity=stack(3) if p.angular_velocity is not None else None,
+        dipole=stack(4) if p.dipole is not None else None,
+        energy=energy_dict(energies, eq.kinds, dissipated), angular_momentum=stack(6),
+        radius=p.radius.copy(), mass=p.mass.copy(), inertia=p.inertia.copy(), ids=p.ids.copy(),
+        image=stack(1) if p.image is not None else None, box=scene.box)
+    traj.evaluations, traj.steps, traj.restarts = evaluations, driver.steps, driver.restarts
+    traj.events, traj.seconds, traj.rtol, traj.atol = list(driver.events), seconds, rtol, atols
+    return traj
+
+
+_adaptive = reference  # work_precision's argument ``reference`` shadows the name
+
+
+# ---------------------------------------------------------------------------------------------
+# work-precision
+# ---------------------------------------------------------------------------------------------
+#: error measures of a report row: (key, heading, what it is)
+MEASURES = {
+    "position": ("position_error", "pos err", "max over the check times and spheres of |x - x_ref| (length)"),
+    "velocity": ("velocity_error", "vel err", "max over the check times and spheres of |v - v_ref| (speed)"),
+    "energy": ("energy_error", "energy err",
+               "max over frames of |(E + W)(t) - (E + W)(0)| / energy_scale (E total energy, W dissipated work)"),
+    "angular_momentum": ("angular_momentum_drift", "L drift", "max over frames of |L(t) - L(0)| (angular momentum)"),
+    "observable": ("observable_error", "obs err", "|observable(run) - observable(reference)|"),
+}
+
+
+def copy_scene(scene, particles=None):
+    """A fresh scene with the same interactions, effects, box, skin and threading as ``scene``, on a
+    copy of its particles (or on ``particles``): no contact history, no dissipated work. It shares
+    the compiled kernels (nothing is compiled again)."""
+    scene.pull()
+    p = scene.particles.copy() if particles is None else particles
+    return Scene(p, list(scene.interactions) + list(scene.effects), box=scene.box, skin=scene.skin,
+                 parallel=scene.parallel, sort_every=scene.sort_every)
+
+
+def _makers(methods):
+    """[(label, f(dt) -> Integrator)] from classes, callables or a dict {label: either}."""
+    if methods is None:
+        methods = [EulerCromer, VelocityVerlet]
+    if isinstance(methods, dict):
+        pairs = list(methods.items())
+    else:
+        if isinstance(methods, type) or callable(methods):
+            methods = [methods]
+        pairs = [(None, m) for m in methods]
+    out = []
+    for label, method in pairs:
+        if not callable(method):
+            raise TypeError(f"methods must be Integrator classes or callables f(dt) -> Integrator, got {method!r}")
+        if label is None:
+            if isinstance(method, type):
+                label = method.__name__
+            else:
+                label = getattr(method, "label", None) or getattr(method, "__name__", "method")
+                if label == "<lambda>":
+                    label = None
+        out.append([label, method])
+    return out
+
+
+def _integrator(make, dt):
+    integrator = make(dt)
+    if not isinstance(integrator, Integrator):
+        raise TypeError(f"a method must give a demkit Integrator for dt = {dt}, got {integrator!r}")
+    return integrator
+
+
+def _checkpoints(times, dt):
+    """Whole step counts reaching the check times with time step dt (0 excluded, sorted, unique)."""
+    steps = np.unique(np.round(np.asarray(times) / dt).astype(np.int64))
+    return steps[steps > 0]
+
+
+def _run(scene, make, dt, duration, times, record_every, particles=None):
+    """One run from the scene's initial state: (trajectory, seconds, steps, integrator, error message)."""
+    fresh = copy_scene(scene, particles)
+    integrator = _integrator(make, dt)
+    try:
+        sim = Simulation(fresh, integrator)
+    except ValueError as error:
+        return None, math.nan, 0, integrator, str(error)
+    total = int(round(duration / integrator.dt))
+    if total < 1:
+        return None, math.nan, 0, integrator, f"duration {duration:.6g} is shorter than the time step {dt:.6g}"
+    stops = list(_checkpoints(times, integrator.dt)) + [total]
+    stops = sorted({s for s in stops if 0 < s <= total})
+    stride = max(1, int(round(record_every / integrator.dt)))
+    parts, seconds, done = [], 0.0, 0
+    try:
+        for stop in stops:
+            piece = stop - done
+            if piece <= 0:
+                continue
+            parts.append(sim.run(piece * integrator.dt, record_every=min(piece, stride) * integrator.dt))
+            seconds += sim.statistics["seconds"]
+            done = stop
+    except SimulationError as error:
+        if error.trajectory is not None and len(error.trajectory):
+            parts.append(error.trajectory)
+        return _joined(parts), math.nan, sim.step, integrator, str(error)
+    except (ValueError, FloatingPointError) as error:
+        return _joined(parts), math.nan, sim.step, integrator, str(error)
+    return _joined(parts), seconds, total, integrator, ""
+
+
+def _joined(parts):
+    parts = [p for p in parts if p is not None and len(p)]
+    if not parts:
+        return None
+    # runs of one Simulation are consecutive: rebase the times on whole steps to join them exactly
+    return Trajectory.concatenate(parts) if len(parts) > 1 else parts[0]
+
+
+def _balance(traj):
+    e = traj.energy
+    s = np.asarray(e["total"]) + np.asarray(e["dissipated"])
+    return np.abs(s - s[0])
+
+
+def _at(traj, t, what="position"):
+    """State of a trajectory at time t: the frame at t or, for a run-based reference whose frames
+    miss t by less than half its step, the nearest frame advanced linearly (x + v dt)."""
+    k = int(np.argmin(np.abs(traj.time - t)))
+    offset = t - traj.time[k]
+    position = traj.unwrapped()[k] if traj.image is not None else traj.position[k]
+    if what == "velocity":
+        return traj.velocity[k], abs(offset)
+    return position + offset * traj.velocity[k], abs(offset)
+
+
+class WorkPrecision:
+    """What accuracy costs for one scene: one row per (method, dt) run. See :func:`work_precision`.
+
+    rows : list of dicts (method, dt, steps, evaluations, seconds, stable, message, errors,
+        observable, is_reference).
+    reference : a dict describing the reference (kind, description, evaluations, seconds, restarts,
+        energy_error, angular_momentum_drift, observable).
+    energy_scale, energy_scale_source : the scale dividing the energy-balance error and where it
+        comes from. times : the check times of the position and velocity errors.
+    spread : None or a dict (samples, perturbation, observable values and spread, position spread
+        per check time): how far references from perturbed starts drift apart, the floor below which
+        more accuracy buys nothing.
+    """
+
+    def __init__(self, rows, reference, energy_scale, energy_scale_source, times, duration, spread=None,
+                 observable_name=None):
+        self.rows = rows
+        self.reference = reference
+        self.energy_scale, self.energy_scale_source = energy_scale, energy_scale_source
+        self.times, self.duration = times, duration
+        self.spread = spread
+        self.observable_name = observable_name
+
+    def measures(self):
+        """The error measures present (names of :data:`MEASURES`)."""
+        out = ["position", "velocity", "energy"]
+        if any(math.isfinite(r["angular_momentum_drift"]) for r in self.rows):
+            out.append("angular_momentum")
+        if self.observable_name is not None:
+            out.append("observable")
+        return out
+
+    def floor(self, measure):
+        """The chaotic floor of a measure from the spread of perturbed references (None if not measured)."""
+        if not self.spread:
+            return None
+        if measure == "position":
+            return self.spread["position_max"]
+        if measure == "observable" and self.spread.get("observable_range") is not None:
+            return self.spread["observable_range"]
+        return None
+
+    def table(self):
+        """A plain-text table: method, dt, each error, wall time, force evaluations, stable."""
+        measures = self.measures()
+        head = ["method", "dt"] + [MEASURES[m][1] for m in measures] + ["seconds", "evaluations", "stable"]
+        lines = []
+        for r in self.rows:
+            cells = [r["method"], f"{r['dt']:.4g}"]
+            for m in measures:
+                value = r[MEASURES[m][0]]
+                cells.append("ref" if r.get("is_reference") else (f"{value:.3e}" if math.isfinite(value) else "nan"))
+            seconds = f"{r['seconds']:.4g}" if math.isfinite(r["seconds"]) else "-"
+            cells += [seconds, str(r["evaluations"]), "yes" if r["stable"] else "NO"]
+            lines.append(cells)
+        widths = [max(len(h), *(len(c[k]) for c in lines)) if lines else len(h) for k, h in enumerate(head)]
+        fmt = lambda cells: "  ".join(c.rjust(w) if k else c.ljust(w) for k, (c, w) in enumerate(zip(cells, widths)))  # noqa: E731
+        out = [fmt(head), fmt(["-" * w for w in widths])] + [fmt(c) for c in lines]
+        ref = self.reference
+        out.append("")
+        out.append(f"reference: {ref['description']}")
+        out.append(f"energy err is divided by {self.energy_scale:.6g} ({self.energy_scale_source})")
+        if self.spread:
+            s = self.spread
+            text = (f"spread of {s['samples']} references started {s['perturbation']:.3g} apart: positions "
+                    f"{s['position_max']:.3e}")
+            if s.get("observable_range") is not None:
+                text += f", observable {s['observable_range']:.3e}"
+            out.append(text + " (errors below this are not meaningful)")
+        for r in self.rows:
+            if not r["stable"]:
+                out.append(f"{r['method']} dt={r['dt']:.4g}: {r['message']}")
+        return "\n".join(out)
+
+    def __str__(self):
+        return self.table()
+
+    def __repr__(self):
+        return f"WorkPrecision({len(self.rows)} runs, reference: {self.reference['kind']})"
+
+    def suggest(self, target, measure="position"):
+        """The cheapest (least wall time) stable run whose ``measure`` error is at most ``target``:
+        a :class:`Suggestion` (its ``row`` is None, and its message says why, when none does)."""
+        if measure not in MEASURES:
+            raise ValueError(f"measure must be one of {sorted(MEASURES)}, got {measure!r}")
+        key = MEASURES[measure][0]
+        good = [r for r in self.rows if r["stable"] and not r.get("is_reference") and math.isfinite(r[key])
+                and r[key] <= target and math.isfinite(r["seconds"])]
+        floor = self.floor(measure)
+        note = ""
+        if floor is not None and target < floor:
+            note = (f" Note: the target is below the spread {floor:.3e} of references started "
+                    f"{self.spread['perturbation']:.3g} apart: errors that small are not meaningful here.")
+        if not good:
+            measured = [r[key] for r in self.rows if r["stable"] and math.isfinite(r[key]) and not r.get("is_reference")]
+            best = f"the smallest {measure} error measured is {min(measured):.3e}" if measured else "no run was stable"
+            return Suggestion(None, f"no run meets {measure} error <= {target:.3e}: {best}; try smaller time steps "
+                                    f"or a higher-order method.{note}")
+        row = min(good, key=lambda r: r["seconds"])
+        return Suggestion(row, f"{row['method']} with dt = {row['dt']:.6g}: {measure} error {row[key]:.3e} <= "
+                               f"{target:.3e} in {row['seconds']:.4g} s ({row['evaluations']} force evaluations)"
+                               f".{note}")
+
+    # ---- output -------------------------------------------------------------------------------
+    COLUMNS = ("method", "dt", "steps", "evaluations", "seconds", "stable", "position_error", "velocity_error",
+               "energy_error", "angular_momentum_drift", "observable", "observable_error", "is_reference", "message")
+
+    def to_csv(self, path):
+        """Write the rows as CSV (one line per run)."""
+        with open(path, "w", newline="") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(self.COLUMNS)
+            for r in self.rows:
+                writer.writerow([r.get(c, "") for c in self.COLUMNS])
+        return path
+
+    def as_dict(self):
+        def clean(value):
+            if isinstance(value, dict):
+                return {k: clean(v) for k, v in value.items()}
+            if isinstance(value, (list, tuple, np.ndarray)):
+                return [clean(v) for v in value]
+            if isinstance(value, (np.floating, float)):
+                return float(value) if math.isfinite(value) else None
+            if isinstance(value, np.integer):
+                return int(value)
+            if isinstance(value, np.bool_):
+                return bool(value)
+            return value
+        return clean({"duration": self.duration, "times": list(self.times), "energy_scale": self.energy_scale,
+                      "energy_scale_source": self.energy_scale_source, "reference": self.reference,
+                      "spread": self.spread, "observable": self.observable_name, "rows": self.rows})
+
+    def to_json(self, path=None):
+        """The report as JSON (NaN as null); written to ``path`` if given, else returned as text."""
+        text = json.dumps(self.as_dict(), indent=1)
+        if path is None:
+            return text
+        with open(path, "w") as fh:
+            fh.write(text)
+        return path
+
+    def plot(self, path, x="seconds", title=None):
+        """Log-log error against cost (``x``: "seconds" or "evaluations"), one line per method, one
+        panel per error measure, dashed: the chaotic floor when a spread was measured. Saved to path."""
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        if x not in ("seconds", "evaluations"):
+            raise ValueError(f"x must be 'seconds' or 'evaluations', got {x!r}")
+        from matplotlib.ticker import NullFormatter
+        measures = self.measures()
+        ncols = min(3, len(measures))
+        nrows = -(-len(measures) // ncols)
+        fig, axes = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 3.7 * nrows), squeeze=False)
+        for ax in axes.ravel()[len(measures):]:
+            ax.set_visible(False)
+        methods = list(dict.fromkeys(r["method"] for r in self.rows))
+        for ax, measure in zip(axes.ravel(), measures):
+            key = MEASURES[measure][0]
+            for method in methods:
+                rows = [r for r in self.rows if r["method"] == method and r["stable"] and not r.get("is_reference")
+                        and math.isfinite(r[key]) and r[key] > 0 and math.isfinite(float(r[x])) and r[x] > 0]
+                if not rows:
+                    continue
+                rows.sort(key=lambda r: r[x])
+                line, = ax.loglog([r[x] for r in rows], [r[key] for r in rows], "o-", label=method)
+                for r in rows:
+                    ax.annotate(f"{r['dt']:.2g}", (r[x], r[key]), fontsize=6, color=line.get_color(),
+                                xytext=(3, 3), textcoords="offset points")
+            floor = self.floor(measure)
+            if floor is not None and floor > 0:
+                ax.axhline(floor, color="grey", ls="--", lw=1, label="spread of perturbed references")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xlabel("wall time [s]" if x == "seconds" else "force evaluations")
+            label = {"energy": f"energy balance error / {self.energy_scale:.3g}"}.get(measure, MEASURES[measure][1])
+            if measure == "observable":
+                label = f"error of {self.observable_name}"
+            ax.set_ylabel(label)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        fig.suptitle(title or f"work-precision (numbers: dt); reference: {self.reference['kind']}", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        return path
+
+
+@dataclass
+class Suggestion:
+    """What :meth:`WorkPrecision.suggest` found: the row (None when no run meets the target) and why."""
+
+    row: dict | None
+    message: str
+
+    def __bool__(self):
+        return self.row is not None
+
+    def __str__(self):
+        return self.message
+
+
+def _observable_name(observable):
+    if observable is None:
+        return None
+    return getattr(observable, "__name__", None) or type(observable).__name__
+
+
+def _evaluate_observable(observable, traj):
+    """observable(traj), or NaN when it cannot be measured on this run (e.g. final_spin raises
+    ValueError on a run that did not settle)."""
+    if observable is None or traj is None:
+        return math.nan
+    try:
+        return float(observable(traj))
+    except (ValueError, ArithmeticError, IndexError):
+        return math.nan
+
+
+def work_precision(scene, duration, methods=None, dts=None, reference="auto", times=None, energy_scale=None,
+                   observable=None, spread=None, record_every=None, repeats=1, rtol=1e-12):
+    """Run ``scene`` with every method and time step from its current state and compare each run with
+    a reference: a :class:`WorkPrecision` report.
+
+    methods : Integrator classes, callables ``f(dt) -> Integrator`` (``lambda dt: MyIntegrator(dt,
+        inner=4)``) or a dict {label: either}; default [EulerCromer, VelocityVerlet].
+    dts : time steps (default: the scene's largest safe step and 4 halvings of it).
+    reference : "auto" (the adaptive :func:`reference` for scenes it accepts, at rtol; otherwise the
+        finest run of the highest-order method given), "adaptive", "finest", or a Trajectory (its
+        frames should include the check times).
+    times : check times of the position and velocity errors (default 5 evenly spaced, ending at
+        duration); each run is compared at its own whole-step times nearest to them.
+    energy_scale : divides the energy-balance error (default: the largest |potential energy| in the
+        reference, or its largest kinetic energy if there is no potential energy).
+    observable : f(trajectory) -> float (e.g. a final spin); its error against the reference's value.
+    spread : None or dict(samples=5, perturbation=1e-9 * smallest radius (length), seed=0): also
+        integrate the reference from ``samples`` starts whose positions are displaced at random by
+        ``perturbation`` and report how far apart they end up (positions at the check times, the
+        observable): the floor below which more accuracy buys nothing (chaotic scenes).
+    record_every : frame interval of every run (energy balance, angular momentum, observable);
+        default duration / 200.
+    repeats : time each run this many times and keep the least wall time.
+
+    Every run starts from a fresh copy of the scene (no contact history, no dissipated work) after an
+    untimed warm-up of each method, so compilation is not timed. A run that fails (SimulationError,
+    or the ValueError for a time step above the scene's safe limit) gives a row with stable=False,
+    NaN errors and the message.
+    """
+    duration = float(duration)
+    if not math.isfinite(duration) or duration <= 0:
+        raise ValueError(f"duration must be a positive finite time, got {duration}")
+    makers = _makers(methods)
+    if dts is None:
+        limit = scene.max_time_step()
+        if not math.isfinite(limit):
+            raise ValueError("this scene sets no largest safe time step: pass dts=[...]")
+        dts = [limit / 2 ** k for k in range(5)]
+    dts = sorted({float(dt) for dt in np.atleast_1d(dts)}, reverse=True)
+    if not dts or any(not math.isfinite(dt) or dt <= 0 for dt in dts):
+        raise ValueError(f"dts must be positive finite time steps, got {dts}")
+    if times is None:
+        times = duration * np.arange(1, 6) / 5.0
+    times = np.unique(np.asarray(times, dtype=np.float64).ravel())
+    if len(times) == 0 or times[0] <= 0 or times[-1] > duration * (1 + 1e-12):
+        raise ValueError(f"times must lie in (0, duration = {duration:.6g}]")
+    record_every = duration / 200.0 if record_every is None else float(record_every)
+    repeats = max(1, int(repeats))
+    # labels and orders of the methods (one integrator made per method to learn them)
+    for entry in makers:
+        sample = _integrator(entry[1], dts[-1])
+        if entry[0] is None:
+            entry[0] = type(sample).__name__
+        entry.append(sample.order if isinstance(sample.order, (int, float)) else 0)
+    labels = [m[0] for m in makers]
+    for k, label in enumerate(labels):
+        if labels.count(label) > 1:
+            makers[k][0] = f"{label}#{labels[:k + 1].count(label)}"
+    # untimed warm-up: compile each method's loop and the recording on this scene's kernels
+    for label, make, _ in makers:
+        try:
+            warm = Simulation(copy_scene(scene), _integrator(make, dts[-1]))
+            warm.run(2 * dts[-1], record_every=dts[-1])
+        except (ValueError, SimulationError):
+            pass
+    # choose the reference
+    mode = reference
+    if isinstance(reference, str):
+        if reference not in ("auto", "adaptive", "finest"):
+            raise ValueError(f"reference must be 'auto', 'adaptive', 'finest' or a Trajectory, got {reference!r}")
+        if reference == "auto":
+            mode = "adaptive" if len(scene.particles) <= MAX_PARTICLES and not history_keepers(scene) else "finest"
+    elif not isinstance(reference, Trajectory):
+        raise TypeError(f"reference must be 'auto', 'adaptive', 'finest' or a Trajectory, got {reference!r}")
+    best = max(range(len(makers)), key=lambda k: (makers[k][2], k))  # highest order, last given on ties
+    # every run stops at its own whole steps nearest to the check times
+    all_check = sorted({float(s * _integrator(m[1], dt).dt) for m in makers for dt in dts
+                        for s in _checkpoints(times, _integrator(m[1], dt).dt)})
+    frame_grid = np.unique(np.concatenate([np.arange(0.0, duration, record_every), [duration]]))
+    rows, runs = [], []
+    for label, make, _ in makers:
+        for dt in dts:
+            traj, seconds, steps = None, math.inf, 0
+            for _ in range(repeats):
+                traj, took, steps, integrator, message = _run(scene, make, dt, duration, all_check, record_every)
+                seconds = min(seconds, took) if math.isfinite(took) else took
+                if message:
+                    break
+            runs.append(traj)
+            per_step = getattr(integrator, "evaluations_per_step", 1)
+            rows.append({"method": label, "dt": integrator.dt, "steps": int(steps),
+                         "evaluations": int(steps * per_step), "seconds": seconds if not message else math.nan,
+                         "stable": not message, "message": message, "position_error": math.nan,
+                         "velocity_error": math.nan, "energy_error": math.nan,
+                         "angular_momentum_drift": math.nan, "observable": math.nan,
+                         "observable_error": math.nan, "is_reference": False})
+    # the reference
+    info = {}
+    if isinstance(reference, Trajectory):
+        ref = reference
+        info = {"kind": "given", "description": f"the trajectory given ({len(ref)} frames)"}
+    elif mode == "adaptive":
+        # runs end on whole steps, which may lie a little beyond duration
+        horizon = max([duration] + all_check)
+        ref = _adaptive(scene, horizon, times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
+        info = {"kind": "adaptive", "description": f"adaptive DOP853, rtol={rtol:g} ({ref.evaluations} force "
+                                                   f"evaluations, {ref.restarts} restarts at events, "
+                                                   f"{ref.seconds:.3g} s)",
+                "evaluations": ref.evaluations, "restarts": ref.restarts, "seconds": ref.seconds, "rtol": rtol}
+    else:
+        label = makers[best][0]
+        stable = [r for r in rows if r["method"] == label and r["stable"]]
+        if not stable:
+            raise ValueError(f"no stable run of {label} to serve as the reference")
+        finest = min(stable, key=lambda r: r["dt"])
+        ref = runs[rows.index(finest)]
+        finest["is_reference"] = True
+        info = {"kind": "finest", "description": f"the finest run, {label} with dt = {finest['dt']:.6g} (highest "
+                                                 f"order given; its own error is not measured)",
+                "method": label, "dt": finest["dt"], "seconds": finest["seconds"],
+                "evaluations": finest["evaluations"]}
+    # energy scale
+    e = ref.energy
+    kinetic = np.asarray(e["kinetic"]) + np.asarray(e["rotational"])
+    potential = np.asarray(e["total"]) - kinetic
+    if energy_scale is not None:
+        scale, source = float(energy_scale), "given"
+    elif np.max(np.abs(potential)) > 0:
+        scale, source = float(np.max(np.abs(potential))), "the largest |potential energy| in the reference"
+    else:
+        scale, source = float(np.max(np.abs(kinetic))) or 1.0, "the largest kinetic energy in the reference"
+    conserves = (not scene.effects and not scene.has_fixed and not any(scene.periodic))
+    info["energy_error"] = float(np.max(_balance(ref))) / scale
+    info["angular_momentum_drift"] = (float(np.max(np.linalg.norm(ref.angular_momentum - ref.angular_momentum[0],
+                                                                  axis=1))) if conserves else math.nan)
+    ref_obs = _evaluate_observable(observable, ref)
+    info["observable"] = ref_obs
+    # errors
+    for row, traj in zip(rows, runs):
+        if not row["stable"] or traj is None or row["is_reference"]:
+            continue
+        pos, vel = [], []
+        dt = row["dt"]
+        for t in times:
+            tk = round(t / dt) * dt
+            k = int(np.argmin(np.abs(traj.time - tk)))
+            x = traj.unwrapped()[k] if traj.image is not None else traj.position[k]
+            xr, _ = _at(ref, traj.time[k])
+            vr, _ = _at(ref, traj.time[k], "velocity")
+            pos.append(float(np.max(np.linalg.norm(x - xr, axis=1))))
+            vel.append(float(np.max(np.linalg.norm(traj.velocity[k] - vr, axis=1))))
+        row["position_error"], row["velocity_error"] = max(pos), max(vel)
+        row["position_errors"], row["velocity_errors"] = pos, vel  # at each check time
+        row["energy_error"] = float(np.max(_balance(traj))) / scale
+        if conserves:
+            row["angular_momentum_drift"] = float(np.max(np.linalg.norm(
+                traj.angular_momentum - traj.angular_momentum[0], axis=1)))
+        if observable is not None:
+            row["observable"] = _evaluate_observable(observable, traj)
+            row["observable_error"] = abs(row["observable"] - ref_obs)
+    spread_info = None
+    if spread:
+        spread_info = _spread(scene, duration, spread, mode if not isinstance(reference, Trajectory) else "finest",
+                              ref, times, all_check, frame_grid, observable, ref_obs, rtol, makers[best],
+                              info.get("dt", dts[-1]), record_every)
+    return WorkPrecision(rows, info, scale, source, list(times), duration, spread_info, _observable_name(observable))
+
+
+def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, observable, ref_obs, rtol, best, dt,
+            record_every):
+    """References from randomly displaced starts: how far apart they drift (the chaotic floor)."""
+    options = dict(spread)
+    unknown = set(options) - {"samples", "perturbation", "seed"}
+    if unknown:
+        raise ValueError(f"spread takes samples, perturbation and seed, not {sorted(unknown)}")
+    samples = int(options.get("samples", 5))
+    size = float(options.get("perturbation", 1e-9 * float(np.min(scene.particles.radius))))
+    rng = np.random.default_rng(options.get("seed", 0))
+    values, apart = [], np.zeros(len(times))
+    for _ in range(samples):
+        scene.pull()
+        p = scene.particles.copy()
+        step = rng.normal(size=p.position.shape)
+        step *= size / np.linalg.norm(step, axis=1, keepdims=True)
+        if p.fixed is not None:
+            step[p.fixed] = 0.0
+        p.position = p.position + step
+        fresh = copy_scene(scene, p)
+        if mode == "adaptive":
+            other = reference(fresh, max([duration] + list(all_check)),
+                              times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
+        else:
+            other, _, _, _, message = _run(fresh, best[1], dt, duration, all_check, record_every)
+            if message:
+                raise RuntimeError(f"a perturbed reference run failed: {message}")
+        for m, t in enumerate(times):
+            k = int(np.argmin(np.abs(ref.time - t)))
+            x0, _ = _at(ref, ref.time[k])
+            x1, _ = _at(other, ref.time[k])
+            apart[m] = max(apart[m], float(np.max(np.linalg.norm(x1 - x0, axis=1))))
+        values.append(_evaluate_observable(observable, other))
+    out = {"samples": samples, "perturbation": size, "position": apart.tolist(),
+           "position_max": float(np.max(apart)), "times": list(times)}
+    if observable is not None:
+        finite = [v for v in values + [ref_obs] if math.isfinite(v)]
+        out["observable_values"] = values
+        out["observable_range"] = float(np.ptp(finite)) if len(finite) > 1 else None
+        out["observable_std"] = float(np.std(finite, ddof=1)) if len(finite) > 1 else None
+    return out
+
+
+@dataclass
+class DtSuggestion:
+    """What :func:`suggest_dt` found: the time step (None when the pilot showed no convergence), the
+    fitted error model error = constant * dt^order * (duration / pilot)^growth, the pilot report
+    and an explanation."""
+
+    dt: float | None
+    order: float
+    constant: float
+    growth: float
+    predicted: float
+    report: WorkPrecision
+    message: str
+
+    def __str__(self):
+        return self.message
+
+
+def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", dt=None, duration=None,
+               reference="auto"):
+    """A time step for ``method`` to reach an error ``target`` in ``measure`` ("position",
+    "velocity", "energy" or "angular_momentum"), from a short pilot.
+
+    The pilot is a :func:`work_precision` run of ``pilot`` time units with dt, dt/2 and dt/4 (dt:
+    default half the scene's largest safe step). It fits error = C dt^p over the stable runs; for a
+    ``duration`` longer than the pilot, position and velocity errors are scaled by
+    (duration/pilot)^q, q fitted to how the finest pilot run's error grew over the pilot's check
+    times (clipped to [0, 3]). The suggestion is capped at the scene's largest safe step. This is
+    an extrapolation: errors that grow exponentially (chaotic scenes, many-body collisions) or jump
+    at events the pilot did not reach are not predicted; check with a work_precision run at the
+    suggested dt. Returns a :class:`DtSuggestion`.
+    """
+    if measure not in MEASURES or measure == "observable":
+        raise ValueError(f"measure must be one of position, velocity, energy, angular_momentum; got {measure!r}")
+    pilot = float(pilot)
+    limit = scene.max_time_step()
+    if dt is None:
+        if not math.isfinite(limit):
+            raise ValueError("this scene sets no largest safe time step: pass dt=...")
+        dt = 0.5 * limit
+    dts = [dt, dt / 2, dt / 4]
+    times = pilot * np.array([0.25, 0.5, 0.75, 1.0])
+    report = work_precision(scene, pilot, methods=[method], dts=dts, reference=reference, times=times)
+    key = MEASURES[measure][0]
+    rows = [r for r in report.rows if r["stable"] and not r["is_reference"] and math.isfinite(r[key]) and r[key] > 0]
+    if len(rows) < 2:
+        return DtSuggestion(None, math.nan, math.nan, math.nan, math.nan, report,
+                            f"the pilot gave fewer than two usable runs (stable, error > 0): {report.table()}")
+    x = np.log([r["dt"] for r in rows])
+    y = np.log([r[key] for r in rows])
+    order, log_c = np.polyfit(x, y, 1)
+    growth, factor = 0.0, 1.0
+    if duration is not None and float(duration) > pilot and measure in ("position", "velocity"):
+        finest = min(rows, key=lambda r: r["dt"])
+        per_time = np.array(finest[f"{measure}_errors"])
+        ok = per_time > 0
+        if ok.sum() >= 2:
+            growth = float(np.clip(np.polyfit(np.log(times[ok]), np.log(per_time[ok]), 1)[0], 0.0, 3.0))
+        factor = (float(duration) / pilot) ** growth
+    if order < 0.5:
+        return DtSuggestion(None, float(order), math.exp(log_c), growth, math.nan, report,
+                            f"the pilot's {measure} errors do not converge with dt (fitted order {order:.2f}): they "
+                            f"may be at round-off, chaotic or dominated by events; see the pilot report:\n"
+                            f"{report.table()}")
+    constant = math.exp(log_c)
+    suggested = (target / (constant * factor)) ** (1.0 / order)
+    capped = min(suggested, limit)
+    predicted = constant * capped ** order * factor
+    span = f" over {float(duration):.6g} (error growth ~ t^{growth:.2f} from the pilot)" if factor != 1.0 else ""
+    message = (f"{report.rows[0]['method']}: dt = {capped:.4g} for a {measure} error of about {predicted:.3g}{span} "
+               f"(pilot of {pilot:.6g}: error = {constant:.3g} dt^{order:.2f})")
+    if capped < suggested:
+        message += f"; capped at the scene's largest safe step {limit:.4g}"
+    return DtSuggestion(float(capped), float(order), constant, growth, predicted, report, message)
