@@ -1104,7 +1104,10 @@ class WorkPrecision:
                 label = f"error of {self.observable_name}"
             ax.set_ylabel(label)
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=7)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=7)
+            else:  # every error is zero (angular momentum kept exactly) or failed
+                ax.text(0.5, 0.5, "all zero or not finite", transform=ax.transAxes, ha="center", fontsize=8)
         fig.suptitle(title or f"work-precision (numbers: dt); reference: {self.reference['kind']}", fontsize=9)
         fig.tight_layout()
         fig.savefig(path, dpi=110)

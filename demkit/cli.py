@@ -1,0 +1,113 @@
+"""The ``demkit`` command.
+
+    demkit accuracy scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
+                             [--plot wp.png] [--csv wp.csv]
+
+``accuracy`` runs :func:`demkit.accuracy.work_precision` on the scene a Python file builds and prints
+the table (method, dt, errors, wall time, force evaluations, stable?) and writes the figure. The file
+defines ``scene`` (a :class:`demkit.Scene`) or ``make_scene()`` returning one, and may define
+``duration``, ``dts``, ``methods`` (as for work_precision), ``times`` and ``observable``; options on
+the command line win. Method names: EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep
+(``MultipleTimeStep:8`` for 8 inner steps; 4 by default), and ``:resolve`` after VelocityVerlet or
+MultipleTimeStep to resolve contact events (``VelocityVerlet:resolve``, ``MultipleTimeStep:8:resolve``).
+"""
+from __future__ import annotations
+
+import argparse
+import runpy
+import sys
+from pathlib import Path
+
+from . import accuracy
+from .integrators import RK4, EulerCromer, ForestRuth, MultipleTimeStep, VelocityVerlet
+from .scene import Scene
+
+PLAIN = {"EulerCromer": EulerCromer, "VelocityVerlet": VelocityVerlet, "ForestRuth": ForestRuth, "RK4": RK4}
+
+
+def parse_method(text):
+    """An integrator factory f(dt) from a name such as 'RK4', 'MultipleTimeStep:8:resolve'."""
+    name, *options = text.strip().split(":")
+    resolve = "resolve" in options
+    options = [o for o in options if o != "resolve"]
+    if name in PLAIN and not options:
+        if resolve and name != "VelocityVerlet":
+            raise ValueError(f"{name} cannot resolve contact events (VelocityVerlet and MultipleTimeStep can)")
+        cls = PLAIN[name]
+        return (lambda dt: cls(dt, resolve_contacts=True)) if resolve else cls
+    if name == "MultipleTimeStep" and len(options) <= 1:
+        try:
+            inner = int(options[0]) if options else 4
+        except ValueError:
+            raise ValueError(f"MultipleTimeStep:<inner> needs a whole number of inner steps, got {text!r}") from None
+        MultipleTimeStep(1.0, inner=inner)  # checks inner now, not in the middle of the study
+        return lambda dt: MultipleTimeStep(dt, inner=inner, resolve_contacts=resolve)
+    raise ValueError(f"unknown method {text!r}: use {', '.join(PLAIN)}, MultipleTimeStep[:inner], with "
+                     f"':resolve' after VelocityVerlet or MultipleTimeStep")
+
+
+def parse_dts(text):
+    try:
+        dts = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"--dts must be comma-separated numbers, got {text!r}") from None
+    if not dts or any(not dt > 0 for dt in dts):
+        raise ValueError(f"--dts must be positive time steps, got {text!r}")
+    return dts
+
+
+def load_scene_file(path):
+    """The namespace of a scene file (a Python file defining ``scene`` or ``make_scene()``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"scene file {path} does not exist")
+    namespace = runpy.run_path(str(path), run_name="demkit_scene")
+    scene = namespace.get("scene")
+    if scene is None and callable(namespace.get("make_scene")):
+        scene = namespace["make_scene"]()
+    if not isinstance(scene, Scene):
+        raise ValueError(f"{path} must define `scene` (a demkit.Scene) or `make_scene()` returning one")
+    namespace["scene"] = scene
+    return namespace
+
+
+def accuracy_command(args):
+    namespace = load_scene_file(args.scene)
+    duration = args.duration if args.duration is not None else namespace.get("duration")
+    if duration is None:
+        raise ValueError(f"give --duration or define `duration` in {args.scene}")
+    methods = ({m: parse_method(m) for m in args.methods.split(",") if m.strip()} if args.methods
+               else namespace.get("methods"))
+    dts = parse_dts(args.dts) if args.dts else namespace.get("dts")
+    report = accuracy.work_precision(namespace["scene"], float(duration), methods=methods, dts=dts,
+                                     times=namespace.get("times"), observable=namespace.get("observable"))
+    print(report.table())
+    plot = Path(args.plot) if args.plot else Path(f"{Path(args.scene).stem}_accuracy.png")
+    report.plot(plot)
+    print(f"wrote {plot}")
+    if args.csv:
+        report.to_csv(args.csv)
+        print(f"wrote {args.csv}")
+    return 0
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="demkit", description="demkit: spinning magnetic spheres.")
+    commands = parser.add_subparsers(dest="command", required=True)
+    study = commands.add_parser("accuracy", help="what accuracy costs in time: a work-precision table and figure",
+                                description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    study.add_argument("scene", help="a Python file defining `scene` or `make_scene()`")
+    study.add_argument("--duration", type=float, help="simulated time of every run")
+    study.add_argument("--dts", help="comma-separated time steps (default: the safe step and 4 halvings)")
+    study.add_argument("--methods", help="comma-separated methods (default: EulerCromer,VelocityVerlet)")
+    study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")
+    study.add_argument("--csv", help="also write the table as CSV")
+    args = parser.parse_args(argv)
+    try:
+        return accuracy_command(args)
+    except ValueError as err:
+        parser.exit(2, f"demkit {args.command}: error: {err}\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

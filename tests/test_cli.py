@@ -1,0 +1,62 @@
+"""The demkit command: `demkit accuracy scene.py` prints a work-precision table and writes its figure."""
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from demkit.cli import parse_method
+
+SCENE = textwrap.dedent("""
+    import demkit as dk
+    p = dk.Particles(position=[[0, 0, 0], [1.0137, 0, 0]], velocity=[[0.5, 0, 0], [-0.5, 0, 0]], radius=0.5)
+    scene = dk.Scene(p, [dk.KelvinVoigt(1000.0, 4.0)])
+    duration = 0.3
+""")
+
+
+def demkit(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "demkit", *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=600)
+
+
+def test_accuracy_prints_the_table_and_writes_the_figure(tmp_path):
+    (tmp_path / "impact.py").write_text(SCENE)
+    done = demkit("accuracy", "impact.py", "--dts", "0.004,0.002", "--methods", "VelocityVerlet,VelocityVerlet:resolve",
+                  "--csv", "wp.csv", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    rows = [line.split() for line in done.stdout.splitlines() if line.startswith("VelocityVerlet")]
+    assert [(r[0], r[1]) for r in rows] == [("VelocityVerlet", "0.004"), ("VelocityVerlet", "0.002"),
+                                            ("VelocityVerlet:resolve", "0.004"), ("VelocityVerlet:resolve", "0.002")]
+    # resolved contacts: the energy balance (column 5) falls about 4x per halving (measured 3.9)
+    assert 3.0 < float(rows[2][4]) / float(rows[3][4]) < 5.0
+    assert (tmp_path / "impact_accuracy.png").stat().st_size > 10000
+    assert (tmp_path / "wp.csv").read_text().count("\n") >= 5
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--methods", "Leapfrog"], "unknown method 'Leapfrog'"),
+    (["--methods", "RK4:resolve"], "RK4 cannot resolve contact events"),
+    (["--methods", "MultipleTimeStep:0"], "inner must be a whole number"),
+    (["--dts", "0.01,-1"], "--dts must be positive"),
+])
+def test_bad_options_are_one_clear_line(tmp_path, args, message):
+    (tmp_path / "impact.py").write_text(SCENE)
+    done = demkit("accuracy", "impact.py", *args, cwd=tmp_path)
+    assert done.returncode == 2 and message in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_file_without_a_scene_or_a_duration_is_refused(tmp_path):
+    (tmp_path / "empty.py").write_text("x = 1\n")
+    done = demkit("accuracy", "empty.py", cwd=tmp_path)
+    assert done.returncode == 2 and "must define `scene`" in done.stderr
+    (tmp_path / "nodur.py").write_text(SCENE.replace("duration = 0.3", ""))
+    done = demkit("accuracy", "nodur.py", cwd=tmp_path)
+    assert done.returncode == 2 and "give --duration" in done.stderr
+    assert demkit("accuracy", "missing.py", cwd=tmp_path).returncode == 2
+
+
+def test_method_names():
+    assert parse_method("MultipleTimeStep:8:resolve")(0.01).inner == 8
+    assert parse_method("MultipleTimeStep:8:resolve")(0.01).resolve_contacts
+    assert parse_method("VelocityVerlet:resolve")(0.01).resolve_contacts
