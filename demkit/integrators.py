@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from .motion import (add_rows, advance_spin, copy_vectors, drift, kick, rk_finish, rk_save,  # noqa: F401
-                     rk_stage)
+from .motion import (advance_spin, copy_vectors, drift, kick, kick_all, rk_finish, rk_save,  # noqa: F401
+                     rk_stage, total_forces)
 from .state import INNER_STEPS  # noqa: F401 (used by templates)
 
 
@@ -54,12 +54,10 @@ def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, re
         forces_of(s, False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
-        kick(s.velocity, s.force, s.mass, half)
-        advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, half, dt)
+        kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, dt)
         drift(s.position, s.velocity, dt)
         s.accum[0] += dt * forces_of(s, True)  # noqa: F821
-        kick(s.velocity, s.force, s.mass, half)
-        advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, half, 0.0)
+        kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, 0.0)
         countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
             return n
@@ -75,12 +73,10 @@ def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record
     for n in range(nsteps):
         for k in range(3):
             h = w0 * dt if k == 1 else w1 * dt
-            kick(s.velocity, s.force, s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, h)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, h)
             drift(s.position, s.velocity, h)
             s.accum[0] += h * forces_of(s, False)  # noqa: F821
-            kick(s.velocity, s.force, s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, 0.0)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
         countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
             return n
@@ -122,26 +118,24 @@ def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s,
         fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
-        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
-        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                 s.mass, s.inertia, 0.5 * dt, 0.0)
         for m in range(inner):
-            kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, h)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                     s.mass, s.inertia, 0.5 * h, h)
             drift(s.position, s.velocity, h)
             s.accum[0] += h * fast_forces_of(s, s.stage[2], s.stage[3], True)  # noqa: F821
-            kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, 0.0)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                     s.mass, s.inertia, 0.5 * h, 0.0)
         s.accum[0] += dt * slow_forces_of(s, s.stage[0], s.stage[1], True)  # noqa: F821
-        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
-        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                 s.mass, s.inertia, 0.5 * dt, 0.0)
         countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
-            add_rows(s.force, s.stage[0], s.stage[2])
-            add_rows(s.torque, s.stage[1], s.stage[3])
+            total_forces(s.force, s.torque, s.stage)
             return n
     # the total force and torque, for writers and diagnostics
-    add_rows(s.force, s.stage[0], s.stage[2])
-    add_rows(s.torque, s.stage[1], s.stage[3])
+    total_forces(s.force, s.torque, s.stage)
     return -1
 
 
@@ -162,22 +156,19 @@ def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready
                 if tau < left:
                     events += 1
                     h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
-            kick(s.velocity, s.force, s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, h)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, h)
             drift(s.position, s.velocity, h)
             # the forces see velocities predicted to the end of the sub-step (second order for
             # dashpots), then the half-step ones are restored for the closing kick
             copy_vectors(s.stage[0], s.velocity)
             copy_vectors(s.stage[1], s.angular_velocity)
-            kick(s.velocity, s.force, s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, 0.0)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
             power = forces_of(s, False)  # noqa: F821
             s.accum[0] += 0.5 * h * (s.stage[2, 0, 0] + power)
             s.stage[2, 0, 0] = power
             copy_vectors(s.velocity, s.stage[0])
             copy_vectors(s.angular_velocity, s.stage[1])
-            kick(s.velocity, s.force, s.mass, 0.5 * h)
-            advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, 0.5 * h, 0.0)
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
             left -= h
         countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
@@ -195,8 +186,8 @@ def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_re
         s.stage[6, 0, 0] = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
-        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
-        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                 s.mass, s.inertia, 0.5 * dt, 0.0)
         for m in range(inner):
             left = dt / inner
             events = 0
@@ -207,31 +198,29 @@ def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_re
                     if tau < left:
                         events += 1
                         h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
-                kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
-                advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, h)
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                         s.mass, s.inertia, 0.5 * h, h)
                 drift(s.position, s.velocity, h)
                 copy_vectors(s.stage[4], s.velocity)
                 copy_vectors(s.stage[5], s.angular_velocity)
-                kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
-                advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, 0.0)
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                         s.mass, s.inertia, 0.5 * h, 0.0)
                 power = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
                 s.accum[0] += 0.5 * h * (s.stage[6, 0, 0] + power)
                 s.stage[6, 0, 0] = power
                 copy_vectors(s.velocity, s.stage[4])
                 copy_vectors(s.angular_velocity, s.stage[5])
-                kick(s.velocity, s.stage[2], s.mass, 0.5 * h)
-                advance_spin(s.angular_velocity, s.dipole, s.stage[3], s.inertia, 0.5 * h, 0.0)
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                         s.mass, s.inertia, 0.5 * h, 0.0)
                 left -= h
         s.accum[0] += dt * slow_forces_of(s, s.stage[0], s.stage[1], True)  # noqa: F821
-        kick(s.velocity, s.stage[0], s.mass, 0.5 * dt)
-        advance_spin(s.angular_velocity, s.dipole, s.stage[1], s.inertia, 0.5 * dt, 0.0)
+        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                 s.mass, s.inertia, 0.5 * dt, 0.0)
         countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
-            add_rows(s.force, s.stage[0], s.stage[2])
-            add_rows(s.torque, s.stage[1], s.stage[3])
+            total_forces(s.force, s.torque, s.stage)
             return n
-    add_rows(s.force, s.stage[0], s.stage[2])
-    add_rows(s.torque, s.stage[1], s.stage[3])
+    total_forces(s.force, s.torque, s.stage)
     return -1
 
 

@@ -675,7 +675,8 @@ class _Source:
         plan = self.plan
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
-                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, add_rows, copy_vectors,",
+                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
+                 "                           total_forces,",
                  "                           KERNEL_OPTIONS)",
                  "from demkit.events import earliest_crossing_all, earliest_crossing_list",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
@@ -688,7 +689,7 @@ class _Source:
             lines += ["from demkit.events import earliest_wall_crossing", ""]
         if plan.growing and any(group.parallel for group in plan.groups):  # the per-step passes on threads
             lines += ["from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
-                      "                           advance_spin_threads as advance_spin,",
+                      "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
                       "                           state_is_finite_threads as state_is_finite)",
                       "from demkit.neighbours import max_displacement_threads as max_displacement", ""]
         if self.importable:

@@ -184,6 +184,13 @@ def rk_finish(stage, position, velocity, angular_velocity, dipole, h):
 
 
 @njit(**KERNEL_OPTIONS)
+def kick_all(velocity, angular_velocity, dipole, force, torque, mass, inertia, h, rotate_h):
+    """v += F/m h, omega += tau/I h, then the dipoles turn by omega rotate_h (0: not at all)."""
+    kick(velocity, force, mass, h)
+    advance_spin(angular_velocity, dipole, torque, inertia, h, rotate_h)
+
+
+@njit(**KERNEL_OPTIONS)
 def state_is_finite(position, velocity, angular_velocity):
     """True if no position, velocity or angular velocity is NaN or inf."""
     s = 0.0
@@ -226,6 +233,13 @@ def add_rows(out, a, b):
         out[i, 0] = a[i, 0] + b[i, 0]
         out[i, 1] = a[i, 1] + b[i, 1]
         out[i, 2] = a[i, 2] + b[i, 2]
+
+
+@njit(**KERNEL_OPTIONS)
+def total_forces(force, torque, stage):
+    """force, torque = the slow (stage[0], stage[1]) plus the fast (stage[2], stage[3]) parts."""
+    add_rows(force, stage[0], stage[2])
+    add_rows(torque, stage[1], stage[3])
 
 
 @njit(**KERNEL_OPTIONS)
@@ -339,6 +353,13 @@ def advance_spin_threads(angular_velocity, dipole, torque, inertia, kick_h, rota
         kick_threads(angular_velocity, torque, inertia, kick_h)
     if rotate_h != 0.0 and dipole.shape[0] > 0:
         rotate_threads(dipole, angular_velocity, rotate_h)
+
+
+@njit(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
+def kick_all_threads(velocity, angular_velocity, dipole, force, torque, mass, inertia, h, rotate_h):
+    """:func:`kick_all` with its passes on threads."""
+    kick_threads(velocity, force, mass, h)
+    advance_spin_threads(angular_velocity, dipole, torque, inertia, h, rotate_h)
 
 
 @njit(**THREAD_OPTIONS)
