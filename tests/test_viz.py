@@ -399,3 +399,15 @@ def test_periodic_box_outline_and_trails_without_jumps(many):
     grey = (np.abs(pixels - pixels[..., :1]).sum(axis=2) < 10) & (pixels[..., 0] < 200) & (pixels[..., 0] > 60)
     rows, cols = np.nonzero(grey)
     assert np.ptp(rows) > 250 and np.ptp(cols) > 250  # the outline spans the picture
+
+
+def test_rings_and_chains_are_told_apart():
+    from demkit.viz.analysis import clusters, contacts, rings_and_chains
+
+    ring = [[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 2 * np.pi, 7)[:-1]]  # side 1: touching
+    chain = [[10.0 + k, 0.0, 0.0] for k in range(4)]
+    triangle_with_tail = [[20.0, 0.0, 0.0], [21.0, 0.0, 0.0], [20.5, np.sqrt(0.75), 0.0], [22.0, 0.0, 0.0]]
+    x = np.array(ring + chain + triangle_with_tail + [[30.0, 0.0, 0.0]])
+    labels, counts = clusters(x, 0.5), contacts(x, 0.5)
+    rings, chains = rings_and_chains(labels, counts)
+    assert rings == [6] and chains == [4]  # the triangle with a tail is neither, a lone sphere neither

@@ -73,3 +73,18 @@ def contacts(position, radius, box=None, tolerance=CONTACT_TOLERANCE):
     (r_i + r_j) * (1 + tolerance)."""
     pairs = close_pairs(position, radius, box, scale=1.0 + tolerance)
     return np.bincount(pairs.ravel(), minlength=len(position))
+
+
+def rings_and_chains(labels, counts):
+    """Sizes of the clusters that are plain rings (at least 3 spheres, each touching exactly two
+    others) and plain chains (an open line: two ends touching one sphere, the rest two), from the
+    cluster labels of :func:`clusters` and the touching neighbours of :func:`contacts`:
+    (rings, chains), two lists of sizes in label order."""
+    rings, chains = [], []
+    for c in range(int(labels.max()) + 1 if len(labels) else 0):
+        k = counts[labels == c]
+        if len(k) >= 3 and np.all(k == 2):
+            rings.append(len(k))
+        elif len(k) >= 2 and k.max() <= 2 and np.sum(k == 1) == 2:
+            chains.append(len(k))
+    return rings, chains

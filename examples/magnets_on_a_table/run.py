@@ -87,13 +87,7 @@ def structures(position):
     pairs = dk.viz.analysis.close_pairs(position, R, scale=1 + TOUCH)
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(position),) * 2)
     components = connected_components(graph, directed=False)[0]
-    rings, chains = [], []
-    for c in range(label.max() + 1):
-        k = contacts[label == c]
-        if len(k) >= 3 and np.all(k == 2):
-            rings.append(len(k))
-        elif len(k) >= 2 and k.max() <= 2 and np.sum(k == 1) == 2:
-            chains.append(len(k))
+    rings, chains = dk.viz.analysis.rings_and_chains(label, contacts)
     return {"clusters": int(label.max() + 1), "largest": int(np.sum(label == 0)),
             "free": int(np.sum(contacts == 0)), "linked": int(np.sum((contacts == 1) | (contacts == 2))),
             "junctions": int(np.sum(contacts >= 3)), "contacts": int(len(pairs)),
