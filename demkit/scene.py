@@ -227,8 +227,12 @@ class Scene:
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)),
             sphere_history=np.zeros((n, plan.effect_width)), stage=np.zeros((0, 0, 3)))
         self.arrays = fields
-        values = [fields[name] for name in STATE_FIELDS]
-        return State(*values) if growing else StateTuple(*values)
+        return self._state_object()
+
+    def _state_object(self):
+        """The named state the kernels take, over the arrays in ``self.arrays``."""
+        values = [self.arrays[name] for name in STATE_FIELDS]
+        return State(*values) if self.plan.growing else StateTuple(*values)
 
     # ---- state -----------------------------------------------------------------------------
     def _pairs(self):
@@ -346,8 +350,11 @@ class Scene:
         if stage.shape[0] == count and (count == 0 or stage.shape[1] == n):
             return
         self.arrays["stage"] = np.zeros((count, n if count else 0, 3))
-        values = [self.arrays[name] for name in STATE_FIELDS]
-        self.state = State(*values) if self.plan.growing else StateTuple(*values)
+        self.state = self._state_object()
+
+    def history_keepers(self):
+        """The interactions and effects of the scene that keep per-contact (or per-sphere) history."""
+        return [inter for inter in self.interactions + self.effects if inter.history_size]
 
     def set_time_step(self, dt):
         """Hand the integrator's time step to the interactions that need it (parameter "dt")."""

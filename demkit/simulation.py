@@ -116,7 +116,6 @@ class Simulation:
                 f"{which} = {step:.6g} is too large for the stiffest contact: the largest "
                 f"safe value is {limit:.6g} (a tenth of the shortest contact duration)")
         integrator.check(scene)
-        scene.reserve_stages(integrator.stage_arrays)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 
     def _steps(self, interval, what):
@@ -140,6 +139,8 @@ class Simulation:
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
         scene = self.scene
         scene.validate()
+        # every run: another Simulation of the same scene may have changed them since the last one
+        scene.reserve_stages(self.integrator.stage_arrays)
         scene.set_time_step(self.integrator.contact_step)
         scene.counters[INNER_STEPS] = self.integrator.inner
         state = scene.state

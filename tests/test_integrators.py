@@ -125,6 +125,22 @@ def test_forces_after_a_run_belong_to_the_state_reached(integrator):
     assert integrator.evaluations_per_step == (3 if integrator is dk.ForestRuth else 4)
 
 
+def test_simulations_taking_turns_on_one_scene_each_get_their_working_arrays():
+    # an RK4 and a multiple-time-stepping simulation of the same scene, run in turns, give what
+    # one run of each after the other gives (their working arrays are reserved at every run)
+    a, b = smooth_scene(), smooth_scene()
+    rk4, mts = dk.Simulation(a, dk.RK4(0.05)), dk.Simulation(a, dk.MultipleTimeStep(0.05, inner=2))
+    rk4.run(0.5)
+    mts.run(0.5)
+    assert a.arrays["stage"].shape == (4, 3, 3)  # slow and fast forces and torques
+    rk4.run(0.5)
+    assert a.arrays["stage"].shape == (9, 3, 3)  # RK4's own, not the 4 left by the other run
+    for integrator in (dk.RK4(0.05), dk.MultipleTimeStep(0.05, inner=2), dk.RK4(0.05)):
+        dk.Simulation(b, integrator).run(0.5)
+    np.testing.assert_array_equal(a.particles.position, b.particles.position)
+    np.testing.assert_array_equal(a.particles.dipole, b.particles.dipole)
+
+
 def test_only_rk4_scenes_hold_stage_arrays():
     scene = smooth_scene()
     dk.Simulation(scene, dk.RK4(0.05)).run(0.1)
