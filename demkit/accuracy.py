@@ -202,11 +202,6 @@ KIND_NAMES = {GAP: "contact", CUTOFF: "cutoff", WALL: "wall contact", KINK: "das
               WALL_KINK: "wall dashpot clamp"}
 
 
-def history_keepers(scene):
-    """Interactions and effects of the scene that keep per-contact (or per-sphere) history."""
-    return [inter for inter in tuple(scene.interactions) + tuple(scene.effects) if inter.history_size > 0]
-
-
 class _Switches:
     """The switching functions g of a scene, as vectors over *items*: g changes sign exactly where a
     force law changes regime. Convention: g >= 0 is the regime the compiled law uses when the
@@ -746,7 +741,7 @@ def reference(scene, duration, times=None, rtol=1e-12, atol=None):
                          f"integrates every coordinate with scipy in Python (cost grows as N^2 per evaluation and "
                          f"the adaptive step shrinks with N); compare against the finest fixed-step run instead "
                          f"(work_precision does so for reference='auto')")
-    keepers = history_keepers(scene)
+    keepers = scene.history_keepers()
     if keepers:
         raise ValueError(f"the reference solver cannot integrate {', '.join(type(k).__name__ for k in keepers)} with "
                          f"per-contact history (friction or rolling resistance springs): their springs advance with "
@@ -1217,7 +1212,7 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
         if reference not in ("auto", "adaptive", "finest"):
             raise ValueError(f"reference must be 'auto', 'adaptive', 'finest' or a Trajectory, got {reference!r}")
         if reference == "auto":
-            mode = "adaptive" if len(scene.particles) <= MAX_PARTICLES and not history_keepers(scene) else "finest"
+            mode = "adaptive" if len(scene.particles) <= MAX_PARTICLES and not scene.history_keepers() else "finest"
     elif not isinstance(reference, Trajectory):
         raise TypeError(f"reference must be 'auto', 'adaptive', 'finest' or a Trajectory, got {reference!r}")
     best = max(range(len(makers)), key=lambda k: (makers[k][2], k))  # highest order, last given on ties

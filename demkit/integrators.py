@@ -34,7 +34,6 @@ from .motion import (advance_spin, copy_vectors, drift, kick, kick_all, rk_finis
 from .state import INNER_STEPS  # noqa: F401 (used by templates)
 
 
-
 def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
@@ -272,15 +271,24 @@ class Integrator:
     def check(self, scene):
         """Raise ValueError if this method cannot integrate ``scene``."""
         if not self.history:
-            kept = [inter for inter in scene.interactions + scene.effects if inter.history_size]
+            kept = scene.history_keepers()
             if kept:
                 raise ValueError(
                     f"{type(self).__name__} cannot integrate per-contact history, which {kept[0]!r} keeps "
                     f"(friction or rolling springs advance one step per force evaluation): use VelocityVerlet "
                     f"or EulerCromer for this scene")
 
+    def _resolving(self, resolve_contacts, template, stage_arrays):
+        """Switch to the contact-event template ``template`` (see VelocityVerlet) when asked."""
+        if resolve_contacts not in (True, False):
+            raise ValueError(f"resolve_contacts must be True or False, got {resolve_contacts!r}")
+        self.resolve_contacts = bool(resolve_contacts)
+        if self.resolve_contacts:
+            self.template, self.stage_arrays, self.history = template, stage_arrays, False
+
     def __repr__(self):
-        return f"{type(self).__name__}(dt={self.dt!r})"
+        extra = ", resolve_contacts=True" if self.resolve_contacts else ""
+        return f"{type(self).__name__}(dt={self.dt!r}{extra})"
 
 
 class EulerCromer(Integrator):
@@ -314,15 +322,7 @@ class VelocityVerlet(Integrator):
 
     def __init__(self, dt, resolve_contacts=False):
         super().__init__(dt)
-        if resolve_contacts not in (True, False):
-            raise ValueError(f"resolve_contacts must be True or False, got {resolve_contacts!r}")
-        self.resolve_contacts = bool(resolve_contacts)
-        if self.resolve_contacts:
-            self.template, self.stage_arrays, self.history = "velocity_verlet_events", 3, False
-
-    def __repr__(self):
-        extra = ", resolve_contacts=True" if self.resolve_contacts else ""
-        return f"VelocityVerlet(dt={self.dt!r}{extra})"
+        self._resolving(resolve_contacts, "velocity_verlet_events", 3)
 
 
 class ForestRuth(Integrator):
@@ -385,12 +385,8 @@ class MultipleTimeStep(Integrator):
         super().__init__(dt)
         if isinstance(inner, bool) or not isinstance(inner, (int, np.integer)) or inner < 1:
             raise ValueError(f"inner must be a whole number of sub-steps >= 1, got {inner!r}")
-        if resolve_contacts not in (True, False):
-            raise ValueError(f"resolve_contacts must be True or False, got {resolve_contacts!r}")
         self.inner = int(inner)
-        self.resolve_contacts = bool(resolve_contacts)
-        if self.resolve_contacts:
-            self.template, self.stage_arrays, self.history = "multiple_time_step_events", 7, False
+        self._resolving(resolve_contacts, "multiple_time_step_events", 7)
 
     @property
     def evaluations_per_step(self):
