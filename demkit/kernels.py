@@ -167,6 +167,7 @@ class _Source:
         self.plan = plan
         self.kinds = energy_kinds(plan.interactions + plan.effects)
         self.importable = importable
+        self.parts = self.split_groups()
         # parameter slots: each interaction's parameters, each effect's, then one squared cutoff per
         # interaction, then the effects' tables (Scene builds params in this order)
         self.param_slot, slot = {}, 0
@@ -491,7 +492,7 @@ class _Source:
         args = _state_arrays(g, scratch=kind.startswith("forces")).format(targets=targets)
         return f"{name or f'group_{g}'}_{kind}({args}{extra})"
 
-    def parts(self):
+    def split_groups(self):
         """The fast and slow parts of each group, for multiple time stepping: (g, name, subgroup,
         speed) for every group holding both kinds of interaction (a group of one kind is used whole).
         Empty unless the scene has slow interactions without history next to fast ones."""
@@ -515,7 +516,7 @@ class _Source:
         """Statements adding the forces of the groups (or group parts) of one speed ('fast', 'slow'
         or None: all) into force/torque and their dissipated power into ``power``."""
         plan = self.plan
-        split = {g: (name, sub) for g, name, sub, s in self.parts() if s == speed}
+        split = {g: (name, sub) for g, name, sub, s in self.parts if s == speed}
         lines = []
         for g, group in enumerate(plan.groups):
             name, sub = None, group
@@ -712,7 +713,7 @@ class _Source:
                   f"LOOP = dict(cache={cache}, {fast}{nrt})"]
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group)
-        for g, name, sub, _ in self.parts():
+        for g, name, sub, _ in self.parts:
             lines += self.group_forces(g, sub, name)
         lines += self.scene_functions()
         for name, template in templates.items():
