@@ -6,7 +6,8 @@ from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, Magnet
                            PowerLawDipole, RollingResistance, SphereInteraction, UniformField, Wall)
 from .particles import Particles
 from .scene import Scene
-from .simulation import Simulation, SimulationError, Trajectory
+from .checkpoint import Checkpoint
+from .simulation import LargeOutputWarning, Simulation, SimulationError, Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
@@ -15,7 +16,8 @@ from . import accuracy  # adaptive reference solutions and work-precision report
 
 __version__ = "0.1.0"
 
-__all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Dipole",
+__all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
+           "LargeOutputWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",

@@ -34,6 +34,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from .state import DEEP_OVERLAP_FRACTION
+
 ENERGY_KINDS = ("magnetic", "contact")
 #: pairs per block of a blocked pair loop (the scratch buffers hold one block)
 BLOCK = 64
@@ -121,7 +123,7 @@ def _importable(fn):
     return found is fn
 
 
-ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params"
+ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status"
 LIST_ARRAYS = "start, end, partner, history"
 
 
@@ -256,6 +258,8 @@ class _Source:
             test = f"r2 >= (radius[i] + radius[j]) * (radius[i] + radius[j])"
             test += "".join(f" and history[p, {h}] == 0.0" for h in range(group.width))
             body += [f"{pad}if {test}:", f"{pad}    continue"]
+        if any(inter.contact_reach for _, inter in group.members):
+            body += self.deep_overlap_test(pad)
         body += [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"]
         if torque_on:
             body += [f"{pad}{c} = 0.0" for c in ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")]
@@ -276,6 +280,16 @@ class _Source:
             body += [f"{pad}{torque}[j, 0] += tjx", f"{pad}{torque}[j, 1] += tjy", f"{pad}{torque}[j, 2] += tjz",
                      f"{pad}qix += tix", f"{pad}qiy += tiy", f"{pad}qiz += tiz"]
         return body
+
+    def deep_overlap_test(self, pad):
+        """Flag DEEP_OVERLAP in ``status`` for a pair overlapping by more than DEEP_OVERLAP_FRACTION
+        of the smaller radius (a contact too soft to stop it: the spheres would tunnel through)."""
+        return [f"{pad}small = radius[i] if radius[i] < radius[j] else radius[j]",
+                f"{pad}deep = radius[i] + radius[j] - {DEEP_OVERLAP_FRACTION!r} * small",
+                f"{pad}if r2 < deep * deep and status[0] == OK:",
+                f"{pad}    status[0] = DEEP_OVERLAP",
+                f"{pad}    status[1] = i",
+                f"{pad}    status[3] = j"]
 
     def owner_sums(self, group, indent, force, torque):
         """Per-owner accumulators: opened after the row header, stored after the row."""
@@ -474,6 +488,11 @@ class _Source:
             outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if effect.torque else []) + (
                 ["w"] if effect.dissipative else [])
             lines.append(f"        {', '.join(outs)} = {self.effect_call(e, effect, offsets[e], 'force')}")
+            if getattr(effect, "plane_contact", False):  # walls: plane, nx, ny, nz come first
+                lines += [f"        if radius[i] - (x * q{e}_1 + y * q{e}_2 + z * q{e}_3 - q{e}_0) > "
+                          f"{DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
+                          "            status[0] = DEEP_OVERLAP", "            status[1] = i",
+                          f"            status[3] = {-1 - e}"]
             lines += [f"        force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
             if effect.torque:
                 lines += [f"        torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
@@ -657,11 +676,11 @@ class _Source:
             if any(plan.periodic):
                 lines += ["        wrap(s.position, s.reference, s.image, s.box, s.periodic)"]
             if plan.sorted:
-                lines += ["        if step - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
+                lines += ["        if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                           "            sort_particles(s)",
-                          "            s.counters[LAST_SORT] = step"]
-        if plan.lists:  # only list upkeep can flag a stop before the finiteness check
-            lines += ["    if s.status[0] != OK:", "        s.status[2] = step", "        return -1"]
+                          "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
+        lines += ["    if s.status[0] != OK:  # list upkeep or a pair loop flagged a stop",
+                  "        s.status[2] = step", "        return -1"]
         lines += ["    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
                   "        s.status[0] = NON_FINITE",
                   "        s.status[2] = step",
@@ -683,8 +702,8 @@ class _Source:
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",
-                 "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
-                 "                          INNER_STEPS)",
+                 "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
+                 "                          INNER_STEPS, RUN_START)",
                  ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.events import earliest_wall_crossing", ""]

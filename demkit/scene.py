@@ -12,6 +12,7 @@ open space loops over all pairs for everything (one fused loop, the fastest for 
 """
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numba
@@ -25,10 +26,11 @@ from .interactions.sphere import SphereInteraction
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
-from .state import STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
+from .state import DEEP_OVERLAP_FRACTION, STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
 
-#: initial overlap, as a fraction of the smaller radius, above which a start is rejected
-MAX_INITIAL_OVERLAP = 0.5
+#: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
+#: same limit stops a run, see demkit.state.DEEP_OVERLAP_FRACTION)
+MAX_INITIAL_OVERLAP = DEEP_OVERLAP_FRACTION
 #: open scenes with at most this many spheres loop over all pairs (no neighbour lists)
 ALL_PAIRS_MAX = 64
 #: scenes with at least this many spheres split their pair loops among threads (parallel="auto")
@@ -110,6 +112,9 @@ class Scene:
         self.accum = np.zeros(1)  # accum[0]: work dissipated so far
         self.state = self._make_state()
         self.kernels = build_module(self.plan, TEMPLATES)
+        self._synced = None  # digest of the user's arrays when they last matched the kernels' (see push)
+        self.stepping = False  # inside a Simulation.run: the arrays are the kernels' (push has nothing to do)
+        self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
         self.validate()
         self.push()
         if self.plan.sorted:
@@ -220,7 +225,7 @@ class Scene:
             box=self.box.size.copy() if self.box is not None else np.zeros(3),
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
             skin=self.skin, status=np.zeros(4, dtype=np.int64),
-            counters=np.array([0, 0, 0, 0, self.sort_every, 1], dtype=np.int64),
+            counters=np.array([0, 0, 0, 0, self.sort_every, 1, 0], dtype=np.int64),
             lists=tuple(lists), thread_force=np.zeros((max(threads - 1, 0), n, 3)),
             thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
@@ -261,9 +266,32 @@ class Scene:
                 raise ValueError(f"particles.{name} must keep the shape {own.shape}, got {user.shape}")
             yield user, own
 
+    def digest(self):
+        """A fingerprint of the user's particle arrays (values and identity), O(N): equal digests
+        mean nothing was changed (or replaced) in between."""
+        h = hashlib.blake2b(digest_size=16)
+        p = self.particles
+        for name in PARTICLE_FIELDS + ("fixed", "ids"):
+            value = getattr(p, name, None)
+            h.update(f"{name}:{id(value)}:".encode())
+            if value is not None:
+                h.update(memoryview(np.ascontiguousarray(value)).cast("B"))
+        return h.digest()
+
+    @property
+    def in_sync(self):
+        """True when the user's particle arrays are exactly as the kernels last left them (after a
+        run, a diagnostic or :meth:`demkit.Simulation.resume`): then :meth:`push` has nothing to do
+        and a run can continue without re-checking or re-preparing anything."""
+        return self._synced is not None and self._synced == self.digest()
+
     def push(self):
         """Copy the user's particle arrays into the kernels' order (when sorted; unsorted scenes share
-        them), then bring the lists up to date and wrap periodic coordinates."""
+        them), then bring the lists up to date and wrap periodic coordinates. Does nothing when the
+        user changed nothing since the kernels last synchronised (:attr:`in_sync`): wrapping or
+        rebuilding at another moment than an uninterrupted run would changes its last bits."""
+        if self.stepping or self.in_sync:
+            return
         tag = self.arrays["tag"]
         for user, own in self._pairs():
             if self.plan.sorted:
@@ -274,6 +302,7 @@ class Scene:
             self.arrays["mass"][:] = np.where(fixed, np.inf, p.mass[tag])
             self.arrays["inertia"][:] = np.where(fixed, np.inf, p.inertia[tag])
         self.kernels.prepare(self.state)
+        self.pull()
 
     def pull(self):
         """Copy the kernels' arrays back into the user's particle arrays (no-op unless sorted)."""
@@ -281,6 +310,8 @@ class Scene:
             tag = self.arrays["tag"]
             for user, own in self._pairs():
                 user[tag] = own
+        if not self.stepping:  # within a run the fingerprint is taken once, at its end
+            self._synced = self.digest()
 
     def to_user_order(self, values):
         """Per-particle values (kernel order) in the order of ``particles``."""

@@ -6,13 +6,27 @@ times and the end of the run). Frames are recorded inside the compiled loop.
 from __future__ import annotations
 
 import math
+import os
+import signal
+import threading
 import time
+import warnings
 
 import numba
 import numpy as np
 
 from .scene import energy_dict
-from .state import INNER_STEPS, MOVED_TOO_FAR, OK, REBUILDS
+from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
+
+#: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
+CHUNK_SECONDS = 0.2
+#: a run that will write more files or bytes than this is announced (LargeOutputWarning)
+LARGE_OUTPUT_FILES = 10_000
+LARGE_OUTPUT_BYTES = 10 * 2**30
+
+
+class LargeOutputWarning(UserWarning):
+    """A run is about to write very many files or bytes."""
 
 
 class SimulationError(RuntimeError):
@@ -95,19 +109,57 @@ class Simulation:
 
     writers : objects with ``every`` (a time interval) and ``open(simulation)``,
         ``write(simulation)`` and ``close()``; they are called at the start of the first run and
-        then every ``every`` time units (rounded to whole steps).
-    Raises ValueError if the time step exceeds the scene's largest safe step.
+        then every ``every`` time units (rounded to whole steps). Optional: ``resume(simulation)``
+        (continue an existing output after :meth:`resume`; returns True when the current state
+        must be written) and ``planned_output(frames, particles)`` ((files, bytes), for the
+        warning about large outputs).
+    checkpoint : a :class:`demkit.Checkpoint` (state saved every so often, at the end of every
+        run and on Ctrl-C; :meth:`resume` continues from it bit for bit), or None.
+    max_energy_growth : None, or stop the run (SimulationError) when total + dissipated energy has
+        grown by more than this fraction of the energy scale (the sum of the magnitudes of the
+        kinetic, rotational and potential energies at the start) without a source: a guard for
+        conservative and dissipative scenes, checked every chunk (about 0.2 s of wall time) and
+        at every recorded frame. Leave None for scenes driven from outside.
+
+    Raises ValueError (before anything runs) for a time step too large for the scene's stiffest
+    effect, and for anything the integrator cannot do with the scene.
+
+    The compiled loop hands control back to Python about every :data:`CHUNK_SECONDS` of wall time
+    (at step boundaries, which changes no result): Ctrl-C then ends a run cleanly (see :meth:`run`).
     """
 
-    def __init__(self, scene, integrator, writers=()):
+    def __init__(self, scene, integrator, writers=(), checkpoint=None, max_energy_growth=None):
+        from .checkpoint import Checkpoint
+        from .integrators import Integrator
+        from .scene import Scene
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be a demkit.Scene, got {type(scene).__name__}")
+        if isinstance(integrator, type) and issubclass(integrator, Integrator):
+            raise TypeError(f"integrator must be an instance with its time step, e.g. "
+                            f"{integrator.__name__}(dt=...), not the class {integrator.__name__}")
+        if not isinstance(integrator, Integrator):
+            raise TypeError(f"integrator must be a demkit integrator (VelocityVerlet(dt=...), ...), "
+                            f"got {integrator!r}")
+        if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
+            raise TypeError(f"checkpoint must be a demkit.Checkpoint or None, got {checkpoint!r}")
+        if max_energy_growth is not None:
+            max_energy_growth = _positive_number("max_energy_growth", max_energy_growth)
         self.scene = scene
         self.integrator = integrator
         self.writers = list(writers)
-        self.time = 0.0
+        for w in self.writers:
+            missing = [m for m in ("every", "open", "write", "close") if not hasattr(w, m)]
+            if missing:
+                raise TypeError(f"writer {w!r} lacks {', '.join(missing)} (see demkit.VTKWriter)")
+        self.checkpoint = checkpoint
+        self.max_energy_growth = max_energy_growth
         self.step = 0
         self.trajectory = None
         self.statistics = {}
+        self.energy_origin = None  # (total + dissipated, scale) at the start, for max_energy_growth
         self._opened = False
+        self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
+        self._rate = None  # measured steps per second of wall time (sizes the compiled chunks)
         limit = scene.max_time_step()
         step = integrator.contact_step
         if step > limit:
@@ -118,9 +170,14 @@ class Simulation:
         integrator.check(scene)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 
+    @property
+    def time(self):
+        """Simulation time: steps taken times dt."""
+        return self.step * self.integrator.dt
+
     def _steps(self, interval, what):
         dt = self.integrator.dt
-        interval = float(interval)
+        interval = _number(what, interval)
         if not math.isfinite(interval) or interval <= 0:
             raise ValueError(f"{what} must be a positive finite time, got {interval}")
         steps = int(round(interval / dt))
@@ -128,65 +185,248 @@ class Simulation:
             raise ValueError(f"{what} = {interval:.6g} is shorter than the time step dt = {dt:.6g}")
         return steps
 
-    def run(self, duration, record_every=None):
-        """Advance by ``duration`` (rounded to whole steps) and return the recorded Trajectory.
+    def run(self, duration=None, record_every=None, until=None):
+        """Advance by ``duration`` (rounded to whole steps), or up to the time ``until``, and return
+        the recorded Trajectory.
 
         record_every : time between recorded frames (rounded to whole steps); None records only the
             start and the end. The first frame is the state at the start of this run.
+
+        Ctrl-C (SIGINT) ends the run at the next chunk boundary (within about 0.2 s): the frames
+        recorded so far and the state reached are kept in ``trajectory`` (last frame: the state at
+        the interruption), ``time``/``step`` say where it stopped, writers are closed, a
+        checkpoint is written when there is one, and KeyboardInterrupt is raised again.
         """
-        dt = self.integrator.dt
-        nsteps = self._steps(duration, "duration")
+        nsteps = self._run_length(duration, until)
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
-        scene = self.scene
-        scene.validate()
-        # every run: another Simulation of the same scene may have changed them since the last one
-        scene.reserve_stages(self.integrator.stage_arrays)
-        scene.set_time_step(self.integrator.contact_step)
-        scene.counters[INNER_STEPS] = self.integrator.inner
-        state = scene.state
-        kern = scene.kernels
-        scene.push()
         nframes = nsteps // stride + 1
         extra_final = nsteps % stride != 0
+        self._check_record_size(nframes + extra_final)
+        scene = self.scene
+        forces_ready = self._prepare()
+        state = scene.state
+        kern = scene.kernels
         record = self._allocate(nframes + extra_final)
-        kern.record_frame(0, state, record)
+        if forces_ready and self._last_frame is not None:
+            for row, value in zip(record, self._last_frame):
+                if value is not None:
+                    row[0] = value
+        else:
+            kern.record_frame(0, state, record)
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
+        self._warn_large_output(nsteps, writer_steps)
         if not self._opened:
-            scene.pull()
             for w in self.writers:
                 w.open(self)
                 w.write(self)
             self._opened = True
-        start_time, start_step = self.time, self.step
+        if self.energy_origin is None and self.max_energy_growth is not None:
+            self.energy_origin = self._energy_now(scale=True)
+        check_steps = self._steps(self.checkpoint.every, "checkpoint interval") \
+            if self.checkpoint is not None and self.checkpoint.every is not None else None
+        if self.checkpoint is not None:
+            self.checkpoint.last_save = time.perf_counter()
+        start_step = self.step
         rebuilds = int(scene.counters[REBUILDS])
         clock = time.perf_counter()
         done = 0
-        forces_ready = False
-        while done < nsteps:
-            chunk = nsteps - done
-            for ws in writer_steps:
-                chunk = min(chunk, ws - (start_step + done) % ws)
-            try:
-                failed = self._loop(chunk, done, stride, dt, forces_ready, state, record)
-            finally:
-                scene.pull()
-            forces_ready = True
-            if failed >= 0:
-                self._fail(done + failed + 1, start_time, start_step, stride, record)
-            done += chunk
-            self.step = start_step + done
-            self.time = start_time + done * dt
-            for w, ws in zip(self.writers, writer_steps):
-                if self.step % ws == 0:
-                    w.write(self)
+        chunk_steps = 16 if self._rate is None else max(1, int(self._rate * CHUNK_SECONDS))
+        with _CatchInterrupt() as interrupt, _Stepping(scene):
+            while done < nsteps:
+                chunk = min(nsteps - done, chunk_steps)
+                for every in writer_steps + ([check_steps] if check_steps else []):
+                    chunk = min(chunk, every - (start_step + done) % every)
+                began = time.perf_counter()
+                try:
+                    failed = self._loop(chunk, done, stride, self.integrator.dt, forces_ready, state, record)
+                finally:
+                    scene.pull()
+                forces_ready = True
+                if failed >= 0:
+                    self._fail(done + failed + 1, start_step, stride, record)
+                done += chunk
+                self.step = start_step + done
+                chunk_steps = self._next_chunk(chunk, time.perf_counter() - began, chunk_steps)
+                for w, ws in zip(self.writers, writer_steps):
+                    if self.step % ws == 0:
+                        w.write(self)
+                self._check_while_stepping(done, start_step, stride, record)
+                if self.checkpoint is not None and (
+                        (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
+                    self.checkpoint.save(self)
+                if interrupt.caught and done < nsteps:
+                    self._interrupted(done, start_step, stride, record, nframes)
         if extra_final:
             kern.record_frame(nframes, state, record)
         self._measure(nsteps, time.perf_counter() - clock, int(scene.counters[REBUILDS]) - rebuilds)
         steps = np.arange(nframes) * stride
         if extra_final:
             steps = np.append(steps, nsteps)
-        self.trajectory = self._trajectory(record, start_time + steps * dt)
+        self.trajectory = self._trajectory(record, (start_step + steps) * self.integrator.dt)
+        self._last_frame = _frame_of(record, len(steps) - 1)
+        if self.checkpoint is not None:
+            self.checkpoint.save(self)
+        if interrupt.caught:  # Ctrl-C during the last chunk: the run is complete, still honour it
+            self._close_on_interrupt()
+            raise KeyboardInterrupt(f"run interrupted at its end (step {self.step}, t = {self.time:.6g})")
         return self.trajectory
+
+    def resume(self, path=None):
+        """Continue from a checkpoint file (default: this simulation's ``checkpoint.path``): the
+        scene's state, the step count and the integrator's working arrays become the saved ones, so
+        that the next :meth:`run` gives bit for bit what the interrupted run would have given.
+        Writers with a ``resume`` method take over their existing output up to the checkpoint's
+        time. The scene must be built as for the original run (same particles, interactions,
+        box, thread count) and the integrator the same; otherwise, or for a truncated, corrupted
+        or foreign file, ValueError and nothing is changed. Returns self."""
+        from . import checkpoint as ckpt
+        if path is None:
+            if self.checkpoint is None:
+                raise ValueError("resume() needs a path, or a Simulation made with checkpoint=dk.Checkpoint(...)")
+            path = self.checkpoint.path
+        meta, arrays = ckpt.load(path)
+        scene = self.scene
+        scene.reserve_stages(self.integrator.stage_arrays)
+        ckpt.check_compatible(meta, arrays, self, path)
+        ckpt.restore(scene, arrays)
+        scene.set_time_step(self.integrator.contact_step)
+        scene.counters[INNER_STEPS] = self.integrator.inner
+        self.step = meta["step"]
+        origin = meta.get("energy_origin")
+        self.energy_origin = tuple(origin) if origin is not None else None
+        scene.stepped_by = self
+        self._last_frame = None
+        if not self._opened:
+            for w in self.writers:
+                if hasattr(w, "resume"):
+                    if w.resume(self):
+                        w.write(self)
+                else:
+                    w.open(self)
+                    w.write(self)
+            self._opened = True
+        return self
+
+    def _run_length(self, duration, until):
+        if (duration is None) == (until is None):
+            raise ValueError("give run() either a duration or until= (an end time), not both" if duration is not None
+                             else "give run() a duration, or until= (an end time)")
+        if duration is not None:
+            return self._steps(duration, "duration")
+        end = _number("until", until)
+        if not math.isfinite(end):
+            raise ValueError(f"until must be a finite time, got {end}")
+        steps = int(round(end / self.integrator.dt)) - self.step
+        if steps < 1:
+            raise ValueError(f"until = {end:.6g} is not after the current time {self.time:.6g} (dt = "
+                             f"{self.integrator.dt:.6g})")
+        return steps
+
+    def _prepare(self):
+        """Before a run: check and prepare the scene unless it is exactly as this simulation's last
+        run (or resume) left it; then the forces of the last evaluation are still valid and nothing
+        is recomputed (O(N) re-entry). Returns whether the forces are ready."""
+        scene = self.scene
+        continuing = scene.in_sync and getattr(scene, "stepped_by", None) is self
+        if not continuing:
+            scene.validate()
+            self.energy_origin = None  # the user changed the state: the energy guard restarts
+            self._last_frame = None
+            scene.counters[LAST_SORT] = min(scene.counters[LAST_SORT], self.step)  # another simulation's count
+        # every run: another Simulation of the same scene may have changed them since the last one
+        scene.reserve_stages(self.integrator.stage_arrays)
+        scene.set_time_step(self.integrator.contact_step)
+        scene.counters[INNER_STEPS] = self.integrator.inner
+        scene.counters[RUN_START] = self.step
+        scene.status[:] = OK
+        scene.push()
+        scene.stepped_by = self
+        return continuing
+
+    def _next_chunk(self, steps, seconds, current):
+        """Steps of the next compiled chunk: about CHUNK_SECONDS of wall time, growing at most 4x."""
+        if seconds > 0:
+            rate = steps / seconds
+            self._rate = rate if self._rate is None else 0.5 * (self._rate + rate)
+        target = int(self._rate * CHUNK_SECONDS) if self._rate else 4 * current
+        return max(1, min(target, 4 * current))
+
+    def _energy_now(self, scale=False):
+        """Total + dissipated energy now (and the energy scale), from the kernels' state."""
+        scene = self.scene
+        out = np.zeros(2 + len(scene.energy_kinds))
+        scene.kernels.energies_of(scene.state, out)
+        total = float(out.sum()) + scene.dissipated
+        return (total, float(np.abs(out).sum())) if scale else total
+
+    def _check_while_stepping(self, done, start_step, stride, record):
+        """Guards at a chunk boundary: energy growth (when asked for)."""
+        if self.max_energy_growth is None or self.energy_origin is None:
+            return
+        origin, scale = self.energy_origin
+        now = self._energy_now()
+        growth = (now - origin) / scale if scale > 0 else 0.0
+        if growth > self.max_energy_growth:
+            frames = done // stride + 1
+            self.trajectory = self._trajectory(record, (start_step + np.arange(frames) * stride) * self.integrator.dt)
+            raise SimulationError(
+                f"total + dissipated energy grew by {growth:.3g} of the energy scale {scale:.6g} (from {origin:.6g} "
+                f"to {now:.6g}) by step {self.step} (t = {self.time:.6g}), more than max_energy_growth = "
+                f"{self.max_energy_growth:g}: the run gains energy from nowhere. Use a smaller time step "
+                f"(dt = {self.integrator.dt:.6g}) or stiffer contacts. The {frames} frames recorded so far are "
+                f"kept in simulation.trajectory.",
+                step=self.step, time=self.time, particle=None, trajectory=self.trajectory)
+
+    def _interrupted(self, done, start_step, stride, record, nframes):
+        """Ctrl-C inside a run: keep what was done, save, close, re-raise."""
+        frames = done // stride + 1
+        steps = list(np.arange(frames) * stride)
+        if done % stride:
+            self.scene.kernels.record_frame(frames, self.scene.state, record)
+            steps.append(done)
+        self.trajectory = self._trajectory(record, (start_step + np.asarray(steps)) * self.integrator.dt)
+        self._last_frame = _frame_of(record, len(steps) - 1)
+        saved = ""
+        if self.checkpoint is not None:
+            self.checkpoint.save(self)
+            saved = f"; state saved in {self.checkpoint.path}"
+        self._close_on_interrupt()
+        raise KeyboardInterrupt(f"run interrupted at step {self.step} (t = {self.time:.6g}): the {len(steps)} frames "
+                                f"so far are in simulation.trajectory{saved}")
+
+    def _close_on_interrupt(self):
+        for w in self.writers:
+            try:
+                w.close()
+            except Exception:  # closing must not hide the interruption  # noqa: BLE001
+                pass
+
+    def _check_record_size(self, nframes):
+        p = self.scene.particles
+        vectors = 2 + (p.angular_velocity is not None) + (p.dipole is not None) + (p.image is not None)
+        size = nframes * (len(p) * 3 * 8 * vectors + 8 * (4 + len(self.scene.energy_kinds) + 3))
+        memory = _physical_memory()
+        if memory and size > 0.8 * memory:
+            raise ValueError(
+                f"recording {nframes} frames of {len(p)} particles needs {size / 2**30:.3g} GiB, more than this "
+                f"machine can hold ({memory / 2**30:.3g} GiB of memory): record fewer frames (a larger "
+                f"record_every) or write them to disk with a VTKWriter")
+
+    def _warn_large_output(self, nsteps, writer_steps):
+        files = size = 0
+        for w, ws in zip(self.writers, writer_steps):
+            if hasattr(w, "planned_output"):
+                f, b = w.planned_output(nsteps // ws, self.scene.particles)
+                files, size = files + f, size + b
+        if files > LARGE_OUTPUT_FILES or size > LARGE_OUTPUT_BYTES:
+            warnings.warn(f"this run will write about {files} files and {size / 2**30:.3g} GiB "
+                          f"({nsteps} steps); a larger writer interval writes less", LargeOutputWarning,
+                          stacklevel=3)
+
+    def __repr__(self):
+        extra = f", checkpoint={self.checkpoint!r}" if self.checkpoint is not None else ""
+        return (f"Simulation({len(self.scene.particles)} particles, {self.integrator!r}, step {self.step}, "
+                f"t = {self.time:.6g}, {len(self.writers)} writers{extra})")
 
     def _measure(self, nsteps, seconds, rebuilds):
         scene = self.scene
@@ -231,17 +471,16 @@ class Simulation:
             inertia=p.inertia.copy(), ids=p.ids.copy(), image=image if p.image is not None else None,
             box=self.scene.box)
 
-    def _fail(self, bad_step, start_time, start_step, stride, record):
+    def _fail(self, bad_step, start_step, stride, record):
         dt = self.integrator.dt
         scene = self.scene
         p = scene.particles
         status = scene.status
-        code, index = int(status[0]), int(status[1])
+        code, index, other = int(status[0]), int(status[1]), int(status[3])
         status[:] = OK
         good_frames = (bad_step - 1) // stride + 1
-        self.trajectory = self._trajectory(record, start_time + np.arange(good_frames) * stride * dt)
+        self.trajectory = self._trajectory(record, (start_step + np.arange(good_frames) * stride) * dt)
         self.step = start_step + bad_step
-        self.time = start_time + bad_step * dt
         kept = (f"The {good_frames} frames recorded before it are kept in simulation.trajectory")
         if code == MOVED_TOO_FAR:
             k = int(scene.arrays["tag"][index])
@@ -251,6 +490,15 @@ class Simulation:
                 f"rebuilds at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}, so {speed * dt:.6g} per "
                 f"step): the lists could miss pairs and contacts could be stepped over. Use a smaller time step "
                 f"(dt = {dt:.6g}) or a larger skin. {kept}.",
+                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
+        if code == DEEP_OVERLAP:
+            tag = scene.arrays["tag"]
+            k, m = int(tag[index]), int(tag[other])
+            raise SimulationError(
+                f"particles id {p.ids[k]} and {p.ids[m]} overlap by more than {DEEP_OVERLAP_FRACTION} of the smaller "
+                f"radius at step {self.step} (t = {self.time:.6g}): the contact cannot stop them (they would "
+                f"pass through each other). Use a stiffer contact law or a smaller time step (dt = {dt:.6g}); "
+                f"docs/stability.md says how to size both. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         arrays = [p.position, p.velocity] + ([p.angular_velocity] if p.angular_velocity is not None else [])
         bad = np.zeros(len(p), dtype=bool)
@@ -269,3 +517,76 @@ class Simulation:
             f"particle id {p.ids[k]}: position {p.position[k].tolist()}, velocity {p.velocity[k].tolist()}. "
             f"{kept}; a smaller time step or gentler initial conditions may help.",
             step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
+
+
+def _frame_of(record, k):
+    """Copies of frame k of every record array (None for absent fields)."""
+    return tuple(r[k].copy() if len(r) else None for r in record)
+
+
+def _number(what, value):
+    """float(value) for a real number; strings and booleans are refused (run("10") is a mistake)."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{what} must be a number, got {value!r}")
+    return float(value)
+
+
+def _positive_number(what, value):
+    value = _number(what, value)
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{what} must be a positive finite number, got {value}")
+    return value
+
+
+def _physical_memory():
+    """Bytes of memory of this machine (0 when unknown)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+class _Stepping:
+    """Marks the scene as being stepped (see Scene.push); on leaving, however the run ended, the
+    scene is synchronised again, and after an error it no longer counts as this run's to continue."""
+
+    def __init__(self, scene):
+        self.scene = scene
+
+    def __enter__(self):
+        self.scene.stepping = True
+
+    def __exit__(self, kind, error, tb):
+        self.scene.stepping = False
+        self.scene.pull()
+        if kind is not None and not issubclass(kind, KeyboardInterrupt):
+            self.scene.stepped_by = None
+        return False
+
+
+class _CatchInterrupt:
+    """Within a run: SIGINT (Ctrl-C) sets ``caught`` instead of raising wherever Python happens to
+    be; the run looks at it between compiled chunks. Only in the main thread (signal handlers can
+    only be set there); elsewhere Ctrl-C behaves as usual."""
+
+    def __init__(self):
+        self.caught = False
+        self._previous = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            try:
+                self._previous = signal.signal(signal.SIGINT, self._handler)
+            except ValueError:  # not the main interpreter
+                self._previous = None
+        return self
+
+    def _handler(self, signum, frame):
+        if self.caught and callable(self._previous):  # a second Ctrl-C: the usual behaviour, now
+            self._previous(signum, frame)
+        self.caught = True
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        return False

@@ -21,7 +21,8 @@ a pair interaction when it happens in an inner loop.
 (RK4: K = 9), and (0, 0, 3) for the others: a scene holds it only while such an integrator uses it.
 
 Codes written to ``status[0]`` by the compiled loop (``status[1]`` holds the internal particle index,
-``status[2]`` the global step): :data:`OK`, :data:`NON_FINITE`, :data:`MOVED_TOO_FAR`.
+``status[2]`` the global step, ``status[3]`` a second particle): :data:`OK`, :data:`NON_FINITE`,
+:data:`MOVED_TOO_FAR`, :data:`DEEP_OVERLAP` (the pair loops flag it in ``status[0]``/``[1]``/``[3]``).
 """
 from __future__ import annotations
 
@@ -32,11 +33,16 @@ from numba import njit
 from numba.core import types
 from numba.experimental import structref
 
-OK, NON_FINITE, MOVED_TOO_FAR = 0, 1, 2
+OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP = 0, 1, 2, 3
+#: a contact overlap deeper than this fraction of the smaller radius stops a run (DEEP_OVERLAP): the
+#: contact is too soft to stop the spheres, which would tunnel through each other; the same limit
+#: as for a start (Scene refuses deeper initial overlaps)
+DEEP_OVERLAP_FRACTION = 0.5
 #: slots of ``State.counters``: list builds, rebuilt this step (wrap and maybe sort at its end),
 #: re-sorts, step of the last re-sort, steps between re-sorts, inner steps per step of multiple
-#: time stepping
-REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY, INNER_STEPS = 0, 1, 2, 3, 4, 5
+#: time stepping, and the global step count at the start of the current run (the loops count steps
+#: from the start of their run; re-sorting goes by the global count, so runs can be cut anywhere)
+REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START = 0, 1, 2, 3, 4, 5, 6
 
 PAIR_LIST_FIELDS = ("reach", "start", "end", "partner", "history", "bounds")
 STATE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia",

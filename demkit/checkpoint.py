@@ -1,0 +1,255 @@
+"""Checkpoints: the whole state of a run in one plain ``.npz`` file, for an exact restart.
+
+A checkpoint holds every array the compiled time loop reads or carries from one step to the next,
+in the kernels' own (possibly re-sorted) order: positions, velocities, spins, dipoles, periodic
+image counts, forces and torques of the last evaluation, the integrator's working arrays
+(``s.stage``), dissipated work, per-contact and per-sphere history, every neighbour list as it is
+(entries, history rows, thread bounds) with its reference positions, the list and sort counters,
+and the step count. demkit's stepping draws no random numbers (builders take their own seeds), so
+there is no random state to keep. Resuming from it (:meth:`demkit.Simulation.resume`) continues
+bit for bit as if the run had never stopped, any number of times.
+
+The file is written atomically (temporary file in the same folder, flush, fsync, rename, fsync of
+the folder): at every moment the path holds either the previous checkpoint or the new one, never a
+mixture. It is a zip of ``.npy`` arrays with no pickled object (metadata is JSON text stored as
+bytes) and is read with ``allow_pickle=False``, so loading one executes nothing.
+
+A checkpoint names the demkit version and a hash of the scene's constant parameters (interactions
+and their parameters, radii, masses, inertias, ids, fixed spheres, box, skin, sorting, thread
+chunks, integrator); resuming into another scene or with another version is refused before
+anything is changed.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from .state import PAIR_LIST_FIELDS, PairList, PairListTuple
+
+#: bumped whenever the layout of the file changes
+FORMAT = 1
+#: state arrays saved by name (kernel order); thread buffers and scratch are not state
+SAVED_ARRAYS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia", "tag",
+                "image", "force", "torque", "accum", "reference", "counters", "sphere_history", "stage")
+
+
+class Checkpoint:
+    """Where and how often a :class:`demkit.Simulation` saves its state.
+
+    Parameters
+    ----------
+    path : the checkpoint file (``.npz``; replaced atomically at every save).
+    every : simulation time between saves (rounded to whole steps), or None.
+    seconds : wall-clock seconds between saves, or None. The state is also saved at the end of
+        every run and when a run is interrupted (Ctrl-C); never after a run failed.
+    """
+
+    def __init__(self, path, every=None, seconds=None):
+        self.path = Path(path)
+        self.every = _interval("every", every)
+        self.seconds = _interval("seconds", seconds)
+        if self.path.exists() and self.path.is_dir():
+            raise ValueError(f"checkpoint path {self.path} is a folder: name a file")
+        folder = self.path.parent if str(self.path.parent) else Path(".")
+        if not folder.is_dir():
+            raise ValueError(f"the folder of the checkpoint {self.path} does not exist")
+        self.saves = 0
+        self.last_save = None  # wall-clock time of the last save
+
+    def exists(self):
+        """Is there a checkpoint file to resume from?"""
+        return self.path.is_file()
+
+    def due(self, now):
+        """Has the wall-clock interval passed since the last save (or since ``start``)?"""
+        return self.seconds is not None and self.last_save is not None and now - self.last_save >= self.seconds
+
+    def save(self, simulation):
+        """Write ``simulation``'s state now (atomically). Returns the path."""
+        save(simulation, self.path)
+        self.saves += 1
+        self.last_save = time.perf_counter()
+        return self.path
+
+    def __repr__(self):
+        return f"Checkpoint({str(self.path)!r}, every={self.every!r}, seconds={self.seconds!r})"
+
+
+def _interval(name, value):
+    if value is None:
+        return None
+    if isinstance(value, (bool, str)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"Checkpoint {name} must be a positive number or None, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"Checkpoint {name} must be a positive finite number, got {value}")
+    return value
+
+
+# ---- what identifies a scene --------------------------------------------------------------------
+def scene_hash(scene, integrator):
+    """sha256 of everything constant that the stepping depends on (not the state)."""
+    from . import __version__
+    h = hashlib.sha256()
+    p = scene.particles
+
+    def add(label, value):
+        h.update(label.encode())
+        if isinstance(value, np.ndarray):
+            h.update(str(value.dtype).encode() + str(value.shape).encode())
+            h.update(memoryview(np.ascontiguousarray(value)).cast("B"))
+        else:
+            h.update(repr(value).encode())
+
+    add("n", len(p))
+    for inter in scene.interactions + scene.effects:
+        add("interaction", type(inter).__module__ + "." + type(inter).__qualname__)
+    params = scene.params.copy()
+    params[scene.time_step_slots] = 0.0  # set by each run from the integrator
+    add("params", params)
+    for name in ("radius", "mass", "inertia", "ids"):
+        add(name, np.asarray(getattr(p, name)))
+    add("fixed", np.asarray(p.fixed) if p.fixed is not None else None)
+    add("box", (scene.box.size.tolist(), list(scene.box.periodic)) if scene.box is not None else None)
+    add("skin", scene.skin)
+    add("sort_every", scene.sort_every)
+    add("chunks", scene.chunks)
+    add("parallel", scene.parallel)
+    add("groups", [(g.kind, g.reach, g.parallel, [k for k, _ in g.members]) for g in scene.plan.groups])
+    add("fields", [name for name in SAVED_ARRAYS if scene.arrays[name].size])
+    add("integrator", repr(integrator))
+    add("version", __version__)
+    return h.hexdigest()
+
+
+# ---- writing ------------------------------------------------------------------------------------
+def state_arrays(scene):
+    """Every array a checkpoint holds, by name (copies)."""
+    arrays = {f"state.{name}": np.array(scene.arrays[name]) for name in SAVED_ARRAYS}
+    for g in range(len(scene.plan.groups)):
+        pl = scene._list(g)
+        arrays[f"list{g}.reach"] = np.array([pl.reach])
+        for name in PAIR_LIST_FIELDS[1:]:
+            arrays[f"list{g}.{name}"] = np.array(getattr(pl, name))
+    return arrays
+
+
+def save(simulation, path):
+    """Write the checkpoint of ``simulation`` to ``path`` atomically (see the module docstring)."""
+    from . import __version__
+    path = Path(path)
+    scene = simulation.scene
+    meta = {"format": FORMAT, "demkit": __version__, "scene": scene_hash(scene, simulation.integrator),
+            "integrator": repr(simulation.integrator), "step": int(simulation.step),
+            "time": float(simulation.time), "particles": len(scene.particles),
+            "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin}
+    arrays = state_arrays(scene)
+    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+    folder = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    try:  # the rename itself survives a power cut once the folder is synced
+        dir_fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)
+        finally:
+            os.close(dir_fd)
+    except OSError:
+        pass
+    return path
+
+
+# ---- reading ------------------------------------------------------------------------------------
+def load(path):
+    """(meta dict, arrays dict) of a checkpoint file. Raises ValueError for a missing, truncated,
+    corrupted or foreign file, or one holding pickled objects (nothing in it is executed)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"no checkpoint file at {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except ValueError as err:
+        if "pickle" in str(err):
+            raise ValueError(f"checkpoint {path} holds pickled objects; demkit checkpoints never do, and "
+                             f"it is not loaded (loading pickles can execute code)") from None
+        raise ValueError(f"checkpoint {path} is not a readable demkit checkpoint: {err}") from None
+    except (zipfile.BadZipFile, OSError, EOFError, KeyError) as err:
+        raise ValueError(f"checkpoint {path} is truncated or corrupted ({type(err).__name__}: {err}); "
+                         f"it is not used") from None
+    if "meta" not in arrays or arrays["meta"].dtype != np.uint8:
+        raise ValueError(f"{path} is not a demkit checkpoint (no metadata)")
+    try:
+        meta = json.loads(arrays.pop("meta").tobytes().decode())
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ValueError(f"checkpoint {path} has corrupted metadata: {err}") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise ValueError(f"checkpoint {path} has format {meta.get('format') if isinstance(meta, dict) else '?'}; "
+                         f"this demkit reads format {FORMAT}")
+    return meta, arrays
+
+
+def check_compatible(meta, arrays, simulation, path):
+    """Raise ValueError unless the checkpoint fits ``simulation``'s scene, integrator and version."""
+    from . import __version__
+    scene = simulation.scene
+    if meta.get("demkit") != __version__:
+        raise ValueError(f"checkpoint {path} was written by demkit {meta.get('demkit')}, this is demkit "
+                         f"{__version__}: an exact restart needs the same version")
+    if meta.get("particles") != len(scene.particles):
+        raise ValueError(f"checkpoint {path} holds {meta.get('particles')} particles, the scene has "
+                         f"{len(scene.particles)}: it belongs to another scene")
+    if meta.get("integrator") != repr(simulation.integrator):
+        raise ValueError(f"checkpoint {path} was written with {meta.get('integrator')}, this simulation "
+                         f"uses {simulation.integrator!r}: an exact restart needs the same integrator")
+    if meta.get("scene") != scene_hash(scene, simulation.integrator):
+        raise ValueError(f"checkpoint {path} belongs to another scene: its parameters (interactions, radii, "
+                         f"masses, box, skin, threads chunks, ...) differ from this scene's")
+    expected = state_arrays(scene)
+    expected.pop("meta", None)
+    for name, value in expected.items():
+        if name not in arrays:
+            raise ValueError(f"checkpoint {path} lacks {name!r}: not a checkpoint of this scene")
+        got = arrays[name]
+        if got.dtype != value.dtype or (not name.endswith(("partner", "history")) and got.shape != value.shape):
+            raise ValueError(f"checkpoint {path}: {name} has {got.dtype} {got.shape}, the scene expects "
+                             f"{value.dtype} {value.shape}")
+    for name in arrays:
+        if name not in expected:
+            raise ValueError(f"checkpoint {path} holds an unexpected array {name!r}")
+    step = meta.get("step")
+    if not isinstance(step, int) or step < 0:
+        raise ValueError(f"checkpoint {path} has an invalid step count {step!r}")
+
+
+def restore(scene, arrays):
+    """Put the checkpoint's arrays into ``scene`` (already checked by :func:`check_compatible`)."""
+    for name in SAVED_ARRAYS:
+        scene.arrays[name][...] = arrays[f"state.{name}"]
+    lists = []
+    for g in range(len(scene.plan.groups)):
+        fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])
+                                                        for name in PAIR_LIST_FIELDS[1:]]
+        lists.append(PairList(*fields) if scene.plan.growing else PairListTuple(*fields))
+    scene.arrays["lists"] = tuple(lists)
+    scene.state = scene._state_object()
+    scene.pull()

@@ -1,0 +1,55 @@
+"""Scenes for the restart and interruption tests (imported by tests and by their child processes).
+
+A periodic box of magnetic spheres with thermal motion, so that within a short run spheres collide
+(contact history when ``friction``), cross the box faces (image counts), and the neighbour lists
+are rebuilt and, with ``sort_every``, the spheres re-sorted (internal order != user order).
+"""
+import numpy as np
+
+import demkit as dk
+
+
+def gas(n=120, friction=True, parallel=None, sort_every=40, seed=3, walls=False):
+    rng = np.random.default_rng(seed)
+    radius = 0.5
+    box = dk.build.box_for(n, radius, 0.25, periodic=(True, True, not walls))
+    x = dk.build.random_packing(n, radius, box, seed=rng)
+    v = dk.build.thermal_velocities(n, 4.0, 1.0, seed=rng)
+    mu = 0.7 * dk.build.random_directions(n, seed=rng)
+    p = dk.Particles(position=x, velocity=v, radius=radius, mass=1.0, dipole=mu,
+                     angular_velocity=np.zeros((n, 3)))
+    contact = dk.KelvinVoigt(2000.0, 3.0, friction=dk.Friction(0.4) if friction else None)
+    interactions = [dk.Dipole(prefactor=1.0, cutoff=3.0), contact]
+    if walls:
+        side = float(box.size[2])
+        interactions += [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, side), (0, 0, -1)), dk.Gravity((0, 0, -1.0))]
+    return dk.Scene(p, interactions, box=box, parallel=parallel, sort_every=sort_every)
+
+
+def state_of(scene):
+    """Everything that must agree bit for bit between an interrupted and an uninterrupted run."""
+    p = scene.particles
+    out = {"position": p.position.copy(), "velocity": p.velocity.copy(),
+           "angular_velocity": p.angular_velocity.copy(), "dipole": p.dipole.copy(),
+           "image": p.image.copy() if p.image is not None else None, "dissipated": scene.dissipated}
+    for inter in scene.history_keepers():
+        if inter in scene.effects:
+            out[f"sphere history {inter!r}"] = scene.sphere_history(inter)
+            continue
+        pairs, values = scene.history(inter)
+        order = np.lexsort((pairs[:, 1], pairs[:, 0]))
+        out[f"history {inter!r}"] = (pairs[order], values[order])
+    return out
+
+
+def assert_identical(a, b):
+    assert a.keys() == b.keys()
+    for key in a:
+        x, y = a[key], b[key]
+        if isinstance(x, tuple):
+            for u, w in zip(x, y):
+                assert np.array_equal(u, w), key
+        elif x is None:
+            assert y is None, key
+        else:
+            assert np.array_equal(np.asarray(x), np.asarray(y)), f"{key} differs"

@@ -1,0 +1,244 @@
+"""Checkpoints and exact restart: a run stopped and resumed any number of times gives bit for bit
+what the uninterrupted run gives (the truth here is the uninterrupted run itself: equality, not a
+tolerance), for every integrator, with friction history, periodic images, re-sorting, walls, and
+1 or 2 threads; bad checkpoint files are refused before anything changes."""
+import os
+import signal
+import threading
+import time
+import zipfile
+
+import numba
+import numpy as np
+import pytest
+
+import demkit as dk
+from demkit import checkpoint as ckpt_module
+from restart_scenes import assert_identical, gas, state_of
+
+DT = 2e-3
+
+INTEGRATORS = [
+    pytest.param(lambda: dk.VelocityVerlet(DT), True, id="VelocityVerlet+friction"),
+    pytest.param(lambda: dk.EulerCromer(DT), True, id="EulerCromer+friction"),
+    pytest.param(lambda: dk.MultipleTimeStep(2 * DT, inner=2), True, id="MultipleTimeStep+friction"),
+    pytest.param(lambda: dk.ForestRuth(DT), False, id="ForestRuth"),
+    pytest.param(lambda: dk.RK4(DT), False, id="RK4"),
+    pytest.param(lambda: dk.VelocityVerlet(DT, resolve_contacts=True), False, id="VelocityVerlet-resolved"),
+]
+
+
+def uninterrupted(make_integrator, friction, until, **scene_options):
+    scene = gas(friction=friction, **scene_options)
+    sim = dk.Simulation(scene, make_integrator())
+    traj = sim.run(until=until, record_every=until / 4)
+    return state_of(scene), traj
+
+
+def in_pieces(make_integrator, friction, ends, path, **scene_options):
+    """A run from 0 to ends[-1], stopped at every end and resumed in a new scene and simulation."""
+    last = None
+    for k, end in enumerate(ends):
+        scene = gas(friction=friction, **scene_options)
+        sim = dk.Simulation(scene, make_integrator(), checkpoint=dk.Checkpoint(path))
+        if k:
+            sim.resume()
+            assert sim.time == pytest.approx(ends[k - 1], abs=1e-12)
+        last = sim.run(until=end, record_every=ends[-1] / 4) if k == len(ends) - 1 else sim.run(until=end)
+    return state_of(scene), last
+
+
+@pytest.mark.parametrize("make_integrator, friction", INTEGRATORS)
+def test_stopped_and_resumed_runs_are_bit_identical_to_an_uninterrupted_one(tmp_path, make_integrator, friction):
+    until = 0.4
+    truth, traj = uninterrupted(make_integrator, friction, until)
+    state, last = in_pieces(make_integrator, friction, [0.064, 0.132, 0.312, until], tmp_path / "run.ckpt")
+    assert truth["image"].any(), "spheres crossed the box faces"
+    if friction:
+        assert any(np.any(v[1]) for k, v in truth.items() if k.startswith("history")), "contacts kept history"
+    assert_identical(state, truth)
+    # the frames the resumed run recorded are the uninterrupted run's frames at those times
+    assert last.time[-1] == traj.time[-1]
+    assert np.array_equal(last.position[-1], traj.position[-1])
+    assert np.array_equal(last.energy["total"][-1], traj.energy["total"][-1])
+
+
+def test_restart_is_exact_with_walls_gravity_and_sphere_history(tmp_path):
+    make = lambda: dk.VelocityVerlet(DT)  # noqa: E731
+    truth, _ = uninterrupted(make, True, 0.3, walls=True)
+    state, _ = in_pieces(make, True, [0.1, 0.3], tmp_path / "walls.ckpt", walls=True)
+    assert_identical(state, truth)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs numba with at least 2 threads")
+def test_two_threads_are_deterministic_equal_to_one_thread_and_restart_exactly(tmp_path):
+    make = lambda: dk.VelocityVerlet(DT)  # noqa: E731
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(2)
+        first, _ = uninterrupted(make, True, 0.2, parallel=True)
+        second, _ = uninterrupted(make, True, 0.2, parallel=True)
+        pieces, _ = in_pieces(make, True, [0.07, 0.2], tmp_path / "threads.ckpt", parallel=True)
+        numba.set_num_threads(1)
+        single, _ = uninterrupted(make, True, 0.2, parallel=True)
+    finally:
+        numba.set_num_threads(before)
+    assert_identical(second, first)  # run to run
+    assert_identical(pieces, first)  # restart
+    assert_identical(single, first)  # fixed chunks: the thread count does not change the result
+
+
+def test_continuing_runs_of_one_simulation_equal_one_long_run():
+    scene = gas()
+    sim = dk.Simulation(scene, dk.VelocityVerlet(DT))
+    for end in (0.05, 0.1, 0.2):
+        sim.run(until=end)
+    truth, _ = uninterrupted(lambda: dk.VelocityVerlet(DT), True, 0.2)
+    assert_identical(state_of(scene), truth)
+
+
+def test_checkpoint_file_is_plain_npz_without_pickles_and_saved_at_the_interval(tmp_path):
+    path = tmp_path / "c.ckpt"
+    scene = gas()
+    checkpoint = dk.Checkpoint(path, every=0.02)
+    dk.Simulation(scene, dk.VelocityVerlet(DT), checkpoint=checkpoint).run(until=0.1)
+    assert checkpoint.saves == 5 + 1  # every 0.02 and (again) at the end of the run
+    with np.load(path, allow_pickle=False) as data:
+        assert all(data[name].dtype != object for name in data.files)
+    assert not list(tmp_path.glob("*.tmp"))
+    meta, _ = ckpt_module.load(path)
+    assert meta["step"] == 50 and meta["time"] == pytest.approx(0.1)
+
+
+# ---- bad checkpoints: a clear error, nothing changed ------------------------------------------------
+def _saved(tmp_path, **options):
+    path = tmp_path / "good.ckpt"
+    scene = gas(**options)
+    dk.Simulation(scene, dk.VelocityVerlet(DT), checkpoint=dk.Checkpoint(path)).run(until=0.02)
+    return path
+
+
+def _refused(path, scene, match, integrator=None):
+    sim = dk.Simulation(scene, integrator or dk.VelocityVerlet(DT))
+    before = scene.digest(), scene.particles.position.copy()
+    size = path.stat().st_size if path.exists() else None
+    content = path.read_bytes() if path.exists() else None
+    with pytest.raises(ValueError, match=match):
+        sim.resume(path)
+    assert scene.digest() == before[0] and np.array_equal(scene.particles.position, before[1])
+    assert sim.step == 0
+    if content is not None:
+        assert path.stat().st_size == size and path.read_bytes() == content
+
+
+def test_a_checkpoint_of_another_scene_integrator_or_version_is_refused(tmp_path, monkeypatch):
+    path = _saved(tmp_path)
+    other = gas()
+    other_radius = gas(n=121)
+    _refused(path, other_radius, "121 particles|another scene")
+    p = other.particles
+    changed = dk.Scene(dk.Particles(p.position, p.velocity, radius=0.5, mass=2.0, dipole=p.dipole,
+                                    angular_velocity=p.angular_velocity),
+                       list(other.interactions), box=other.box, sort_every=40)
+    _refused(path, changed, "another scene")
+    _refused(path, gas(), "same integrator", integrator=dk.VelocityVerlet(2 * DT))
+    monkeypatch.setattr(dk, "__version__", "9.9.9")
+    _refused(path, gas(), "demkit 9.9.9")
+
+
+def test_truncated_corrupted_pickled_and_missing_checkpoints_are_refused(tmp_path):
+    path = _saved(tmp_path)
+    data = path.read_bytes()
+    truncated = tmp_path / "truncated.ckpt"
+    truncated.write_bytes(data[: len(data) // 2])
+    _refused(truncated, gas(), "truncated or corrupted")
+    corrupted = tmp_path / "corrupted.ckpt"
+    flipped = bytearray(data)
+    middle = len(flipped) // 2
+    flipped[middle: middle + 64] = bytes(255 - b for b in flipped[middle: middle + 64])
+    corrupted.write_bytes(bytes(flipped))
+    _refused(corrupted, gas(), "truncated or corrupted|not a readable")
+    pickled = tmp_path / "pickled.ckpt"
+    with np.load(path) as good:
+        arrays = {name: good[name] for name in good.files}
+    arrays["payload"] = np.array([{"os": "system"}], dtype=object)
+    with open(pickled, "wb") as fh:
+        np.savez(fh, **arrays)
+    _refused(pickled, gas(), "pickled objects")
+    _refused(tmp_path / "absent.ckpt", gas(), "no checkpoint file")
+    zipped = tmp_path / "foreign.ckpt"
+    with zipfile.ZipFile(zipped, "w") as z:
+        z.writestr("readme.txt", "not numpy")
+    _refused(zipped, gas(), "not a demkit checkpoint|not a readable|truncated or corrupted")
+
+
+def test_checkpoint_arguments_are_checked(tmp_path):
+    for bad in (0, -1.0, float("nan"), "10", True):
+        with pytest.raises(ValueError, match="every"):
+            dk.Checkpoint(tmp_path / "x.ckpt", every=bad)
+    with pytest.raises(ValueError, match="does not exist"):
+        dk.Checkpoint(tmp_path / "missing" / "x.ckpt")
+    with pytest.raises(TypeError, match="Checkpoint"):
+        dk.Simulation(gas(), dk.VelocityVerlet(DT), checkpoint=str(tmp_path / "x.ckpt"))
+    with pytest.raises(ValueError, match="needs a path"):
+        dk.Simulation(gas(), dk.VelocityVerlet(DT)).resume()
+
+
+# ---- Ctrl-C -----------------------------------------------------------------------------------------
+def _two_spheres():
+    p = dk.Particles([[0.0, 0, 0], [3.0, 0, 0]], velocity=[[0, 0.1, 0], [0, -0.1, 0]], radius=0.5,
+                     dipole=[[1.0, 0, 0], [1.0, 0, 0]])
+    return dk.Scene(p, [dk.Dipole(prefactor=0.05), dk.KelvinVoigt(5000.0, 1.0)])
+
+
+def _interrupt_after(seconds):
+    timer = threading.Timer(seconds, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    return timer
+
+
+def test_ctrl_c_ends_a_run_cleanly_keeping_frames_state_and_a_checkpoint(tmp_path):
+    scene = _two_spheres()
+    path = tmp_path / "sigint.ckpt"
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-4), checkpoint=dk.Checkpoint(path))
+    sim.run(1e-3)  # compile first
+    until = 1e-3 + 1e-4 * 6e8  # far more than the second this test waits
+    timer = _interrupt_after(0.5)
+    began = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt, match="interrupted at step"):
+        sim.run(until - sim.time, record_every=1.0)
+    waited = time.perf_counter() - began
+    timer.join()
+    assert waited < 0.5 + 1.0  # honoured within a chunk (~0.2 s), not at the end of the run
+    traj = sim.trajectory
+    assert sim.time > 1e-3 and traj.time[-1] == sim.time and len(traj) >= 2
+    assert np.array_equal(traj.position[-1], scene.particles.position)
+    assert np.all(np.diff(traj.time) > 0)
+    meta, _ = ckpt_module.load(path)
+    assert meta["step"] == sim.step
+    kept = tmp_path / "at-interrupt.ckpt"
+    kept.write_bytes(path.read_bytes())
+    # the interrupted run goes on, in this simulation and from the checkpoint in a new scene, exactly
+    stop = sim.step + 20000
+    sim.run(until=stop * 1e-4)
+    scene2 = _two_spheres()
+    sim2 = dk.Simulation(scene2, dk.VelocityVerlet(1e-4)).resume(kept)
+    sim2.run(until=stop * 1e-4)
+    assert np.array_equal(scene2.particles.position, scene.particles.position)
+    assert np.array_equal(scene2.particles.angular_velocity, scene.particles.angular_velocity)
+
+
+def test_run_arguments_are_checked():
+    sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4))
+    for bad in ("10", True, None):
+        with pytest.raises(ValueError, match="number|duration"):
+            sim.run(bad)
+    with pytest.raises(ValueError, match="not both"):
+        sim.run(1.0, until=2.0)
+    with pytest.raises(ValueError, match="not after"):
+        sim.run(until=0.0)
+    with pytest.raises(ValueError, match="GiB"):
+        sim.run(1e-4 * 2e11, record_every=1e-4)  # 2e11 frames: terabytes, refused before anything
+    with pytest.raises(TypeError, match="instance"):
+        dk.Simulation(_two_spheres(), dk.VelocityVerlet)
+    assert "Simulation(" in repr(sim) and "VelocityVerlet" in repr(sim)
