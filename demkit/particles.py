@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .checks import integer_array, real_array
+
 OPTIONAL_FIELDS = ("angular_velocity", "dipole", "image")
 
 
 def _vectors(name, value, n):
-    arr = np.array(value, dtype=np.float64)
+    arr = real_array(name, value)
     if arr.shape == (3,) and n is not None:
         arr = np.tile(arr, (n, 1))
     if arr.ndim != 2 or arr.shape[1] != 3 or (n is not None and arr.shape[0] != n):
@@ -24,7 +26,7 @@ def _vectors(name, value, n):
 
 
 def _scalars(name, value, n, positive=True):
-    arr = np.array(value, dtype=np.float64)
+    arr = real_array(name, value)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
     if arr.shape != (n,):
@@ -37,10 +39,10 @@ def _scalars(name, value, n, positive=True):
 
 
 def _images(value, n):
-    arr = np.array(value)
-    if arr.shape != (n, 3) or not (np.issubdtype(arr.dtype, np.integer) or np.all(arr == np.round(arr))):
+    arr = integer_array("image", value)
+    if arr.shape != (n, 3):
         raise ValueError(f"image must be an ({n}, 3) array of integers, got shape {np.shape(value)}")
-    return np.ascontiguousarray(arr, dtype=np.int64)
+    return np.ascontiguousarray(arr)
 
 
 def _flags(name, value, n):
@@ -75,6 +77,8 @@ class Particles:
     image : (N,3) integers, periodic image counts, or None (created as zeros in a periodic box).
     fixed : (N,) booleans or None: fixed spheres neither move nor turn (they must start at rest;
         they still feel and exert forces: the scene gives them infinite mass and inertia).
+
+    Every number must be an int or float (numpy ones included): strings and bools raise TypeError.
     """
 
     def __init__(self, position, velocity=None, radius=1.0, mass=1.0, inertia_factor=0.4,
@@ -96,7 +100,7 @@ class Particles:
         if ids is None:
             self.ids = np.arange(n, dtype=np.int64)
         else:
-            self.ids = np.array(ids, dtype=np.int64)
+            self.ids = integer_array("ids", ids)
             if self.ids.shape != (n,) or len(np.unique(self.ids)) != n:
                 raise ValueError(f"ids must be {n} unique integers, got {ids!r}")
 

@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from ..checks import flag, non_negative, number, positive, real_array  # noqa: F401 (used by the interactions)
+
 FIELDS = ("velocity", "angular_velocity", "dipole", "radius", "mass")
 
 
@@ -65,8 +67,10 @@ class Interaction:
                 inspect.getattr_static(self, "energy_function"))
 
     def parameter_values(self):
-        """The values of :attr:`parameters` as a float64 array."""
-        return np.array([float(getattr(self, name)) for name in self.parameters], dtype=np.float64)
+        """The values of :attr:`parameters` as a float64 array (numbers; bools count as 0 and 1)."""
+        values = [getattr(self, name) for name in self.parameters]
+        return np.array([float(v) if isinstance(v, (bool, np.bool_)) else number(f"{type(self).__name__} {name}", v)
+                         for name, v in zip(self.parameters, values)], dtype=np.float64)
 
     def max_time_step(self, particles):
         """Largest time step this interaction can be integrated with safely (math.inf: no limit)."""
@@ -105,18 +109,3 @@ class PairInteraction(Interaction):
         """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""
         return math.inf if self.cutoff_distance is None else self.cutoff_distance
 
-
-def positive(name, value):
-    """Return float(value), raising ValueError unless it is finite and > 0."""
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive finite number, got {value}")
-    return value
-
-
-def non_negative(name, value):
-    """Return float(value), raising ValueError unless it is finite and >= 0."""
-    value = float(value)
-    if not math.isfinite(value) or value < 0:
-        raise ValueError(f"{name} must be a non-negative finite number, got {value}")
-    return value

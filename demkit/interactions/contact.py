@@ -19,7 +19,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
-from .base import PairInteraction, non_negative, positive
+from .base import PairInteraction, flag, non_negative, positive
 from .friction import HISTORY, Friction, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR, RollingResistance
 
@@ -141,7 +141,7 @@ class KelvinVoigt(PairInteraction):
     def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None, rolling=None):
         self.stiffness = positive("KelvinVoigt stiffness", stiffness)
         self.damping = non_negative("KelvinVoigt damping", damping)
-        self.no_tension = bool(no_tension)
+        self.no_tension = flag("KelvinVoigt no_tension", no_tension)
         self.friction, self.rolling = check_tangential("KelvinVoigt", friction, rolling)
         if friction is not None:
             self.reads = ("velocity", "angular_velocity", "radius")
