@@ -77,6 +77,29 @@ def test_not_an_interaction():
         dk.Scene(p, ["gravity"])
 
 
+# ---- per-sphere vectors: one row per sphere, never copied ------------------------------------
+@pytest.mark.parametrize("field", ["velocity", "dipole", "angular_velocity"])
+@pytest.mark.parametrize("single", [[0.0, 0.0, 1.0], [[0.0, 0.0, 1.0]]])
+def test_a_single_vector_is_not_copied_to_several_spheres(field, single):
+    with pytest.raises(ValueError, match=rf"{field} must have shape \(2, 3\), one row per sphere, got "
+                                         rf"\({'1, ' if np.ndim(single) == 2 else ''}3,?\).*np.tile\(v, \(2, 1\)\)"):
+        dk.Particles(position=[[0, 0, 0], [3, 0, 0]], **{field: single})
+    # with one sphere the bare vector and its (1, 3) form are the same thing
+    one = dk.Particles(position=[[0, 0, 0]], **{field: single})
+    np.testing.assert_array_equal(getattr(one, field), [[0.0, 0.0, 1.0]])
+    # equal vectors for N spheres are written out
+    three = dk.Particles(position=[[0, 0, 0], [3, 0, 0], [6, 0, 0]], **{field: np.tile(single, (3, 1))})
+    np.testing.assert_array_equal(getattr(three, field), [[0.0, 0.0, 1.0]] * 3)
+
+
+def test_a_bare_position_is_one_sphere():
+    p = dk.Particles(position=[1.0, 2.0, 3.0], velocity=[0.0, 0.5, 0.0])
+    assert len(p) == 1
+    np.testing.assert_array_equal(p.position, [[1.0, 2.0, 3.0]])
+    with pytest.raises(ValueError, match="rectangular"):
+        dk.Particles(position=[[0, 0, 0], [1, 2]])
+
+
 # ---- numbers are numbers: no strings, no bools -----------------------------------------------
 class LooseDipole(dk.Dipole):
     """A plug-in that stores its parameter unchecked."""
@@ -162,3 +185,11 @@ def test_numpy_numbers_and_whole_float_ids_are_numbers():
     with pytest.raises(ValueError, match="ids must hold whole numbers"):
         dk.Particles(TWO, ids=[0.5, 1.5])  # was truncated to [0, 1]
 
+
+# ---- Particles repr ---------------------------------------------------------------------------
+def test_particles_repr_is_one_short_line():
+    assert repr(dk.Particles(TWO)) == "Particles(2 spheres, radius 1)"
+    p = dk.Particles([[0, 0, 0], [3, 0, 0], [6, 0, 0]], radius=[0.5, 1.5, 1.0], dipole=[[0, 0, 1]] * 3,
+                     angular_velocity=np.zeros((3, 3)), fixed=np.array([True, False, True]))
+    assert repr(p) == "Particles(3 spheres, radius 0.5 to 1.5, angular_velocity, dipole, 2 fixed)"
+    assert repr(dk.Particles([0, 0, 0], radius=0.25)) == "Particles(1 sphere, radius 0.25)"
