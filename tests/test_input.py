@@ -186,6 +186,53 @@ def test_numpy_numbers_and_whole_float_ids_are_numbers():
         dk.Particles(TWO, ids=[0.5, 1.5])  # was truncated to [0, 1]
 
 
+# ---- one interaction of a kind, unless it repeats by nature ----------------------------------
+def test_the_same_interaction_twice_is_refused():
+    law = dk.KelvinVoigt(1e3)
+    p = dk.Particles(TWO)
+    with pytest.raises(ValueError, match=r"the same KelvinVoigt\(.*\) is given twice \(entries 0 and 1 of "
+                                         r"interactions\).*give it once"):
+        dk.Scene(p, [law, law])
+    wall = dk.Wall((0, 0, -2), (0, 0, 1))  # walls may repeat, but not the same wall
+    with pytest.raises(ValueError, match=r"the same Wall\(.*\) is given twice \(entries 1 and 2"):
+        dk.Scene(p, [law, wall, wall])
+
+
+@pytest.mark.parametrize("first, second, hint", [
+    (dk.Gravity((0, 0, -9.81)), dk.Gravity((1, 0, 0)), r"one Gravity with the summed acceleration"),
+    (dk.UniformField((0, 0, 1)), dk.UniformField((0, 1, 0)), r"one UniformField with the summed field"),
+    (dk.KelvinVoigt(1e3), dk.KelvinVoigt(2e3), r"one contact law acts on every touching pair"),
+    (dk.Hertz(1e9, 0.3), dk.Hertz(1e9, 0.3), r"one contact law"),
+    (dk.Dipole(1.0), dk.Dipole(2.0), r"one Dipole"),
+    (dk.Dipole(1.0), dk.PowerLawDipole(1.0), r"one Dipole \(or PowerLawDipole, a kind of Dipole\)"),
+    (dk.PowerLawDipole(1.0), dk.Dipole(1.0), r"one Dipole"),
+])
+def test_two_of_a_kind_that_would_add_up_are_refused(first, second, hint):
+    p = dk.Particles(TWO, dipole=[[0, 0, 1]] * 2)
+    kind = min(type(first), type(second), key=lambda k: len(k.__mro__)).__name__
+    with pytest.raises(ValueError, match=rf"two {kind} interactions are given \(entries 0: .* and 2: .*\): their "
+                                         rf"forces would add up; .*{hint}"):
+        dk.Scene(p, [first, dk.KelvinVoigt(5.0) if isinstance(first, dk.Dipole) else dk.Dipole(1.0), second]
+                 if not isinstance(first, (dk.KelvinVoigt, dk.Hertz)) else [first, dk.Gravity((0, 0, -1)), second])
+
+
+def test_walls_repeat_and_their_forces_add():
+    """A sphere in a corner, pressed into the floor and a side wall: each wall pushes on its own."""
+    k = 100.0
+    p = dk.Particles(position=[[0.9, 0.0, 0.95]], radius=1.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(k), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 0, 1))])
+    force, _ = scene.forces()
+    np.testing.assert_allclose(force, [[k * 0.1, 0.0, k * 0.05]], rtol=1e-12)
+    assert dk.Wall.repeatable and dk.MagnetField.repeatable
+    assert not any(c.repeatable for c in (dk.Gravity, dk.UniformField, dk.Dipole, dk.KelvinVoigt, dk.Hertz))
+
+
+def test_a_single_effect_may_be_given_alone():
+    p = dk.Particles(position=[[0, 0, 0]], mass=2.0)
+    force, _ = dk.Scene(p, dk.Gravity((0, 0, -9.81))).forces()
+    np.testing.assert_allclose(force, [[0, 0, -2 * 9.81]])
+
+
 # ---- Particles repr ---------------------------------------------------------------------------
 def test_particles_repr_is_one_short_line():
     assert repr(dk.Particles(TWO)) == "Particles(2 spheres, radius 1)"

@@ -53,6 +53,12 @@ class Interaction:
     energy_kind: str = "potential"
     #: names of the scalar parameters passed to the functions, in order
     parameters: tuple = ()
+    #: may a scene hold two of this class (or of a subclass of it)? False: their forces would
+    #: simply add up (two Gravity, two Dipole sums), which is refused; walls and tabulated fields
+    #: may repeat. The same object twice is always refused.
+    repeatable: bool = False
+    #: how to do with one instance what two would do (said when a second one is refused)
+    repeat_hint: str = "keep one of them"
     #: numba functions (set by subclasses)
     force_function = None
     energy_function = None
@@ -109,3 +115,17 @@ class PairInteraction(Interaction):
         """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""
         return math.inf if self.cutoff_distance is None else self.cutoff_distance
 
+
+def check_repeats(interactions):
+    """Raise ValueError if the same object appears twice in ``interactions`` or two interactions of
+    a class that is not :attr:`~Interaction.repeatable` (one an instance of the other's class) do."""
+    for b, second in enumerate(interactions):
+        for a, first in enumerate(interactions[:b]):
+            if first is second:
+                raise ValueError(f"the same {first!r} is given twice (entries {a} and {b} of interactions): its "
+                                 f"forces would be counted twice; give it once")
+            for one, other in ((first, second), (second, first)):
+                kind = type(one)
+                if not kind.repeatable and isinstance(other, kind):
+                    raise ValueError(f"two {kind.__name__} interactions are given (entries {a}: {first!r} and "
+                                     f"{b}: {second!r}): their forces would add up; {kind.repeat_hint}")

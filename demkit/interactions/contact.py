@@ -135,6 +135,7 @@ class KelvinVoigt(PairInteraction):
     energy_kind = "contact"
     contact_reach = True
     parameters = ("stiffness", "damping", "no_tension")
+    repeat_hint = "one contact law acts on every touching pair: keep one, with its friction and rolling"
     force_function = kelvin_voigt_force
     energy_function = kelvin_voigt_energy
 

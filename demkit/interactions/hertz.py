@@ -202,6 +202,7 @@ class Hertz(PairInteraction):
     energy_kind = "contact"
     contact_reach = True
     parameters = ("young_eff", "shear_eff", "gamma")
+    repeat_hint = "one contact law acts on every touching pair: keep one, with its friction and rolling"
     force_function = hertz_force
     energy_function = hertz_energy
 

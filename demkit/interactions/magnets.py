@@ -150,6 +150,7 @@ class MagnetField(SphereInteraction):
     reads = ("dipole",)
     torque = True
     energy_kind = "field"
+    repeatable = True  # fields superpose: a coarse table of a far magnet, a fine one of a near one
     parameters = ("x0", "y0", "z0", "x1", "y1", "z1", "sx", "sy", "sz", "nx", "ny", "nz")
     force_function = magnet_force
     energy_function = magnet_energy
