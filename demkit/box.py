@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from .checks import real_array
+
 
 class Box:
     """Rectangular box [0, Lx) x [0, Ly) x [0, Lz).
@@ -22,7 +24,7 @@ class Box:
     """
 
     def __init__(self, size, periodic=False):
-        arr = np.array(size, dtype=np.float64)
+        arr = real_array("Box size", size)
         if arr.ndim == 0:
             arr = np.full(3, float(arr))
         if arr.shape != (3,):

@@ -23,6 +23,7 @@ import numbers
 import numpy as np
 from numba import njit
 
+from . import checks
 from .box import Box
 
 __all__ = ["RSA_LIMIT", "box_for", "random_packing", "spatial_order", "lattice", "chain", "ring",
@@ -48,18 +49,12 @@ def _count(n, what="n"):
 
 
 def _positive(value, what):
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a positive number, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0:
-        raise ValueError(f"{what} must be a positive finite number, got {value!r}")
-    return x
+    return checks.positive(what, value)
 
 
 def _radii(n, radius):
     """(radii (n,), scalar?) with every radius positive and finite."""
-    r = np.array(radius, dtype=np.float64)
+    r = checks.real_array("radius", radius)
     if r.ndim == 0:
         _positive(r, "radius")
         return np.full(n, float(r)), True
@@ -73,7 +68,7 @@ def _radii(n, radius):
 
 
 def _unit(vector, what):
-    v = np.array(vector, dtype=np.float64)
+    v = checks.real_array(what, vector)
     if v.shape != (3,):
         raise ValueError(f"{what} must be three numbers (x, y, z), got {vector!r}")
     if not np.all(np.isfinite(v)):
@@ -85,27 +80,18 @@ def _unit(vector, what):
 
 
 def _point(point, what):
-    p = np.array(point, dtype=np.float64)
+    p = checks.real_array(what, point)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise ValueError(f"{what} must be three finite numbers (x, y, z), got {point!r}")
     return p
 
 
 def _gap(gap):
-    try:
-        g = float(gap)
-    except (TypeError, ValueError):
-        raise ValueError(f"gap must be a number >= 0, got {gap!r}") from None
-    if not math.isfinite(g) or g < 0:
-        raise ValueError(f"gap must be a finite number >= 0, got {gap!r}")
-    return g
+    return checks.non_negative("gap", gap)
 
 
 def _fraction(volume_fraction):
-    try:
-        phi = float(volume_fraction)
-    except (TypeError, ValueError):
-        raise ValueError(f"volume_fraction must be a number, got {volume_fraction!r}") from None
+    phi = checks.number("volume_fraction", volume_fraction)
     if not math.isfinite(phi) or phi <= 0:
         raise ValueError(f"volume_fraction must be in (0, {RSA_LIMIT}], got {volume_fraction!r}")
     if phi > RSA_LIMIT * (1 + 1e-12):  # slack: the fraction of box_for(..., RSA_LIMIT) rounds either way
@@ -438,13 +424,7 @@ def chain(n, radius, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0), gap=0.0, 
 
 
 def _moment(moment):
-    try:
-        m = float(moment)
-    except (TypeError, ValueError):
-        raise ValueError(f"moment must be a number, got {moment!r}") from None
-    if not math.isfinite(m):
-        raise ValueError(f"moment must be finite, got {moment!r}")
-    return m
+    return checks.finite("moment", moment)
 
 
 def _frame(normal):
@@ -496,7 +476,7 @@ def random_directions(n, seed=None):
 
 
 def _per_sphere(n, value, what):
-    a = np.array(value, dtype=np.float64)
+    a = checks.real_array(what, value)
     if a.ndim == 0:
         _positive(a, what)
         return np.full(n, float(a))
@@ -510,13 +490,7 @@ def _per_sphere(n, value, what):
 
 
 def _kT(kT):
-    try:
-        t = float(kT)
-    except (TypeError, ValueError):
-        raise ValueError(f"kT must be a number >= 0, got {kT!r}") from None
-    if not math.isfinite(t) or t < 0:
-        raise ValueError(f"kT must be a finite number >= 0, got {kT!r}")
-    return t
+    return checks.non_negative("kT", kT)
 
 
 def thermal_velocities(n, kT, mass, seed=None):

@@ -9,22 +9,30 @@ from __future__ import annotations
 
 import numpy as np
 
+from .checks import integer_array, real_array
+
 OPTIONAL_FIELDS = ("angular_velocity", "dipole", "image")
 
 
 def _vectors(name, value, n):
-    arr = np.array(value, dtype=np.float64)
-    if arr.shape == (3,) and n is not None:
-        arr = np.tile(arr, (n, 1))
+    """An (n, 3) array, one row per sphere (n None: any number of rows). A bare 3-vector is one
+    row: it fits a single sphere and is never copied to several (see :class:`Particles`)."""
+    arr = real_array(name, value)
+    if arr.shape == (3,):
+        arr = arr.reshape(1, 3)
     if arr.ndim != 2 or arr.shape[1] != 3 or (n is not None and arr.shape[0] != n):
         want = f"({n}, 3)" if n is not None else "(N, 3)"
-        raise ValueError(f"{name} must have shape {want}, got {np.shape(value)}")
+        message = f"{name} must have shape {want}, one row per sphere, got {np.shape(value)}"
+        if n is not None and n > 1 and arr.shape in ((1, 3), (3,)):
+            message += (f": a single vector is not copied to the {n} spheres; to give them all the same one "
+                        f"pass np.tile(v, ({n}, 1))")
+        raise ValueError(message)
     _finite(name, arr)
     return np.ascontiguousarray(arr)
 
 
 def _scalars(name, value, n, positive=True):
-    arr = np.array(value, dtype=np.float64)
+    arr = real_array(name, value)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
     if arr.shape != (n,):
@@ -37,10 +45,10 @@ def _scalars(name, value, n, positive=True):
 
 
 def _images(value, n):
-    arr = np.array(value)
-    if arr.shape != (n, 3) or not (np.issubdtype(arr.dtype, np.integer) or np.all(arr == np.round(arr))):
+    arr = integer_array("image", value)
+    if arr.shape != (n, 3):
         raise ValueError(f"image must be an ({n}, 3) array of integers, got shape {np.shape(value)}")
-    return np.ascontiguousarray(arr, dtype=np.int64)
+    return np.ascontiguousarray(arr)
 
 
 def _flags(name, value, n):
@@ -75,6 +83,14 @@ class Particles:
     image : (N,3) integers, periodic image counts, or None (created as zeros in a periodic box).
     fixed : (N,) booleans or None: fixed spheres neither move nor turn (they must start at rest;
         they still feel and exert forces: the scene gives them infinite mass and inertia).
+
+    Shapes are strict: every per-sphere vector (position, velocity, dipole, angular_velocity) is
+    an (N, 3) array with one row per sphere. A bare 3-vector counts as one row, so it is accepted
+    only for a single sphere, exactly like its (1, 3) form; for N > 1 both are refused rather than
+    copied to every sphere (write ``np.tile(v, (N, 1))`` for equal vectors). Scalars (radius, mass,
+    inertia_factor) are the exception: one number applies to all.
+
+    Every number must be an int or float (numpy ones included): strings and bools raise TypeError.
     """
 
     def __init__(self, position, velocity=None, radius=1.0, mass=1.0, inertia_factor=0.4,
@@ -96,9 +112,17 @@ class Particles:
         if ids is None:
             self.ids = np.arange(n, dtype=np.int64)
         else:
-            self.ids = np.array(ids, dtype=np.int64)
+            self.ids = integer_array("ids", ids)
             if self.ids.shape != (n,) or len(np.unique(self.ids)) != n:
                 raise ValueError(f"ids must be {n} unique integers, got {ids!r}")
+
+    def __repr__(self):
+        r = self.radius
+        radius = f"{r[0]:.6g}" if np.all(r == r[0]) else f"{r.min():.6g} to {r.max():.6g}"
+        present = [name for name in OPTIONAL_FIELDS if getattr(self, name) is not None]
+        fixed = int(self.fixed.sum()) if self.fixed is not None else 0
+        return (f"Particles({self.n} sphere{'s' if self.n != 1 else ''}, radius {radius}"
+                + "".join(f", {name}" for name in present) + (f", {fixed} fixed" if fixed else "") + ")")
 
     def __len__(self):
         return self.position.shape[0]

@@ -21,7 +21,7 @@ import numpy as np
 from . import neighbours
 from .box import Box
 from .integrators import TEMPLATES
-from .interactions.base import PairInteraction
+from .interactions.base import PairInteraction, check_repeats
 from .interactions.sphere import SphereInteraction
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
@@ -53,7 +53,9 @@ class Scene:
     Parameters
     ----------
     particles : Particles
-    interactions : list of PairInteraction (e.g. ``[Dipole(prefactor=1/3), KelvinVoigt(1.0, 0.1)]``)
+    interactions : list of PairInteraction and SphereInteraction (e.g. ``[Dipole(prefactor=1/3),
+        KelvinVoigt(1.0, 0.1)]``), each given once; two of a class that is not ``repeatable`` (two
+        Gravity, two Dipole) are refused, their forces would merely add up
     box : :class:`demkit.Box` or None (open space)
     skin : extra reach of the neighbour lists (length); default 0.3 mean diameters. Lists are
         rebuilt when a sphere has moved skin/2.
@@ -70,13 +72,14 @@ class Scene:
     def __init__(self, particles, interactions, box=None, skin=None, parallel=None, sort_every=None):
         if not isinstance(particles, Particles):
             raise TypeError(f"particles must be a demkit.Particles, got {type(particles).__name__}")
-        if isinstance(interactions, PairInteraction):
+        if isinstance(interactions, (PairInteraction, SphereInteraction)):
             interactions = [interactions]
         interactions = list(interactions)
         for inter in interactions:
             if not isinstance(inter, (PairInteraction, SphereInteraction)):
                 raise TypeError(f"interactions must be PairInteraction or SphereInteraction objects (Wall, Gravity, "
                                 f"UniformField, ...), got {inter!r}")
+        check_repeats(interactions)
         effects = [inter for inter in interactions if isinstance(inter, SphereInteraction)]
         interactions = [inter for inter in interactions if isinstance(inter, PairInteraction)]
         for effect in effects:

@@ -379,7 +379,6 @@ def test_a_scene_without_friction_keeps_no_history_and_compiles_no_friction():
     (lambda: dk.Wall(point=(0, 0, 0), normal=(0, 0, 1), velocity=(0, 0, 1)), "plane"),
     (lambda: dk.UniformField((0, 1)), "3-vector"),
     (lambda: dk.UniformField((0, float("nan"), 1)), "finite"),
-    (lambda: dk.Gravity("down"), "3-vector"),
 ])
 def test_bad_contact_and_surroundings_input(make, message):
     with pytest.raises(ValueError, match=message):

@@ -162,7 +162,7 @@ def test_bad_input(magpy):
     region = ((-1, -1, 1), (1, 1, 2))
     with pytest.raises(ValueError, match="3-vector"):
         dk.MagnetField(source, ((0, 0), (1, 1)), spacing=0.1)
-    with pytest.raises(ValueError, match="corners"):
+    with pytest.raises(TypeError, match="MagnetField region must be a number or an array of numbers"):
         dk.MagnetField(source, "a box", spacing=0.1)
     with pytest.raises(ValueError, match="x0 < x1"):
         dk.MagnetField(source, ((0, 0, 1), (1, 0, 2)), spacing=0.1)

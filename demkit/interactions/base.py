@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from ..checks import flag, non_negative, number, positive, real_array  # noqa: F401 (used by the interactions)
+
 FIELDS = ("velocity", "angular_velocity", "dipole", "radius", "mass")
 
 
@@ -51,6 +53,12 @@ class Interaction:
     energy_kind: str = "potential"
     #: names of the scalar parameters passed to the functions, in order
     parameters: tuple = ()
+    #: may a scene hold two of this class (or of a subclass of it)? False: their forces would
+    #: simply add up (two Gravity, two Dipole sums), which is refused; walls and tabulated fields
+    #: may repeat. The same object twice is always refused.
+    repeatable: bool = False
+    #: how to do with one instance what two would do (said when a second one is refused)
+    repeat_hint: str = "keep one of them"
     #: numba functions (set by subclasses)
     force_function = None
     energy_function = None
@@ -65,8 +73,10 @@ class Interaction:
                 inspect.getattr_static(self, "energy_function"))
 
     def parameter_values(self):
-        """The values of :attr:`parameters` as a float64 array."""
-        return np.array([float(getattr(self, name)) for name in self.parameters], dtype=np.float64)
+        """The values of :attr:`parameters` as a float64 array (numbers; bools count as 0 and 1)."""
+        values = [getattr(self, name) for name in self.parameters]
+        return np.array([float(v) if isinstance(v, (bool, np.bool_)) else number(f"{type(self).__name__} {name}", v)
+                         for name, v in zip(self.parameters, values)], dtype=np.float64)
 
     def max_time_step(self, particles):
         """Largest time step this interaction can be integrated with safely (math.inf: no limit)."""
@@ -106,17 +116,16 @@ class PairInteraction(Interaction):
         return math.inf if self.cutoff_distance is None else self.cutoff_distance
 
 
-def positive(name, value):
-    """Return float(value), raising ValueError unless it is finite and > 0."""
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive finite number, got {value}")
-    return value
-
-
-def non_negative(name, value):
-    """Return float(value), raising ValueError unless it is finite and >= 0."""
-    value = float(value)
-    if not math.isfinite(value) or value < 0:
-        raise ValueError(f"{name} must be a non-negative finite number, got {value}")
-    return value
+def check_repeats(interactions):
+    """Raise ValueError if the same object appears twice in ``interactions`` or two interactions of
+    a class that is not :attr:`~Interaction.repeatable` (one an instance of the other's class) do."""
+    for b, second in enumerate(interactions):
+        for a, first in enumerate(interactions[:b]):
+            if first is second:
+                raise ValueError(f"the same {first!r} is given twice (entries {a} and {b} of interactions): its "
+                                 f"forces would be counted twice; give it once")
+            for one, other in ((first, second), (second, first)):
+                kind = type(one)
+                if not kind.repeatable and isinstance(other, kind):
+                    raise ValueError(f"two {kind.__name__} interactions are given (entries {a}: {first!r} and "
+                                     f"{b}: {second!r}): their forces would add up; {kind.repeat_hint}")

@@ -19,7 +19,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
-from .base import PairInteraction, non_negative, positive
+from .base import PairInteraction, flag, non_negative, positive
 from .friction import HISTORY, Friction, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR, RollingResistance
 
@@ -135,13 +135,14 @@ class KelvinVoigt(PairInteraction):
     energy_kind = "contact"
     contact_reach = True
     parameters = ("stiffness", "damping", "no_tension")
+    repeat_hint = "one contact law acts on every touching pair: keep one, with its friction and rolling"
     force_function = kelvin_voigt_force
     energy_function = kelvin_voigt_energy
 
     def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None, rolling=None):
         self.stiffness = positive("KelvinVoigt stiffness", stiffness)
         self.damping = non_negative("KelvinVoigt damping", damping)
-        self.no_tension = bool(no_tension)
+        self.no_tension = flag("KelvinVoigt no_tension", no_tension)
         self.friction, self.rolling = check_tangential("KelvinVoigt", friction, rolling)
         if friction is not None:
             self.reads = ("velocity", "angular_velocity", "radius")

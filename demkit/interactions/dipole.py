@@ -210,6 +210,8 @@ class Dipole(PairInteraction):
     torque = True
     energy_kind = "magnetic"
     parameters = ("prefactor",)
+    repeat_hint = ("one Dipole (or PowerLawDipole, a kind of Dipole) already couples every pair of moments: keep "
+                   "one, with the prefactor you want")
     branch_free = True
     slow = True
     force_function = dipole_force

@@ -34,6 +34,7 @@ class Gravity(SphereInteraction):
     reads = ("mass",)
     energy_kind = "gravity"
     parameters = ("gx", "gy", "gz")
+    repeat_hint = "give one Gravity with the summed acceleration, Gravity(g1 + g2)"
     force_function = gravity_force
     energy_function = gravity_energy
 
@@ -65,6 +66,7 @@ class UniformField(SphereInteraction):
     torque = True
     energy_kind = "field"
     parameters = ("bx", "by", "bz")
+    repeat_hint = "give one UniformField with the summed field, UniformField(B1 + B2)"
     force_function = field_torque
     energy_function = field_energy
 

@@ -31,13 +31,11 @@ so that dU_t is exact.
 """
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from ..motion import HELPER_OPTIONS
 
-from .base import non_negative
+from .base import non_negative, positive
 from .rolling import rolling_on_i
 from .spring import HISTORY, release, spring_energy, spring_force  # noqa: F401 (re-exported for the laws)
 
@@ -60,11 +58,7 @@ class Friction:
 
     def __init__(self, coefficient, stiffness=None, damping=None, slip_radius="contact", sliding="coulomb"):
         self.coefficient = non_negative("Friction coefficient", coefficient)
-        if stiffness is not None:
-            stiffness = float(stiffness)
-            if not math.isfinite(stiffness) or stiffness <= 0:
-                raise ValueError(f"Friction stiffness must be a positive finite number or None, got {stiffness}")
-        self.stiffness = stiffness
+        self.stiffness = None if stiffness is None else positive("Friction stiffness", stiffness)
         self.damping = None if damping is None else non_negative("Friction damping", damping)
         if slip_radius not in ("contact", "full"):
             raise ValueError(f"Friction slip_radius must be 'contact' or 'full', got {slip_radius!r}")

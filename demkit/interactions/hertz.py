@@ -32,7 +32,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
-from .base import PairInteraction, positive
+from .base import PairInteraction, number, positive
 from .contact import check_tangential, contact_duration
 from .friction import HISTORY, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR
@@ -202,16 +202,17 @@ class Hertz(PairInteraction):
     energy_kind = "contact"
     contact_reach = True
     parameters = ("young_eff", "shear_eff", "gamma")
+    repeat_hint = "one contact law acts on every touching pair: keep one, with its friction and rolling"
     force_function = hertz_force
     energy_function = hertz_energy
 
     def __init__(self, young, poisson, restitution=1.0, friction=None, rolling=None):
         self.young = positive("Hertz young (Young's modulus)", young)
-        poisson = float(poisson)
+        poisson = number("Hertz poisson (Poisson ratio)", poisson)
         if not (-1.0 < poisson < 0.5):
             raise ValueError(f"Hertz poisson (Poisson ratio) must lie in (-1, 0.5), got {poisson}")
         self.poisson = poisson
-        restitution = float(restitution)
+        restitution = number("Hertz restitution", restitution)
         if not (0.0 < restitution <= 1.0):
             raise ValueError(f"Hertz restitution must lie in (0, 1], got {restitution}")
         self.restitution = restitution

@@ -30,7 +30,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
-from .base import positive
+from .base import positive, real_array
 from .sphere import SphereInteraction
 
 #: largest number of grid nodes a MagnetField tabulates (3 floats each)
@@ -150,6 +150,7 @@ class MagnetField(SphereInteraction):
     reads = ("dipole",)
     torque = True
     energy_kind = "field"
+    repeatable = True  # fields superpose: a coarse table of a far magnet, a fine one of a near one
     parameters = ("x0", "y0", "z0", "x1", "y1", "z1", "sx", "sy", "sz", "nx", "ny", "nz")
     force_function = magnet_force
     energy_function = magnet_energy
@@ -161,11 +162,7 @@ class MagnetField(SphereInteraction):
             if not callable(getattr(source, "getB", None)):
                 raise TypeError(f"MagnetField sources must be magpylib sources or Collections (objects with getB), "
                                 f"got {type(source).__name__}")
-        try:
-            region = np.asarray(region, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"MagnetField region must be two corners ((x0, y0, z0), (x1, y1, z1)) of numbers, "
-                             f"got {region!r}") from None
+        region = real_array("MagnetField region", region)
         if region.shape != (2, 3):
             raise ValueError(f"MagnetField region must be two corners ((x0, y0, z0), (x1, y1, z1)), each a "
                              f"3-vector: got shape {region.shape}")

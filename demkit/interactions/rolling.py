@@ -21,13 +21,11 @@ is not modelled.
 """
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
 from ..motion import HELPER_OPTIONS
 
-from .base import non_negative
+from .base import non_negative, positive
 from .spring import spring_force
 
 #: default rolling stiffness as a multiple of mu_r^2 times the normal stiffness (Ai et al. 2011)
@@ -48,12 +46,7 @@ class RollingResistance:
 
     def __init__(self, coefficient, stiffness=None, damping=None):
         self.coefficient = non_negative("RollingResistance coefficient", coefficient)
-        if stiffness is not None:
-            stiffness = float(stiffness)
-            if not math.isfinite(stiffness) or stiffness <= 0:
-                raise ValueError(f"RollingResistance stiffness must be a positive finite number or None, "
-                                 f"got {stiffness}")
-        self.stiffness = stiffness
+        self.stiffness = None if stiffness is None else positive("RollingResistance stiffness", stiffness)
         self.damping = None if damping is None else non_negative("RollingResistance damping", damping)
 
     def __repr__(self):

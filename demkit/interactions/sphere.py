@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Interaction
+from .base import Interaction, real_array
 
 
 class SphereInteraction(Interaction):
@@ -55,10 +55,7 @@ class SphereInteraction(Interaction):
 
 def vector(name, value):
     """A finite 3-vector as a float array, or ValueError naming the problem."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a 3-vector of numbers, got {value!r}") from None
+    arr = real_array(name, value)
     if arr.shape != (3,):
         raise ValueError(f"{name} must be a 3-vector, got shape {arr.shape}")
     if not np.isfinite(arr).all():

@@ -144,6 +144,7 @@ class Wall(SphereInteraction):
     dissipative = True
     energy_kind = "wall"
     plane_contact = True
+    repeatable = True  # a box of walls
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None):
         self.point = vector("Wall point", point)
