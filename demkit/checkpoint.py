@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import tempfile
 import time
@@ -32,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import checks
 from .state import PAIR_LIST_FIELDS, PairList, PairListTuple
 
 #: bumped whenever the layout of the file changes
@@ -84,14 +84,7 @@ class Checkpoint:
 
 
 def _interval(name, value):
-    if value is None:
-        return None
-    if isinstance(value, (bool, str)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"Checkpoint {name} must be a positive number or None, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"Checkpoint {name} must be a positive finite number, got {value}")
-    return value
+    return None if value is None else checks.positive(f"Checkpoint {name}", value)
 
 
 # ---- what identifies a scene --------------------------------------------------------------------

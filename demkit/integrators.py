@@ -25,10 +25,9 @@ is in :mod:`demkit.accuracy`.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from . import checks
 from .motion import (advance_spin, copy_vectors, drift, kick, kick_all, rk_finish, rk_save,  # noqa: F401
                      rk_stage, total_forces)
 from .state import INNER_STEPS  # noqa: F401 (used by templates)
@@ -258,10 +257,7 @@ class Integrator:
     resolve_contacts = False
 
     def __init__(self, dt):
-        dt = float(dt)
-        if not math.isfinite(dt) or dt <= 0:
-            raise ValueError(f"time step dt must be a positive finite number, got {dt}")
-        self.dt = dt
+        self.dt = checks.positive("time step dt", dt)
 
     @property
     def contact_step(self):

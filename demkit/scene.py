@@ -18,7 +18,7 @@ import math
 import numba
 import numpy as np
 
-from . import neighbours
+from . import checks, neighbours
 from .box import Box
 from .integrators import TEMPLATES
 from .interactions.base import PairInteraction, check_repeats
@@ -143,10 +143,7 @@ class Scene:
     def _skin(self, skin):
         if skin is None:
             return DEFAULT_SKIN * 2.0 * float(np.mean(self.particles.radius))
-        skin = float(skin)
-        if not math.isfinite(skin) or skin <= 0:
-            raise ValueError(f"skin must be a positive finite length, got {skin}")
-        return skin
+        return checks.positive("skin", skin)
 
     def _check_geometry(self):
         p = self.particles

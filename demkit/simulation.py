@@ -15,6 +15,7 @@ import warnings
 import numba
 import numpy as np
 
+from . import checks
 from .scene import energy_dict
 from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
 
@@ -526,16 +527,11 @@ def _frame_of(record, k):
 
 def _number(what, value):
     """float(value) for a real number; strings and booleans are refused (run("10") is a mistake)."""
-    if isinstance(value, (bool, np.bool_, str, bytes)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{what} must be a number, got {value!r}")
-    return float(value)
+    return checks.number(what, value)
 
 
 def _positive_number(what, value):
-    value = _number(what, value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{what} must be a positive finite number, got {value}")
-    return value
+    return checks.positive(what, value)
 
 
 def _physical_memory():
