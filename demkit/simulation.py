@@ -494,11 +494,18 @@ class Simulation:
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         if code == DEEP_OVERLAP:
             tag = scene.arrays["tag"]
-            k, m = int(tag[index]), int(tag[other])
+            k = int(tag[index])
+            if other < 0:  # a wall: status[3] = -1 - its index among the effects
+                what = f"particle id {p.ids[k]} overlaps {scene.effects[-1 - other]!r} by more than " \
+                       f"{DEEP_OVERLAP_FRACTION} of its radius"
+            else:
+                what = f"particles id {p.ids[k]} and {p.ids[int(tag[other])]} overlap by more than " \
+                       f"{DEEP_OVERLAP_FRACTION} of the smaller radius"
+            speed = float(np.linalg.norm(p.velocity[k]))
             raise SimulationError(
-                f"particles id {p.ids[k]} and {p.ids[m]} overlap by more than {DEEP_OVERLAP_FRACTION} of the smaller "
-                f"radius at step {self.step} (t = {self.time:.6g}): the contact cannot stop them (they would "
-                f"pass through each other). Use a stiffer contact law or a smaller time step (dt = {dt:.6g}); "
+                f"{what} at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}): the contact is too soft to "
+                f"stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
+                f"overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
                 f"docs/stability.md says how to size both. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         arrays = [p.position, p.velocity] + ([p.angular_velocity] if p.angular_velocity is not None else [])

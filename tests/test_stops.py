@@ -1,0 +1,48 @@
+"""Guards while stepping: a run that can no longer be trusted stops with a SimulationError naming
+the step, time, particle(s) and cause, and keeps the frames recorded so far."""
+import numpy as np
+import pytest
+
+import demkit as dk
+
+
+def test_a_sphere_falling_through_a_soft_wall_stops_before_it_passes():
+    # a ball dropped from height 20 hits the floor at v = sqrt(2 g h) = 6.3; a wall of k = 10 would
+    # need an overlap of v sqrt(m/k) = 2 radii to stop it: the run must stop at half a radius
+    p = dk.Particles([[0.0, 0.0, 21.0]], radius=1.0, mass=1.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(10.0), dk.Wall((0, 0, 0), (0, 0, 1)), dk.Gravity((0, 0, -1.0))])
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    with pytest.raises(dk.SimulationError, match="overlaps Wall.*more than 0.5 of its radius") as err:
+        sim.run(10.0, record_every=0.5)
+    z = p.position[0, 2]
+    assert 0.45 < 1.0 - z < 0.6  # stopped as the overlap passed half the radius, not later
+    fall = np.sqrt(2 * 20.0)  # time to fall to the wall
+    assert fall < err.value.time < fall + 1.0
+    assert err.value.particle == 0 and err.value.step == sim.step
+    traj = err.value.trajectory
+    assert len(traj) == int(err.value.time / 0.5) + 1 and np.isfinite(traj.position).all()
+
+
+def test_two_spheres_tunnelling_through_a_soft_contact_stop_with_both_ids():
+    p = dk.Particles([[0.0, 0, 0], [3.0, 0, 0]], velocity=[[2.0, 0, 0], [-2.0, 0, 0]], radius=1.0, ids=[7, 9])
+    scene = dk.Scene(p, [dk.KelvinVoigt(0.5)])  # overlap needed: 2 sqrt(0.5/0.5) = 2 radii
+    sim = dk.Simulation(scene, dk.EulerCromer(1e-3))
+    with pytest.raises(dk.SimulationError, match=r"particles id (7 and 9|9 and 7) overlap by more than 0.5"):
+        sim.run(5.0)
+    gap = np.linalg.norm(p.position[1] - p.position[0])
+    assert 0.45 < 2.0 - gap < 0.6  # overlap just past half a radius
+
+
+def test_energy_growth_guard_stops_a_run_gaining_energy():
+    # velocity Verlet far beyond its stability limit on a stiff contact gains energy at every bounce
+    # (the dt guard is bypassed by shrinking the law's claimed contact time: the kind of scene the
+    # guard exists for is one whose instability no check before stepping foresaw)
+    p = dk.Particles([[0.0, 0, 0], [2.5, 0, 0]], velocity=[[0.5, 0, 0], [-0.5, 0, 0]], radius=1.0)
+    law = dk.KelvinVoigt(1e3)
+    law.max_time_step = lambda particles, *a, **k: np.inf
+    scene = dk.Scene(p, [law])
+    sim = dk.Simulation(scene, dk.EulerCromer(0.06), max_energy_growth=0.05)
+    with pytest.raises(dk.SimulationError, match="energy grew by"):
+        sim.run(200.0, record_every=1.0)
+    energy = sim.trajectory.energy["total"] + sim.trajectory.energy["dissipated"]
+    assert np.isfinite(energy).all()
