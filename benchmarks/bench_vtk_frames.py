@@ -109,6 +109,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=25000)
     parser.add_argument("--out", default=str(HERE / "results" / "vtk_frames.json"))
+    parser.add_argument("--note", default=None, help="stored in the JSON (e.g. which demkit version ran)")
     args = parser.parse_args()
     n = args.frames
     checkpoints = [k for k in (1000, 5000, 10000, 20000) if k + WINDOW <= n]
@@ -135,7 +136,7 @@ def main():
         "what": "milliseconds per frame of a two-sphere series (id, radius, mass, velocity, dipole, force; "
                 "float64, uncompressed), as the series grows",
         "frames": n,
-        "demkit": {"path": str(Path(dk.__file__).parent), "commit": commit()},
+        "demkit": {"path": str(Path(dk.__file__).parent), "commit": commit(), "note": args.note},
         "write_state": now,
         "simulation": simulation,
         "former_full_rewrite": before,

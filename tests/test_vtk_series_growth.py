@@ -254,6 +254,10 @@ def test_resume_refusals_are_clear_and_change_nothing(tmp_path):
         dk.VTKWriter(tmp_path / "empty", every=1.0, resume=True).resume(sim)
     with pytest.raises(ValueError, match="no series"):
         dk.VTKWriter(tmp_path / "empty2", every=1.0).resume(sim)  # a plain writer has nothing to resume
+    fresh = dk.VTKWriter(tmp_path / "fresh", every=1.0, resume=True)  # nothing to resume: a new run starts
+    fresh.open(sim)
+    fresh.write(sim)
+    assert fresh.frames_written == 1
     write_run(tmp_path / "out", [0.0, 1.0, 2.0])
     before = folder_bytes(tmp_path / "out")
     with pytest.raises(ValueError, match="not empty.*resume=True"):
