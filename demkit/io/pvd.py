@@ -1,8 +1,11 @@
 """ParaView data (.pvd) collections: a list of (time, file) entries that ParaView and
 ``pyvista.get_reader`` read as a time series.
 
-The collection is rewritten atomically (temporary file + rename), so a reader never sees a
-half-written .pvd and an interrupted run leaves a valid series of the frames written so far.
+A collection is written whole once (:func:`write_pvd`: a temporary file, then a rename, so a
+reader never sees a half-written file) and then grown by :class:`GrowingPvd`, which writes each
+new entry together with the closing lines over the old closing lines: adding a frame costs the
+same whatever the length of the series, and a process killed at any moment leaves a valid
+collection of the frames added so far.
 
 A series in a box also holds ``<Box size="Lx Ly Lz" periodic="1 1 0"/>`` after the collection
 (lower corner at the origin; ParaView's reader ignores the element, demkit and its ParaView script
@@ -11,31 +14,92 @@ read it).
 from __future__ import annotations
 
 import os
+import re
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
+
+_HEAD = ('<?xml version="1.0"?>\n'
+         '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+         '  <Collection>\n')
+
+
+def _entry(time, name):
+    return f'    <DataSet timestep="{float(time)!r}" group="" part="0" file="{name}"/>\n'
+
+
+def _footer(box):
+    text = "  </Collection>\n"
+    if box is not None:
+        size = " ".join(repr(float(x)) for x in box.size)
+        periodic = " ".join(str(int(bool(f))) for f in box.periodic)
+        text += f'  <Box size="{size}" periodic="{periodic}"/>\n'
+    return text + "</VTKFile>\n"
 
 
 def write_pvd(path, entries, box=None):
     """Write the collection ``entries`` = [(time, relative_file), ...] to ``path`` atomically.
 
     Times are written with ``repr`` so that they read back exactly; ``box`` (a demkit.Box or None)
-    is written as a ``Box`` element.
+    is written as a ``Box`` element. Returns the byte offset at which the closing lines start.
     """
     path = Path(path)
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
-    for time, name in entries:
-        lines.append(f'    <DataSet timestep="{float(time)!r}" group="" part="0" file="{name}"/>')
-    lines.append("  </Collection>")
-    if box is not None:
-        size = " ".join(repr(float(x)) for x in box.size)
-        periodic = " ".join(str(int(bool(f))) for f in box.periodic)
-        lines.append(f'  <Box size="{size}" periodic="{periodic}"/>')
-    lines += ["</VTKFile>", ""]
+    body = (_HEAD + "".join(_entry(t, name) for t, name in entries)).encode()
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines), encoding="utf-8")
+    tmp.write_bytes(body + _footer(box).encode())
     os.replace(tmp, path)
+    return len(body)
+
+
+class GrowingPvd:
+    """The .pvd collection ``path`` of a series being written, grown one entry at a time.
+
+    ``append`` writes the new entry followed by the closing lines (``</Collection>``, the box,
+    ``</VTKFile>``) in one ``os.pwrite`` at the offset where the old closing lines started, so
+    the file only grows and the cost does not depend on the number of entries. A write of a few
+    hundred bytes into the page cache is not split by a signal, so a process killed at any
+    moment leaves the old or the new collection, both valid. The file is written whole
+    (:func:`write_pvd`) the first time, when the box changes, and when it is not the file this
+    object last wrote (size or inode changed).
+    """
+
+    def __init__(self, path, box=None):
+        self.path = Path(path)
+        self.box = box
+        self.entries = []  # [(time, file name)] in the order written
+        self._tail = None  # byte offset of the closing lines, None before the first write
+        self._written = None  # (closing bytes, inode) of the last write
+
+    def rewrite(self, entries):
+        """Write the collection ``entries`` whole, atomically."""
+        self.entries = [(float(t), name) for t, name in entries]
+        self._tail = write_pvd(self.path, self.entries, self.box)
+        self._written = (_footer(self.box).encode(), os.stat(self.path).st_ino)
+
+    def append(self, time, name):
+        """Add the entry (time, file name) at the end of the collection."""
+        footer = _footer(self.box).encode()
+        if self._tail is None or not self._intact(footer):
+            self.rewrite(self.entries + [(time, name)])
+            return
+        data = _entry(time, name).encode() + footer
+        fd = os.open(self.path, os.O_WRONLY)
+        try:
+            done = 0
+            while done < len(data):  # one call in practice; loop in case of a short write
+                done += os.pwrite(fd, data[done:], self._tail + done)
+        finally:
+            os.close(fd)
+        self._tail += len(data) - len(footer)
+        self.entries.append((float(time), name))
+
+    def _intact(self, footer):
+        old_footer, inode = self._written
+        try:
+            stat = os.stat(self.path)
+        except OSError:
+            return False
+        return footer == old_footer and stat.st_ino == inode and stat.st_size == self._tail + len(footer)
 
 
 def read_pvd(path):
@@ -44,25 +108,46 @@ def read_pvd(path):
     Raises ValueError if the file is not a VTK collection.
     """
     path = Path(path)
-    try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError) as err:
-        raise ValueError(f"cannot read the ParaView collection {path}: {err}") from err
-    if root.tag != "VTKFile" or root.get("type") != "Collection":
-        raise ValueError(f"{path} is not a ParaView .pvd collection (root element {root.tag!r})")
-    entries = [(float(ds.get("timestep", "0")), path.parent / ds.get("file"))
-               for ds in root.iter("DataSet")]
+    entries = [(t, path.parent / name) for t, name in read_entries(path)[0]]
     return sorted(entries, key=lambda e: e[0])
 
 
-def read_box(path):
-    """The :class:`demkit.Box` stored in the .pvd ``path``, or None when it has none."""
+def read_entries(path, salvage=False):
+    """([(time, file name), ...] in file order, Box or None) of the .pvd ``path``.
+
+    salvage : when the file is not well-formed XML (e.g. cut short by a full disk), take the
+        complete ``DataSet`` elements it holds, with a warning, instead of raising ValueError.
+    """
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as err:
+        if not salvage or not path.is_file():
+            raise ValueError(f"cannot read the ParaView collection {path}: {err}") from err
+        return _salvage(path, err)
+    if root.tag != "VTKFile" or root.get("type") != "Collection":
+        raise ValueError(f"{path} is not a ParaView .pvd collection (root element {root.tag!r})")
+    entries = [(float(ds.get("timestep", "0")), ds.get("file")) for ds in root.iter("DataSet")]
+    return entries, _box(root.find("Box"), path)
+
+
+def _salvage(path, err):
+    text = path.read_text(encoding="utf-8", errors="replace")
+    if 'type="Collection"' not in text[:200]:
+        raise ValueError(f"cannot read the ParaView collection {path}: {err}") from err
+    entries = []
+    for element in re.findall(r"<DataSet\s[^<>]*/>", text):
+        time, name = re.search(r'timestep="([^"]*)"', element), re.search(r'file="([^"]*)"', element)
+        if time and name:
+            entries.append((float(time.group(1)), name.group(1)))
+    box = re.search(r"<Box\s[^<>]*/>", text)
+    warnings.warn(f"{path} is not well-formed ({err}); kept the {len(entries)} complete entries it holds")
+    return entries, _box(ET.fromstring(box.group(0)) if box else None, path)
+
+
+def _box(element, path):
     from ..box import Box
 
-    try:
-        element = ET.parse(path).getroot().find("Box")
-    except (ET.ParseError, OSError) as err:
-        raise ValueError(f"cannot read the ParaView collection {path}: {err}") from err
     if element is None:
         return None
     try:
@@ -71,6 +156,11 @@ def read_box(path):
         return Box(size, periodic)
     except ValueError as err:
         raise ValueError(f"{path} holds a malformed Box element: {err}") from err
+
+
+def read_box(path):
+    """The :class:`demkit.Box` stored in the .pvd ``path``, or None when it has none."""
+    return read_entries(path)[1]
 
 
 def find_pvd(source):

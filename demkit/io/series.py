@@ -8,11 +8,13 @@ Layout of a series called ``name`` (default ``particles``) in ``folder``::
     folder/name_trails.vtp      trajectories as polylines (see demkit.io.polylines)
 
 demkit never silently replaces data: a folder that is not empty is refused unless
-``overwrite=True``, which deletes that series' own files (the three patterns above) and leaves any
-other file alone.
+``overwrite=True``, which deletes that series' own files (the three patterns above, and temporary
+``.tmp`` files of an interrupted write) and leaves any other file alone, or ``resume=True``, which
+lets a run resumed from a checkpoint continue the series (:meth:`SeriesFolder.take_over`).
 """
 from __future__ import annotations
 
+import os
 import re
 import tempfile
 from pathlib import Path
@@ -20,20 +22,30 @@ from pathlib import Path
 import numpy as np
 
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, read_frame
-from .pvd import find_pvd, read_box, read_pvd, write_pvd
+from .pvd import GrowingPvd, find_pvd, read_box, read_entries, read_pvd
+
+#: relative tolerance on times when a series is continued from a time
+TIME_TOLERANCE = 1e-12
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 class SeriesFolder:
-    """The files of one series (see the module docstring); checks and claims the folder."""
+    """The files of one series (see the module docstring); checks and claims the folder.
 
-    def __init__(self, folder, name="particles", overwrite=False, box=None, extension="vtu"):
+    A frame is written to a temporary file (``<frame>.tmp``), renamed to its name, and only then
+    added to the .pvd (see :class:`demkit.io.pvd.GrowingPvd`), so the .pvd never names a frame
+    that is not complete. ``resume=True`` accepts a folder holding this series already, for
+    :meth:`take_over`.
+    """
+
+    def __init__(self, folder, name="particles", overwrite=False, box=None, extension="vtu", resume=False):
         if not isinstance(name, str) or not _NAME.match(name):
             raise ValueError(f"series name must be letters, digits, '_', '.' or '-', got {name!r}")
         self.folder = Path(folder)
         self.name = name
         self.extension = extension
+        self.resume = bool(resume)
         if self.folder.exists() and not self.folder.is_dir():
             raise ValueError(f"output folder {self.folder} exists and is not a folder")
         try:
@@ -43,17 +55,18 @@ class SeriesFolder:
         except OSError as err:
             raise ValueError(f"cannot write to output folder {self.folder}: {err}") from err
         present = sorted(p.name for p in self.folder.iterdir())
-        if present and not overwrite:
+        if present and not overwrite and not resume:
             shown = ", ".join(present[:3]) + (", ..." if len(present) > 3 else "")
             raise ValueError(
                 f"output folder {self.folder} is not empty ({len(present)} entries: {shown}); demkit does "
-                f"not overwrite existing data: choose an empty or new folder, or pass overwrite=True to "
-                f"replace the series {name!r} there (other files are left alone)")
+                f"not overwrite existing data: choose an empty or new folder, pass overwrite=True to "
+                f"replace the series {name!r} there (other files are left alone), or resume=True to "
+                f"continue it in a run resumed from a checkpoint")
         if overwrite:
             for path in self.own_files():
                 path.unlink()
-        self.entries = []
-        self.box = box  # written into the .pvd with every frame
+        self.collection = GrowingPvd(self.pvd, box)
+        self.next_index = 0  # number of the next frame file
 
     @property
     def pvd(self):
@@ -63,25 +76,95 @@ class SeriesFolder:
     def trails(self):
         return self.folder / f"{self.name}_trails.vtp"
 
+    @property
+    def entries(self):
+        """[(time, file name)] of the frames in the .pvd."""
+        return self.collection.entries
+
+    @property
+    def box(self):
+        return self.collection.box
+
+    @box.setter
+    def box(self, box):
+        self.collection.box = box  # written into the .pvd
+
+    def frame_path(self, index):
+        return self.folder / f"{self.name}_{index:06d}.{self.extension}"
+
+    def _frame_files(self):
+        """{path: frame number} of this series' frame files, temporary ones included."""
+        frame = re.compile(rf"^{re.escape(self.name)}_(\d+)\.{self.extension}(\.tmp)*$")
+        found = {}
+        for p in self.folder.iterdir():
+            match = frame.match(p.name)
+            if match and p.is_file():
+                found[p] = int(match.group(1))
+        return found
+
     def own_files(self):
-        """Files of this series now in the folder."""
-        frame = re.compile(rf"^{re.escape(self.name)}_\d+\.{self.extension}$")
-        own = [p for p in self.folder.iterdir() if p.is_file() and frame.match(p.name)]
-        return own + [p for p in (self.pvd, self.trails) if p.exists()]
+        """Files of this series now in the folder (temporary files of an interrupted write included)."""
+        extra = [self.pvd, self.trails]
+        extra += [p.with_name(p.name + ".tmp") for p in extra]
+        return list(self._frame_files()) + [p for p in extra if p.exists()]
 
     def check_unclaimed(self):
-        """Raise ValueError if files of this series appeared since the folder was claimed."""
+        """Raise ValueError if files of this series are in the folder and no frame was written."""
         if not self.entries and self.own_files():
+            if self.resume:
+                raise ValueError(
+                    f"folder {self.folder} holds series {self.name!r} already: a run resumed from a "
+                    f"checkpoint continues it (VTKWriter.resume); a new run needs an empty folder or "
+                    f"overwrite=True")
             raise ValueError(f"another run has started writing series {self.name!r} in {self.folder}; "
                              f"refusing to overwrite it")
 
     def add_frame(self, time, write):
-        """Call ``write(path)`` for the next frame file, then record it in the .pvd (rewritten)."""
-        path = self.folder / f"{self.name}_{len(self.entries):06d}.{self.extension}"
-        write(path)
-        self.entries.append((float(time), path.name))
-        write_pvd(self.pvd, self.entries, self.box)
+        """Call ``write(path)`` to write the next frame file, then add it to the .pvd."""
+        path = self.frame_path(self.next_index)
+        tmp = path.with_name(path.name + ".tmp")
+        write(tmp)
+        os.replace(tmp, path)
+        self.collection.append(time, path.name)
+        self.next_index += 1
         return path
+
+    def frames_until(self, time, missing_ok=False):
+        """(kept, later): the frames [(time, file name)] of the series on disk at times <= ``time``
+        (relative tolerance 1e-12) and the file names listed after it. Raises ValueError when there
+        is no series (unless ``missing_ok``: then nothing is kept) or a kept frame is missing."""
+        if not self.pvd.exists():
+            if missing_ok:
+                return [], []
+            raise ValueError(
+                f"no series {self.name!r} to resume in {self.folder} (no {self.pvd.name}); a run that "
+                f"is not resumed from a checkpoint starts a new series with open()/begin()")
+        entries, _ = read_entries(self.pvd, salvage=True)
+        limit = time + TIME_TOLERANCE * abs(time)
+        kept = [(t, name) for t, name in entries if t <= limit]
+        later = [name for t, name in entries if t > limit]
+        missing = [name for _, name in kept if not (self.folder / name).is_file()]
+        if missing:
+            raise ValueError(f"series {self.pvd} lists {len(missing)} missing frame file(s) before t = "
+                             f"{time!r}, e.g. {missing[0]}: it cannot be continued")
+        return kept, later
+
+    def take_over(self, kept, later=()):
+        """Continue the series with the frames ``kept`` (from :meth:`frames_until`): rewrite the
+        .pvd atomically with them, then delete the frame files ``later``, the unlisted ones
+        numbered after the last kept frame, temporary ones and the trails file; number new frames
+        after the last kept one. (In this order a kill at any moment leaves a readable series.)"""
+        names, later = {name for _, name in kept}, set(later)
+        files = self._frame_files()
+        last = max((n for p, n in files.items() if p.name in names), default=-1)
+        self.collection.rewrite(kept)
+        self.next_index = last + 1
+        for path, number in files.items():
+            if path.name not in names and (path.name in later or number > last or path.name.endswith(".tmp")):
+                path.unlink()
+        for path in (self.trails, self.trails.with_name(self.trails.name + ".tmp")):
+            if path.exists():
+                path.unlink()
 
 
 class SeriesData:

@@ -8,9 +8,12 @@ Usage::
     sim.close()                                         # writes the trails file
 
 or ``with dk.VTKWriter("out", every=100.0) as writer: ...`` (a writer never closed writes its
-trails when it is garbage-collected or the program exits). The .pvd collection is rewritten
-after every frame, so an interrupted run leaves a valid series of the frames written so far (the
-trails can then be rebuilt with ``demkit.io.write_polylines("out", "out/particles_trails.vtp")``).
+trails when it is garbage-collected or the program exits). Each frame is complete on disk before
+the .pvd names it, and the .pvd grows by one entry per frame at a cost independent of the length
+of the series, so a run killed at any moment leaves a valid series of the frames written so far
+(the trails can then be rebuilt with ``demkit.io.write_polylines("out", "out/particles_trails.vtp")``).
+A run resumed from a checkpoint continues the series: ``VTKWriter("out", every, resume=True)``
+and :meth:`VTKWriter.resume` instead of ``open``.
 """
 from __future__ import annotations
 
@@ -20,9 +23,9 @@ import weakref
 
 import numpy as np
 
-from .frames import VECTOR_FIELDS, FrameWriter, choose_fields
+from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, choose_fields, read_frame
 from .polylines import write_polylines
-from .series import SeriesFolder
+from .series import TIME_TOLERANCE, SeriesFolder
 
 
 class _Trails:
@@ -36,20 +39,21 @@ class _Trails:
         self.time, self.position, self.ids, self.radius = [], [], None, None
         self.broken = False
 
-    def add(self, time, particles):
-        order = np.argsort(particles.ids, kind="stable")
+    def add(self, time, ids, radius, position, image=None):
+        """Add a frame: ids, radius (N,), position (N,3) and image counts (N,3) or None."""
+        ids = np.asarray(ids)
+        order = np.argsort(ids, kind="stable")
         if self.ids is None:
-            self.ids, self.radius = particles.ids[order].copy(), particles.radius[order].copy()
-        elif not np.array_equal(particles.ids[order], self.ids):
+            self.ids, self.radius = ids[order].copy(), np.asarray(radius, dtype=np.float64)[order]
+        elif not np.array_equal(ids[order], self.ids):
             warnings.warn("the particles changed during the run: no trails file will be written")
             self.broken = True
         if not self.broken:
-            position = particles.position[order]
-            image = getattr(particles, "image", None)
+            position = np.array(np.asarray(position)[order], dtype=np.float64)
             if image is not None and self.box is not None:
-                position = position + image[order] * self.box.size
+                position += np.asarray(image)[order] * self.box.size
             self.time.append(float(time))
-            self.position.append(np.array(position, dtype=np.float64))
+            self.position.append(position)
 
     def write(self):
         if self.broken or not self.time:
@@ -65,7 +69,7 @@ class VTKWriter:
     ----------
     folder : output folder (created if needed). Files: ``<name>.pvd``, ``<name>_000000.vtu``, ...,
         ``<name>_trails.vtp``. A non-empty folder is refused unless ``overwrite=True``, which
-        deletes only this series' own files.
+        deletes only this series' own files, or ``resume=True``.
     every : time between frames (simulation time units; rounded to whole steps by the simulation).
     compress : False (default, fastest), True or 'zlib', or 'lzma' (smallest, slowest).
     trails : also write the paths as poly-lines (``<name>_trails.vtp``) when the writer is closed;
@@ -76,26 +80,33 @@ class VTKWriter:
         The scene's box (``scene.box``) is stored in the .pvd, and the trails are unwrapped.
     dtype : 'float64' (default) or 'float32' (half the bytes).
     name : base name of the series files.
+    overwrite : replace this series' files in a non-empty folder (other files are left alone).
     contacts : also write the contact network of every frame (``<name>_contacts.pvd`` and
         ``<name>_contacts_000000.vtp``, ...: one line per contact with its forces, overlap, sliding
         state and dissipated power, see :mod:`demkit.contacts`), to draw force chains in ParaView.
+    resume : accept a folder holding this series already, for a run resumed from a checkpoint:
+        :meth:`resume` (instead of ``open``) keeps its frames up to the checkpoint's time and
+        continues it. ``open`` still refuses to overwrite it.
     """
 
     def __init__(self, folder, every, compress=False, trails=True, fields=None, dtype="float64",
-                 name="particles", overwrite=False, contacts=False):
+                 name="particles", overwrite=False, contacts=False, resume=False):
         try:
             every = float(every)
         except (TypeError, ValueError):
             raise ValueError(f"every must be a positive time interval, got {every!r}") from None
         if not math.isfinite(every) or every <= 0:
             raise ValueError(f"every must be a positive finite time interval, got {every}")
+        if overwrite and resume:
+            raise ValueError("overwrite=True deletes the series that resume=True continues: pass one of them")
         self.every = every
         self._frames = FrameWriter(compress, dtype)
         if fields is not None:
             choose_fields(VECTOR_FIELDS, fields)  # reject unknown names now
         self._requested = fields
-        self.series = SeriesFolder(folder, name, overwrite)
-        self.contact_series = SeriesFolder(folder, name + "_contacts", overwrite, extension="vtp") if contacts else None
+        self.series = SeriesFolder(folder, name, overwrite, resume=resume)
+        self.contact_series = (SeriesFolder(folder, name + "_contacts", overwrite, extension="vtp", resume=resume)
+                               if contacts else None)
         self.trails = bool(trails)
         self._trails = None
         self.fields = None
@@ -105,10 +116,15 @@ class VTKWriter:
     # ---- writer protocol ---------------------------------------------------------------------
     def open(self, simulation):
         """Start the series for ``simulation``'s scene (called by the simulation)."""
-        scene = simulation.scene
-        self.begin(scene.particles, has_force=bool(scene.interactions),
-                   has_torque=any(inter.torque for inter in scene.interactions),
-                   box=getattr(scene, "box", None))
+        self.begin(simulation.scene.particles, **self._scene_options(simulation.scene))
+
+    def resume(self, simulation):
+        """Continue the series in the folder for ``simulation`` resumed from a checkpoint at
+        ``simulation.time``, instead of :meth:`open` (see :meth:`continue_series`). Returns True
+        when the current state is to be written now (call :meth:`write`), False when the series
+        has a frame at that time already."""
+        return self.continue_series(simulation.time, simulation.scene.particles,
+                                    **self._scene_options(simulation.scene))
 
     def write(self, simulation):
         """Write the current state of ``simulation`` as the next frame (called by the simulation)."""
@@ -130,25 +146,61 @@ class VTKWriter:
             self._finalizer()
         self._closed = True
 
+    @staticmethod
+    def _scene_options(scene):
+        return {"has_force": bool(scene.interactions),
+                "has_torque": any(inter.torque for inter in scene.interactions),
+                "box": getattr(scene, "box", None)}
+
     # ---- lower-level use (without a Simulation) -----------------------------------------------
     def begin(self, particles, has_force=False, has_torque=False, box=None):
         """Choose the fields for ``particles`` and claim the folder; ``box`` (a demkit.Box or None)
-        goes into the .pvd. Raises ValueError if this writer was used before or another run
-        started writing the same series."""
-        if self.fields is not None or self._closed:
-            raise ValueError("this VTKWriter has been used already: create a new one for a new run")
+        goes into the .pvd. Raises ValueError if this writer was used before or the series exists
+        (another run started writing it, or it is there to be resumed)."""
+        self._check_unused()
         self.series.check_unclaimed()
         if self.contact_series is not None:
             self.contact_series.check_unclaimed()
-            self.contact_series.box = box
-        available = [f for f in ("velocity", "angular_velocity", "dipole")
-                     if getattr(particles, f) is not None]
-        available += ["force"] * has_force + ["torque"] * has_torque
-        self.fields = choose_fields(available, self._requested)
-        self.series.box = box
-        if self.trails:
-            self._trails = _Trails(self.series.trails, bool(self._frames.compression), box)
-            self._finalizer = weakref.finalize(self, self._trails.write)
+        self._start(particles, has_force, has_torque, box)
+
+    def continue_series(self, time, particles, has_force=False, has_torque=False, box=None):
+        """Take over the series in the folder (writer made with ``resume=True``) to continue it
+        from ``time`` with ``particles``, instead of :meth:`begin`.
+
+        Keeps the frames at times <= ``time`` (relative tolerance 1e-12), deletes the later ones
+        (and frame files no .pvd lists numbered after them, temporary files of an interrupted
+        write and the trails file), rewrites the .pvd atomically and numbers new frames after the
+        kept ones; the contact series likewise. The trails are rebuilt from the kept frames (each
+        is read once). Returns True when the state at ``time`` is to be written next, False when
+        the last kept frame is at ``time`` already. Raises ValueError when the folder holds no
+        such series, the writer was not made with ``resume=True``, or the kept frames carry other
+        fields than this writer would write.
+        """
+        self._check_unused()
+        time = float(time)
+        kept, later = self.series.frames_until(time)
+        if not self.series.resume:
+            raise ValueError(f"folder {self.series.folder} holds series {self.series.name!r}: make the "
+                             f"VTKWriter with resume=True to continue it")
+        if self.contact_series is not None:
+            contacts_kept, contacts_later = self.contact_series.frames_until(time, missing_ok=True)
+        self._start(particles, has_force, has_torque, box)
+        try:
+            self._check_kept_fields(kept, particles)
+            for t, name in kept if self._trails is not None else ():
+                position, data = read_frame(self.series.folder / name)
+                self._trails.add(t, data["id"], data["radius"], position, data.get("image"))
+        except BaseException:
+            self.fields = None  # nothing taken over: the writer may be used again
+            if self._finalizer is not None:
+                self._finalizer.detach()
+            self._trails = self._finalizer = None
+            raise
+        self.series.take_over(kept, later)
+        if self.contact_series is not None:
+            self.contact_series.take_over(contacts_kept, contacts_later)
+        tolerance = TIME_TOLERANCE * abs(time)
+        return not (kept and abs(max(t for t, _ in kept) - time) <= tolerance)
 
     def write_state(self, time, particles, force=None, torque=None):
         """Write ``particles`` at ``time`` as the next frame; ``force``/``torque`` (N,3) are needed
@@ -157,8 +209,71 @@ class VTKWriter:
             raise ValueError("call begin() (or let a Simulation call open()) before writing")
         if self._closed:
             raise ValueError("this VTKWriter is closed")
+        data = self._point_data(particles, {"force": force, "torque": torque})
+        path = self.series.add_frame(time, lambda p: self._frames.write(p, particles.position, data))
+        if self._trails is not None:
+            self._trails.add(time, particles.ids, particles.radius, particles.position,
+                             getattr(particles, "image", None))
+        return path
+
+    def planned_output(self, frames, particles, contacts_per_particle=3.0):
+        """(files, bytes) that writing ``frames`` more frames of ``particles`` adds, estimated.
+
+        Counts the frame files, the .pvd (created or grown by ~90 bytes per frame), the trails
+        file (written at close; it holds every frame of the run) and, with ``contacts=True``, the
+        contact frames (``contacts_per_particle`` contacts per sphere; 3 in a dense packing).
+        The fields are this writer's once it is opened; before that every field the particles
+        have plus force, and torque when they spin. Sizes are those of uncompressed output: with
+        compression the files are 20-30 % smaller (simulation data compresses poorly).
+        """
+        frames = int(frames)
+        if frames < 0:
+            raise ValueError(f"frames must be >= 0, got {frames}")
+        n = len(particles)
+        fields = self.fields
+        if fields is None:
+            available = [f for f in ("velocity", "angular_velocity", "dipole") if getattr(particles, f) is not None]
+            available += ["force"] + ["torque"] * (particles.angular_velocity is not None)
+            requested = available if self._requested is None else choose_fields(VECTOR_FIELDS, self._requested)
+            fields = [f for f in available if f in requested]
+        real = np.dtype(self._frames.dtype).itemsize
+        index = 4 if n < 2**31 - 1 else 8
+        # (components, bytes per value) of each array of a .vtu, base64-encoded with an 8-byte header
+        arrays = [(3, real), (1, index), (1, index), (1, 8), (1, 8), (1, real), (1, real)]
+        arrays += [(3, real)] * len(fields) + [(3, 8)] * (getattr(particles, "image", None) is not None)
+        frame = 250 + sum(90 + 4 * math.ceil((8 + n * c * b) / 3) for c, b in arrays)
+        files, size = frames, frames * (frame + 80)
+        files += not self.series.pvd.exists() and frames > 0
+        if self.trails and frames > 0:
+            total = len(self.series.entries) + frames  # the trails file holds every frame
+            files += not self.series.trails.exists()
+            size += 1500 + n * (total * (3 * 8 + 8 + 8) + 8 + 8 + 16)
+        if self.contact_series is not None and frames > 0:
+            c = contacts_per_particle * n
+            # two points and their connectivity, an offset, 16 numbers per contact (see Contacts.write_vtk)
+            size += frames * (2000 + int(c * (2 * 3 * 8 + 2 * 8 + 8 + 16 * 8)) + 90)
+            files += frames + (not self.contact_series.pvd.exists())
+        return int(files), int(size)
+
+    # ---- helpers -----------------------------------------------------------------------------
+    def _check_unused(self):
+        if self.fields is not None or self._closed:
+            raise ValueError("this VTKWriter has been used already: create a new one for a new run")
+
+    def _start(self, particles, has_force, has_torque, box):
+        available = [f for f in ("velocity", "angular_velocity", "dipole")
+                     if getattr(particles, f) is not None]
+        available += ["force"] * has_force + ["torque"] * has_torque
+        self.fields = choose_fields(available, self._requested)
+        self.series.box = box
+        if self.contact_series is not None:
+            self.contact_series.box = box
+        if self.trails:
+            self._trails = _Trails(self.series.trails, bool(self._frames.compression), box)
+            self._finalizer = weakref.finalize(self, self._trails.write)
+
+    def _point_data(self, particles, given):
         data = {"id": particles.ids, "radius": particles.radius, "mass": particles.mass}
-        given = {"force": force, "torque": torque}
         for name in self.fields:
             value = given[name] if name in given else getattr(particles, name)
             if value is None:
@@ -166,10 +281,19 @@ class VTKWriter:
             data[name] = value
         if getattr(particles, "image", None) is not None:
             data["image"] = np.asarray(particles.image, dtype=np.int64)
-        path = self.series.add_frame(time, lambda p: self._frames.write(p, particles.position, data))
-        if self._trails is not None:
-            self._trails.add(time, particles)
-        return path
+        return data
+
+    def _check_kept_fields(self, kept, particles):
+        if not kept:
+            return
+        _, data = read_frame(self.series.folder / kept[-1][1])
+        expected = set(CONSTANT_FIELDS) | set(self.fields)
+        expected |= {"image"} if getattr(particles, "image", None) is not None else set()
+        if set(data) != expected:
+            raise ValueError(
+                f"the series in {self.series.folder} has the fields {sorted(set(data))} and this writer "
+                f"would write {sorted(expected)}: make the VTKWriter with the fields of the series "
+                f"(fields=[...]) to continue it")
 
     # ---- conveniences -------------------------------------------------------------------------
     @property
@@ -179,6 +303,7 @@ class VTKWriter:
 
     @property
     def frames_written(self):
+        """Number of frames in the series (those kept by a resume included)."""
         return len(self.series.entries)
 
     def __enter__(self):
