@@ -63,6 +63,7 @@ class Checkpoint:
             raise ValueError(f"the folder of the checkpoint {self.path} does not exist")
         self.saves = 0
         self.last_save = None  # wall-clock time of the last save
+        self.saved_step = None  # step count of the last save
 
     def exists(self):
         """Is there a checkpoint file to resume from?"""
@@ -76,6 +77,7 @@ class Checkpoint:
         """Write ``simulation``'s state now (atomically). Returns the path."""
         save(simulation, self.path)
         self.saves += 1
+        self.saved_step = simulation.step
         self.last_save = time.perf_counter()
         return self.path
 
@@ -143,7 +145,8 @@ def save(simulation, path):
     meta = {"format": FORMAT, "demkit": __version__, "scene": scene_hash(scene, simulation.integrator),
             "integrator": repr(simulation.integrator), "step": int(simulation.step),
             "time": float(simulation.time), "particles": len(scene.particles),
-            "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin}
+            "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin,
+            "forces_valid": bool(simulation.forces_valid)}
     arrays = state_arrays(scene)
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     folder = path.parent if str(path.parent) else Path(".")

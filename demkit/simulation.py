@@ -161,6 +161,7 @@ class Simulation:
         self._opened = False
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
         self._rate = None  # measured steps per second of wall time (sizes the compiled chunks)
+        self.forces_valid = False  # do the scene's force arrays hold the forces of its current state?
         limit = scene.max_time_step()
         step = integrator.contact_step
         if step > limit:
@@ -216,6 +217,8 @@ class Simulation:
             kern.record_frame(0, state, record)
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
         self._warn_large_output(nsteps, writer_steps)
+        if not self._opened and self.checkpoint is not None:
+            self.checkpoint.save(self)  # before any output: no series on disk without a checkpoint
         if not self._opened:
             for w in self.writers:
                 w.open(self)
@@ -242,7 +245,7 @@ class Simulation:
                     failed = self._loop(chunk, done, stride, self.integrator.dt, forces_ready, state, record)
                 finally:
                     scene.pull()
-                forces_ready = True
+                forces_ready = self.forces_valid = True
                 if failed >= 0:
                     self._fail(done + failed + 1, start_step, stride, record)
                 done += chunk
@@ -265,7 +268,7 @@ class Simulation:
             steps = np.append(steps, nsteps)
         self.trajectory = self._trajectory(record, (start_step + steps) * self.integrator.dt)
         self._last_frame = _frame_of(record, len(steps) - 1)
-        if self.checkpoint is not None:
+        if self.checkpoint is not None and self.checkpoint.saved_step != self.step:
             self.checkpoint.save(self)
         if interrupt.caught:  # Ctrl-C during the last chunk: the run is complete, still honour it
             self._close_on_interrupt()
@@ -293,6 +296,7 @@ class Simulation:
         scene.set_time_step(self.integrator.contact_step)
         scene.counters[INNER_STEPS] = self.integrator.inner
         self.step = meta["step"]
+        self.forces_valid = bool(meta.get("forces_valid"))
         origin = meta.get("energy_origin")
         self.energy_origin = tuple(origin) if origin is not None else None
         scene.stepped_by = self
@@ -328,8 +332,9 @@ class Simulation:
         run (or resume) left it; then the forces of the last evaluation are still valid and nothing
         is recomputed (O(N) re-entry). Returns whether the forces are ready."""
         scene = self.scene
-        continuing = scene.in_sync and getattr(scene, "stepped_by", None) is self
+        continuing = scene.in_sync and scene.stepped_by is self
         if not continuing:
+            self.forces_valid = False
             scene.validate()
             self.energy_origin = None  # the user changed the state: the energy guard restarts
             self._last_frame = None
@@ -342,7 +347,7 @@ class Simulation:
         scene.status[:] = OK
         scene.push()
         scene.stepped_by = self
-        return continuing
+        return continuing and self.forces_valid
 
     def _next_chunk(self, steps, seconds, current):
         """Steps of the next compiled chunk: about CHUNK_SECONDS of wall time, growing at most 4x."""

@@ -102,7 +102,7 @@ def test_checkpoint_file_is_plain_npz_without_pickles_and_saved_at_the_interval(
     scene = gas()
     checkpoint = dk.Checkpoint(path, every=0.02)
     dk.Simulation(scene, dk.VelocityVerlet(DT), checkpoint=checkpoint).run(until=0.1)
-    assert checkpoint.saves == 5 + 1  # every 0.02 and (again) at the end of the run
+    assert checkpoint.saves == 1 + 5  # at the start (before any output) and every 0.02, the last at the end
     with np.load(path, allow_pickle=False) as data:
         assert all(data[name].dtype != object for name in data.files)
     assert not list(tmp_path.glob("*.tmp"))

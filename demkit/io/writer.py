@@ -178,7 +178,9 @@ class VTKWriter:
         """
         self._check_unused()
         time = float(time)
-        kept, later = self.series.frames_until(time)
+        # at t = 0 (a run killed between its first checkpoint and its first frame) there may be
+        # nothing to continue yet: the series starts afresh
+        kept, later = self.series.frames_until(time, missing_ok=time == 0.0)
         if not self.series.resume:
             raise ValueError(f"folder {self.series.folder} holds series {self.series.name!r}: make the "
                              f"VTKWriter with resume=True to continue it")
