@@ -11,6 +11,7 @@ import time
 import numba
 import numpy as np
 
+from . import guards
 from .scene import energy_dict
 from .state import INNER_STEPS, MOVED_TOO_FAR, OK, REBUILDS
 
@@ -108,13 +109,7 @@ class Simulation:
         self.trajectory = None
         self.statistics = {}
         self._opened = False
-        limit = scene.max_time_step()
-        step = integrator.contact_step
-        if step > limit:
-            which = "time step dt" if integrator.inner == 1 else "inner time step dt/inner"
-            raise ValueError(
-                f"{which} = {step:.6g} is too large for the stiffest contact: the largest "
-                f"safe value is {limit:.6g} (a tenth of the shortest contact duration)")
+        guards.before_stepping(scene, integrator)
         integrator.check(scene)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 

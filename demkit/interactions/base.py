@@ -34,6 +34,12 @@ import math
 import numpy as np
 
 FIELDS = ("velocity", "angular_velocity", "dipole", "radius", "mass")
+#: the largest omega dt a time-step limit allows for a smooth effect (dipoles, fields) that makes
+#: spheres oscillate at angular frequency omega at most. Measured (docs/stability.md): a rotational
+#: pendulum keeps its energy to 6 % of its oscillation energy with velocity Verlet there (32 % with
+#: Euler-Cromer); they go unstable at omega dt = 2 and 1.5, three to four times further. (Contacts,
+#: whose force jumps at onset, keep the stricter tenth of their duration, omega dt <= pi/10.)
+SAFE_PHASE = 0.5
 
 
 class Interaction:
@@ -104,6 +110,15 @@ class PairInteraction(Interaction):
     def cutoff(self, particles):
         """Largest centre distance at which the pair can interact (math.inf: no cutoff)."""
         return math.inf if self.cutoff_distance is None else self.cutoff_distance
+
+
+def inverse_inertia(particles):
+    """(1/m, 1/I) per sphere, (N,) each, zero for fixed spheres (infinite mass and inertia)."""
+    inv_mass, inv_inertia = 1.0 / particles.mass, 1.0 / particles.inertia
+    if particles.fixed is not None:
+        inv_mass = np.where(particles.fixed, 0.0, inv_mass)
+        inv_inertia = np.where(particles.fixed, 0.0, inv_inertia)
+    return inv_mass, inv_inertia
 
 
 def positive(name, value):
