@@ -60,7 +60,7 @@ DIPOLE_REACH = 2.0
 
 def before_stepping(scene, integrator):
     """Raise ValueError if ``integrator`` cannot be trusted on ``scene`` (see the module docstring);
-    the message names every problem, one per line."""
+    the message names every problem, one after the other ("... Also: ...")."""
     scene.validate()
     problems = _contact_problems(scene) + _step_problems(scene, integrator)
     spin = _spin_problem(scene, integrator, 1.0)
@@ -68,7 +68,7 @@ def before_stepping(scene, integrator):
     dipoles = _dipole_problem(scene, integrator, 1.0)
     problems += [dipoles] if dipoles else []
     if problems:
-        raise ValueError("\n".join(problems))
+        raise ValueError(" Also: ".join(problems))
 
 
 def while_stepping(scene, integrator):
@@ -159,6 +159,12 @@ def _safe(value, up=False):
     return f"{(math.ceil if up else math.floor)(value / scale * (1 + 1e-12 if up else 1 - 1e-12)) * scale:.4g}"
 
 
+def _summed(pairs):
+    """Element-wise sums of the (x, y) pairs of arrays that several interactions give."""
+    pairs = list(pairs)
+    return sum(x for x, _ in pairs), sum(y for _, y in pairs)
+
+
 def _pair_name(p, i, j):
     return f"particles {p.ids[i]} and {p.ids[j]} (radii {p.radius[i]:.4g} and {p.radius[j]:.4g})"
 
@@ -193,8 +199,7 @@ def _too_soft(p, dipoles, laws, i, j, report=False, cache=None):
             return known[1]
     problems = []
     if len(i):
-        force = sum(d.touching_attraction(p, i, j)[0] for d in dipoles)
-        energy = sum(d.touching_attraction(p, i, j)[1] for d in dipoles)
+        force, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
         smaller = np.minimum(p.radius[i], p.radius[j])
         for law in laws:  # (several laws act in parallel; each alone is checked: conservative)
             static, stored = law.overlaps(p, i, j, force, energy)
@@ -237,7 +242,7 @@ def _approach_speed(scene):
     if dipoles and len(p) > 1:
         i, j = _cached_kinds(scene)
         if len(i):
-            energy = sum(d.touching_attraction(p, i, j)[1] for d in dipoles)
+            _, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
             inv_mass, _ = inverse_inertia(p)
             snap = float(np.sqrt(np.max(2.0 * energy * (inv_mass[i] + inv_mass[j]))))
             if snap > 0.0:
@@ -350,8 +355,7 @@ def _dipole_problem(scene, integrator, slack):
         where = "at the closest distance now (no contact law keeps them apart)"
     if not len(i):
         return None
-    a = sum(d.rate_coefficients(p, i, j)[0] for d in dipoles)
-    b = sum(d.rate_coefficients(p, i, j)[1] for d in dipoles)
+    a, b = _summed(d.rate_coefficients(p, i, j) for d in dipoles)
     rate = np.sqrt(a / r**5 + b / r**3)
     k = int(np.argmax(rate))
     if rate[k] <= fastest:
@@ -372,8 +376,7 @@ def _closest(scene, dipoles, fastest):
     ki, kj = _cached_kinds(scene)
     if not len(ki):
         return ki, kj, np.zeros(0)
-    a = sum(d.rate_coefficients(p, ki, kj)[0] for d in dipoles)
-    b = sum(d.rate_coefficients(p, ki, kj)[1] for d in dipoles)
+    a, b = _summed(d.rate_coefficients(p, ki, kj) for d in dipoles)
     # omega(r) <= fastest where both terms are below fastest^2 / 2
     reach = float(np.max(np.maximum((2.0 * a / fastest**2) ** 0.2, (2.0 * b / fastest**2) ** (1.0 / 3.0))))
     cap = DIPOLE_REACH * 2.0 * float(np.max(p.radius))

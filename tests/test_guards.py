@@ -99,7 +99,7 @@ def test_dipole_rate_bounds_the_pair_hessian(case):
     predicted = float(a[0] / r**5 + b[0] / r**3)
     measured = pair_hessian_rate(scene, [1] if fixed else [0, 1])
     assert measured <= predicted * (1 + 1e-6)
-    assert measured > predicted / (2.0 if aligned else 3.0)  # measured ratios 1.0, 1.9 and 1.2-2.8
+    assert measured > predicted / (2.0 if aligned else 3.0)  # measured ratios 1.62, 1.60; 1.97, 1.91, 2.76
 
 
 def test_dipole_only_scene_at_a_large_step_is_refused_with_the_step_to_use():
@@ -144,7 +144,7 @@ def test_multiple_time_stepping_outer_step_is_checked_against_the_dipoles():
 def test_very_strong_dipoles_are_refused_for_both_reasons():
     # observed before the guard: Dipole(prefactor=1e12) ran to spheres 5e13 apart
     message = refusal(magnet_pair(1.2, dk.KelvinVoigt(1.0, 0.1), prefactor=1e12), dk.VelocityVerlet(0.01))
-    lines = message.split("\n")
+    lines = message.split(" Also: ")
     assert lines[0].startswith("contact stiffness = 1 is too soft for the magnetic attraction")
     assert lines[1].startswith("time step dt = 0.01 is too large for the dipole forces")
 
