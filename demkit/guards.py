@@ -41,7 +41,7 @@ MAX_TURN = 1.0
 #: largest overlap, as a fraction of the smaller radius, a contact may need to hold touching magnets
 #: (estimated statically and from the energy of the snap). Measured (docs/stability.md): head-to-tail
 #: magnets snapping together from rest pass through each other from an estimate of 0.37 R with a
-#: linear spring (0.45 R with Hertz); at 0.35 R they still stop, overlapping by up to 0.6 R (0.1 R:
+#: linear spring (0.4-0.5 R with Hertz); at 0.35 R they still stop, overlapping by up to 0.6 R (0.1 R:
 #: 0.11 R). Existing scenes of the test suite reach 0.32 R.
 MAX_MAGNETIC_OVERLAP = 0.35
 #: during a run, the state-dependent limits are allowed this many times more
@@ -214,15 +214,17 @@ def _too_soft(p, dipoles, laws, i, j, report=False, cache=None):
             _, comfortable = law.stiffer(p, i, j, force, energy, 0.1 * smaller)
             a, b = i[worst], j[worst]
             count = int(np.sum(need > MAX_MAGNETIC_OVERLAP))
+            where = f"closer than {MAGNET_REACH:g} contact distances"
+            if count > 1:
+                where = f"the worst of {count} pairs {where} that it cannot hold"
             problems.append(
                 f"contact {name} = {getattr(law, name):.6g} is too soft for the magnetic attraction: "
-                f"{_pair_name(p, a, b)}{'' if count == 1 else f', the worst of {count} such pairs'} (closer than "
-                f"{MAGNET_REACH:g} contact distances) pull each other with {force[worst]:.4g} "
+                f"{_pair_name(p, a, b)}, {where}, pull each other with {force[worst]:.4g} "
                 f"when touching head to tail, which needs an overlap of "
                 f"{static[worst] / smaller[worst]:.3g} of the smaller radius to hold, and release {energy[worst]:.4g} "
                 f"when they snap together, which needs {stored[worst] / smaller[worst]:.3g} of it to store; at most "
                 f"{MAX_MAGNETIC_OVERLAP:g} of it is accepted (spheres snapping together from rest pass through "
-                f"each other from 0.37 of it with a linear spring, 0.45 with Hertz). Use {name} >= "
+                f"each other from 0.37 of it with a linear spring, 0.4-0.5 with Hertz). Use {name} >= "
                 f"{_safe(value, up=True)} in {law!r} ({_safe(comfortable, up=True)} keeps the snap within 0.1 of "
                 f"the radius), or weaker moments.")
     if cache is not None:
