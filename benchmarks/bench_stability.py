@@ -155,7 +155,8 @@ def hertz_steps():
 
 def snaps():
     out = {"KelvinVoigt": [], "Hertz": []}
-    laws = [("KelvinVoigt", dk.KelvinVoigt(kappa, 0.0)) for kappa in (100, 116, 130, 150, 178, 200, 300, 400, 800, 1600)]
+    stiffness = (100, 116, 130, 150, 178, 200, 300, 400, 800, 1600)
+    laws = [("KelvinVoigt", dk.KelvinVoigt(kappa, 0.0)) for kappa in stiffness]
     for estimate in (0.2, 0.3, 0.35, 0.4, 0.5):  # E* for a snap estimate of this many radii
         young_eff = 2.0 / (8 / 15 * math.sqrt(0.25) * (0.5 * estimate) ** 2.5)
         laws.append(("Hertz", dk.Hertz(young_eff * 2 * (1 - 0.3**2), 0.3)))

@@ -4,7 +4,8 @@ trustworthy.
 :func:`before_stepping` raises ValueError naming every problem found, each message starting with
 what is wrong and giving the numbers (the limit, the value, what to use instead).
 :func:`while_stepping` re-checks, cheaply (O(N)), what changes during a run and returns a message,
-or None; :class:`demkit.Simulation` calls it at the start of every run and between chunks of steps.
+or None (for :meth:`demkit.Simulation.run` to call at the start of every run and between chunks of
+steps).
 
 The checks (thresholds and the measurements behind them: docs/stability.md):
 
@@ -16,8 +17,9 @@ The checks (thresholds and the measurements behind them: docs/stability.md):
 2. spins: a sphere that feels torques turns by at most :data:`MAX_TURN` = 1 rad per step;
 3. geometry (:meth:`demkit.Scene.validate`): overlaps, the box, walls;
 4. contacts that hold the magnetic pull: touching head-to-tail magnets must be held by an overlap of
-   at most :data:`MAX_MAGNETIC_OVERLAP` = 0.2 of the smaller radius, both statically and when the
-   energy they release on snapping together is stored in the contact.
+   at most :data:`MAX_MAGNETIC_OVERLAP` = 0.35 of the smaller radius, both statically and when the
+   energy they release on snapping together is stored in the contact (checked for the pairs within
+   :data:`MAGNET_REACH` = 2 contact distances: a soft law is accepted while its magnets stay apart).
 
 During a run the limits that depend on the state (Hertz at the speeds now, dipoles at the closest
 pair now, spins) are allowed :data:`RUN_SLACK` = 2 times more: a run admitted at a limit is not
@@ -175,61 +177,59 @@ def _contact_problems(scene):
     contact distance (a soft law is accepted while its magnets stay apart)."""
     dipoles, laws = _dipoles(scene), _contact_laws(scene)
     p = scene.particles
-    if not dipoles or not laws or len(p) < 2:
+    if not dipoles or not laws or len(p) < 2 or not _some_too_soft(scene, dipoles, laws):
         return []
-    i, j = _cached_kinds(scene)
-    if not len(i) or not _too_soft(p, dipoles, laws, i, j, cache=scene):
-        return []  # every kind of pair can be held: nothing to look for
     pairs = scene.close_pairs(MAGNET_REACH * 2.0 * float(np.max(p.radius)))
     if not len(pairs):
         return []
-    r = np.linalg.norm(scene.separations(pairs), axis=1)
-    near = r < MAGNET_REACH * (p.radius[pairs[:, 0]] + p.radius[pairs[:, 1]])
+    i, j = pairs[:, 0], pairs[:, 1]
+    near = np.linalg.norm(scene.separations(pairs), axis=1) < MAGNET_REACH * (p.radius[i] + p.radius[j])
     if p.fixed is not None:
-        near &= ~(p.fixed[pairs[:, 0]] & p.fixed[pairs[:, 1]])
-    return _too_soft(p, dipoles, laws, pairs[near, 0], pairs[near, 1], report=True)
+        near &= ~(p.fixed[i] & p.fixed[j])
+    return _too_soft(p, dipoles, laws, i[near], j[near])
 
 
-def _too_soft(p, dipoles, laws, i, j, report=False, cache=None):
-    """Whether (or, with ``report``, the messages saying that) a contact law needs an overlap of
-    more than MAX_MAGNETIC_OVERLAP of the smaller radius to hold or stop the pairs (i, j)."""
-    if cache is not None:
-        known = _CACHE.get(cache, {}).get("too_soft")
-        if known is not None and known[0] == _key(p):
-            return known[1]
+def _some_too_soft(scene, dipoles, laws):
+    """Whether some pair of kinds of sphere is too much for a contact law (cached per scene: the
+    answer changes only with the spheres' sizes, masses and moments)."""
+    p = scene.particles
+    known = _CACHE.get(scene, {}).get("too_soft")
+    if known is None or known[0] != _key(p):
+        i, j = _cached_kinds(scene)
+        known = (_key(p), bool(_too_soft(p, dipoles, laws, i, j)))
+        _CACHE.setdefault(scene, {})["too_soft"] = known
+    return known[1]
+
+
+def _too_soft(p, dipoles, laws, i, j):
+    """Messages for each contact law that needs an overlap of more than MAX_MAGNETIC_OVERLAP of the
+    smaller radius to hold or stop some of the head-to-tail pairs (i, j)."""
+    if not len(i):
+        return []
+    force, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
+    smaller = np.minimum(p.radius[i], p.radius[j])
     problems = []
-    if len(i):
-        force, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
-        smaller = np.minimum(p.radius[i], p.radius[j])
-        for law in laws:  # (several laws act in parallel; each alone is checked: conservative)
-            static, stored = law.overlaps(p, i, j, force, energy)
-            need = np.maximum(static, stored) / smaller
-            worst = int(np.argmax(need))
-            if need[worst] <= MAX_MAGNETIC_OVERLAP:
-                continue
-            if not report:
-                problems.append(True)
-                break
-            name, value = law.stiffer(p, i, j, force, energy, MAX_MAGNETIC_OVERLAP * smaller)
-            _, comfortable = law.stiffer(p, i, j, force, energy, 0.1 * smaller)
-            a, b = i[worst], j[worst]
-            count = int(np.sum(need > MAX_MAGNETIC_OVERLAP))
-            where = f"closer than {MAGNET_REACH:g} contact distances"
-            if count > 1:
-                where = f"the worst of {count} pairs {where} that it cannot hold"
-            problems.append(
-                f"contact {name} = {getattr(law, name):.6g} is too soft for the magnetic attraction: "
-                f"{_pair_name(p, a, b)}, {where}, pull each other with {force[worst]:.4g} "
-                f"when touching head to tail, which needs an overlap of "
-                f"{static[worst] / smaller[worst]:.3g} of the smaller radius to hold, and release {energy[worst]:.4g} "
-                f"when they snap together, which needs {stored[worst] / smaller[worst]:.3g} of it to store; at most "
-                f"{MAX_MAGNETIC_OVERLAP:g} of it is accepted (spheres snapping together from rest pass through "
-                f"each other from 0.37 of it with a linear spring, 0.4-0.5 with Hertz). Use {name} >= "
-                f"{_safe(value, up=True)} in {law!r} ({_safe(comfortable, up=True)} keeps the snap within 0.1 of "
-                f"the radius), or weaker moments.")
-    if cache is not None:
-        _CACHE.setdefault(cache, {})["too_soft"] = (_key(p), bool(problems))
-        return bool(problems)
+    for law in laws:  # (several laws act in parallel; each alone is checked: conservative)
+        static, stored = law.overlaps(p, i, j, force, energy)
+        need = np.maximum(static, stored) / smaller
+        worst = int(np.argmax(need))
+        if need[worst] <= MAX_MAGNETIC_OVERLAP:
+            continue
+        name, value = law.stiffer(p, i, j, force, energy, MAX_MAGNETIC_OVERLAP * smaller)
+        _, comfortable = law.stiffer(p, i, j, force, energy, 0.1 * smaller)
+        count = int(np.sum(need > MAX_MAGNETIC_OVERLAP))
+        where = f"closer than {MAGNET_REACH:g} contact distances"
+        if count > 1:
+            where = f"the worst of {count} pairs {where} that it cannot hold"
+        problems.append(
+            f"contact {name} = {getattr(law, name):.6g} is too soft for the magnetic attraction: "
+            f"{_pair_name(p, i[worst], j[worst])}, {where}, pull each other with {force[worst]:.4g} when touching "
+            f"head to tail, which needs an overlap of {static[worst] / smaller[worst]:.3g} of the smaller radius "
+            f"to hold, and release {energy[worst]:.4g} when they snap together, which needs "
+            f"{stored[worst] / smaller[worst]:.3g} of it to store; at most {MAX_MAGNETIC_OVERLAP:g} of it is "
+            f"accepted (spheres snapping together from rest pass through each other from 0.37 of it with a "
+            f"linear spring, 0.4-0.5 with Hertz). Use {name} >= {_safe(value, up=True)} in {law!r} "
+            f"({_safe(comfortable, up=True)} keeps the snap within 0.1 of the radius), or weaker moments.")
     return problems
 
 

@@ -89,8 +89,9 @@ def test_dipole_rate_bounds_the_pair_hessian(case):
     mass = [1.0, 2.5] if case == "unequal" else 1.0
     factor = [0.4, 0.1] if case == "unequal" else 0.4
     fixed = [True, False] if case.startswith("one fixed") else None
-    p = dk.Particles(position=[[0, 0, 0], [1.1, 0, 0]] if aligned else [[0, 0, 0], [1.1, 0.2, -0.1]], radius=0.5, mass=mass, inertia_factor=factor,
-                     dipole=moments, fixed=fixed)
+    second = [1.1, 0, 0] if aligned else [1.1, 0.2, -0.1]
+    p = dk.Particles(position=[[0, 0, 0], second], radius=0.5, mass=mass, inertia_factor=factor, dipole=moments,
+                     fixed=fixed)
     dipole = dk.Dipole(0.7)
     scene = dk.Scene(p, [dipole])
     i, j = np.array([0]), np.array([1])
