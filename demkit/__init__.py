@@ -13,6 +13,7 @@ from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
 from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 from . import accuracy  # adaptive reference solutions and work-precision reports
+from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
 
 __version__ = "0.1.0"
 
@@ -21,4 +22,4 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy"]
+           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards"]

@@ -349,12 +349,14 @@ class Scene:
 
     def validate(self):
         """Raise ValueError for non-finite state, coincident or deeply overlapping spheres, spheres
-        outside the box. O(N): overlaps are found with a cell list."""
+        outside the box or behind (deep inside) a wall. O(N): overlaps are found with a cell list."""
         p = self.particles
         p.check_finite()
         p.check_fixed()
         if self.box is not None:
             self._check_geometry()
+        for effect in self.effects:  # walls: no sphere behind or deep inside one
+            effect.check(p)
         if len(p) < 2:
             return
         pairs = self.close_pairs(2.0 * float(np.max(p.radius)))

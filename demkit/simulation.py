@@ -15,7 +15,7 @@ import warnings
 import numba
 import numpy as np
 
-from . import checks
+from . import checks, guards
 from .scene import energy_dict
 from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
 
@@ -162,13 +162,7 @@ class Simulation:
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
         self._rate = None  # measured steps per second of wall time (sizes the compiled chunks)
         self.forces_valid = False  # do the scene's force arrays hold the forces of its current state?
-        limit = scene.max_time_step()
-        step = integrator.contact_step
-        if step > limit:
-            which = "time step dt" if integrator.inner == 1 else "inner time step dt/inner"
-            raise ValueError(
-                f"{which} = {step:.6g} is too large for the stiffest contact: the largest "
-                f"safe value is {limit:.6g} (a tenth of the shortest contact duration)")
+        guards.before_stepping(scene, integrator)
         integrator.check(scene)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 

@@ -36,6 +36,12 @@ import numpy as np
 from ..checks import flag, non_negative, number, positive, real_array  # noqa: F401 (used by the interactions)
 
 FIELDS = ("velocity", "angular_velocity", "dipole", "radius", "mass")
+#: the largest omega dt a time-step limit allows for a smooth effect (dipoles, fields) that makes
+#: spheres oscillate at angular frequency omega at most. Measured (docs/stability.md): a rotational
+#: pendulum keeps its energy to 6 % of its oscillation energy with velocity Verlet there (32 % with
+#: Euler-Cromer); they go unstable at omega dt = 2 and 1.5, three to four times further. (Contacts,
+#: whose force jumps at onset, keep the stricter tenth of their duration, omega dt <= pi/10.)
+SAFE_PHASE = 0.5
 
 
 class Interaction:
@@ -129,3 +135,12 @@ def check_repeats(interactions):
                 if not kind.repeatable and isinstance(other, kind):
                     raise ValueError(f"two {kind.__name__} interactions are given (entries {a}: {first!r} and "
                                      f"{b}: {second!r}): their forces would add up; {kind.repeat_hint}")
+
+
+def inverse_inertia(particles):
+    """(1/m, 1/I) per sphere, (N,) each, zero for fixed spheres (infinite mass and inertia)."""
+    inv_mass, inv_inertia = 1.0 / particles.mass, 1.0 / particles.inertia
+    if particles.fixed is not None:
+        inv_mass = np.where(particles.fixed, 0.0, inv_mass)
+        inv_inertia = np.where(particles.fixed, 0.0, inv_inertia)
+    return inv_mass, inv_inertia

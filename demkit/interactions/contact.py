@@ -198,6 +198,16 @@ class KelvinVoigt(PairInteraction):
                 limit = min(limit, 0.2 * 0.4 * m_eff / self.eta_r)
         return limit
 
+    def overlaps(self, particles, i, j, force, energy):
+        """(static, stored), arrays over the index pairs (i, j): the overlap F/k that carries
+        ``force`` and the overlap sqrt(2 U/k) that stores ``energy`` in the spring."""
+        return force / self.stiffness, np.sqrt(2.0 * energy / self.stiffness)
+
+    def stiffer(self, particles, i, j, force, energy, overlap):
+        """(parameter, value): the smallest stiffness that keeps both overlaps of :meth:`overlaps`
+        at most ``overlap`` (arrays), for all the pairs given."""
+        return "stiffness", float(np.max(np.maximum(force / overlap, 2.0 * energy / overlap**2)))
+
 
 def check_tangential(law, friction, rolling):
     """(friction, rolling) of a contact law, checked; rolling with a zero coefficient is None."""

@@ -34,7 +34,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
-from .base import PairInteraction, positive
+from .base import PairInteraction, inverse_inertia, positive
 
 
 @njit(**KERNEL_OPTIONS)
@@ -240,6 +240,38 @@ class Dipole(PairInteraction):
         # instance attributes: PairInteraction.pair_functions() looks them up statically
         self.force_function, self.energy_function = self.switched_functions
         self.parameters = ("prefactor", "switch_on", "inv_switch_width")
+
+    def rate_coefficients(self, particles, i, j):
+        """(a, b), arrays over the index pairs (i, j): the fastest angular frequency the pair can move
+        with under this interaction at centre distance r is at most omega = sqrt(a / r^5 + b / r^3).
+
+        a = 24 A |m_i||m_j| (1/m_i + 1/m_j): the radial force gradient |dF/dr| = 24 A |m_i||m_j| / r^5
+        of head-to-tail moments (the largest of all orientations) over the reduced mass.
+        b = A |m_i||m_j| (2 max(1/I_i, 1/I_j) + 1/sqrt(I_i I_j)) with torques (0 without): a
+        Gershgorin bound of the rotational stiffness (2 and 1 times A |m|^2 / r^3 on and off the
+        diagonal for aligned moments). Checked against the eigenvalues of the pair's mass-weighted
+        Hessian for random orientations (docs/stability.md). Fixed spheres count with infinite mass
+        and inertia."""
+        inv_mass, inv_inertia = inverse_inertia(particles)
+        strength = self.prefactor * self._moments(particles, i, j)
+        a = 24.0 * strength * (inv_mass[i] + inv_mass[j])
+        if not self.torque:
+            return a, np.zeros_like(a)
+        b = strength * (2.0 * np.maximum(inv_inertia[i], inv_inertia[j]) + np.sqrt(inv_inertia[i] * inv_inertia[j]))
+        return a, b
+
+    def touching_attraction(self, particles, i, j):
+        """(force, energy), arrays over the index pairs (i, j): the pull 6 A |m_i||m_j| / r^4 of
+        touching spheres (r = R_i + R_j) with head-to-tail moments, the strongest orientation, and
+        the energy 2 A |m_i||m_j| / r^3 released when they snap together from far apart."""
+        r = particles.radius[i] + particles.radius[j]
+        strength = self.prefactor * self._moments(particles, i, j)
+        return 6.0 * strength / r**4, 2.0 * strength / r**3
+
+    @staticmethod
+    def _moments(particles, i, j):
+        norm = np.linalg.norm(particles.dipole, axis=1)
+        return norm[i] * norm[j]
 
     def __repr__(self):
         args = f"prefactor={self.prefactor!r}"

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 
+from .base import SAFE_PHASE, inverse_inertia
 from .sphere import SphereInteraction, vector
 
 
@@ -73,6 +75,14 @@ class UniformField(SphereInteraction):
     def __init__(self, field):
         self.field = vector("UniformField field", field)
         self.bx, self.by, self.bz = (float(c) for c in self.field)
+
+    def max_time_step(self, particles):
+        """A moment swings about B like a pendulum, at omega^2 = |m| |B| / I at most: the step keeps
+        omega dt <= SAFE_PHASE (:mod:`demkit.interactions.base`) for the fastest sphere."""
+        _, inv_inertia = inverse_inertia(particles)
+        rate2 = np.linalg.norm(particles.dipole, axis=1) * float(np.linalg.norm(self.field)) * inv_inertia
+        fastest = float(np.max(rate2)) if len(rate2) else 0.0
+        return SAFE_PHASE / math.sqrt(fastest) if fastest > 0.0 else math.inf
 
     def __repr__(self):
         return f"UniformField({self.field.tolist()})"

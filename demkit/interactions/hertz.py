@@ -239,6 +239,25 @@ class Hertz(PairInteraction):
             self.eta_r_fixed = rolling.damping if rolling is not None and rolling.damping is not None else -1.0
             self.dt = 0.0
 
+    def _pair(self, particles, i, j):
+        """sqrt(R*) E* (arrays over the index pairs): F = 4/3 c delta^(3/2), U = 8/15 c delta^(5/2)."""
+        r = particles.radius
+        return np.sqrt(r[i] * r[j] / (r[i] + r[j])) * self.young_eff
+
+    def overlaps(self, particles, i, j, force, energy):
+        """(static, stored), arrays over the index pairs (i, j): the overlap whose elastic force
+        4/3 E* sqrt(R*) delta^(3/2) is ``force`` and the one whose energy 8/15 E* sqrt(R*)
+        delta^(5/2) is ``energy``."""
+        c = self._pair(particles, i, j)
+        return (force / (4.0 / 3.0 * c)) ** (2.0 / 3.0), (energy / (8.0 / 15.0 * c)) ** 0.4
+
+    def stiffer(self, particles, i, j, force, energy, overlap):
+        """(parameter, value): the smallest Young's modulus that keeps both overlaps of
+        :meth:`overlaps` at most ``overlap`` (arrays), for all the pairs given."""
+        root = self._pair(particles, i, j) / self.young_eff
+        needed = np.maximum(force / (4.0 / 3.0 * root * overlap**1.5), energy / (8.0 / 15.0 * root * overlap**2.5))
+        return "young", float(np.max(needed)) * 2.0 * (1.0 - self.poisson**2)
+
     def __repr__(self):
         return (f"Hertz(young={self.young!r}, poisson={self.poisson!r}, restitution={self.restitution!r}, "
                 f"friction={self.friction!r}, rolling={self.rolling!r})")
@@ -246,11 +265,12 @@ class Hertz(PairInteraction):
     def cutoff(self, particles):
         return 2.0 * float(np.max(particles.radius))
 
-    def max_time_step(self, particles):
-        """A tenth of the elastic contact time of the two smallest spheres at twice the fastest speed
-        present (no limit while everything is at rest)."""
-        v = particles.velocity
-        speed = 2.0 * float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0
+    def max_time_step(self, particles, speed=None):
+        """A tenth of the elastic contact time of the two smallest spheres at approach speed
+        ``speed`` (default: twice the fastest speed present; no limit while everything is at rest)."""
+        if speed is None:
+            v = particles.velocity
+            speed = 2.0 * float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0
         order = np.argsort(particles.radius)
         a, b = order[0], order[min(1, len(order) - 1)]
         r = particles.radius

@@ -1,0 +1,393 @@
+"""Guards: refuse a run that cannot be trusted before its first step, and say when one stops being
+trustworthy.
+
+:func:`before_stepping` raises ValueError naming every problem found, each message starting with
+what is wrong and giving the numbers (the limit, the value, what to use instead).
+:func:`while_stepping` re-checks, cheaply (O(N)), what changes during a run and returns a message,
+or None (for :meth:`demkit.Simulation.run` to call at the start of every run and between chunks of
+steps).
+
+The checks (thresholds and the measurements behind them: docs/stability.md):
+
+1. the time step against every stiff effect present: contacts and walls (a tenth of the contact
+   duration; Hertz at the fastest approach speed present or the speed magnets reach snapping
+   together), dipoles at the closest approach possible (omega dt <= SAFE_PHASE = 0.5, omega from
+   :meth:`demkit.Dipole.rate_coefficients`: touching spheres when a contact law keeps them apart,
+   else the closest pair now), uniform fields, and any interaction's ``max_time_step``;
+2. spins: a sphere that feels torques turns by at most :data:`MAX_TURN` = 1 rad per step;
+3. geometry (:meth:`demkit.Scene.validate`): overlaps, the box, walls;
+4. contacts that hold the magnetic pull: touching head-to-tail magnets must be held by an overlap of
+   at most :data:`MAX_MAGNETIC_OVERLAP` = 0.35 of the smaller radius, both statically and when the
+   energy they release on snapping together is stored in the contact (checked for the pairs within
+   :data:`MAGNET_REACH` = 2 contact distances: a soft law is accepted while its magnets stay apart).
+
+During a run the limits that depend on the state (Hertz at the speeds now, dipoles at the closest
+pair now, spins) are allowed :data:`RUN_SLACK` = 2 times more: a run admitted at a limit is not
+stopped by a small change, and one that reaches twice a limit can no longer be trusted.
+"""
+from __future__ import annotations
+
+import math
+import weakref
+
+import numpy as np
+
+from .interactions.base import SAFE_PHASE, inverse_inertia
+from .interactions.contact import KelvinVoigt
+from .interactions.dipole import Dipole
+from .interactions.hertz import Hertz
+from .interactions.wall import Wall
+
+#: largest rotation per step (rad) of a sphere that feels torques (dipoles, fields, friction)
+MAX_TURN = 1.0
+#: largest overlap, as a fraction of the smaller radius, a contact may need to hold touching magnets
+#: (estimated statically and from the energy of the snap). Measured (docs/stability.md): head-to-tail
+#: magnets snapping together from rest pass through each other from an estimate of 0.37 R with a
+#: linear spring (0.4-0.5 R with Hertz); at 0.35 R they still stop, overlapping by up to 0.6 R (0.1 R:
+#: 0.11 R). Existing scenes of the test suite reach 0.32 R.
+MAX_MAGNETIC_OVERLAP = 0.35
+#: during a run, the state-dependent limits are allowed this many times more
+RUN_SLACK = 2.0
+#: the magnets a contact law must hold are checked among the pairs closer than this many times their
+#: contact distance R_i + R_j (within one contact distance of touching)
+MAGNET_REACH = 2.0
+#: scenes with at most this many kinds of sphere have every pair of kinds checked; more kinds (a
+#: polydisperse scene) are checked each against the extreme ones (largest moment, smallest radius,
+#: mass, inertia)
+KINDS_MAX = 64
+#: without a contact law, the dipoles are checked at the closest pair now, but at most this many
+#: largest diameters apart
+DIPOLE_REACH = 2.0
+
+
+def before_stepping(scene, integrator):
+    """Raise ValueError if ``integrator`` cannot be trusted on ``scene`` (see the module docstring);
+    the message names every problem, one after the other ("... Also: ...")."""
+    scene.validate()
+    problems = _contact_problems(scene) + _step_problems(scene, integrator)
+    spin = _spin_problem(scene, integrator, 1.0)
+    problems += [spin] if spin else []
+    dipoles = _dipole_problem(scene, integrator, 1.0)
+    problems += [dipoles] if dipoles else []
+    if problems:
+        raise ValueError(" Also: ".join(problems))
+
+
+def while_stepping(scene, integrator):
+    """A message saying why the run can no longer be trusted, or None. O(N) and cheap: the fastest
+    speed and spin, and a cell list only in scenes whose dipoles no contact law keeps apart or a
+    contact law too soft for them would have to."""
+    law = _hertz_problem(scene, integrator, RUN_SLACK)
+    if law:
+        return law
+    spin = _spin_problem(scene, integrator, RUN_SLACK)
+    if spin:
+        return spin
+    soft = _contact_problems(scene)
+    if soft:
+        return f"{soft[0]} They came close during the run."
+    if not _contact_laws(scene):
+        return _dipole_problem(scene, integrator, RUN_SLACK)
+    return None
+
+
+# ---- what the scene holds --------------------------------------------------------------------
+def _contact_laws(scene):
+    return [inter for inter in scene.interactions if isinstance(inter, (KelvinVoigt, Hertz))]
+
+
+def _dipoles(scene):
+    return [inter for inter in scene.interactions if isinstance(inter, Dipole)]
+
+
+#: per scene, values computed from the particles' constant properties (kinds of sphere, ...)
+_CACHE = weakref.WeakKeyDictionary()
+
+
+def _key(p):
+    """What the cached values depend on: the spheres' count, sizes, masses, inertias and moments."""
+    moments = float(np.abs(p.dipole).sum()) if p.dipole is not None else 0.0
+    fixed = int(p.fixed.sum()) if p.fixed is not None else 0
+    return len(p), float(p.radius.sum()), float(p.mass.sum()), float(p.inertia.sum()), moments, fixed
+
+
+def _cached_kinds(scene):
+    """:func:`_kinds` of the scene's particles, computed again only when they change."""
+    p = scene.particles
+    known = _CACHE.get(scene, {}).get("kinds")
+    if known is not None and known[0] == _key(p):
+        return known[1]
+    kinds = _kinds(p)
+    _CACHE.setdefault(scene, {})["kinds"] = (_key(p), kinds)
+    return kinds
+
+
+def _kinds(particles):
+    """Index pairs (i, j) standing for every pair of kinds of sphere (radius, mass, inertia, moment,
+    fixed), two different spheres where a kind has two; pairs of two fixed spheres are left out."""
+    p = particles
+    moment = np.linalg.norm(p.dipole, axis=1) if p.dipole is not None else np.zeros(len(p))
+    fixed = p.fixed if p.fixed is not None else np.zeros(len(p), dtype=bool)
+    keys = np.stack([p.radius, p.mass, p.inertia, moment, fixed.astype(float)], axis=1)
+    _, first, inverse, counts = np.unique(keys, axis=0, return_index=True, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    second = first.copy()
+    if np.any(counts > 1):  # a second member of each kind that has one
+        order = np.argsort(inverse, kind="stable")
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        many = counts > 1
+        second[many] = order[starts[many] + 1]
+    if len(first) <= KINDS_MAX:
+        a, b = np.triu_indices(len(first))
+        same = a == b
+        keep = ~same | (counts[a] > 1)
+        i, j = first[a[keep]], np.where(same[keep], second[b[keep]], first[b[keep]])
+    else:
+        extremes = np.unique([np.argmax(moment), np.argmin(p.radius), np.argmin(p.mass), np.argmin(p.inertia)])
+        i = np.repeat(np.arange(len(p)), len(extremes))
+        j = np.tile(extremes, len(p))
+        keep = i != j
+        i, j = i[keep], j[keep]
+    moving = ~(fixed[i] & fixed[j])
+    return i[moving], j[moving]
+
+
+def _safe(value, up=False):
+    """``value`` to 4 significant digits, rounded towards safety (down for a largest step, up for a
+    smallest stiffness), so that the advice given is accepted when followed to the letter."""
+    if not math.isfinite(value) or value <= 0.0:
+        return f"{value:.4g}"
+    scale = 10.0 ** (math.floor(math.log10(value)) - 3)
+    return f"{(math.ceil if up else math.floor)(value / scale * (1 + 1e-12 if up else 1 - 1e-12)) * scale:.4g}"
+
+
+def _summed(pairs):
+    """Element-wise sums of the (x, y) pairs of arrays that several interactions give."""
+    pairs = list(pairs)
+    return sum(x for x, _ in pairs), sum(y for _, y in pairs)
+
+
+def _pair_name(p, i, j):
+    return f"particles {p.ids[i]} and {p.ids[j]} (radii {p.radius[i]:.4g} and {p.radius[j]:.4g})"
+
+
+# ---- 4: can a contact hold the magnets? --------------------------------------------------------
+def _contact_problems(scene):
+    """Magnets the contact law cannot hold, among the pairs now closer than MAGNET_REACH times their
+    contact distance (a soft law is accepted while its magnets stay apart)."""
+    dipoles, laws = _dipoles(scene), _contact_laws(scene)
+    p = scene.particles
+    if not dipoles or not laws or len(p) < 2 or not _some_too_soft(scene, dipoles, laws):
+        return []
+    pairs = scene.close_pairs(MAGNET_REACH * 2.0 * float(np.max(p.radius)))
+    if not len(pairs):
+        return []
+    i, j = pairs[:, 0], pairs[:, 1]
+    near = np.linalg.norm(scene.separations(pairs), axis=1) < MAGNET_REACH * (p.radius[i] + p.radius[j])
+    if p.fixed is not None:
+        near &= ~(p.fixed[i] & p.fixed[j])
+    return _too_soft(p, dipoles, laws, i[near], j[near])
+
+
+def _some_too_soft(scene, dipoles, laws):
+    """Whether some pair of kinds of sphere is too much for a contact law (cached per scene: the
+    answer changes only with the spheres' sizes, masses and moments)."""
+    p = scene.particles
+    known = _CACHE.get(scene, {}).get("too_soft")
+    if known is None or known[0] != _key(p):
+        i, j = _cached_kinds(scene)
+        known = (_key(p), bool(_too_soft(p, dipoles, laws, i, j)))
+        _CACHE.setdefault(scene, {})["too_soft"] = known
+    return known[1]
+
+
+def _too_soft(p, dipoles, laws, i, j):
+    """Messages for each contact law that needs an overlap of more than MAX_MAGNETIC_OVERLAP of the
+    smaller radius to hold or stop some of the head-to-tail pairs (i, j)."""
+    if not len(i):
+        return []
+    force, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
+    smaller = np.minimum(p.radius[i], p.radius[j])
+    problems = []
+    for law in laws:  # (several laws act in parallel; each alone is checked: conservative)
+        static, stored = law.overlaps(p, i, j, force, energy)
+        need = np.maximum(static, stored) / smaller
+        worst = int(np.argmax(need))
+        if need[worst] <= MAX_MAGNETIC_OVERLAP:
+            continue
+        name, value = law.stiffer(p, i, j, force, energy, MAX_MAGNETIC_OVERLAP * smaller)
+        _, comfortable = law.stiffer(p, i, j, force, energy, 0.1 * smaller)
+        count = int(np.sum(need > MAX_MAGNETIC_OVERLAP))
+        where = f"closer than {MAGNET_REACH:g} contact distances"
+        if count > 1:
+            where = f"the worst of {count} pairs {where} that it cannot hold"
+        problems.append(
+            f"contact {name} = {getattr(law, name):.6g} is too soft for the magnetic attraction: "
+            f"{_pair_name(p, i[worst], j[worst])}, {where}, pull each other with {force[worst]:.4g} when touching "
+            f"head to tail, which needs an overlap of {static[worst] / smaller[worst]:.3g} of the smaller radius "
+            f"to hold, and release {energy[worst]:.4g} when they snap together, which needs "
+            f"{stored[worst] / smaller[worst]:.3g} of it to store; at most {MAX_MAGNETIC_OVERLAP:g} of it is "
+            f"accepted (spheres snapping together from rest pass through each other from 0.37 of it with a "
+            f"linear spring, 0.4-0.5 with Hertz). Use {name} >= {_safe(value, up=True)} in {law!r} "
+            f"({_safe(comfortable, up=True)} keeps the snap within 0.1 of the radius), or weaker moments.")
+    return problems
+
+
+# ---- 1: the time step against contacts, walls, fields, plug-ins -------------------------------
+def _approach_speed(scene):
+    """(speed, why): the approach speed Hertz contacts must be resolved at: twice the fastest speed
+    present, combined (in energy) with the speed touching magnets reach snapping together."""
+    p = scene.particles
+    speed = 2.0 * float(np.max(np.linalg.norm(p.velocity, axis=1))) if len(p) else 0.0
+    why = f"twice the fastest speed present, {speed:.4g}"
+    dipoles = _dipoles(scene)
+    if dipoles and len(p) > 1:
+        i, j = _cached_kinds(scene)
+        if len(i):
+            _, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
+            inv_mass, _ = inverse_inertia(p)
+            snap = float(np.sqrt(np.max(2.0 * energy * (inv_mass[i] + inv_mass[j]))))
+            if snap > 0.0:
+                why = f"{why}, and {snap:.4g} of magnets snapping together"
+                speed = math.hypot(speed, snap)
+    return speed, f"a tenth of the Hertz contact time at the approach speed {speed:.4g} ({why})"
+
+
+def _limits(scene, speed=None, why=None):
+    """(limit, what, why, hertz) of every interaction and effect that sets a largest time step;
+    Hertz contacts at approach ``speed`` (None: :func:`_approach_speed`)."""
+    p = scene.particles
+    out = []
+    for inter in scene.interactions + scene.effects:
+        law = inter.law if isinstance(inter, Wall) else inter
+        if isinstance(law, Hertz):
+            if speed is None:
+                speed, why = _approach_speed(scene)
+            out.append((law.max_time_step(p, speed), f"the stiffest contact ({law!r})", why, True))
+        elif isinstance(law, KelvinVoigt):
+            out.append((law.max_time_step(p), f"the stiffest contact ({law!r})",
+                        "a tenth of the shortest contact duration", False))
+        else:
+            limit = inter.max_time_step(p)
+            if math.isfinite(limit):
+                out.append((limit, f"{inter!r}", "its max_time_step", False))
+    return out
+
+
+def _step_problems(scene, integrator):
+    limits = _limits(scene)
+    if not limits:
+        return []
+    limit, what, why, _ = min(limits, key=lambda item: item[0])
+    return [_too_large(integrator, limit, what, why)] if integrator.contact_step > limit else []
+
+
+def _too_large(integrator, limit, what, why, slack=1.0):
+    step = integrator.contact_step
+    during = f"; during a run up to {slack:g} times it is accepted" if slack > 1 else ""
+    if integrator.inner == 1:
+        return (f"time step dt = {step:.6g} is too large for {what}: the largest safe value is {limit:.6g} "
+                f"({why}{during}). Use dt <= {_safe(limit)}.")
+    inner = math.ceil(integrator.dt / limit)
+    return (f"inner time step dt/inner = {step:.6g} is too large for {what}: the largest safe value is "
+            f"{limit:.6g} ({why}{during}). Use inner >= {inner} (or a smaller dt).")
+
+
+def _hertz_problem(scene, integrator, slack):
+    """The Hertz contacts at the speeds now (twice the fastest), allowed ``slack`` times more."""
+    p = scene.particles
+    speed = 2.0 * float(np.max(np.linalg.norm(p.velocity, axis=1))) if len(p) else 0.0
+    if speed == 0.0:
+        return None
+    why = f"a tenth of the Hertz contact time at twice the fastest speed now, {speed:.4g}"
+    limits = [lim for lim in _limits(scene, speed, why) if lim[3]]
+    if not limits:
+        return None
+    limit, what, why, _ = min(limits, key=lambda item: item[0])
+    if integrator.contact_step <= slack * limit:
+        return None
+    return _too_large(integrator, limit, what, why, slack)
+
+
+# ---- 2: spins -------------------------------------------------------------------------------
+def _spin_problem(scene, integrator, slack):
+    p = scene.particles
+    if p.angular_velocity is None or not len(p):
+        return None
+    everything = scene.interactions + scene.effects
+    any_torque = [inter for inter in everything if inter.torque and "dipole" not in inter.reads]
+    dipole_torque = [inter for inter in everything if inter.torque and "dipole" in inter.reads]
+    if any_torque:
+        coupled = np.ones(len(p), dtype=bool)
+    elif dipole_torque:
+        coupled = np.linalg.norm(p.dipole, axis=1) > 0.0
+    else:
+        return None
+    if p.fixed is not None:
+        coupled &= ~p.fixed
+    spin = np.where(coupled, np.linalg.norm(p.angular_velocity, axis=1), 0.0)
+    k = int(np.argmax(spin))
+    turn = spin[k] * integrator.dt
+    if turn <= slack * MAX_TURN:
+        return None
+    cause = f"{(any_torque or dipole_torque)[0]!r}"
+    return (f"time step dt = {integrator.dt:.6g} is too large for the spin of particle {p.ids[k]}: |omega| = "
+            f"{spin[k]:.4g} turns it by {turn:.3g} rad per step while torques act on it ({cause}); at most "
+            f"{slack * MAX_TURN:g} rad per step is accepted{' during a run' if slack > 1 else ''}. "
+            f"Use dt <= {_safe(MAX_TURN / spin[k])}.")
+
+
+# ---- 1: dipoles -------------------------------------------------------------------------------
+def _dipole_problem(scene, integrator, slack):
+    """The dipoles at the closest approach possible: touching spheres when a contact law keeps them
+    apart, else the closest pair now (at most DIPOLE_REACH largest diameters apart). Checked
+    against the whole step dt (multiple time stepping puts dipoles on it)."""
+    dipoles = _dipoles(scene)
+    p = scene.particles
+    if not dipoles or len(p) < 2:
+        return None
+    dt = integrator.dt
+    fastest = slack * SAFE_PHASE / dt  # the largest omega accepted
+    if _contact_laws(scene):
+        i, j = _cached_kinds(scene)
+        r = p.radius[i] + p.radius[j]
+        where = "touching"
+    else:
+        i, j, r = _closest(scene, dipoles, fastest)
+        where = "at the closest distance now (no contact law keeps them apart)"
+    if not len(i):
+        return None
+    a, b = _summed(d.rate_coefficients(p, i, j) for d in dipoles)
+    rate = np.sqrt(a / r**5 + b / r**3)
+    k = int(np.argmax(rate))
+    if rate[k] <= fastest:
+        return None
+    limit = SAFE_PHASE / rate[k]
+    return (f"time step dt = {dt:.6g} is too large for the dipole forces: {where}, {_pair_name(p, i[k], j[k])} at "
+            f"r = {r[k]:.4g} move with omega = {rate[k]:.4g} (omega^2 = a/r^5 + b/r^3 with a = {a[k]:.4g} from "
+            f"the pull, b = {b[k]:.4g} from the torques), so omega dt = {rate[k] * dt:.3g}; at most "
+            f"{slack * SAFE_PHASE:.3g} is accepted{' during a run' if slack > 1 else ''}. "
+            f"Use dt <= {_safe(limit)}.")
+
+
+def _closest(scene, dipoles, fastest):
+    """(i, j, r) of the pairs now closer than where the dipoles would move faster than ``fastest``,
+    looked for within DIPOLE_REACH largest diameters; if none is that close, the kinds of sphere
+    at DIPOLE_REACH diameters."""
+    p = scene.particles
+    ki, kj = _cached_kinds(scene)
+    if not len(ki):
+        return ki, kj, np.zeros(0)
+    a, b = _summed(d.rate_coefficients(p, ki, kj) for d in dipoles)
+    # omega(r) <= fastest where both terms are below fastest^2 / 2
+    reach = float(np.max(np.maximum((2.0 * a / fastest**2) ** 0.2, (2.0 * b / fastest**2) ** (1.0 / 3.0))))
+    cap = DIPOLE_REACH * 2.0 * float(np.max(p.radius))
+    if scene.box is not None and any(scene.periodic):
+        cap = min(cap, 0.49 * float(np.min(scene.box.size[np.array(scene.periodic)])))
+    pairs = scene.close_pairs(min(reach, cap))
+    if len(pairs):
+        r = np.linalg.norm(scene.separations(pairs), axis=1)
+        return pairs[:, 0], pairs[:, 1], r
+    if reach > cap:
+        return ki, kj, np.full(len(ki), cap)
+    return ki[:0], kj[:0], np.zeros(0)
