@@ -36,7 +36,7 @@ def reference(n=8000):
 
 
 def two_magnets():
-    return dk.two_magnets.TwoMagnets().scene()
+    return dk.two_magnets.TwoMagnets(b_over_R=4.0).scene()
 
 
 def rate(make_scene, dt, steps, chunk_seconds, repeats=3):

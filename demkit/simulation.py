@@ -122,8 +122,11 @@ class Simulation:
         conservative and dissipative scenes, checked every chunk (about 0.2 s of wall time) and
         at every recorded frame. Leave None for scenes driven from outside.
 
-    Raises ValueError (before anything runs) for a time step too large for the scene's stiffest
-    effect, and for anything the integrator cannot do with the scene.
+    Raises ValueError (before anything runs) for a time step too large for any stiff effect of the
+    scene (contacts at the speeds present, dipoles at the closest approach, fields, spins), a
+    contact too soft to hold the magnets (:func:`demkit.guards.before_stepping`), and anything the
+    integrator cannot do with the scene; :func:`demkit.guards.while_stepping` re-checks what
+    changes at the start of every run and every chunk.
 
     The compiled loop hands control back to Python about every :data:`CHUNK_SECONDS` of wall time
     (at step boundaries, which changes no result): Ctrl-C then ends a run cleanly (see :meth:`run`).
@@ -330,6 +333,9 @@ class Simulation:
         if not continuing:
             self.forces_valid = False
             scene.validate()
+            problem = guards.while_stepping(scene, self.integrator)  # the state may have changed since __init__
+            if problem:
+                raise ValueError(problem)
             self.energy_origin = None  # the user changed the state: the energy guard restarts
             self._last_frame = None
             scene.counters[LAST_SORT] = min(scene.counters[LAST_SORT], self.step)  # another simulation's count
@@ -360,7 +366,16 @@ class Simulation:
         return (total, float(np.abs(out).sum())) if scale else total
 
     def _check_while_stepping(self, done, start_step, stride, record):
-        """Guards at a chunk boundary: energy growth (when asked for)."""
+        """Guards at a chunk boundary: what changes during a run (:func:`demkit.guards.while_stepping`:
+        speeds against Hertz contacts, spins, magnets against soft contacts) and energy growth."""
+        problem = guards.while_stepping(self.scene, self.integrator)
+        if problem:
+            frames = done // stride + 1
+            self.trajectory = self._trajectory(record, (start_step + np.arange(frames) * stride) * self.integrator.dt)
+            raise SimulationError(
+                f"the run stopped at step {self.step} (t = {self.time:.6g}): {problem} The {frames} frames recorded "
+                f"so far are kept in simulation.trajectory (see docs/stability.md).",
+                step=self.step, time=self.time, particle=None, trajectory=self.trajectory)
         if self.max_energy_growth is None or self.energy_origin is None:
             return
         origin, scale = self.energy_origin
