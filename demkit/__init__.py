@@ -7,7 +7,7 @@ from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, Magnet
 from .particles import Particles
 from .scene import Scene
 from .checkpoint import Checkpoint
-from .simulation import LargeOutputWarning, Simulation, SimulationError, Trajectory
+from .simulation import CheckpointWarning, LargeOutputWarning, Simulation, SimulationError, Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
@@ -18,7 +18,7 @@ from . import guards  # checks before and during runs: time steps, spins, contac
 __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
-           "LargeOutputWarning", "Dipole",
+           "LargeOutputWarning", "CheckpointWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",

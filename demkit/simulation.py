@@ -30,6 +30,10 @@ class LargeOutputWarning(UserWarning):
     """A run is about to write very many files or bytes."""
 
 
+class CheckpointWarning(UserWarning):
+    """A checkpoint could not be written (the run goes on; the previous checkpoint is kept)."""
+
+
 class SimulationError(RuntimeError):
     """A run stopped because it could not be trusted (e.g. NaN or inf appeared).
 
@@ -215,7 +219,7 @@ class Simulation:
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
         self._warn_large_output(nsteps, writer_steps)
         if not self._opened and self.checkpoint is not None:
-            self.checkpoint.save(self)  # before any output: no series on disk without a checkpoint
+            self._save_checkpoint()  # before any output: no series on disk without a checkpoint
         if not self._opened:
             for w in self.writers:
                 w.open(self)
@@ -254,7 +258,7 @@ class Simulation:
                 self._check_while_stepping(done, start_step, stride, record)
                 if self.checkpoint is not None and (
                         (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
-                    self.checkpoint.save(self)
+                    self._save_checkpoint()
                 if interrupt.caught and done < nsteps:
                     self._interrupted(done, start_step, stride, record, nframes)
         if extra_final:
@@ -266,7 +270,7 @@ class Simulation:
         self.trajectory = self._trajectory(record, (start_step + steps) * self.integrator.dt)
         self._last_frame = _frame_of(record, len(steps) - 1)
         if self.checkpoint is not None and self.checkpoint.saved_step != self.step:
-            self.checkpoint.save(self)
+            self._save_checkpoint()
         if interrupt.caught:  # Ctrl-C during the last chunk: the run is complete, still honour it
             self._close_on_interrupt()
             raise KeyboardInterrupt(f"run interrupted at its end (step {self.step}, t = {self.time:.6g})")
@@ -402,12 +406,23 @@ class Simulation:
         self.trajectory = self._trajectory(record, (start_step + np.asarray(steps)) * self.integrator.dt)
         self._last_frame = _frame_of(record, len(steps) - 1)
         saved = ""
-        if self.checkpoint is not None:
-            self.checkpoint.save(self)
+        if self.checkpoint is not None and self._save_checkpoint():
             saved = f"; state saved in {self.checkpoint.path}"
         self._close_on_interrupt()
         raise KeyboardInterrupt(f"run interrupted at step {self.step} (t = {self.time:.6g}): the {len(steps)} frames "
                                 f"so far are in simulation.trajectory{saved}")
+
+    def _save_checkpoint(self):
+        """Save the checkpoint; a failure to write it (a full disk, ...) must not cost the run: the
+        previous checkpoint is kept, a CheckpointWarning says why, and the run goes on."""
+        try:
+            self.checkpoint.save(self)
+            return True
+        except OSError as err:
+            warnings.warn(f"could not save the checkpoint {self.checkpoint.path} at step {self.step} "
+                          f"(t = {self.time:.6g}): {err}; the previous checkpoint is kept and the run goes on",
+                          CheckpointWarning, stacklevel=3)
+            return False
 
     def _close_on_interrupt(self):
         for w in self.writers:

@@ -242,3 +242,29 @@ def test_run_arguments_are_checked():
     with pytest.raises(TypeError, match="instance"):
         dk.Simulation(_two_spheres(), dk.VelocityVerlet)
     assert "Simulation(" in repr(sim) and "VelocityVerlet" in repr(sim)
+
+
+def test_a_full_disk_warns_keeps_the_previous_checkpoint_and_the_run_goes_on(tmp_path, monkeypatch):
+    path = tmp_path / "disk.ckpt"
+    scene = _two_spheres()
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-4), checkpoint=dk.Checkpoint(path, every=1e-3))
+    sim.run(2e-3)
+    before = path.read_bytes()
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(ckpt_module.np, "savez", full)
+    with pytest.warns(dk.CheckpointWarning, match="No space left"):
+        sim.run(5e-3)
+    assert sim.step == 70 and path.read_bytes() == before
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_a_run_announces_a_large_output_before_it_starts(tmp_path, monkeypatch):
+    import demkit.simulation as simulation
+    monkeypatch.setattr(simulation, "LARGE_OUTPUT_FILES", 10)
+    writer = dk.VTKWriter(tmp_path / "out", every=1e-4, trails=False)
+    sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4), writers=[writer])
+    with pytest.warns(dk.LargeOutputWarning, match="about 2[0-9] files"):
+        sim.run(2e-3)
