@@ -209,14 +209,23 @@ def _too_soft(p, dipoles, laws, i, j):
     force, energy = _summed(d.touching_attraction(p, i, j) for d in dipoles)
     smaller = np.minimum(p.radius[i], p.radius[j])
     problems = []
+    # the attraction grows as the spheres overlap (U ~ 1/r^3, F ~ 1/r^4): a law is judged by whether it
+    # holds and stops them at the largest overlap accepted, with the attraction there
+    touching = p.radius[i] + p.radius[j]
+
+    def at(overlap):
+        grow = touching / (touching - overlap)
+        return force * grow**4, energy * grow**3
+
     for law in laws:  # (several laws act in parallel; each alone is checked: conservative)
         static, stored = law.overlaps(p, i, j, force, energy)
-        need = np.maximum(static, stored) / smaller
+        at_limit = law.overlaps(p, i, j, *at(MAX_MAGNETIC_OVERLAP * smaller))
+        need = np.maximum(*at_limit) / smaller
         worst = int(np.argmax(need))
         if need[worst] <= MAX_MAGNETIC_OVERLAP:
             continue
-        name, value = law.stiffer(p, i, j, force, energy, MAX_MAGNETIC_OVERLAP * smaller)
-        _, comfortable = law.stiffer(p, i, j, force, energy, 0.1 * smaller)
+        name, value = law.stiffer(p, i, j, *at(MAX_MAGNETIC_OVERLAP * smaller), MAX_MAGNETIC_OVERLAP * smaller)
+        _, comfortable = law.stiffer(p, i, j, *at(0.1 * smaller), 0.1 * smaller)
         count = int(np.sum(need > MAX_MAGNETIC_OVERLAP))
         where = f"closer than {MAGNET_REACH:g} contact distances"
         if count > 1:
@@ -226,8 +235,8 @@ def _too_soft(p, dipoles, laws, i, j):
             f"{_pair_name(p, i[worst], j[worst])}, {where}, pull each other with {force[worst]:.4g} when touching "
             f"head to tail, which needs an overlap of {static[worst] / smaller[worst]:.3g} of the smaller radius "
             f"to hold, and release {energy[worst]:.4g} when they snap together, which needs "
-            f"{stored[worst] / smaller[worst]:.3g} of it to store; at most {MAX_MAGNETIC_OVERLAP:g} of it is "
-            f"accepted (spheres snapping together from rest pass through each other from 0.37 of it with a "
+            f"{stored[worst] / smaller[worst]:.3g} of it to store (more as they overlap and the attraction grows); "
+            f"at most {MAX_MAGNETIC_OVERLAP:g} of it is accepted, with the attraction there (spheres snapping together from rest pass through each other from 0.37 of it with a "
             f"linear spring, 0.4-0.5 with Hertz). Use {name} >= {_safe(value, up=True)} in {law!r} "
             f"({_safe(comfortable, up=True)} keeps the snap within 0.1 of the radius), or weaker moments.")
     return problems
