@@ -106,7 +106,8 @@ _CACHE = weakref.WeakKeyDictionary()
 
 def _key(p):
     """What the cached values depend on: the spheres' count, sizes, masses, inertias and moments."""
-    moments = float(np.abs(p.dipole).sum()) if p.dipole is not None else 0.0
+    # moments rotate during a run: their sizes count, to 9 digits (rotation changes their last bits)
+    moments = f"{float(np.einsum('ij,ij->', p.dipole, p.dipole)):.9e}" if p.dipole is not None else 0.0
     fixed = int(p.fixed.sum()) if p.fixed is not None else 0
     return len(p), float(p.radius.sum()), float(p.mass.sum()), float(p.inertia.sum()), moments, fixed
 
