@@ -17,8 +17,10 @@ The checks (thresholds and the measurements behind them: docs/stability.md):
 2. spins: a sphere that feels torques turns by at most :data:`MAX_TURN` = 1 rad per step;
 3. geometry (:meth:`demkit.Scene.validate`): overlaps, the box, walls;
 4. contacts that hold the magnetic pull: touching head-to-tail magnets must be held by an overlap of
-   at most :data:`MAX_MAGNETIC_OVERLAP` = 0.35 of the smaller radius, both statically and when the
-   energy they release on snapping together is stored in the contact (checked for the pairs within
+   at most :data:`REFUSED_MAGNETIC_OVERLAP` = 0.5 of the smaller radius (where a run stops), both
+   statically and when the energy they release on snapping together is stored in the contact, with
+   the attraction as it is at that overlap; the advice keeps them within :data:`MAX_MAGNETIC_OVERLAP`
+   = 0.35 (checked for the pairs within
    :data:`MAGNET_REACH` = 2 contact distances: a soft law is accepted while its magnets stay apart).
 
 During a run the limits that depend on the state (Hertz at the speeds now, dipoles at the closest
@@ -37,14 +39,16 @@ from .interactions.contact import KelvinVoigt
 from .interactions.dipole import Dipole
 from .interactions.hertz import Hertz
 from .interactions.wall import Wall
+from .state import DEEP_OVERLAP_FRACTION
 
 #: largest rotation per step (rad) of a sphere that feels torques (dipoles, fields, friction)
 MAX_TURN = 1.0
-#: largest overlap, as a fraction of the smaller radius, a contact may need to hold touching magnets
-#: (estimated statically and from the energy of the snap). Measured (docs/stability.md): head-to-tail
-#: magnets snapping together from rest pass through each other from an estimate of 0.37 R with a
-#: linear spring (0.4-0.5 R with Hertz); at 0.35 R they still stop, overlapping by up to 0.6 R (0.1 R:
-#: 0.11 R). Existing scenes of the test suite reach 0.32 R.
+#: a contact law is refused when touching head-to-tail magnets snapping together from rest would
+#: overlap by more than this fraction of the smaller radius, with the attraction as it is there (it
+#: grows as they overlap): the run would be stopped there (demkit.state.DEEP_OVERLAP_FRACTION)
+REFUSED_MAGNETIC_OVERLAP = DEEP_OVERLAP_FRACTION
+#: the overlap the advised stiffness keeps such a snap within (a margin below the refusal; measured,
+#: docs/stability.md: judged at this overlap with the attraction there, the advice is met)
 MAX_MAGNETIC_OVERLAP = 0.35
 #: during a run, the state-dependent limits are allowed this many times more
 RUN_SLACK = 2.0
@@ -220,14 +224,14 @@ def _too_soft(p, dipoles, laws, i, j):
 
     for law in laws:  # (several laws act in parallel; each alone is checked: conservative)
         static, stored = law.overlaps(p, i, j, force, energy)
-        at_limit = law.overlaps(p, i, j, *at(MAX_MAGNETIC_OVERLAP * smaller))
+        at_limit = law.overlaps(p, i, j, *at(REFUSED_MAGNETIC_OVERLAP * smaller))
         need = np.maximum(*at_limit) / smaller
         worst = int(np.argmax(need))
-        if need[worst] <= MAX_MAGNETIC_OVERLAP:
+        if need[worst] <= REFUSED_MAGNETIC_OVERLAP:
             continue
         name, value = law.stiffer(p, i, j, *at(MAX_MAGNETIC_OVERLAP * smaller), MAX_MAGNETIC_OVERLAP * smaller)
         _, comfortable = law.stiffer(p, i, j, *at(0.1 * smaller), 0.1 * smaller)
-        count = int(np.sum(need > MAX_MAGNETIC_OVERLAP))
+        count = int(np.sum(need > REFUSED_MAGNETIC_OVERLAP))
         where = f"closer than {MAGNET_REACH:g} contact distances"
         if count > 1:
             where = f"the worst of {count} pairs {where} that it cannot hold"
@@ -237,9 +241,9 @@ def _too_soft(p, dipoles, laws, i, j):
             f"head to tail, which needs an overlap of {static[worst] / smaller[worst]:.3g} of the smaller radius "
             f"to hold, and release {energy[worst]:.4g} when they snap together, which needs "
             f"{stored[worst] / smaller[worst]:.3g} of it to store (more as they overlap and the attraction grows); "
-            f"at most {MAX_MAGNETIC_OVERLAP:g} of it is accepted, with the attraction there (spheres snapping together from rest pass through each other from 0.37 of it with a "
-            f"linear spring, 0.4-0.5 with Hertz). Use {name} >= {_safe(value, up=True)} in {law!r} "
-            f"({_safe(comfortable, up=True)} keeps the snap within 0.1 of the radius), or weaker moments.")
+            f"snapping together they would pass {REFUSED_MAGNETIC_OVERLAP:g} of it, where a run stops. Use {name} >= {_safe(value, up=True)} in {law!r} (the snap within "
+            f"{MAX_MAGNETIC_OVERLAP:g} of the radius; "
+            f"{_safe(comfortable, up=True)} keeps it within 0.1), or weaker moments.")
     return problems
 
 
