@@ -127,13 +127,14 @@ def scene_hash(scene, integrator):
 
 # ---- writing ------------------------------------------------------------------------------------
 def state_arrays(scene):
-    """Every array a checkpoint holds, by name (copies)."""
-    arrays = {f"state.{name}": np.array(scene.arrays[name]) for name in SAVED_ARRAYS}
+    """Every array a checkpoint holds, by name (the scene's own arrays, not copies: written out or
+    compared, never changed)."""
+    arrays = {f"state.{name}": scene.arrays[name] for name in SAVED_ARRAYS}
     for g in range(len(scene.plan.groups)):
         pl = scene._list(g)
         arrays[f"list{g}.reach"] = np.array([pl.reach])
         for name in PAIR_LIST_FIELDS[1:]:
-            arrays[f"list{g}.{name}"] = np.array(getattr(pl, name))
+            arrays[f"list{g}.{name}"] = getattr(pl, name)
     return arrays
 
 
@@ -221,7 +222,6 @@ def check_compatible(meta, arrays, simulation, path):
         raise ValueError(f"checkpoint {path} belongs to another scene: its parameters (interactions, radii, "
                          f"masses, box, skin, threads chunks, ...) differ from this scene's")
     expected = state_arrays(scene)
-    expected.pop("meta", None)
     for name, value in expected.items():
         if name not in arrays:
             raise ValueError(f"checkpoint {path} lacks {name!r}: not a checkpoint of this scene")

@@ -151,7 +151,7 @@ class Simulation:
         if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
             raise TypeError(f"checkpoint must be a demkit.Checkpoint or None, got {checkpoint!r}")
         if max_energy_growth is not None:
-            max_energy_growth = _positive_number("max_energy_growth", max_energy_growth)
+            max_energy_growth = checks.positive("max_energy_growth", max_energy_growth)
         self.scene = scene
         self.integrator = integrator
         self.writers = list(writers)
@@ -180,7 +180,7 @@ class Simulation:
 
     def _steps(self, interval, what):
         dt = self.integrator.dt
-        interval = _number(what, interval)
+        interval = checks.number(what, interval)
         if not math.isfinite(interval) or interval <= 0:
             raise ValueError(f"{what} must be a positive finite time, got {interval}")
         steps = int(round(interval / dt))
@@ -220,11 +220,7 @@ class Simulation:
         self._warn_large_output(nsteps, writer_steps)
         if not self._opened and self.checkpoint is not None:
             self._save_checkpoint()  # before any output: no series on disk without a checkpoint
-        if not self._opened:
-            for w in self.writers:
-                w.open(self)
-                w.write(self)
-            self._opened = True
+        self._open_writers()
         if self.energy_origin is None and self.max_energy_growth is not None:
             self.energy_origin = self._energy_now(scale=True)
         check_steps = self._steps(self.checkpoint.every, "checkpoint interval") \
@@ -260,14 +256,14 @@ class Simulation:
                         (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
                     self._save_checkpoint()
                 if interrupt.caught and done < nsteps:
-                    self._interrupted(done, start_step, stride, record, nframes)
+                    self._interrupted(done, start_step, stride, record)
         if extra_final:
             kern.record_frame(nframes, state, record)
         self._measure(nsteps, time.perf_counter() - clock, int(scene.counters[REBUILDS]) - rebuilds)
         steps = np.arange(nframes) * stride
         if extra_final:
             steps = np.append(steps, nsteps)
-        self.trajectory = self._trajectory(record, (start_step + steps) * self.integrator.dt)
+        self._keep(record, start_step, steps)
         self._last_frame = _frame_of(record, len(steps) - 1)
         if self.checkpoint is not None and self.checkpoint.saved_step != self.step:
             self._save_checkpoint()
@@ -302,16 +298,22 @@ class Simulation:
         self.energy_origin = tuple(origin) if origin is not None else None
         scene.stepped_by = self
         self._last_frame = None
-        if not self._opened:
-            for w in self.writers:
-                if hasattr(w, "resume"):
-                    if w.resume(self):
-                        w.write(self)
-                else:
-                    w.open(self)
-                    w.write(self)
-            self._opened = True
+        self._open_writers(resuming=True)
         return self
+
+    def _open_writers(self, resuming=False):
+        """Once per simulation: start the writers' output with the current state, or (``resuming``)
+        let those that can continue their existing output up to the current time."""
+        if self._opened:
+            return
+        for w in self.writers:
+            if resuming and hasattr(w, "resume"):
+                if w.resume(self):
+                    w.write(self)
+            else:
+                w.open(self)
+                w.write(self)
+        self._opened = True
 
     def _run_length(self, duration, until):
         if (duration is None) == (until is None):
@@ -319,7 +321,7 @@ class Simulation:
                              else "give run() a duration, or until= (an end time)")
         if duration is not None:
             return self._steps(duration, "duration")
-        end = _number("until", until)
+        end = checks.number("until", until)
         if not math.isfinite(end):
             raise ValueError(f"until must be a finite time, got {end}")
         steps = int(round(end / self.integrator.dt)) - self.step
@@ -349,7 +351,8 @@ class Simulation:
         scene.counters[INNER_STEPS] = self.integrator.inner
         scene.counters[RUN_START] = self.step
         scene.status[:] = OK
-        scene.push()
+        if not continuing:
+            scene.push()
         scene.stepped_by = self
         return continuing and self.forces_valid
 
@@ -375,7 +378,7 @@ class Simulation:
         problem = guards.while_stepping(self.scene, self.integrator)
         if problem:
             frames = done // stride + 1
-            self.trajectory = self._trajectory(record, (start_step + np.arange(frames) * stride) * self.integrator.dt)
+            self._keep(record, start_step, np.arange(frames) * stride)
             raise SimulationError(
                 f"the run stopped at step {self.step} (t = {self.time:.6g}): {problem} The {frames} frames recorded "
                 f"so far are kept in simulation.trajectory (see docs/stability.md).",
@@ -387,7 +390,7 @@ class Simulation:
         growth = (now - origin) / scale if scale > 0 else 0.0
         if growth > self.max_energy_growth:
             frames = done // stride + 1
-            self.trajectory = self._trajectory(record, (start_step + np.arange(frames) * stride) * self.integrator.dt)
+            self._keep(record, start_step, np.arange(frames) * stride)
             raise SimulationError(
                 f"total + dissipated energy grew by {growth:.3g} of the energy scale {scale:.6g} (from {origin:.6g} "
                 f"to {now:.6g}) by step {self.step} (t = {self.time:.6g}), more than max_energy_growth = "
@@ -396,14 +399,14 @@ class Simulation:
                 f"kept in simulation.trajectory.",
                 step=self.step, time=self.time, particle=None, trajectory=self.trajectory)
 
-    def _interrupted(self, done, start_step, stride, record, nframes):
+    def _interrupted(self, done, start_step, stride, record):
         """Ctrl-C inside a run: keep what was done, save, close, re-raise."""
         frames = done // stride + 1
         steps = list(np.arange(frames) * stride)
         if done % stride:
             self.scene.kernels.record_frame(frames, self.scene.state, record)
             steps.append(done)
-        self.trajectory = self._trajectory(record, (start_step + np.asarray(steps)) * self.integrator.dt)
+        self._keep(record, start_step, steps)
         self._last_frame = _frame_of(record, len(steps) - 1)
         saved = ""
         if self.checkpoint is not None and self._save_checkpoint():
@@ -488,6 +491,11 @@ class Simulation:
         energy = np.zeros((nframes, 3 + len(self.scene.energy_kinds)))
         return (np.zeros(shape), np.zeros(shape), omega, dipole, energy, np.zeros((nframes, 3)), image)
 
+    def _keep(self, record, start_step, steps):
+        """Make ``self.trajectory`` the frames of ``record`` taken at the run-local ``steps``."""
+        self.trajectory = self._trajectory(record, (start_step + np.asarray(steps)) * self.integrator.dt)
+        return self.trajectory
+
     def _trajectory(self, record, times):
         p = self.scene.particles
         t = len(times)
@@ -509,12 +517,14 @@ class Simulation:
         code, index, other = int(status[0]), int(status[1]), int(status[3])
         status[:] = OK
         good_frames = (bad_step - 1) // stride + 1
-        self.trajectory = self._trajectory(record, (start_step + np.arange(good_frames) * stride) * dt)
+        self._keep(record, start_step, np.arange(good_frames) * stride)
         self.step = start_step + bad_step
         kept = (f"The {good_frames} frames recorded before it are kept in simulation.trajectory")
-        if code == MOVED_TOO_FAR:
-            k = int(scene.arrays["tag"][index])
+        tag = scene.arrays["tag"]
+        if code in (MOVED_TOO_FAR, DEEP_OVERLAP):  # the kernels flagged a particle (internal index)
+            k = int(tag[index])
             speed = float(np.linalg.norm(p.velocity[k]))
+        if code == MOVED_TOO_FAR:
             raise SimulationError(
                 f"particle id {p.ids[k]} moved more than the neighbour-list skin ({scene.skin:.6g}) between two "
                 f"rebuilds at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}, so {speed * dt:.6g} per "
@@ -522,15 +532,12 @@ class Simulation:
                 f"(dt = {dt:.6g}) or a larger skin. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         if code == DEEP_OVERLAP:
-            tag = scene.arrays["tag"]
-            k = int(tag[index])
             if other < 0:  # a wall: status[3] = -1 - its index among the effects
                 what = f"particle id {p.ids[k]} overlaps {scene.effects[-1 - other]!r} by more than " \
                        f"{DEEP_OVERLAP_FRACTION} of its radius"
             else:
                 what = f"particles id {p.ids[k]} and {p.ids[int(tag[other])]} overlap by more than " \
                        f"{DEEP_OVERLAP_FRACTION} of the smaller radius"
-            speed = float(np.linalg.norm(p.velocity[k]))
             raise SimulationError(
                 f"{what} at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}): the contact is too soft to "
                 f"stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
@@ -559,15 +566,6 @@ class Simulation:
 def _frame_of(record, k):
     """Copies of frame k of every record array (None for absent fields)."""
     return tuple(r[k].copy() if len(r) else None for r in record)
-
-
-def _number(what, value):
-    """float(value) for a real number; strings and booleans are refused (run("10") is a mistake)."""
-    return checks.number(what, value)
-
-
-def _positive_number(what, value):
-    return checks.positive(what, value)
 
 
 def _physical_memory():
