@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -408,17 +409,22 @@ def _convert(schema, data, scale):
 
 # ---- building -------------------------------------------------------------------------------------
 class _At:
-    """Turn a ValueError or TypeError of a constructor into a SceneFileError at ``path``."""
+    """Turn a ValueError or TypeError of a constructor into a SceneFileError at ``path``; with
+    ``keys`` (the table's keys), at the first of them the message names (as a whole word)."""
 
-    def __init__(self, src, *path):
-        self.src, self.path = src, path
+    def __init__(self, src, *path, keys=()):
+        self.src, self.path, self.keys = src, path, keys
 
     def __enter__(self):
         return self
 
     def __exit__(self, kind, err, tb):
         if kind is not None and issubclass(kind, (ValueError, TypeError)) and not isinstance(err, SceneFileError):
-            raise self.src.error(self.path, str(err)) from None
+            message = str(err)
+            named = [(m.start(), key) for key in self.keys
+                     for m in [re.search(rf"(?<![\w.]){re.escape(key)}(?!\w)", message)] if m]
+            path = self.path + ((min(named)[1],) if named else ())
+            raise self.src.error(path, message) from None
         return False
 
 
@@ -494,14 +500,15 @@ def _builder(b, box, src):
     from .box import Box
     where = ("particles", "build")
     kind = b["kind"]
+    keys = [k for k in b if k != "kind"]
     if kind == "two_magnets":
         from .two_magnets import TwoMagnets
-        with _At(src, *where):
+        with _At(src, *where, keys=keys):
             p = TwoMagnets(b_over_R=b["b_over_R"], speed=b["speed"], radius=b["radius"], x0=b["x0"], mass=b["mass"],
                            dipoles=b["dipoles"]).particles()
         return {"particles": p}, None
     if kind in ("chain", "ring"):
-        with _At(src, *where):
+        with _At(src, *where, keys=keys):
             if kind == "chain":
                 x, m = B.chain(b["n"], b["radius"], start=b["start"], direction=b["direction"], gap=b["gap"],
                                moment=b["moment"])
@@ -511,7 +518,7 @@ def _builder(b, box, src):
         return dict(position=x, radius=b["radius"], mass=b["mass"], inertia_factor=b["inertia_factor"], dipole=m), None
     rng = np.random.default_rng(b["seed"])
     made = None
-    with _At(src, *where):
+    with _At(src, *where, keys=keys):
         if kind == "lattice":
             x, made = B.lattice(b["lattice"], b["cells"], spacing=b["spacing"],
                                 radius=None if b["spacing"] is not None else b["radius"], periodic=b["periodic"])
@@ -527,7 +534,7 @@ def _builder(b, box, src):
             x = B.random_packing(b["n"], b["radius"], place, seed=rng)
     n = len(x)
     out = dict(position=x, radius=b["radius"], mass=b["mass"], inertia_factor=b["inertia_factor"])
-    with _At(src, *where):
+    with _At(src, *where, keys=keys):
         if b["moment"] is not None:
             if b["directions"] == "random":
                 u = B.random_directions(n, seed=rng)
@@ -589,10 +596,10 @@ def _interactions(d, src):
     from . import interactions as I
     inter = d["interactions"] or {}
     friction = rolling = None
-    with _At(src, "interactions", "friction"):
+    with _At(src, "interactions", "friction", keys=inter.get("friction") or ()):
         if inter.get("friction") is not None:
             friction = I.Friction(**inter["friction"])
-    with _At(src, "interactions", "rolling_resistance"):
+    with _At(src, "interactions", "rolling_resistance", keys=inter.get("rolling_resistance") or ()):
         if inter.get("rolling_resistance") is not None:
             rolling = I.RollingResistance(**inter["rolling_resistance"])
     out = []
@@ -600,7 +607,7 @@ def _interactions(d, src):
         value = inter.get(name)
         if not value:
             continue
-        with _At(src, "interactions", name):
+        with _At(src, "interactions", name, keys=value if isinstance(value, dict) else ()):
             if name in ("dipole", "power_law_dipole"):
                 cls = I.Dipole if name == "dipole" else I.PowerLawDipole
                 out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], switch_width=value["switch_width"]))
@@ -614,7 +621,7 @@ def _interactions(d, src):
                 out.append(I.UniformField(value["field"]))
         if name == "wall":
             for k, wall in enumerate(value):
-                with _At(src, "interactions", "wall", k):
+                with _At(src, "interactions", "wall", k, keys=wall):
                     out.append(I.Wall(**wall))
     return out
 
@@ -650,7 +657,7 @@ def _build(data, src, base):
         _convert(SCHEMA, data, scale)
     box = None
     if data["box"] is not None:
-        with _At(src, "box"):
+        with _At(src, "box", keys=("size", "periodic")):
             box = Box(data["box"]["size"], data["box"]["periodic"])
     particles, made = _particles(data, box, src, base, scale)
     box = made if made is not None else box
