@@ -344,8 +344,12 @@ def key_lines(text):
 
 
 def line_of(lines, path):
-    """The line of ``path`` or of its nearest enclosing key found, or None."""
+    """The line of ``path``, else the first line of a key inside it (``[a.b.c]`` for ``a``), else of
+    its nearest enclosing key found, or None."""
     path = tuple(path)
+    inside = [line for key, line in lines.items() if key[:len(path)] == path]
+    if path and inside:
+        return min(inside)
     while path:
         if path in lines:
             return lines[path]
