@@ -225,7 +225,7 @@ SCHEMA = Table({
             "every": _n("simulated time between saves", check="positive", dim="time"),
             "seconds": _n("wall-clock seconds between saves", check="positive")}, "checkpoints (dk.Checkpoint)"),
     }, "what to write; paths relative to the scene file's folder (or to --out)"),
-})
+}, "the keys outside any table")
 
 #: order in which the interactions enter the scene (the file's order does not matter)
 INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field", "wall")
@@ -787,3 +787,48 @@ def save_trajectory(trajectory, path):
         arrays["box_size"], arrays["box_periodic"] = trajectory.box.size, trajectory.box.periodic
     np.savez(path, **{k: v for k, v in arrays.items() if v is not None})
     return path
+
+
+# ---- the format's reference ------------------------------------------------------------------------
+_KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
+          "size": "number or [x, y, z]", "cells": "integer or 3 integers", "flags": "bool or 3 bools",
+          "numbers": "number or list (per sphere)", "vectors": "list of [x, y, z]", "bools": "list of bools",
+          "integers": "list of integers", "number_or_auto": 'number or "auto"', "direction": 'string or [x, y, z]'}
+
+
+def reference():
+    """The key reference of docs/scene_files.md, as Markdown, generated from :data:`SCHEMA`."""
+    out = []
+
+    def default(key):
+        if key.default is REQUIRED:
+            return "**required**"
+        if key.default is None:
+            return "none"
+        return f"`{key.default!r}`".replace("'", '"').replace("True", "true").replace("False", "false")
+
+    def table(name, schema, header):
+        keys = [(k, e) for k, e in schema.keys.items() if isinstance(e, Key)]
+        out.append(f"### `{header}`\n\n{schema.doc}.\n")
+        if keys:
+            out.append("| key | type | default | meaning | SI dimension |\n|---|---|---|---|---|")
+            for k, e in keys:
+                choices = f" ({', '.join(map(repr, e.choices))})".replace("'", '"') if e.choices else ""
+                check = f", {e.check.replace('_', ' ')}" if e.check else ""
+                out.append(f"| `{k}` | {_KINDS[e.kind]}{check} | {default(e)} | {e.doc}{choices} | {e.dim or ''} |")
+            out.append("")
+        for group, required in schema.one_of:
+            out.append(f"{'Exactly' if required else 'At most'} one of {', '.join(f'`{g}`' for g in group)}.\n")
+        for k, e in schema.keys.items():
+            path = f"{name}.{k}" if name else k
+            if isinstance(e, Table):
+                table(path, e, path)
+            elif isinstance(e, Tables):
+                table(path, e.table, f"[{path}]")
+            elif isinstance(e, Variant):
+                out.append(f"### `{path}`\n\n{e.doc}.\n")
+                for kind, sub in e.variants.items():
+                    table(path, sub, f'{path}, kind = "{kind}"')
+
+    table("", SCHEMA, "top level")
+    return "\n".join(out).replace("### `top level`", "### Top level")

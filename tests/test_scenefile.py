@@ -378,3 +378,8 @@ def test_demkit_info_and_errors(tmp_path):
                                   "did you mean 'stiffness'?"), done.stderr
     done = demkit("run", str(COLLISION), "--set", "nonsense", cwd=tmp_path)
     assert done.returncode == 2 and "--set needs key.path=value" in done.stderr
+
+
+def test_the_docs_reference_is_generated_from_the_schema():
+    text = (ROOT / "docs" / "scene_files.md").read_text()
+    assert text.rstrip().endswith(dk.scenefile.reference().rstrip())
