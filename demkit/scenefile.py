@@ -419,7 +419,8 @@ class _At:
         return self
 
     def __exit__(self, kind, err, tb):
-        if kind is not None and issubclass(kind, (ValueError, TypeError)) and not isinstance(err, SceneFileError):
+        if kind is not None and issubclass(kind, (ValueError, TypeError, OverflowError, MemoryError)) \
+                and not isinstance(err, SceneFileError):
             message = str(err)
             named = [(m.start(), key) for key in self.keys
                      for m in [re.search(rf"(?<![\w.]){re.escape(key)}(?!\w)", message)] if m]
@@ -588,7 +589,7 @@ def _particles(d, box, src, base, scale):
     for name in ("position", "velocity", "dipole", "angular_velocity"):
         if kw.get(name) is not None and len(kw[name]) == 0:
             raise src.error(where + ((name,) if where == ("particles",) else ()), "needs at least one sphere")
-    with _At(src, *where):
+    with _At(src, *where, keys=[k for k in kw if where == ("particles",) and p.get(k) is not None]):
         return Particles(**kw), made
 
 

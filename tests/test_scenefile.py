@@ -197,7 +197,7 @@ def test_missing_tables_keys_and_rules():
         SMALL.replace("[interactions.kelvin_voigt]\nstiffness = 1000.0\ndamping = 1.0", "[interactions.friction]\ncoefficient = 0.5"))
     assert "particles: radius must be positive" not in error(SMALL.replace("radius = 0.5", "radius = -0.5"))
     assert "particles.radius: must be positive, got -0.5" in error(SMALL.replace("radius = 0.5", "radius = -0.5"))
-    assert "particles: velocity must have shape (2, 3)" in error(SMALL.replace("[-0.1, 0.0, 0.0]]", "]"))
+    assert "particles.velocity: velocity must have shape (2, 3)" in error(SMALL.replace("[-0.1, 0.0, 0.0]]", "]"))
     assert "overlap" in error(SMALL.replace("1.05, 0.0", "0.3, 0.0"))
     assert "<string>:2: not valid TOML" in error("x = 1\ny = = 2\n")
 
