@@ -102,7 +102,11 @@ def main(argv=None):
     study.add_argument("--methods", help="comma-separated methods (default: EulerCromer,VelocityVerlet)")
     study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")
     study.add_argument("--csv", help="also write the table as CSV")
+    from . import commands as scene_commands  # demkit run / demkit info (TOML scene files)
+    scene_commands.add_commands(commands)
     args = parser.parse_args(argv)
+    if args.command in ("run", "info"):
+        return scene_commands.main_errors(parser, args)
     try:
         return accuracy_command(args)
     except ValueError as err:

@@ -1,0 +1,250 @@
+"""``demkit run`` and ``demkit info``: run a TOML scene file, or say what it holds and costs.
+
+    demkit run scene.toml [--duration T] [--out DIR] [--set key.path=value ...] [--progress|--no-progress]
+    demkit info scene.toml [--set key.path=value ...] [--measure]
+
+``run`` builds the scene (:func:`demkit.load_scene`), runs it for the file's ``[run] duration`` (or
+``--duration``) and writes every output of ``[outputs]`` (paths relative to the scene file, or to
+``--out``); with a checkpoint in ``[outputs]`` a rerun resumes from it. ``--set`` changes any key of
+the file before it is checked (the value is read as TOML: ``--set integrator.dt=0.005``,
+``--set integrator.method=RK4``, ``--set box.periodic=[true,true,false]``).
+
+``info`` prints the spheres, box, interactions and integrator, the time step against the largest
+safe one (and whether the checks before a run pass), the memory of the arrays, neighbour lists and
+recorded frames, and the cost: steps times a rough cost per pair and step (:data:`PAIR_SECONDS`,
+measured on this project's 2-core machine) or, with ``--measure``, a timing run (at least 50 steps and 0.2 s).
+"""
+from __future__ import annotations
+
+import math
+import time
+import tomllib
+
+import numpy as np
+
+from .scenefile import SceneFileError, load_scene
+
+#: rough wall time of one pair evaluation in one force evaluation (seconds): measured on the 2-core
+#: project machine with examples/magnetic_cluster/cluster.toml (400 dipoles, all 79,800 pairs,
+#: velocity Verlet, one core): 945 us per step, 11.8 ns per pair
+PAIR_SECONDS = 1.2e-8
+#: and per sphere and force evaluation (integration, neighbour-list checks)
+SPHERE_SECONDS = 5.0e-8
+#: force evaluations per step of each integrator (MultipleTimeStep: the fast forces inner times)
+EVALUATIONS = {"EulerCromer": 1, "VelocityVerlet": 1, "ForestRuth": 3, "RK4": 4}
+
+
+def add_commands(commands):
+    """Register ``run`` and ``info`` on an argparse sub-parser collection."""
+    import argparse
+    doc = __doc__
+    run = commands.add_parser("run", help="run a TOML scene file and write its outputs", description=doc,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    run.add_argument("scene", help="a TOML scene file (docs/scene_files.md)")
+    run.add_argument("--duration", type=float, help="simulated time (overrides [run] duration)")
+    run.add_argument("--out", help="folder for the outputs (default: the scene file's folder)")
+    run.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
+                     help="change a key of the file, e.g. --set interactions.dipole.prefactor=0.5 (repeatable)")
+    run.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="show a progress bar (default: when the output is a terminal)")
+    run.set_defaults(handler=run_command)
+    info = commands.add_parser("info", help="what a TOML scene file holds, its time step, memory and cost",
+                               description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    info.add_argument("scene", help="a TOML scene file (docs/scene_files.md)")
+    info.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE", help="change a key of the file")
+    info.add_argument("--duration", type=float, help="simulated time (overrides [run] duration)")
+    info.add_argument("--measure", action="store_true", help="time a short run (>= 50 steps, >= 0.2 s) instead of the rough estimate")
+    info.set_defaults(handler=info_command)
+
+
+def parse_sets(items):
+    """{key path: value} from ``key.path=value`` strings; values are read as TOML (bare words as strings)."""
+    out = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"--set needs key.path=value, got {item!r}")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key.strip()] = value
+    return out
+
+
+def _load(args):
+    overrides = parse_sets(args.set)
+    if getattr(args, "duration", None) is not None:
+        overrides["run.duration"] = args.duration
+    return load_scene(args.scene, overrides=overrides)
+
+
+def run_command(args):
+    from .simulation import SimulationError
+    loaded = _load(args)
+    n = len(loaded.scene.particles)
+    steps = round(loaded.duration / loaded.integrator.dt)
+    print(f"{loaded.path}: {n} spheres, {loaded.integrator!r}, t = 0 .. {loaded.duration:g} ({steps:,} steps)")
+    clock = time.perf_counter()
+    try:
+        trajectory = loaded.run(progress=args.progress, out_dir=args.out)
+    except SimulationError as err:
+        print(f"demkit run: stopped: {err}")
+        return 1
+    seconds = time.perf_counter() - clock
+    frames = len(trajectory) if trajectory is not None else 0
+    print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")
+    for name, where in _outputs(loaded, args.out):
+        print(f"wrote {name}: {where}")
+    return 0
+
+
+def _outputs(loaded, out_dir):
+    out = loaded.outputs
+    if out.get("trajectory"):
+        yield "trajectory", loaded.output_path(out["trajectory"], out_dir)
+    if out.get("vtk"):
+        yield "VTK series", loaded.output_path(out["vtk"]["folder"], out_dir) / "particles.pvd"
+    if out.get("animation"):
+        yield "animation", loaded.output_path(out["animation"]["path"], out_dir)
+    if out.get("checkpoint"):
+        yield "checkpoint", loaded.output_path(out["checkpoint"]["path"], out_dir)
+
+
+def _size(nbytes):
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if nbytes < 1000 or unit == "TB":
+            return f"{nbytes:.3g} {unit}"
+        nbytes /= 1000.0
+
+
+def _arrays_bytes(value, seen):
+    """Bytes of the numpy arrays in a (nested) state."""
+    if isinstance(value, np.ndarray):
+        if id(value) in seen:
+            return 0
+        seen.add(id(value))
+        return value.nbytes
+    if isinstance(value, (list, tuple)):
+        return sum(_arrays_bytes(v, seen) for v in value)
+    fields = getattr(value, "_fields", None) or getattr(type(value), "_fields", None)
+    if fields:
+        return sum(_arrays_bytes(getattr(value, f), seen) for f in fields)
+    return 0
+
+
+def estimate_pairs(scene):
+    """[(group kind, reach, pairs, history width)]: the pairs each pair loop visits per force
+    evaluation, all pairs or those within reach + skin now (a k-d tree; periodic only when every
+    axis is)."""
+    from scipy.spatial import cKDTree
+    p = scene.particles
+    n = len(p)
+    out = []
+    for group in scene.plan.groups:
+        if group.kind == "all":
+            out.append(("all pairs", math.inf, n * (n - 1) // 2, group.width))
+            continue
+        reach = group.reach + scene.skin
+        box = scene.box
+        if box is not None and box.periodic.all():
+            tree = cKDTree(np.mod(p.position, box.size), boxsize=box.size)
+        else:
+            tree = cKDTree(p.position)
+        out.append(("neighbour list", group.reach, len(tree.query_pairs(reach)), group.width))
+    return out
+
+
+def _evaluations(integrator):
+    name = type(integrator).__name__
+    if name == "MultipleTimeStep":
+        return integrator.inner
+    return EVALUATIONS.get(name, 1)
+
+
+def info_command(args):
+    from . import guards
+    loaded = _load(args)
+    scene, integ = loaded.scene, loaded.integrator
+    p = scene.particles
+    n = len(p)
+    r = p.radius
+    print(f"{loaded.path}" + (f": {loaded.data['title']}" if loaded.data.get("title") else ""))
+    radius = f"{r[0]:.6g}" if np.all(r == r[0]) else f"{r.min():.6g} to {r.max():.6g}"
+    print(f"spheres       {n}, radius {radius}" + (", with dipoles" if p.dipole is not None else "")
+          + (f", {int(p.fixed.sum())} fixed" if p.fixed is not None and p.fixed.any() else ""))
+    print(f"box           {scene.box!r}" if scene.box is not None else "box           none (open space)")
+    for inter in scene.interactions + scene.effects:
+        print(f"interaction   {inter!r}")
+    if loaded.units is not None:
+        u = loaded.units
+        print(f"units         the paper's: length {u.length:.4g} m, time {u.time:.4g} s, mass {u.mass:.4g} kg")
+    steps = round(loaded.duration / integ.dt)
+    print(f"integrator    {integ!r}: {steps:,} steps to t = {loaded.duration:g}")
+    limit = scene.max_time_step()
+    if math.isfinite(limit):
+        print(f"time step     dt = {integ.dt:.6g}; largest safe step {limit:.6g} (contacts and fields, "
+              f"Scene.max_time_step) -> dt is {integ.contact_step / limit:.2f} of it")
+    else:
+        print(f"time step     dt = {integ.dt:.6g}; no contact or field limits it (dipoles are checked at the "
+              f"closest approach)")
+    try:
+        guards.before_stepping(scene, integ)
+        print("checks        the checks before a run pass (dk.guards.before_stepping)")
+    except ValueError as err:
+        print(f"checks        refused: {err}")
+    print("              (a time step for a target accuracy: dk.accuracy.suggest_dt, or `demkit accuracy`)")
+    # memory
+    state = _arrays_bytes(scene.state, set()) + _arrays_bytes([scene.force, scene.torque], set())
+    pairs = estimate_pairs(scene)
+    lists = sum(int(1.5 * count) * (4 + 8 * width) + 16 * n for kind, _, count, width in pairs
+                if kind == "neighbour list")
+    frames = (steps // max(1, round(loaded.record_every / integ.dt)) + 2) if loaded.record_every else 2
+    vectors = 2 + (p.angular_velocity is not None) + (p.dipole is not None) + (p.image is not None)
+    record = frames * n * 3 * 8 * vectors
+    print(f"memory        arrays {_size(state)}, neighbour lists ~{_size(lists)}, record of {frames:,} frames "
+          f"{_size(record)}: ~{_size(state + lists + record)}")
+    # cost
+    total_pairs = sum(count for _, _, count, _ in pairs)
+    for kind, reach, count, width in pairs:
+        where = "" if math.isinf(reach) else f" within {reach:.4g} + skin {scene.skin:.3g}"
+        print(f"pairs         {count:,} ({kind}{where})")
+    if args.measure:
+        from .simulation import Simulation
+        sim = Simulation(scene, integ)
+        sim.run(duration=5 * integ.dt)  # compiles (or loads the cache) and warms up
+        count = 50
+        while True:  # at least 50 steps and 0.2 s of wall time, so that tiny scenes are timed too
+            clock = time.perf_counter()
+            sim.run(duration=count * integ.dt)
+            seconds = time.perf_counter() - clock
+            if seconds >= 0.2 or count >= 10**7:
+                break
+            count *= 8
+        per_step = seconds / count
+        how = f"measured over {count:,} steps"
+    else:
+        per_step = _evaluations(integ) * (total_pairs * PAIR_SECONDS + n * SPHERE_SECONDS)
+        how = (f"rough: {_evaluations(integ)} force evaluation(s) per step x ({total_pairs:,} pairs x "
+               f"{PAIR_SECONDS:.0e} s + {n} spheres x {SPHERE_SECONDS:.0e} s); --measure times it")
+    print(f"cost          {per_step * 1e6:.3g} us per step ({how}) -> ~{_duration(per_step * steps)} for the run "
+          f"(one core, compilation not included)")
+    return 0
+
+
+def _duration(seconds):
+    if seconds < 120:
+        return f"{seconds:.3g} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds / 3600:.3g} h"
+
+
+def main_errors(parser, args):
+    """Run the chosen handler; a bad scene file or option is one line on stderr and exit code 2."""
+    try:
+        return args.handler(args)
+    except (SceneFileError, ValueError) as err:
+        parser.exit(2, f"demkit {args.command}: error: {err}\n")
+    except KeyboardInterrupt:
+        parser.exit(130, f"demkit {args.command}: interrupted\n")

@@ -1,0 +1,835 @@
+"""Scene files: a whole simulation (spheres, box, interactions, integrator, run, outputs) in TOML.
+
+    loaded = dk.load_scene("collision.toml")                        # or dk.parse_scene(text)
+    loaded = dk.load_scene("collision.toml", overrides={"particles.build.b_over_R": 3.0})
+    trajectory = loaded.run()                                       # writes what [outputs] asks for
+
+The format is :data:`SCHEMA` (reference: docs/scene_files.md, generated from it by
+:func:`reference`). Reading a file executes nothing from it. Every problem is one
+:class:`SceneFileError` naming the file, the line and the key path (``interactions.dipole.prefactor``);
+the line comes from a scan of the text (:func:`demkit.schema.key_lines`, tomllib gives none).
+
+``units = "si"`` reads every dimensional number in SI and converts it to the seed paper's
+dimensionless units (:mod:`demkit.units`) with the scales of the ``[scales]`` table (mass, radius,
+stiffness or Young's modulus, dipole moment or magnetisation of the reference sphere): lengths in
+x_c, times in t_c, moments in the reference moment, and the dipole prefactor mu0/4pi (SI) becomes
+1/3. The run and its outputs are then in those units (``LoadedScene.units`` converts back).
+"""
+from __future__ import annotations
+
+import csv
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .schema import REQUIRED, Key, SchemaError, Table, Tables, Variant, dotted, key_lines, line_of, validate
+
+#: scene files larger than this are refused before parsing (bytes)
+MAX_FILE_BYTES = 64 * 2**20
+
+
+class SceneFileError(ValueError):
+    """A scene file that cannot be used: one message with the file, line and key path."""
+
+    def __init__(self, message, source=None, path=(), line=None):
+        where = str(source) if source is not None else "<scene>"
+        if line is not None:
+            where += f":{line}"
+        super().__init__(f"{where}: {dotted(path)}: {message}" if path else f"{where}: {message}")
+        self.source, self.path, self.line = source, tuple(path), line
+
+
+# ---- the format -----------------------------------------------------------------------------------
+def _n(doc, **kw):
+    return Key("number", doc=doc, **kw)
+
+
+_SPHERES = {  # shared by the builders that make equal spheres
+    "mass": _n("mass of each sphere", default=1.0, check="positive", dim="mass"),
+    "inertia_factor": _n("I = inertia_factor m R^2 (2/5: solid sphere)", default=0.4, check="positive"),
+}
+_RANDOM = {  # states drawn from one generator seeded by `seed`, in this order
+    "seed": Key("integer", doc="seed of the one random generator (positions, then directions, velocities, spins)"),
+    "moment": _n("dipole moment of each sphere (none: no dipoles)", dim="dipole"),
+    "directions": Key("direction", default="random", choices=("random", "random_xy"),
+                      doc='moment directions: "random" (uniform on the sphere), "random_xy" (uniform in the '
+                          'xy plane) or one vector for all'),
+    "kT": _n("thermal velocities at this temperature, zero total momentum (none: at rest)", check="non_negative",
+             dim="energy"),
+    "spin_kT": _n("thermal spins at this temperature (none: no spin)", check="non_negative", dim="energy"),
+    "flat": Key("bool", default=False, doc="a monolayer: no velocity along z"),
+}
+BUILDERS = {
+    "random_packing": Table({
+        "n": Key("integer", REQUIRED, "number of spheres", check="at_least_one"),
+        "radius": _n("sphere radius", default=REQUIRED, check="positive", dim="length"),
+        "volume_fraction": _n("fill a cube at this volume fraction; the cube is the scene's box", check="positive"),
+        "periodic": Key("flags", default=True, doc="with volume_fraction: the cube's periodic axes"),
+        "region": Key("size", doc="place the spheres in the open box [0, size] (only for placing them)",
+                      check="positive", dim="length"),
+        **_SPHERES, **_RANDOM}, "random non-overlapping spheres (dk.build.random_packing) in [box], in region, or "
+                                "in a cube at volume_fraction", one_of=((("volume_fraction", "region"), False),),
+        excludes=(("region", ("periodic",)),)),
+    "lattice": Table({
+        "lattice": Key("string", REQUIRED, "crystal", choices=("sc", "bcc", "fcc", "hcp")),
+        "cells": Key("cells", REQUIRED, "unit cells along x, y, z (one integer or three)", check="at_least_one"),
+        "radius": _n("sphere radius", default=REQUIRED, check="positive", dim="length"),
+        "spacing": _n("nearest-neighbour distance (default 2 radius: touching)", check="positive", dim="length"),
+        "periodic": Key("flags", default=True, doc="periodic axes of the lattice's box, the scene's box"),
+        **_SPHERES, **_RANDOM}, "spheres on a lattice (dk.build.lattice); its box is the scene's box"),
+    "chain": Table({
+        "n": Key("integer", REQUIRED, "number of spheres", check="at_least_one"),
+        "radius": _n("sphere radius", default=REQUIRED, check="positive", dim="length"),
+        "start": Key("vector", [0.0, 0.0, 0.0], "centre of the first sphere", dim="length"),
+        "direction": Key("vector", [1.0, 0.0, 0.0], "direction of the chain and of its moments"),
+        "gap": _n("gap between neighbouring surfaces", default=0.0, check="non_negative", dim="length"),
+        "moment": _n("dipole moment of each sphere", default=1.0, dim="dipole"),
+        **_SPHERES}, "a straight head-to-tail chain of dipoles (dk.build.chain), at rest"),
+    "ring": Table({
+        "n": Key("integer", REQUIRED, "number of spheres (at least 3)", check="at_least_one"),
+        "radius": _n("sphere radius", default=REQUIRED, check="positive", dim="length"),
+        "centre": Key("vector", [0.0, 0.0, 0.0], "centre of the ring", dim="length"),
+        "normal": Key("vector", [0.0, 0.0, 1.0], "normal of the ring's plane"),
+        "gap": _n("gap between neighbouring surfaces", default=0.0, check="non_negative", dim="length"),
+        "moment": _n("dipole moment of each sphere", default=1.0, dim="dipole"),
+        **_SPHERES}, "a flux-closure ring of dipoles (dk.build.ring), at rest"),
+    "two_magnets": Table({
+        "b_over_R": _n("impact parameter b / R", default=REQUIRED, check="non_negative"),
+        "speed": _n("speed of each sphere (paper: 5.78e-3)", default=5.78e-3, check="positive", dim="velocity"),
+        "radius": _n("sphere radius (paper: 6.94)", default=6.94, check="positive", dim="length"),
+        "x0": _n("starting |x| of each centre", default=150.0, check="positive", dim="length"),
+        "mass": _n("mass of each sphere", default=1.0, check="positive", dim="mass"),
+        "dipoles": Key("string", "aligned", "moments along the line of centres: head to tail or head to head",
+                       choices=("aligned", "anti-aligned")),
+    }, "the seed paper's two spheres (dk.two_magnets.TwoMagnets(...).particles()); its interactions are "
+       "written in [interactions]"),
+}
+
+PARTICLES = Table({
+    "position": Key("vectors", doc="centres, one [x, y, z] per sphere", dim="length"),
+    "velocity": Key("vectors", doc="velocities (default: at rest)", dim="velocity"),
+    "radius": Key("numbers", 1.0, "radius: one for all or one per sphere", check="positive", dim="length"),
+    "mass": Key("numbers", 1.0, "mass: one for all or one per sphere", check="positive", dim="mass"),
+    "inertia_factor": Key("numbers", 0.4, "I = inertia_factor m R^2", check="positive"),
+    "dipole": Key("vectors", doc="magnetic moments (default: none)", dim="dipole"),
+    "angular_velocity": Key("vectors", doc="spins, rad per time (default: none)", dim="angular_velocity"),
+    "fixed": Key("bools", doc="spheres held in place (they must start at rest)"),
+    "ids": Key("integers", doc="unique ids (default 0 .. N-1)"),
+    "file": Key("string", doc="a .csv or .npz file of the spheres, relative to the scene file (see the docs)"),
+    "build": Variant("kind", BUILDERS, "a builder: kind = random_packing, lattice, chain, ring or two_magnets"),
+}, "the spheres: inline arrays, a file, or a [particles.build] table", required=True,
+    one_of=((("position", "file", "build"), True),),
+    excludes=(("build", ("velocity", "radius", "mass", "inertia_factor", "dipole", "angular_velocity", "fixed",
+                         "ids")),
+              ("file", ("velocity", "dipole", "angular_velocity", "fixed", "ids"))))
+
+_CUTOFF = {"cutoff": _n("centre distance beyond which pairs are ignored (none: never)", check="positive",
+                        dim="length"),
+           "switch_width": _n("smooth switch-off over [cutoff - width, cutoff] (none: plain cut)", check="positive",
+                              dim="length")}
+INTERACTIONS = Table({
+    "dipole": Table({"prefactor": _n("A = mu0/4pi in SI; 1/3 with unit moments is the paper's units",
+                                     default=1e-7, check="positive", dim="dipole_prefactor"), **_CUTOFF},
+                    "full dipole-dipole force and torque (dk.Dipole)"),
+    "power_law_dipole": Table({"prefactor": _n("A, as for dipole", default=1e-7, check="positive",
+                                               dim="dipole_prefactor"), **_CUTOFF},
+                              "the paper's central head-to-tail force, no torque (dk.PowerLawDipole)"),
+    "kelvin_voigt": Table({
+        "stiffness": _n("k, force per overlap", default=REQUIRED, check="positive", dim="stiffness"),
+        "damping": _n("c, force per overlap rate", default=0.0, check="non_negative", dim="damping"),
+        "no_tension": Key("bool", False, "forbid the attractive end of the contact")},
+        "linear spring-dashpot contact (dk.KelvinVoigt)"),
+    "hertz": Table({
+        "young": _n("Young's modulus", default=REQUIRED, check="positive", dim="pressure"),
+        "poisson": _n("Poisson ratio in (-1, 0.5)", default=REQUIRED),
+        "restitution": _n("normal restitution in (0, 1]", default=1.0)}, "Hertz contact (dk.Hertz)"),
+    "friction": Table({
+        "coefficient": _n("Coulomb coefficient mu", default=REQUIRED, check="non_negative"),
+        "stiffness": _n("tangential spring (default: from the contact law)", check="positive", dim="stiffness"),
+        "damping": _n("tangential dashpot (default: the normal damping ratio)", check="non_negative",
+                      dim="damping"),
+        "slip_radius": Key("string", "contact", "lever arms: contact or full", choices=("contact", "full")),
+        "sliding": Key("string", "coulomb", "sliding rule: coulomb or lammps", choices=("coulomb", "lammps"))},
+        "Coulomb friction of the contact law (dk.Friction)"),
+    "rolling_resistance": Table({
+        "coefficient": _n("mu_r", default=REQUIRED, check="non_negative"),
+        "stiffness": _n("rolling spring (default 2.25 mu_r^2 k)", check="positive", dim="stiffness"),
+        "damping": _n("rolling dashpot (default: the normal damping ratio)", check="non_negative", dim="damping")},
+        "rolling resistance of the contact law, needs friction (dk.RollingResistance)"),
+    "gravity": Table({"acceleration": Key("vector", REQUIRED, "g, e.g. [0, 0, -9.81]", dim="acceleration")},
+                     "uniform gravity (dk.Gravity)"),
+    "uniform_field": Table({"field": Key("vector", REQUIRED, "B (energy = -m . B)", dim="field")},
+                           "a uniform magnetic field (dk.UniformField)"),
+    "wall": Tables(Table({
+        "point": Key("vector", REQUIRED, "a point of the plane", dim="length"),
+        "normal": Key("vector", REQUIRED, "normal pointing to the spheres' side"),
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "in-plane velocity of the wall", dim="velocity")},
+        "a plane wall with the scene's contact law (dk.Wall)"), "plane walls, [[interactions.wall]], any number"),
+}, "the interactions, each a named table", one_of=((("dipole", "power_law_dipole"), False),
+                                                   (("kelvin_voigt", "hertz"), False)))
+
+SCHEMA = Table({
+    "title": Key("string", doc="a line saying what the scene is"),
+    "units": Key("string", "plain", 'plain (numbers used as given) or si (converted to the paper\'s units with '
+                                    '[scales])', choices=("plain", "si")),
+    "scales": Table({
+        "mass": _n("mass of the reference sphere, kg", default=REQUIRED, check="positive"),
+        "radius": _n("its radius, m", default=REQUIRED, check="positive"),
+        "stiffness": _n("contact stiffness, N/m", check="positive"),
+        "young_modulus": _n("or Young's modulus, Pa (k = pi Y R / 2)", check="positive"),
+        "dipole_moment": _n("its dipole moment, A m^2", check="positive"),
+        "magnetisation": _n("or its magnetisation, A/m", check="positive")},
+        'with units = "si": the reference sphere that sets the scales (dk.units.PaperUnits.from_si)',
+        one_of=((("stiffness", "young_modulus"), True), (("dipole_moment", "magnetisation"), True))),
+    "particles": PARTICLES,
+    "box": Table({
+        "size": Key("size", REQUIRED, "side lengths [Lx, Ly, Lz] (or one for a cube); corner at the origin",
+                    check="positive", dim="length"),
+        "periodic": Key("flags", False, "periodic axes: true/false or three of them")},
+        "the simulation box (none: open space)"),
+    "interactions": INTERACTIONS,
+    "integrator": Table({
+        "method": Key("string", "VelocityVerlet", "EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep "
+                                                  "(or a name as `demkit accuracy --methods` takes)"),
+        "dt": Key("number_or_auto", REQUIRED, 'time step, or "auto": half the scene\'s largest safe step',
+                  check="positive", dim="time"),
+        "inner": Key("integer", doc="MultipleTimeStep: inner steps per step (default 4)", check="at_least_one"),
+        "resolve_contacts": Key("bool", False, "VelocityVerlet, MultipleTimeStep: resolve contact events")},
+        "how to step", required=True),
+    "run": Table({
+        "duration": _n("simulated time", default=REQUIRED, check="positive", dim="time"),
+        "record_every": _n("time between recorded frames (none: start and end)", check="positive", dim="time"),
+        "max_energy_growth": _n("stop when total + dissipated energy grows by this fraction", check="positive")},
+        "how long", required=True),
+    "outputs": Table({
+        "trajectory": Key("string", doc="write the recorded frames to this .npz file"),
+        "vtk": Table({
+            "folder": Key("string", "vtk", "folder of the ParaView series"),
+            "every": _n("time between frames", default=REQUIRED, check="positive", dim="time"),
+            "trails": Key("bool", True, "also write the paths as poly-lines"),
+            "compress": Key("bool", False, "zlib-compress the frames"),
+            "contacts": Key("bool", False, "also write the contact network")}, "a VTK series (dk.VTKWriter)"),
+        "animation": Table({
+            "path": Key("string", REQUIRED, "a .gif or .mp4 file, made from the VTK series"),
+            "max_frames": Key("integer", 200, "at most this many frames", check="at_least_one"),
+            "fps": Key("integer", 20, "frames per second", check="at_least_one"),
+            "color_by": Key("string", doc="colour the spheres by this (see dk.viz.animate)"),
+            "trail": _n("trail length in time (none: dk.viz's default)", check="non_negative", dim="time")},
+            "an animation (dk.viz.animate), needs [outputs.vtk]"),
+        "checkpoint": Table({
+            "path": Key("string", REQUIRED, "checkpoint file (.npz); a rerun resumes from it"),
+            "every": _n("simulated time between saves", check="positive", dim="time"),
+            "seconds": _n("wall-clock seconds between saves", check="positive")}, "checkpoints (dk.Checkpoint)"),
+    }, "what to write; paths relative to the scene file's folder (or to --out)"),
+}, "the keys outside any table")
+
+#: order in which the interactions enter the scene (the file's order does not matter)
+INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field", "wall")
+
+
+# ---- reading --------------------------------------------------------------------------------------
+class _Source:
+    """The text of a scene file, for messages with lines."""
+
+    def __init__(self, text, name, overrides):
+        self.text, self.name = text, name
+        self.overridden = [tuple(_split(k)) for k in (overrides or {})]
+        self._lines = None
+
+    def error(self, path, message):
+        path = tuple(path)
+        for key in self.overridden:
+            if path[:len(key)] == key or key[:len(path)] == path and path:
+                return SceneFileError(f"{message} (set by override {dotted(key)})", self.name, path)
+        if self._lines is None:
+            self._lines = key_lines(self.text)
+        return SceneFileError(message, self.name, path, line_of(self._lines, path))
+
+
+def _split(key):
+    parts = []
+    for part in str(key).split("."):
+        parts.append(int(part) if part.isdigit() else part)
+    return parts
+
+
+def apply_overrides(data, overrides, source=None):
+    """Set each dotted key path of ``overrides`` in the raw dict ``data`` (tables are created as needed;
+    a number selects an item of an array of tables: ``interactions.wall.0.point``)."""
+    for key, value in (overrides or {}).items():
+        parts = _split(key)
+        if not parts or any(p == "" for p in parts):
+            raise SceneFileError(f"override key {key!r} is not a dotted key path", source)
+        node = data
+        for k, part in enumerate(parts[:-1]):
+            where = parts[:k + 1]
+            if isinstance(node, list):
+                if not isinstance(part, int) or part >= len(node):
+                    raise SceneFileError(f"override {key!r}: no item {part} in {dotted(where[:-1])}", source)
+                node = node[part]
+            elif isinstance(node, dict):
+                if isinstance(part, int):
+                    raise SceneFileError(f"override {key!r}: {dotted(where[:-1])} is not an array of tables", source)
+                node = node.setdefault(part, {})
+            else:
+                raise SceneFileError(f"override {key!r}: {dotted(where[:-1])} is a value, not a table", source)
+        if not isinstance(node, dict) or isinstance(parts[-1], int):
+            raise SceneFileError(f"override {key!r}: {dotted(parts[:-1])} is not a table", source)
+        node[parts[-1]] = value
+    return data
+
+
+def load_scene(path, overrides=None):
+    """Read, validate and build the scene file ``path``: a :class:`LoadedScene`.
+
+    overrides : {dotted key path: value}, set in the file's data before validation, e.g.
+        ``{"interactions.dipole.prefactor": 0.5, "particles.build.b_over_R": 3.0}``; a key the format
+        does not know is an error like an unknown key in the file.
+    Raises :class:`SceneFileError` (a ValueError) for anything wrong, with file, line and key path.
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if not path.is_file():
+            raise SceneFileError("is not a file", path)
+        if size > MAX_FILE_BYTES:
+            raise SceneFileError(f"is {size / 2**20:.0f} MB: scene files are at most {MAX_FILE_BYTES // 2**20} MB "
+                                 f"(put large particle sets in a .npz file: particles.file)", path)
+        raw = path.read_bytes()
+    except OSError as err:
+        raise SceneFileError(f"cannot be read: {err.strerror or err}", path) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = raw[:err.start].count(b"\n") + 1
+        raise SceneFileError(f"is not UTF-8 text (byte {err.start}: {raw[err.start:err.start + 1]!r})",
+                             path, line=line) from None
+    return parse_scene(text, source=path, overrides=overrides)
+
+
+def parse_scene(text, source="<string>", overrides=None):
+    """Like :func:`load_scene` for the TOML ``text``; relative paths are taken from the folder of
+    ``source`` (the current folder for "<string>")."""
+    name = source
+    base = Path(".") if str(source) == "<string>" else Path(source).resolve().parent
+    src = _Source(text, name, overrides)
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        message = str(err)
+        line = getattr(err, "lineno", None)
+        if line is None and "(at line " in message:
+            try:
+                line = int(message.rsplit("(at line ", 1)[1].split(",")[0])
+            except ValueError:
+                line = None
+        raise SceneFileError(f"not valid TOML: {message.split(' (at ')[0]}", name, line=line) from None
+    except RecursionError:
+        raise SceneFileError("not readable: arrays or tables nested too deeply", name) from None
+    try:
+        raw = apply_overrides(raw, overrides, name)
+        data = validate(SCHEMA, raw)
+        _check_rules(data)
+    except SchemaError as err:
+        raise src.error(err.path, err.problem) from None
+    except RecursionError:
+        raise SceneFileError("nested too deeply", name) from None
+    return _build(data, src, base)
+
+
+def _check_rules(data):
+    """What the schema cannot say: rules between tables."""
+    if data["units"] == "si" and data["scales"] is None:
+        raise SchemaError(("units",), 'units = "si" needs a [scales] table (the reference sphere)')
+    if data["units"] != "si" and data["scales"] is not None:
+        raise SchemaError(("scales",), 'is used only with units = "si"')
+    inter = data["interactions"] or {}
+    contact = inter.get("kelvin_voigt") or inter.get("hertz")
+    for name in ("friction", "rolling_resistance"):
+        if inter.get(name) is not None and contact is None:
+            raise SchemaError(("interactions", name), "needs a contact law: [interactions.kelvin_voigt] or "
+                                                      "[interactions.hertz]")
+    if inter.get("rolling_resistance") is not None and inter.get("friction") is None:
+        raise SchemaError(("interactions", "rolling_resistance"), "needs [interactions.friction]")
+    if inter.get("wall") and contact is None:
+        raise SchemaError(("interactions", "wall", 0), "walls use the scene's contact law: add "
+                                                       "[interactions.kelvin_voigt] or [interactions.hertz]")
+    build = (data["particles"] or {}).get("build")
+    if build is not None and data["box"] is not None and (
+            build["kind"] == "lattice" or (build["kind"] == "random_packing" and build["volume_fraction"])):
+        raise SchemaError(("box",), f"the {build['kind']} builder makes the box"
+                                    f"{' (volume_fraction)' if build['kind'] == 'random_packing' else ''}: "
+                                    f"leave out [box]")
+    out = data["outputs"] or {}
+    if out.get("animation") is not None and out.get("vtk") is None:
+        raise SchemaError(("outputs", "animation"), "is made from the VTK series: add [outputs.vtk]")
+    integ = data["integrator"]
+    if ":" in integ["method"] and (integ["inner"] is not None or integ["resolve_contacts"]):
+        raise SchemaError(("integrator", "method"), "give inner and resolve_contacts either in the name "
+                                                    "(MultipleTimeStep:8:resolve) or as keys, not both")
+
+
+# ---- SI input -------------------------------------------------------------------------------------
+def si_scales(scales):
+    """(PaperUnits, {dimension: SI value of one dimensionless unit}) for a validated [scales] table."""
+    from .units import PaperUnits, dipole_from_magnetisation
+    units = PaperUnits.from_si(mass=scales["mass"], radius=scales["radius"], stiffness=scales["stiffness"],
+                               young_modulus=scales["young_modulus"], dipole_moment=scales["dipole_moment"],
+                               magnetisation=scales["magnetisation"])
+    mu = scales["dipole_moment"] or dipole_from_magnetisation(scales["magnetisation"], scales["radius"])
+    m, length, t = units.mass, units.length, units.time
+    k = m / t**2
+    return units, {"length": length, "time": t, "mass": m, "velocity": length / t, "angular_velocity": 1 / t,
+                   "acceleration": length / t**2, "stiffness": k, "damping": m / t, "energy": k * length**2,
+                   "pressure": k / length, "dipole": mu, "dipole_prefactor": k * length**5 / mu**2,
+                   "field": k * length**2 / mu}
+
+
+def _convert(schema, data, scale):
+    """Divide every dimensional value of ``data`` by its unit's SI value (in place)."""
+    if data is None:
+        return
+    if isinstance(schema, Variant):
+        schema = schema.variants[data[schema.key]]
+    for name, entry in schema.keys.items():
+        value = data.get(name)
+        if isinstance(entry, Key):
+            if entry.dim is not None and value is not None and not isinstance(value, str):
+                data[name] = (np.asarray(value, dtype=np.float64) / scale[entry.dim]).tolist()
+        elif isinstance(entry, Tables):
+            for item in value or []:
+                _convert(entry.table, item, scale)
+        else:
+            _convert(entry, value, scale)
+
+
+# ---- building -------------------------------------------------------------------------------------
+class _At:
+    """Turn a ValueError or TypeError of a constructor into a SceneFileError at ``path``; with
+    ``keys`` (the table's keys), at the first of them the message names (as a whole word)."""
+
+    def __init__(self, src, *path, keys=()):
+        self.src, self.path, self.keys = src, path, keys
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, err, tb):
+        if kind is not None and issubclass(kind, (ValueError, TypeError, OverflowError, MemoryError)) \
+                and not isinstance(err, SceneFileError):
+            message = str(err)
+            named = [(m.start(), key) for key in self.keys
+                     for m in [re.search(rf"(?<![\w.]){re.escape(key)}(?!\w)", message)] if m]
+            path = self.path + ((min(named)[1],) if named else ())
+            raise self.src.error(path, message) from None
+        return False
+
+
+CSV_COLUMNS = {"x": ("position", 0), "y": ("position", 1), "z": ("position", 2),
+               "vx": ("velocity", 0), "vy": ("velocity", 1), "vz": ("velocity", 2),
+               "wx": ("angular_velocity", 0), "wy": ("angular_velocity", 1), "wz": ("angular_velocity", 2),
+               "mx": ("dipole", 0), "my": ("dipole", 1), "mz": ("dipole", 2),
+               "radius": ("radius", None), "mass": ("mass", None), "inertia_factor": ("inertia_factor", None),
+               "fixed": ("fixed", None), "id": ("ids", None)}
+NPZ_ARRAYS = ("position", "velocity", "radius", "mass", "inertia_factor", "dipole", "angular_velocity", "fixed", "ids")
+
+
+def read_particle_file(path):
+    """{Particles keyword: array} from a .csv (a header row naming the columns of CSV_COLUMNS) or a
+    .npz (arrays named as Particles' keywords; read without pickle). Raises ValueError."""
+    import difflib
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"particle file {path} does not exist")
+    if path.suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                arrays = {name: z[name] for name in z.files}
+        except Exception as err:  # zip or npy damage: one message
+            raise ValueError(f"cannot read {path} as .npz: {err}") from None
+        for name in arrays:
+            if name not in NPZ_ARRAYS:
+                near = difflib.get_close_matches(name, NPZ_ARRAYS, n=1)
+                raise ValueError(f"{path}: unknown array {name!r}" + (f"; did you mean {near[0]!r}?" if near else
+                                                                      f"; known: {', '.join(NPZ_ARRAYS)}"))
+        if arrays.get("fixed") is not None:
+            arrays["fixed"] = arrays["fixed"].astype(bool)
+        return arrays
+    if path.suffix != ".csv":
+        raise ValueError(f"particle file {path} must end in .csv or .npz")
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = [row for row in csv.reader(fh) if row and not row[0].lstrip().startswith("#")]
+    if len(rows) < 2:
+        raise ValueError(f"{path} needs a header row naming the columns and one row per sphere")
+    header = [h.strip() for h in rows[0]]
+    for h in header:
+        if h not in CSV_COLUMNS:
+            near = difflib.get_close_matches(h, list(CSV_COLUMNS), n=1)
+            raise ValueError(f"{path}: unknown column {h!r}" + (f"; did you mean {near[0]!r}?" if near else
+                                                                f"; known: {', '.join(CSV_COLUMNS)}"))
+    try:
+        table = np.array([[float(v) for v in row] for row in rows[1:]], dtype=np.float64)
+    except ValueError as err:
+        raise ValueError(f"{path}: every value must be a number ({err})") from None
+    if table.shape[1] != len(header):
+        raise ValueError(f"{path}: every row must have {len(header)} values")
+    arrays = {}
+    for k, h in enumerate(header):
+        field, axis = CSV_COLUMNS[h]
+        if axis is None:
+            arrays[field] = table[:, k]
+        else:
+            arrays.setdefault(field, np.zeros((len(table), 3)))[:, axis] = table[:, k]
+    for field in ("position", "velocity", "angular_velocity", "dipole"):
+        given = [h for h in header if CSV_COLUMNS[h][0] == field]
+        if given and len(given) != 3:
+            raise ValueError(f"{path}: {field} needs all three columns, got {', '.join(given)}")
+    if "fixed" in arrays:
+        arrays["fixed"] = arrays["fixed"] != 0
+    if "ids" in arrays:
+        arrays["ids"] = arrays["ids"].astype(np.int64)
+    return arrays
+
+
+def _builder(b, box, src):
+    """(Particles keywords, box made by the builder or None) from a [particles.build] table."""
+    from . import build as B
+    from .box import Box
+    where = ("particles", "build")
+    kind = b["kind"]
+    keys = [k for k in b if k != "kind"]
+    if kind == "two_magnets":
+        from .two_magnets import TwoMagnets
+        with _At(src, *where, keys=keys):
+            p = TwoMagnets(b_over_R=b["b_over_R"], speed=b["speed"], radius=b["radius"], x0=b["x0"], mass=b["mass"],
+                           dipoles=b["dipoles"]).particles()
+        return {"particles": p}, None
+    if kind in ("chain", "ring"):
+        with _At(src, *where, keys=keys):
+            if kind == "chain":
+                x, m = B.chain(b["n"], b["radius"], start=b["start"], direction=b["direction"], gap=b["gap"],
+                               moment=b["moment"])
+            else:
+                x, m = B.ring(b["n"], b["radius"], centre=b["centre"], normal=b["normal"], gap=b["gap"],
+                              moment=b["moment"])
+        return dict(position=x, radius=b["radius"], mass=b["mass"], inertia_factor=b["inertia_factor"], dipole=m), None
+    rng = np.random.default_rng(b["seed"])
+    made = None
+    with _At(src, *where, keys=keys):
+        if kind == "lattice":
+            x, made = B.lattice(b["lattice"], b["cells"], spacing=b["spacing"],
+                                radius=None if b["spacing"] is not None else b["radius"], periodic=b["periodic"])
+        else:
+            if b["volume_fraction"] is not None:
+                made = place = B.box_for(b["n"], b["radius"], b["volume_fraction"], periodic=b["periodic"])
+            elif b["region"] is not None:
+                place = Box(b["region"])
+            elif box is not None:
+                place = box
+            else:
+                raise ValueError("random_packing needs a box to fill: a [box] table, region or volume_fraction")
+            x = B.random_packing(b["n"], b["radius"], place, seed=rng)
+    n = len(x)
+    out = dict(position=x, radius=b["radius"], mass=b["mass"], inertia_factor=b["inertia_factor"])
+    with _At(src, *where, keys=keys):
+        if b["moment"] is not None:
+            if b["directions"] == "random":
+                u = B.random_directions(n, seed=rng)
+            elif b["directions"] == "random_xy":
+                angle = rng.uniform(0.0, 2 * math.pi, n)
+                u = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)
+            else:
+                d = np.asarray(b["directions"], dtype=np.float64)
+                if not np.linalg.norm(d) > 0:
+                    raise ValueError("directions must be a non-zero vector")
+                u = np.tile(d / np.linalg.norm(d), (n, 1))
+            out["dipole"] = b["moment"] * u
+        if b["kT"] is not None:
+            v = B.thermal_velocities(n, kT=b["kT"], mass=b["mass"], seed=rng)
+            if b["flat"]:
+                v[:, 2] = 0.0
+            out["velocity"] = v
+        if b["spin_kT"] is not None:
+            out["angular_velocity"] = B.thermal_spins(n, kT=b["spin_kT"], inertia=b["inertia_factor"] * b["mass"]
+                                                      * b["radius"] ** 2, seed=rng)
+    return out, made
+
+
+def _particles(d, box, src, base, scale):
+    from .particles import Particles
+    p = d["particles"]
+    made = None
+    if p["build"] is not None:
+        kw, made = _builder(p["build"], box, src)
+        if "particles" in kw:
+            return kw["particles"], made
+        where = ("particles", "build")
+    elif p["file"] is not None:
+        where = ("particles", "file")
+        file = Path(p["file"]) if Path(p["file"]).is_absolute() else base / p["file"]
+        with _At(src, *where):
+            kw = read_particle_file(file)
+            if scale is not None:
+                for name, value in kw.items():
+                    dim = PARTICLES.keys[name].dim
+                    if dim is not None:
+                        kw[name] = value / scale[dim]
+        for name in ("radius", "mass", "inertia_factor"):
+            kw.setdefault(name, p[name])
+    else:
+        where = ("particles",)
+        kw = {name: p[name] for name in ("position", "velocity", "radius", "mass", "inertia_factor", "dipole",
+                                         "angular_velocity", "ids")}
+        if p["fixed"] is not None:
+            kw["fixed"] = np.array(p["fixed"], dtype=bool)
+    for name in ("position", "velocity", "dipole", "angular_velocity"):
+        if kw.get(name) is not None and len(kw[name]) == 0:
+            raise src.error(where + ((name,) if where == ("particles",) else ()), "needs at least one sphere")
+    with _At(src, *where, keys=[k for k in kw if where == ("particles",) and p.get(k) is not None]):
+        return Particles(**kw), made
+
+
+def _interactions(d, src):
+    from . import interactions as I
+    inter = d["interactions"] or {}
+    friction = rolling = None
+    with _At(src, "interactions", "friction", keys=inter.get("friction") or ()):
+        if inter.get("friction") is not None:
+            friction = I.Friction(**inter["friction"])
+    with _At(src, "interactions", "rolling_resistance", keys=inter.get("rolling_resistance") or ()):
+        if inter.get("rolling_resistance") is not None:
+            rolling = I.RollingResistance(**inter["rolling_resistance"])
+    out = []
+    for name in INTERACTION_ORDER:
+        value = inter.get(name)
+        if not value:
+            continue
+        with _At(src, "interactions", name, keys=value if isinstance(value, dict) else ()):
+            if name in ("dipole", "power_law_dipole"):
+                cls = I.Dipole if name == "dipole" else I.PowerLawDipole
+                out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], switch_width=value["switch_width"]))
+            elif name == "kelvin_voigt":
+                out.append(I.KelvinVoigt(**value, friction=friction, rolling=rolling))
+            elif name == "hertz":
+                out.append(I.Hertz(**value, friction=friction, rolling=rolling))
+            elif name == "gravity":
+                out.append(I.Gravity(value["acceleration"]))
+            elif name == "uniform_field":
+                out.append(I.UniformField(value["field"]))
+        if name == "wall":
+            for k, wall in enumerate(value):
+                with _At(src, "interactions", "wall", k, keys=wall):
+                    out.append(I.Wall(**wall))
+    return out
+
+
+def _integrator(d, scene, src):
+    from .cli import parse_method
+    integ = d["integrator"]
+    text = integ["method"]
+    if integ["inner"] is not None:
+        text += f":{integ['inner']}"
+    if integ["resolve_contacts"]:
+        text += ":resolve"
+    with _At(src, "integrator", "method"):
+        make = parse_method(text)
+    dt = integ["dt"]
+    if dt == "auto":
+        limit = scene.max_time_step()
+        if not math.isfinite(limit):
+            raise src.error(("integrator", "dt"), '"auto" needs a scene with a largest safe step (contacts or '
+                                                  'fields); give dt as a number')
+        dt = 0.5 * limit
+    with _At(src, "integrator"):
+        return make(dt)
+
+
+def _build(data, src, base):
+    from .box import Box
+    from .scene import Scene
+    units = scale = None
+    if data["units"] == "si":
+        with _At(src, "scales"):
+            units, scale = si_scales(data["scales"])
+        _convert(SCHEMA, data, scale)
+    box = None
+    if data["box"] is not None:
+        with _At(src, "box", keys=("size", "periodic")):
+            box = Box(data["box"]["size"], data["box"]["periodic"])
+    particles, made = _particles(data, box, src, base, scale)
+    box = made if made is not None else box
+    interactions = _interactions(data, src)
+    with _At(src, "particles"):
+        scene = Scene(particles, interactions, box=box)
+    integrator = _integrator(data, scene, src)
+    run = data["run"]
+    with _At(src, "integrator"):
+        from .guards import before_stepping
+        before_stepping(scene, integrator)
+        integrator.check(scene)
+    outputs = data["outputs"] or {"trajectory": None, "vtk": None, "animation": None, "checkpoint": None}
+    return LoadedScene(scene=scene, integrator=integrator, duration=run["duration"], record_every=run["record_every"],
+                       outputs=outputs, path=None if str(src.name) == "<string>" else Path(src.name), data=data,
+                       units=units, max_energy_growth=run["max_energy_growth"], base=base, source=src)
+
+
+# ---- running --------------------------------------------------------------------------------------
+@dataclass
+class LoadedScene:
+    """A validated scene file, built: ``scene`` (a fresh dk.Scene), ``integrator``, ``duration``,
+    ``record_every``, ``outputs`` (the validated [outputs] table), ``path`` (the file or None),
+    ``data`` (the whole validated file as plain values, defaults filled in, in the units simulated)
+    and ``units`` (dk.units.PaperUnits for units = "si", else None)."""
+
+    scene: object
+    integrator: object
+    duration: float
+    record_every: float | None
+    outputs: dict
+    path: Path | None
+    data: dict
+    units: object = None
+    max_energy_growth: float | None = None
+    base: Path = Path(".")
+    source: object = None
+
+    def output_path(self, name, out_dir=None):
+        """Where an output path of the file goes: as written when absolute, else in ``out_dir`` or
+        the scene file's folder."""
+        p = Path(name)
+        if p.is_absolute():
+            return p
+        return (Path(out_dir) if out_dir is not None else self.base) / p
+
+    def simulation(self, out_dir=None):
+        """A dk.Simulation of the scene with the file's writers and checkpoint; when the checkpoint
+        file exists the simulation is resumed from it (and the VTK series continued)."""
+        from .checkpoint import Checkpoint
+        from .io import VTKWriter
+        from .simulation import Simulation
+        out = self.outputs
+        checkpoint = None
+        resume = False
+        if out.get("checkpoint") is not None:
+            c = out["checkpoint"]
+            target = self.output_path(c["path"], out_dir)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            with _At(self.source, "outputs", "checkpoint"):
+                checkpoint = Checkpoint(target, every=c["every"], seconds=c["seconds"])
+            resume = checkpoint.exists()
+        writers = []
+        if out.get("vtk") is not None:
+            v = out["vtk"]
+            with _At(self.source, "outputs", "vtk"):
+                writers.append(VTKWriter(self.output_path(v["folder"], out_dir), every=v["every"], compress=v["compress"],
+                                         trails=v["trails"], contacts=v["contacts"], overwrite=not resume,
+                                         resume=resume))
+        with _At(self.source, "run"):
+            sim = Simulation(self.scene, self.integrator, writers=writers, checkpoint=checkpoint,
+                             max_energy_growth=self.max_energy_growth)
+        if resume:
+            with _At(self.source, "outputs", "checkpoint"):
+                sim.resume()
+        return sim
+
+    def run(self, progress=None, out_dir=None):
+        """Run to ``duration`` (from a checkpoint when there is one) and write every output the file
+        asks for; returns the Trajectory (from where this run started). ``progress`` is passed on to
+        the progress display where available."""
+        sim = self.simulation(out_dir)
+        end = round(self.duration / self.integrator.dt)
+        if sim.step >= end:  # a finished run's checkpoint: nothing left to do
+            sim.close()
+            return sim.trajectory
+        try:
+            trajectory = sim.run(until=self.duration, record_every=self.record_every)
+        finally:
+            sim.close()
+        self.write_outputs(trajectory, out_dir, sim)
+        return trajectory
+
+    def write_outputs(self, trajectory, out_dir=None, sim=None):
+        """Write the trajectory file and the animation (the VTK series and checkpoints are written
+        while running). Returns the paths written."""
+        out, written = self.outputs, []
+        if out.get("trajectory"):
+            target = self.output_path(out["trajectory"], out_dir)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            save_trajectory(trajectory, target)
+            written.append(target)
+        if out.get("animation") is not None:
+            from . import viz
+            a = out["animation"]
+            target = self.output_path(a["path"], out_dir)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            options = {"color_by": a["color_by"]} if a["color_by"] else {}
+            if a["trail"] is not None:
+                options["trail"] = a["trail"]
+            try:
+                viz.animate(sim.writers[0].pvd, target, max_frames=a["max_frames"], fps=a["fps"], **options)
+                written.append(target)
+            except viz.RenderingUnavailable as err:
+                print(f"no animation: {err}")
+        return written
+
+
+def save_trajectory(trajectory, path):
+    """Write a Trajectory's arrays to a .npz (no pickle): time, position, velocity, angular_velocity,
+    dipole, image (when present), angular_momentum, radius, mass, inertia, ids and energy_<kind>."""
+    arrays = {name: getattr(trajectory, name) for name in ("time", "position", "velocity", "angular_velocity",
+                                                           "dipole", "image", "angular_momentum", "radius", "mass",
+                                                           "inertia", "ids")}
+    arrays.update({f"energy_{k}": v for k, v in trajectory.energy.items()})
+    if trajectory.box is not None:
+        arrays["box_size"], arrays["box_periodic"] = trajectory.box.size, trajectory.box.periodic
+    np.savez(path, **{k: v for k, v in arrays.items() if v is not None})
+    return path
+
+
+# ---- the format's reference ------------------------------------------------------------------------
+_KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
+          "size": "number or [x, y, z]", "cells": "integer or 3 integers", "flags": "bool or 3 bools",
+          "numbers": "number or list (per sphere)", "vectors": "list of [x, y, z]", "bools": "list of bools",
+          "integers": "list of integers", "number_or_auto": 'number or "auto"', "direction": 'string or [x, y, z]'}
+
+
+def reference():
+    """The key reference of docs/scene_files.md, as Markdown, generated from :data:`SCHEMA`."""
+    out = []
+
+    def default(key):
+        if key.default is REQUIRED:
+            return "**required**"
+        if key.default is None:
+            return "none"
+        return f"`{key.default!r}`".replace("'", '"').replace("True", "true").replace("False", "false")
+
+    def table(name, schema, header):
+        keys = [(k, e) for k, e in schema.keys.items() if isinstance(e, Key)]
+        out.append(f"### `{header}`\n\n{schema.doc}.\n")
+        if keys:
+            out.append("| key | type | default | meaning | SI dimension |\n|---|---|---|---|---|")
+            for k, e in keys:
+                choices = f" ({', '.join(map(repr, e.choices))})".replace("'", '"') if e.choices else ""
+                check = f", {e.check.replace('_', ' ')}" if e.check else ""
+                out.append(f"| `{k}` | {_KINDS[e.kind]}{check} | {default(e)} | {e.doc}{choices} | {e.dim or ''} |")
+            out.append("")
+        for group, required in schema.one_of:
+            out.append(f"{'Exactly' if required else 'At most'} one of {', '.join(f'`{g}`' for g in group)}.\n")
+        for k, e in schema.keys.items():
+            path = f"{name}.{k}" if name else k
+            if isinstance(e, Table):
+                table(path, e, path)
+            elif isinstance(e, Tables):
+                table(path, e.table, f"[{path}]")
+            elif isinstance(e, Variant):
+                out.append(f"### `{path}`\n\n{e.doc}.\n")
+                for kind, sub in e.variants.items():
+                    table(path, sub, f'{path}, kind = "{kind}"')
+
+    table("", SCHEMA, "top level")
+    return "\n".join(out).replace("### `top level`", "### Top level")

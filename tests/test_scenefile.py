@@ -1,0 +1,385 @@
+"""TOML scene files: dk.load_scene / parse_scene, their errors, `demkit run` and `demkit info`."""
+import math
+import os
+import random
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import demkit as dk
+from demkit.schema import key_lines
+
+ROOT = Path(__file__).resolve().parent.parent
+COLLISION = ROOT / "examples" / "two_magnets" / "collision.toml"
+CLUSTER = ROOT / "examples" / "magnetic_cluster" / "cluster.toml"
+
+SMALL = textwrap.dedent("""\
+    title = "two spheres meet"
+
+    [particles]
+    position = [[0.0, 0.0, 0.0], [1.05, 0.0, 0.0]]
+    velocity = [[0.1, 0.0, 0.0], [-0.1, 0.0, 0.0]]
+    radius = 0.5
+    mass = [1.0, 2.0]
+
+    [interactions.kelvin_voigt]
+    stiffness = 1000.0
+    damping = 1.0
+
+    [integrator]
+    method = "VelocityVerlet"
+    dt = 0.001
+
+    [run]
+    duration = 0.5
+    record_every = 0.1
+""")
+
+GAS = textwrap.dedent("""\
+    [particles.build]
+    kind = "random_packing"
+    n = 80
+    radius = 0.5
+    seed = 7
+    moment = 0.8
+    kT = 0.5
+    spin_kT = 0.2
+
+    [box]
+    size = [12.0, 12.0, 8.0]
+    periodic = [true, true, false]
+
+    [interactions.dipole]
+    prefactor = 1.0
+    cutoff = 3.0
+
+    [interactions.kelvin_voigt]
+    stiffness = 2000.0
+    damping = 5.0
+
+    [interactions.friction]
+    coefficient = 0.4
+
+    [interactions.rolling_resistance]
+    coefficient = 0.05
+
+    [interactions.gravity]
+    acceleration = [0.0, 0.0, -1.0]
+
+    [[interactions.wall]]
+    point = [0.0, 0.0, 0.0]
+    normal = [0.0, 0.0, 1.0]
+
+    [[interactions.wall]]
+    point = [0.0, 0.0, 8.0]
+    normal = [0.0, 0.0, -1.0]
+    velocity = [0.1, 0.0, 0.0]
+
+    [integrator]
+    method = "VelocityVerlet"
+    dt = 0.002
+
+    [run]
+    duration = 0.4
+    record_every = 0.02
+""")
+
+
+def gas_in_python():
+    """The scene GAS describes, built with the Python API."""
+    rng = np.random.default_rng(7)
+    box = dk.Box([12.0, 12.0, 8.0], periodic=[True, True, False])
+    x = dk.build.random_packing(80, 0.5, box, seed=rng)
+    m = 0.8 * dk.build.random_directions(80, seed=rng)
+    v = dk.build.thermal_velocities(80, kT=0.5, mass=1.0, seed=rng)
+    w = dk.build.thermal_spins(80, kT=0.2, inertia=0.4 * 0.25, seed=rng)
+    p = dk.Particles(position=x, velocity=v, radius=0.5, mass=1.0, dipole=m, angular_velocity=w)
+    law = dk.KelvinVoigt(2000.0, 5.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05))
+    scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0), law, dk.Gravity([0, 0, -1.0]),
+                         dk.Wall([0, 0, 0], [0, 0, 1]), dk.Wall([0, 0, 8.0], [0, 0, -1], velocity=[0.1, 0, 0])],
+                     box=box)
+    return scene
+
+
+def same(a, b):
+    for name in ("time", "position", "velocity", "angular_velocity", "dipole", "image"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            assert np.array_equal(x, y), name
+    for key in a.energy:
+        assert np.array_equal(a.energy[key], b.energy[key]), key
+
+
+def test_the_collision_file_is_the_papers_collision_bit_for_bit():
+    loaded = dk.load_scene(COLLISION, overrides={"run.duration": 400.0})
+    assert loaded.duration == 400.0 and loaded.record_every == 1.0
+    a = dk.Simulation(loaded.scene, loaded.integrator).run(duration=400.0, record_every=1.0)
+    b = dk.two_magnets.TwoMagnets(b_over_R=4.0).simulation(dt=0.01).run(duration=400.0, record_every=1.0)
+    same(a, b)
+    # an override reaches the builder: another impact parameter, other starting positions
+    other = dk.load_scene(COLLISION, overrides={"particles.build.b_over_R": 2.0})
+    assert other.scene.particles.position[1, 1] == pytest.approx(6.94)
+
+
+def test_an_nbody_file_with_box_friction_walls_is_the_python_scene_bit_for_bit():
+    loaded = dk.parse_scene(GAS)
+    assert loaded.scene.box.periodic.tolist() == [True, True, False]
+    a = dk.Simulation(loaded.scene, loaded.integrator).run(duration=0.4, record_every=0.02)
+    b = dk.Simulation(gas_in_python(), dk.VelocityVerlet(dt=0.002)).run(duration=0.4, record_every=0.02)
+    same(a, b)
+    assert np.abs(a.angular_velocity[-1]).max() > 0 and a.image is not None
+
+
+def test_inline_particles_and_defaults():
+    loaded = dk.parse_scene(SMALL)
+    p = loaded.scene.particles
+    assert p.mass.tolist() == [1.0, 2.0] and p.dipole is None
+    assert loaded.data["integrator"]["resolve_contacts"] is False and loaded.data["box"] is None
+    assert loaded.data["title"] == "two spheres meet"
+
+
+def test_particles_from_csv_and_npz(tmp_path):
+    (tmp_path / "s.csv").write_text("# two spheres\nx,y,z,vx,vy,vz,radius,fixed\n0,0,0,0,0,0,0.5,1\n1.05,0,0,-0.1,0,0,0.5,0\n")
+    text = SMALL.replace('position = [[0.0, 0.0, 0.0], [1.05, 0.0, 0.0]]\nvelocity = [[0.1, 0.0, 0.0], [-0.1, 0.0, 0.0]]\n',
+                         'file = "s.csv"\n')
+    (tmp_path / "a.toml").write_text(text)
+    p = dk.load_scene(tmp_path / "a.toml").scene.particles
+    assert p.fixed.tolist() == [True, False] and p.velocity[1, 0] == -0.1 and p.mass.tolist() == [1.0, 2.0]
+    np.savez(tmp_path / "s.npz", position=[[0, 0, 0], [1.05, 0, 0]], radius=[0.5, 0.5], dipole=np.eye(3)[:2])
+    (tmp_path / "b.toml").write_text(text.replace("s.csv", "s.npz"))
+    assert dk.load_scene(tmp_path / "b.toml").scene.particles.dipole[1].tolist() == [0, 1, 0]
+    (tmp_path / "s.csv").write_text("x,y,z,radious\n0,0,0,1\n")
+    with pytest.raises(dk.SceneFileError, match=r"a.toml:\d+: particles.file: .*unknown column 'radious'; did you mean 'radius'"):
+        dk.load_scene(tmp_path / "a.toml")
+
+
+def line(text, fragment):
+    return 1 + text.splitlines().index(fragment)
+
+
+@pytest.mark.parametrize("change, path, message", [
+    (("prefactor", "prefator"), "interactions.dipole.prefator", "unknown key; did you mean 'prefactor'?"),
+    (("cutoff = 3.0", 'cutoff = "3"'), "interactions.dipole.cutoff", "must be a number, got a string"),
+    (("stiffness = 2000.0", "stiffness = -2000.0"), "interactions.kelvin_voigt.stiffness", "must be positive"),
+    (("n = 80", "n = 80.5"), "particles.build.n", "must be a whole number"),
+    (("size = [12.0, 12.0, 8.0]", "size = [12.0, 12.0]"), "box.size", "one number or three"),
+    (("coefficient = 0.4", "coefficient = 1e400"), "interactions.friction.coefficient", "must be finite"),
+    (('method = "VelocityVerlet"', 'method = "Leapfrog"'), "integrator.method", "unknown method 'Leapfrog'"),
+    (('kind = "random_packing"', 'kind = "random_pack"'), "particles.build.kind", "did you mean 'random_packing'"),
+    (("dt = 0.002", "dt = 0.5"), "integrator", "time step dt = 0.5 is too large"),
+    (("normal = [0.0, 0.0, -1.0]", "normal = [0.0, 0.0, 0.0]"), "interactions.wall[1].normal", "zero length"),
+])
+def test_every_error_names_the_file_the_line_and_the_key(change, path, message):
+    text = GAS.replace(*change)
+    with pytest.raises(dk.SceneFileError) as err:
+        dk.parse_scene(text, source="gas.toml")
+    text_line = line(text, next(l for l in text.splitlines() if change[1] in l))
+    if path == "integrator":
+        text_line = line(text, "[integrator]")
+    assert str(err.value).startswith(f"gas.toml:{text_line}: {path}: "), str(err.value)
+    assert message in str(err.value)
+
+
+def test_missing_tables_keys_and_rules():
+    def error(text):
+        with pytest.raises(dk.SceneFileError) as err:
+            dk.parse_scene(text)
+        return str(err.value)
+    assert "integrator: missing: add a [integrator] table" in error(SMALL.split("[integrator]")[0] + "[run]\nduration=1.0\n")
+    assert "run.duration: missing" in error(SMALL.replace("duration = 0.5", ""))
+    assert "give one of position, file, build" in error(SMALL.replace("position =", "#"))
+    assert "interactions.friction: needs a contact law" in error(
+        SMALL.replace("[interactions.kelvin_voigt]\nstiffness = 1000.0\ndamping = 1.0", "[interactions.friction]\ncoefficient = 0.5"))
+    assert "particles: radius must be positive" not in error(SMALL.replace("radius = 0.5", "radius = -0.5"))
+    assert "particles.radius: must be positive, got -0.5" in error(SMALL.replace("radius = 0.5", "radius = -0.5"))
+    assert "particles.velocity: velocity must have shape (2, 3)" in error(SMALL.replace("[-0.1, 0.0, 0.0]]", "]"))
+    assert "overlap" in error(SMALL.replace("1.05, 0.0", "0.3, 0.0"))
+    assert "<string>:2: not valid TOML" in error("x = 1\ny = = 2\n")
+
+
+def test_overrides_apply_before_validation_and_unknown_ones_are_errors():
+    loaded = dk.parse_scene(GAS, overrides={"interactions.dipole.prefactor": 0.5, "interactions.wall.1.velocity": [0.0, 0.2, 0.0],
+                                            "integrator.dt": "auto"})
+    assert loaded.scene.interactions[0].prefactor == 0.5 and loaded.scene.effects[2].velocity.tolist() == [0, 0.2, 0]
+    assert loaded.integrator.dt == 0.5 * loaded.scene.max_time_step()
+    with pytest.raises(dk.SceneFileError, match=r"interactions.dipole.prefator: unknown key; did you mean 'prefactor'\? "
+                                                r"\(set by override"):
+        dk.parse_scene(GAS, overrides={"interactions.dipole.prefator": 0.5})
+    with pytest.raises(dk.SceneFileError, match="no item 5"):
+        dk.parse_scene(GAS, overrides={"interactions.wall.5.point": [0, 0, 0]})
+
+
+def test_key_lines_finds_tables_arrays_of_tables_and_dotted_keys():
+    text = 'a = 1\nlong = [\n  1,\n  2,\n]\nb.c = "x"\n[t]\nk = """\nz = 3\n"""\n[[w]]\np = 1\n[[w]]\np = 2\n[w.sub]\nq = 1\n'
+    lines = key_lines(text)
+    assert lines[("a",)] == 1 and lines[("long",)] == 2 and lines[("b", "c")] == 6 and lines[("t", "k")] == 8
+    assert ("t", "z") not in lines  # inside a multi-line string
+    assert lines[("w", 0, "p")] == 12 and lines[("w", 1, "p")] == 14 and lines[("w", 1, "sub", "q")] == 16
+
+
+def test_si_input_is_the_papers_units():
+    """The paper's magnets in SI with the paper's scales: the same numbers as the paper-unit file."""
+    s = dk.units.PaperUnits.from_si(mass=4e-3, radius=5e-3, young_modulus=39.5e9, magnetisation=8.8e5)
+    mu = dk.units.dipole_from_magnetisation(8.8e5, 5e-3)
+    v = 0.01 * s.scale("velocity")
+    text = textwrap.dedent(f"""\
+        units = "si"
+        [scales]
+        mass = 4e-3
+        radius = 5e-3
+        young_modulus = 39.5e9
+        magnetisation = 8.8e5
+        [particles]
+        position = [[-0.1, 0.0, 0.0], [0.1, 0.0, 0.0]]
+        velocity = [[{v!r}, 0.0, 0.0], [{-v!r}, 0.0, 0.0]]
+        radius = 5e-3
+        mass = 4e-3
+        dipole = [[{mu!r}, 0.0, 0.0], [{mu!r}, 0.0, 0.0]]
+        [interactions.dipole]
+        prefactor = 1e-7
+        [interactions.kelvin_voigt]
+        stiffness = {math.pi * 39.5e9 * 5e-3 / 2!r}
+        [integrator]
+        dt = {0.01 * s.time!r}
+        [run]
+        duration = {s.time!r}
+        """)
+    loaded = dk.parse_scene(text)
+    p = loaded.scene.particles
+    assert p.radius[0] == pytest.approx(s.dimensionless_radius, rel=1e-12)
+    assert p.velocity[0, 0] == pytest.approx(0.01, rel=1e-12) and p.mass[0] == pytest.approx(1.0, rel=1e-12)
+    assert np.linalg.norm(p.dipole[0]) == pytest.approx(1.0, rel=1e-12)
+    assert loaded.scene.interactions[0].prefactor == pytest.approx(1 / 3, rel=1e-9)  # mu0/4pi -> 1/3
+    assert loaded.scene.interactions[1].stiffness == pytest.approx(1.0, rel=1e-12)
+    assert loaded.integrator.dt == pytest.approx(0.01, rel=1e-12) and loaded.duration == pytest.approx(1.0)
+    with pytest.raises(dk.SceneFileError, match="scales: give one of stiffness, young_modulus"):
+        dk.parse_scene(text.replace("young_modulus = 39.5e9\n", ""))
+
+
+# ---- fuzz ------------------------------------------------------------------------------------------
+def mutate(text, rng):
+    lines = text.splitlines()
+    how = rng.randrange(8)
+    k = rng.randrange(len(lines))
+    if how == 0:  # delete a line
+        del lines[k]
+    elif how == 1:  # swap a value's type
+        if "=" in lines[k]:
+            key = lines[k].split("=")[0]
+            lines[k] = key + "= " + rng.choice(['"text"', "true", "[1, 2]", "{a = 1}", "-3", "0", "1e400", "-1e400",
+                                                "nan", "inf", "[[1, 2, 3]]", "2000-01-01", "9" * 30])
+    elif how == 2:  # garbage characters
+        junk = "".join(rng.choice("[]{}=\"'#.\\\n\x00\x07é€ ") for _ in range(rng.randrange(1, 12)))
+        pos = rng.randrange(len(lines[k]) + 1)
+        lines[k] = lines[k][:pos] + junk + lines[k][pos:]
+    elif how == 3:  # huge numbers
+        lines.insert(k, rng.choice(["x = 1e400", "n = 99999999999999999999", "radius = 1e308"]))
+    elif how == 4:  # deep nesting
+        depth = rng.choice([50, 1000, 100000])
+        lines.append("deep = " + "[" * depth + "]" * depth)
+    elif how == 5:  # a long string (10 MB in test_a_10_MB_string: 0.7 s to parse)
+        lines.insert(k, f'title = "{"x" * 100_000}"')
+    elif how == 6:  # duplicate a line
+        lines.insert(k, lines[k])
+    else:  # a deeply nested table
+        lines.append("[" + ".".join(["t"] * rng.choice([10, 500])) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def test_fuzz_every_outcome_is_a_scene_or_one_scene_file_error():
+    rng = random.Random(11)
+    outcomes = {"ok": 0, "error": 0}
+    for case in range(300):
+        text = mutate(SMALL if case % 2 else GAS.replace("n = 80", "n = 20"), rng)
+        if rng.random() < 0.2:
+            text = mutate(text, rng)
+        try:
+            loaded = dk.parse_scene(text, source="fuzz.toml")
+        except dk.SceneFileError as err:
+            message = str(err)
+            assert message.startswith("fuzz.toml") and "\n" not in message.strip() and len(message) < 2000, message
+            outcomes["error"] += 1
+        else:
+            assert isinstance(loaded, dk.LoadedScene)
+            outcomes["ok"] += 1
+    assert outcomes["ok"] > 20 and outcomes["error"] > 100, outcomes
+
+
+def test_a_10_MB_string_is_a_title_or_one_short_error():
+    assert dk.parse_scene(f'title = "{"x" * 10_000_000}"\n' + SMALL.replace('title = "two spheres meet"', ""))
+    with pytest.raises(dk.SceneFileError, match="run.title: unknown key") as err:
+        dk.parse_scene(SMALL + f'title = "{"x" * 10_000_000}"\n')
+    assert len(str(err.value)) < 300
+
+
+def test_bytes_that_are_not_utf8_and_missing_files(tmp_path):
+    (tmp_path / "bad.toml").write_bytes(b"title = 'a'\nx = '\xff\xfe'\n")
+    with pytest.raises(dk.SceneFileError, match=r"bad.toml:2: is not UTF-8"):
+        dk.load_scene(tmp_path / "bad.toml")
+    with pytest.raises(dk.SceneFileError, match="cannot be read"):
+        dk.load_scene(tmp_path / "missing.toml")
+
+
+# ---- running and the command line ------------------------------------------------------------------
+def test_run_writes_outputs_and_a_rerun_resumes_from_the_checkpoint(tmp_path):
+    text = SMALL + textwrap.dedent("""\
+        [outputs]
+        trajectory = "out/traj.npz"
+        [outputs.vtk]
+        folder = "out/vtk"
+        every = 0.1
+        [outputs.checkpoint]
+        path = "out/run.ckpt"
+        """)
+    (tmp_path / "s.toml").write_text(text)
+    first = dk.load_scene(tmp_path / "s.toml", overrides={"run.duration": 0.3}).run()
+    assert first.time[-1] == pytest.approx(0.3)
+    saved = np.load(tmp_path / "out" / "traj.npz")
+    assert np.array_equal(saved["position"], first.position) and "energy_total" in saved.files
+    resumed = dk.load_scene(tmp_path / "s.toml").run()  # continues from t = 0.3
+    assert resumed.time[0] == pytest.approx(0.3) and resumed.time[-1] == pytest.approx(0.5)
+    straight = dk.Simulation(dk.parse_scene(SMALL).scene, dk.VelocityVerlet(0.001)).run(duration=0.5, record_every=0.1)
+    assert np.array_equal(resumed.position[-1], straight.position[-1])
+    assert len(dk.read_series(tmp_path / "out" / "vtk" / "particles.pvd").time) == 6
+
+
+def demkit(*args, cwd):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    return subprocess.run([sys.executable, "-m", "demkit", *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=600, env=env)
+
+
+def test_demkit_run_the_examples(tmp_path):
+    done = demkit("run", str(COLLISION), "--duration", "300", "--out", str(tmp_path / "c"), cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    traj = np.load(tmp_path / "c" / "output" / "collision.npz")
+    assert traj["time"][-1] == 300.0 and traj["position"].shape == (301, 2, 3)
+    done = demkit("run", str(CLUSTER), "--duration", "0.06", "--set", "particles.build.n=60", "--set",
+                  "outputs.animation.max_frames=2", "--set", "outputs.vtk.every=0.03", "--out", str(tmp_path / "k"),
+                  cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert np.load(tmp_path / "k" / "output" / "cluster.npz")["position"].shape == (2, 60, 3)
+    assert (tmp_path / "k" / "output" / "cluster_vtk" / "particles.pvd").is_file()
+
+
+def test_demkit_info_and_errors(tmp_path):
+    done = demkit("info", str(COLLISION), cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "spheres       2" in done.stdout and "largest safe step 0.2227" in done.stdout and "cost" in done.stdout
+    (tmp_path / "bad.toml").write_text(SMALL.replace("stiffness", "stifness"))
+    done = demkit("run", "bad.toml", cwd=tmp_path)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert done.stderr.startswith("demkit run: error: bad.toml:10: interactions.kelvin_voigt.stifness: unknown key; "
+                                  "did you mean 'stiffness'?"), done.stderr
+    done = demkit("run", str(COLLISION), "--set", "nonsense", cwd=tmp_path)
+    assert done.returncode == 2 and "--set needs key.path=value" in done.stderr
+
+
+def test_the_docs_reference_is_generated_from_the_schema():
+    text = (ROOT / "docs" / "scene_files.md").read_text()
+    assert text.rstrip().endswith(dk.scenefile.reference().rstrip())
