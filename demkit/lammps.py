@@ -80,7 +80,8 @@ def tsuji_polynomial(c):
 
 def tsuji_coefficient(alpha):
     """The coefficient c in [0, 1] with tsuji_polynomial(c) = alpha (decreasing on [0, 1]; bisection
-    to the last bit), or ValueError when alpha is outside the polynomial's range."""
+    to the last bit; near c = 1 the polynomial's own round-off, ~1e-15 absolute, is the limit), or
+    ValueError when alpha is outside the polynomial's range."""
     if not 0.0 <= alpha <= tsuji_polynomial(0.0):
         raise ValueError(f"Hertz damping gamma sqrt(3/2) = {alpha:.6g} is outside the range [0, 1.2728] that "
                          f"LAMMPS' Tsuji damping can express: it cannot be exported")
@@ -94,7 +95,7 @@ def tsuji_coefficient(alpha):
         else:
             hi = mid
     best = min((lo, hi), key=lambda c: abs(tsuji_polynomial(c) - alpha))
-    if abs(tsuji_polynomial(best) - alpha) > 1e-13 * max(alpha, 1e-300):
+    if abs(tsuji_polynomial(best) - alpha) > 1e-14 + 1e-13 * alpha:  # terms up to 27: ~1e-15 absolute
         raise ValueError(f"no LAMMPS Tsuji coefficient reproduces the Hertz damping {alpha:.17g} "
                          f"(closest {tsuji_polynomial(best):.17g})")
     return best
