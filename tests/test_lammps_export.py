@@ -285,3 +285,19 @@ def test_hertz_with_mindlin_friction_agrees_to_round_off(tmp_path):
     (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
     assert np.abs(traj.velocity[-1] - traj.velocity[0]).max() > 0.1  # the collisions changed the motion
     assert dx < 1e-12 and dv < 1e-10 and dw < 1e-10
+
+
+@needs_lammps
+def test_fixed_sphere_and_sliding_wall_agree_to_round_off(tmp_path):
+    p = dk.Particles(position=[[1, 1, 0.5], [1.1, 1.05, 1.48], [2.5, 1, 0.52]], radius=0.5,
+                     velocity=[[0, 0, 0], [0.2, 0, -0.3], [0, 0, 0]], angular_velocity=[[0, 0, 0], [1, 0, 0], [0, 0, 0]],
+                     fixed=[True, False, False])
+    law = dk.KelvinVoigt(1000.0, 1.0, friction=dk.Friction(0.4, slip_radius="full", sliding="lammps"))
+    wall = dk.Wall([0, 0, 0], [0, 0, 1], velocity=[0.3, 0, 0], contact=dk.KelvinVoigt(1000.0, 1.0))
+    scene = dk.Scene(p, [law, wall, dk.Gravity([0, 0, -1])], box=dk.Box([4, 4, 4], periodic=(True, True, False)))
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    deck = files.deck.read_text()
+    assert "fix         hold fixed freeze" in deck and "zplane 0 NULL shear x 0.29999999999999999" in deck
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
+    assert np.all(traj.position[:, 0] == p.position[0]) and abs(traj.velocity[-1, 1, 1]) > 0.1  # deflected
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12  # measured 0, 3e-16, 4e-16
