@@ -34,7 +34,7 @@ def read_data(path):
     diameter density q mux muy muz ix iy iz; velocities id vx vy vz wx wy wz."""
     lines = path.read_text().splitlines()
 
-    def section(name, end):
+    def section(name):
         start = lines.index(name) + 2
         rows = []
         for line in lines[start:]:
@@ -43,7 +43,7 @@ def read_data(path):
             rows.append([float(v) for v in line.split()])
         return np.array(rows)
 
-    return section("Atoms # hybrid", None), section("Velocities", None)
+    return section("Atoms # hybrid"), section("Velocities")
 
 
 def two_magnets(field=True):
