@@ -21,7 +21,8 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   its coefficient into the Tsuji constant with a fitted polynomial, so the export writes the
   coefficient whose polynomial value is demkit's gamma sqrt(3/2) (exact to round-off); Mindlin
   friction -> ``tangential mindlin NULL sqrt(4 G*/E*) mu``;
-* ``Wall`` (axis-aligned, KelvinVoigt) -> ``fix wall/gran granular hooke ... xplane lo NULL``, an
+* ``Wall`` (axis-aligned) -> ``fix wall/gran granular hooke ... xplane lo NULL`` (Hertz: the modulus
+  2 E/(1 + nu) that LAMMPS' wall formula turns into demkit's E/(1 - nu^2)), an
   in-plane velocity -> ``shear``; ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix
   efield`` with E = B / sqrt(A) (torque mu x E);
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
@@ -30,7 +31,7 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
 
 Refused with a ValueError naming the part and why: PowerLawDipole, switched dipole cutoffs,
 MagnetField, custom pair or sphere interactions, inertia factors other than 2/5, walls that are
-oblique, on a periodic axis or Hertz, Hertz friction or rolling whose stiffness or damping LAMMPS
+oblique or on a periodic axis, Hertz friction or rolling whose stiffness or damping LAMMPS
 cannot scale like demkit. With ``strict=True`` (default) also what would run but not reproduce
 demkit exactly: friction with demkit's own sliding rule or contact-point slip radius (use
 ``Friction(..., slip_radius="full", sliding="lammps")``), wall friction (LAMMPS' torque arm is R,
@@ -190,15 +191,14 @@ class _Export:
             damping = "velocity"
             limit = law.no_tension
         else:
-            if wall:
-                raise ValueError(f"Wall with {law!r}: LAMMPS 29 Sep 2021's fix wall/gran hertz/material uses "
-                                 f"E/(2 (1 - nu)) for a sphere on a rigid wall, not demkit's E/(1 - nu^2); "
-                                 f"only KelvinVoigt walls are exported")
+            # LAMMPS 29 Sep 2021's fix wall/gran hertz/material makes the sphere-wall modulus 4/3 E/(2 (1 - nu));
+            # demkit's (a rigid wall) is 4/3 E/(1 - nu^2): the wall gets the modulus 2 E/(1 + nu) that gives it
+            young = 2.0 * law.young / (1.0 + law.poisson) if wall else law.young
             alpha = law.gamma * math.sqrt(1.5)
             if law.gamma == 0.0:
-                words, damping = ["hertz/material", g17(law.young), "0.0", g17(law.poisson)], "velocity"
+                words, damping = ["hertz/material", g17(young), "0.0", g17(law.poisson)], "velocity"
             else:
-                words = ["hertz/material", g17(law.young), g17(tsuji_coefficient(alpha)), g17(law.poisson)]
+                words = ["hertz/material", g17(young), g17(tsuji_coefficient(alpha)), g17(law.poisson)]
                 damping = "tsuji"
             eta_n = None
             limit = True
@@ -216,7 +216,9 @@ class _Export:
                 raise ValueError(f"{law!r}: LAMMPS' Mindlin spring is k a with a fixed k and its tangential damping "
                                  f"a fixed multiple of the normal one; export Hertz friction with the default "
                                  f"(Mindlin) stiffness and damping")
-            words += ["tangential", "mindlin", "NULL", g17(math.sqrt(4.0 * law.shear_eff / law.young_eff)),
+            # Mindlin k_t = 8 G* a: LAMMPS computes 8 G* itself for pairs (NULL); a rigid wall doubles G*
+            stiffness = g17(16.0 * law.shear_eff) if wall else "NULL"
+            words += ["tangential", "mindlin", stiffness, g17(math.sqrt(4.0 * law.shear_eff / law.young_eff)),
                       g17(law.mu)]
         if r is not None:
             kr, eta_r = (law.kr, law.eta_r) if isinstance(law, KelvinVoigt) else (law.kr_fixed, law.eta_r_fixed)
