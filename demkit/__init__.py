@@ -15,6 +15,7 @@ from . import build  # starting scenes: random packings, lattices, chains, rings
 from . import accuracy  # adaptive reference solutions and work-precision reports
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
 from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # TOML scene files
+from .lammps import export_lammps  # a scene as a LAMMPS data file and input deck
 
 __version__ = "0.1.0"
 
@@ -24,4 +25,4 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards",
-           "load_scene", "parse_scene", "LoadedScene", "SceneFileError"]
+           "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps"]

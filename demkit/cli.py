@@ -91,6 +91,37 @@ def accuracy_command(args):
     return 0
 
 
+def load_run(path):
+    """(scene, integrator, duration, record_every) of a scene file for export-lammps: a TOML scene
+    file (:func:`demkit.load_scene`), or a Python file (``.py``) that defines ``scene`` (or
+    ``make_scene()``) and ``integrator``, and may define ``duration`` and ``record_every``."""
+    if Path(path).suffix != ".py":
+        from .scenefile import load_scene
+        loaded = load_scene(path)
+        return loaded.scene, loaded.integrator, loaded.duration, loaded.record_every
+    namespace = load_scene_file(path)
+    integrator = namespace.get("integrator")
+    if integrator is None:
+        raise ValueError(f"{path} must define `integrator` (e.g. demkit.VelocityVerlet(dt=1e-3))")
+    return namespace["scene"], integrator, namespace.get("duration"), namespace.get("record_every")
+
+
+def export_lammps_command(args):
+    from .lammps import export_lammps
+    scene, integrator, duration, record_every = load_run(args.scene)
+    try:
+        files = export_lammps(scene, integrator, args.out_dir, duration=duration, record_every=record_every,
+                              strict=not args.allow_differences)
+    except ValueError as err:
+        if "strict=False" not in str(err):
+            raise
+        raise ValueError(f"{err} (on the command line: --allow-differences)") from None
+    print(f"wrote {files.data} and {files.deck}; run: cd {args.out_dir} && lmp -in {files.deck.name}")
+    for note in files.notes:
+        print(f"note: {note}")
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="demkit", description="demkit: spinning magnetic spheres.")
     commands = parser.add_subparsers(dest="command", required=True)
@@ -104,10 +135,20 @@ def main(argv=None):
     study.add_argument("--csv", help="also write the table as CSV")
     from . import commands as scene_commands  # demkit run / demkit info (TOML scene files)
     scene_commands.add_commands(commands)
+    export = commands.add_parser("export-lammps", help="write a LAMMPS data file and input deck of a scene",
+                                 description="Write scene.data and in.scene (LAMMPS 29 Sep 2021, units lj) that "
+                                             "run the scene in LAMMPS; see docs/lammps_export.md.")
+    export.add_argument("scene", help="a TOML scene file (docs/scene_files.md), or a Python file defining `scene` "
+                                      "and `integrator` (and optionally `duration`, `record_every`)")
+    export.add_argument("out_dir", help="folder for scene.data, in.scene (created if needed)")
+    export.add_argument("--allow-differences", action="store_true",
+                        help="export what LAMMPS runs differently from demkit (listed as notes) instead of refusing")
     args = parser.parse_args(argv)
     if args.command in ("run", "info"):
         return scene_commands.main_errors(parser, args)
     try:
+        if args.command == "export-lammps":
+            return export_lammps_command(args)
         return accuracy_command(args)
     except ValueError as err:
         parser.exit(2, f"demkit {args.command}: error: {err}\n")

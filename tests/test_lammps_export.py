@@ -1,0 +1,316 @@
+"""demkit.export_lammps: a scene as a LAMMPS data file and input deck.
+
+Always tested: the data file read back gives the scene (positions, images, radii, masses, moments,
+velocities, spins), the deck holds the mapped parameters, and what LAMMPS cannot represent or would
+run differently is refused with a message naming it. Where ``lmp`` is installed (Debian package
+``lammps``, 29 Sep 2021) the exported decks run 100 steps and are compared with demkit's
+VelocityVerlet (measured figures in docs/lammps_export.md):
+
+* two magnets in contact with friction in a uniform field: positions 2e-11, velocities 3e-10,
+  spins 7e-9, moments 9e-9 (LAMMPS turns the moments by the DLM splitting, demkit exactly);
+* 27 spheres in a box periodic in x and y on a wall, Hooke contacts with friction and rolling
+  resistance, gravity: round-off (2e-14);
+* Hertz spheres with Mindlin friction, Hertz spheres on a Hertz wall, a fixed sphere: round-off.
+"""
+import math
+import shutil
+import subprocess
+import textwrap
+
+import numpy as np
+import pytest
+
+import demkit as dk
+from demkit.lammps import read_dump, tsuji_coefficient, tsuji_polynomial
+
+needs_lammps = pytest.mark.skipif(shutil.which("lmp") is None,
+                                  reason="LAMMPS (lmp, Debian package 'lammps') is not installed")
+DT = 1e-3
+STEPS = 100
+
+
+def read_data(path):
+    """(atoms, velocities) of an exported data file, rows sorted by id: atoms columns id type x y z
+    diameter density q mux muy muz ix iy iz; velocities id vx vy vz wx wy wz."""
+    lines = path.read_text().splitlines()
+
+    def section(name):
+        start = lines.index(name) + 2
+        rows = []
+        for line in lines[start:]:
+            if not line.strip():
+                break
+            rows.append([float(v) for v in line.split()])
+        return np.array(rows)
+
+    return section("Atoms # hybrid"), section("Velocities")
+
+
+def two_magnets(field=True):
+    """Two magnets touching and turning, with friction (LAMMPS' rule), unequal masses, a uniform field."""
+    pos = np.array([[0.0, 0.0, 0.0], [0.98, 0.15, 0.05]])
+    n = (pos[1] - pos[0]) / np.linalg.norm(pos[1] - pos[0])
+    p = dk.Particles(position=pos, velocity=[[0.3, 0.05, 0], [-0.3, 0, 0.02]], radius=0.5, mass=[1.0, 1.3],
+                     dipole=[n, [0.6, 0.8, 0.0]], angular_velocity=[[0.1, 2.0, -0.5], [0.3, 0.2, 1.0]])
+    contact = dk.KelvinVoigt(2000.0, 2.0, friction=dk.Friction(0.4, slip_radius="full", sliding="lammps"))
+    effects = [dk.UniformField([0.2, -0.1, 0.3])] if field else []
+    return dk.Scene(p, [dk.Dipole(prefactor=0.7), contact] + effects)
+
+
+def granular_box():
+    """27 spheres (unequal radii and masses, spinning) in a box periodic in x and y on a frictionless
+    wall at z = 0, Hooke contacts with friction and rolling resistance, gravity."""
+    rng = np.random.default_rng(3)
+    grid = np.array([(i, j, k) for i in range(3) for j in range(3) for k in range(3)], float)
+    pos = grid * 0.97 + np.array([0.012, 0.5, 0.49]) + rng.uniform(-0.01, 0.01, (27, 3))
+    velocity = rng.normal(0, 0.5, (27, 3))
+    velocity[:9, 0] -= 0.6  # the layer at x = 0.012 crosses the periodic boundary
+    p = dk.Particles(position=pos, velocity=velocity, radius=0.5 * rng.uniform(0.95, 1.0, 27),
+                     mass=rng.uniform(0.8, 1.2, 27), angular_velocity=rng.normal(0, 2, (27, 3)))
+    contact = dk.KelvinVoigt(1000.0, 1.5, friction=dk.Friction(0.5, slip_radius="full", sliding="lammps"),
+                             rolling=dk.RollingResistance(0.1))
+    wall = dk.Wall([0, 0, 0], [0, 0, 1], contact=dk.KelvinVoigt(1000.0, 1.5))
+    box = dk.Box([2.91, 2.91, 6.0], periodic=(True, True, False))
+    return dk.Scene(p, [contact, wall, dk.Gravity([0, 0, -9.81])], box=box)
+
+
+def hertz_pairs():
+    """Four Hertz spheres with Mindlin friction colliding in open space."""
+    pos = np.array([[0.0, 0.0, 0.0], [0.99, 0.1, 0.0], [0.0, 1.0, 0.05], [2.5, 0.0, 0.0]])
+    p = dk.Particles(position=pos, velocity=[[0.5, 0.0, 0.1], [-0.4, 0.1, 0.0], [0.1, -0.6, 0.0], [0.0, 0.0, 0.0]],
+                     radius=[0.5, 0.5, 0.48, 0.5], mass=[1.0, 1.1, 0.9, 1.0],
+                     angular_velocity=[[0, 0, 3.0], [1.0, 0, 0], [0, 2.0, 0], [0, 0, 0]])
+    law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.8,
+                   friction=dk.Friction(0.3, slip_radius="full", sliding="lammps"))
+    return dk.Scene(p, [law])
+
+
+def run_lammps(files):
+    """The dumped frames of an exported deck run in its folder."""
+    folder = files.deck.parent
+    done = subprocess.run(["lmp", "-in", files.deck.name, "-screen", "none", "-log", "log.lammps", "-nocite"],
+                          cwd=folder, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, (folder / "log.lammps").read_text()[-2000:]
+    return read_dump(folder / "state.dump")
+
+
+def differences(scene, frames, steps=STEPS):
+    """Largest differences (position, velocity, spin, moment) between LAMMPS' frames and demkit's
+    VelocityVerlet run of the same scene, over every step."""
+    traj = dk.Simulation(scene, dk.VelocityVerlet(DT)).run(duration=steps * DT, record_every=DT)
+    x = traj.unwrapped()
+    out = np.zeros(4)
+    for k in range(steps + 1):
+        theirs = frames[k]
+        spin = traj.angular_velocity[k] if traj.angular_velocity is not None else np.zeros_like(x[k])
+        ours = [x[k], traj.velocity[k], spin,
+                traj.dipole[k] if traj.dipole is not None else theirs[:, 10:13]]
+        for c, value in enumerate(ours):
+            out[c] = max(out[c], np.abs(value - theirs[:, 1 + 3 * c:4 + 3 * c]).max())
+    return out, traj
+
+
+# ---- writing (always) ---------------------------------------------------------------------------
+
+def test_data_file_reads_back_as_the_scene(tmp_path):
+    scene = granular_box()
+    p = scene.particles
+    p.position[0, 0] += 2 * 2.91 + 0.3  # outside the periodic box: wrapped, two images along x
+    start = p.position.copy()
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+    atoms, velocities = read_data(files.data)
+    np.testing.assert_array_equal(atoms[:, 0], np.arange(1, 28))
+    assert set(atoms[:, 1]) == {1.0}
+    unwrapped = atoms[:, 2:5] + atoms[:, 11:14] * np.array([2.91, 2.91, 6.0])
+    np.testing.assert_allclose(unwrapped, start, rtol=0, atol=1e-14)
+    assert atoms[0, 11] == 2 and 0 <= atoms[0, 2] < 2.91
+    assert np.all((atoms[:, 2:4] >= 0) & (atoms[:, 2:4] < 2.91)) and np.all(atoms[:, 13] == 0)
+    np.testing.assert_array_equal(atoms[:, 5], 2 * p.radius)
+    np.testing.assert_allclose(atoms[:, 6] * math.pi / 6 * atoms[:, 5] ** 3, p.mass, rtol=1e-15)
+    np.testing.assert_array_equal(velocities[:, 1:4], p.velocity)
+    np.testing.assert_array_equal(velocities[:, 4:7], p.angular_velocity)
+    header = files.data.read_text().splitlines()
+    assert "0 2.9100000000000001 xlo xhi" in header and "0 2.9100000000000001 ylo yhi" in header
+
+
+def test_deck_maps_the_interactions(tmp_path):
+    files = dk.export_lammps(granular_box(), dk.VelocityVerlet(DT), tmp_path, duration=0.1, record_every=0.01)
+    deck = files.deck.read_text()
+    assert "boundary    p p s" in deck
+    # k_t = 2/7 k_n, tangential damping ratio sqrt(k_t/k_n), rolling k_r = 2.25 mu_r^2 k_n
+    assert ("pair_coeff  * * hooke 1000 1.5 tangential linear_history 285.71428571428572 0.53452248382484879 0.5 "
+            "rolling sds 22.500000000000007 0.22500000000000003 0.10000000000000001 damping velocity") in deck
+    assert "wall/gran granular hooke 1000 1.5 tangential linear_nohistory 0.0 0.0 damping velocity zplane 0 NULL" in deck
+    assert "gravity 9.8100000000000005 vector 0 0 -9.8100000000000005" in deck
+    assert "variable    nsteps index 100" in deck and "variable    dumpevery index 10" in deck
+    assert files.notes == ()
+
+
+def test_moments_are_scaled_by_the_root_of_the_prefactor(tmp_path):
+    scene = two_magnets()
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+    atoms, _ = read_data(files.data)
+    s = math.sqrt(0.7)
+    np.testing.assert_allclose(atoms[:, 8:11] / s, scene.particles.dipole, rtol=1e-15)
+    deck = files.deck.read_text()
+    e = np.array([0.2, -0.1, 0.3]) / s  # torque mu x E = m x B
+    assert f"efield {e[0]:.17g} {e[1]:.17g} {e[2]:.17g}" in deck
+    assert "update dipole/dlm" in deck and "neighbor    0.29999999999999999 nsq" in deck
+    assert any("no cutoff" in note for note in files.notes)  # open space: the dipole reach chosen is noted
+
+
+def test_tsuji_coefficient_inverts_lammps_polynomial():
+    for gamma in (1e-3, 0.05, 0.3, 0.8):
+        alpha = gamma * math.sqrt(1.5)
+        c = tsuji_coefficient(alpha)
+        assert 0 < c < 1 and abs(tsuji_polynomial(c) - alpha) <= 1e-15 + 1e-15 * alpha  # LAMMPS' round-off
+    with pytest.raises(ValueError, match="outside the range"):
+        tsuji_coefficient(2.0)
+
+
+def test_deck_without_duration_asks_for_the_number_of_steps(tmp_path):
+    files = dk.export_lammps(two_magnets(), dk.VelocityVerlet(DT), tmp_path)
+    deck = files.deck.read_text()
+    assert "variable    nsteps" not in deck and "-var nsteps N" in deck
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]], dipole=[[0, 0, 1], [0, 0, 1]]),
+                      [dk.PowerLawDipole(1.0)]), "PowerLawDipole"),
+    (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]], dipole=[[0, 0, 1], [0, 0, 1]]),
+                      [dk.Dipole(1.0, cutoff=3.0, switch_width=1.0)]), "switch_width"),
+    (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]], inertia_factor=0.5), [dk.KelvinVoigt(10.0)]),
+     "inertia_factor"),
+    (lambda: dk.Scene(dk.Particles([[1, 1, 1]]), [dk.KelvinVoigt(10.0), dk.Wall([0, 0, 0], [1, 1, 0])]), "oblique"),
+    (lambda: dk.Scene(dk.Particles([[1, 1, 1]]), [dk.KelvinVoigt(10.0), dk.Wall([0, 0, 0], [0, 0, 1])],
+                      box=dk.Box(5.0, periodic=True)), "periodic axis z"),
+    (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]]),
+                      [dk.Hertz(1e4, 0.3, 0.9, friction=dk.Friction(0.3, stiffness=10.0, slip_radius="full",
+                                                                    sliding="lammps"))]), "Mindlin"),
+    (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]]),
+                      [dk.KelvinVoigt(10.0, friction=dk.Friction(0.3, damping=1.0, slip_radius="full",
+                                                                 sliding="lammps"))]), "multiple of the normal"),
+])
+def test_what_lammps_cannot_represent_is_refused(tmp_path, make, message):
+    with pytest.raises(ValueError, match=message):
+        dk.export_lammps(make(), dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+
+
+def test_custom_pair_interaction_is_refused(tmp_path):
+    from plugin_interactions import Poison
+    scene = dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]]), [Poison(1.0)])
+    with pytest.raises(ValueError, match="Poison.*no LAMMPS equivalent"):
+        dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+
+
+def test_differences_are_refused_when_strict_and_noted_otherwise(tmp_path):
+    p = dk.Particles([[1, 1, 0.55], [1.9, 1, 0.6]], radius=0.5)
+    scene = dk.Scene(p, [dk.KelvinVoigt(100.0, 1.0, friction=dk.Friction(0.3)), dk.Wall([0, 0, 0], [0, 0, 1])])
+    with pytest.raises(ValueError, match="sliding='lammps'"):
+        dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+    with pytest.raises(ValueError, match="EulerCromer.*velocity Verlet"):
+        dk.export_lammps(granular_box(), dk.EulerCromer(DT), tmp_path, duration=0.1)
+    files = dk.export_lammps(scene, dk.EulerCromer(DT), tmp_path, duration=0.1, strict=False)
+    notes = " | ".join(files.notes)
+    assert "EulerCromer" in notes and "sliding" in notes and "lever arm" in notes  # the wall's friction torque
+    assert notes.count("NOTE") == 0 and files.deck.read_text().count("# NOTE:") == len(files.notes) == 4
+    with pytest.raises(ValueError, match="whole number of time steps"):
+        dk.export_lammps(granular_box(), dk.VelocityVerlet(DT), tmp_path, duration=0.10005)
+
+
+def test_stored_friction_history_is_refused(tmp_path):
+    scene = granular_box()
+    dk.Simulation(scene, dk.VelocityVerlet(DT)).run(duration=5 * DT)
+    with pytest.raises(ValueError, match="contact history"):
+        dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+
+
+def test_command_line_exports_a_python_scene_file(tmp_path):
+    from demkit.cli import main
+    (tmp_path / "magnets.py").write_text(textwrap.dedent("""
+        import demkit as dk
+        p = dk.Particles(position=[[0, 0, 0], [1.5, 0, 0]], dipole=[[1, 0, 0], [1, 0, 0]], radius=0.5)
+        scene = dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(1000.0, 1.0)])
+        integrator = dk.VelocityVerlet(1e-3)
+        duration = 0.5
+    """))
+    assert main(["export-lammps", str(tmp_path / "magnets.py"), str(tmp_path / "out")]) == 0
+    deck = (tmp_path / "out" / "in.scene").read_text()
+    assert "variable    nsteps index 500" in deck and (tmp_path / "out" / "scene.data").exists()
+
+
+# ---- running LAMMPS ----------------------------------------------------------------------------
+
+@needs_lammps
+def test_two_magnets_agree_with_lammps_after_100_steps(tmp_path):
+    scene = two_magnets()
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    frames = run_lammps(files)
+    (dx, dv, dw, dm), traj = differences(scene, frames)
+    separation = np.linalg.norm(traj.position[:, 1] - traj.position[:, 0], axis=1)
+    assert separation.min() < 0.99 and separation.max() > 1.0  # they touch, press and part
+    assert np.abs(traj.angular_velocity).max() > 1.0
+    # measured 2e-11, 3e-10, 7e-9, 9e-9: the dipoles turn by DLM splitting in LAMMPS, exactly in demkit
+    assert dx < 1e-9 and dv < 1e-8 and dw < 3e-8 and dm < 3e-8
+    assert dm > 1e-12  # the dipole updates do differ
+
+
+@needs_lammps
+def test_lammps_default_dipole_update_is_first_order(tmp_path):
+    scene = two_magnets(field=False)
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT,
+                             dipole_update="euler")
+    assert "update dipole\n" in files.deck.read_text()
+    (dx, dv, dw, dm), _ = differences(scene, run_lammps(files))
+    assert 1e-7 < dm < 1e-4  # measured 1.7e-5: renormalised Euler step, spins not perpendicular to the moments
+
+
+@needs_lammps
+def test_periodic_granular_box_on_a_wall_agrees_to_round_off(tmp_path):
+    scene = granular_box()
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
+    contacts = scene.contacts()
+    assert len(contacts.pairs) > 20 and contacts.sliding.any()  # many contacts, some sliding, at the end
+    assert traj.unwrapped()[:, :, 0].min() < 0.0  # spheres cross the periodic boundary
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-11  # measured 4e-16, 7e-15, 2e-14
+
+
+@needs_lammps
+def test_hertz_with_mindlin_friction_agrees_to_round_off(tmp_path):
+    scene = hertz_pairs()
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    assert "damping tsuji limit_damping" in files.deck.read_text()
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
+    assert np.abs(traj.velocity[-1] - traj.velocity[0]).max() > 0.1  # the collisions changed the motion
+    assert dx < 1e-12 and dv < 1e-10 and dw < 1e-10
+
+
+@needs_lammps
+def test_fixed_sphere_and_sliding_wall_agree_to_round_off(tmp_path):
+    p = dk.Particles(position=[[1, 1, 0.5], [1.1, 1.05, 1.48], [2.5, 1, 0.52]], radius=0.5,
+                     velocity=[[0, 0, 0], [0.2, 0, -0.3], [0, 0, 0]], angular_velocity=[[0, 0, 0], [1, 0, 0], [0, 0, 0]],
+                     fixed=[True, False, False])
+    law = dk.KelvinVoigt(1000.0, 1.0, friction=dk.Friction(0.4, slip_radius="full", sliding="lammps"))
+    wall = dk.Wall([0, 0, 0], [0, 0, 1], velocity=[0.3, 0, 0], contact=dk.KelvinVoigt(1000.0, 1.0))
+    scene = dk.Scene(p, [law, wall, dk.Gravity([0, 0, -1])], box=dk.Box([4, 4, 4], periodic=(True, True, False)))
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    deck = files.deck.read_text()
+    assert "fix         hold fixed freeze" in deck and "zplane 0 NULL shear x 0.29999999999999999" in deck
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
+    assert np.all(traj.position[:, 0] == p.position[0]) and abs(traj.velocity[-1, 1, 1]) > 0.1  # deflected
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12  # measured 0, 3e-16, 4e-16
+
+
+@needs_lammps
+def test_hertz_spheres_bouncing_on_a_hertz_wall_agree_to_round_off(tmp_path):
+    p = dk.Particles(position=[[0, 0, 0.5], [1.2, 0.2, 0.51]], velocity=[[0.1, 0, -1.0], [0, 0.1, -0.5]],
+                     radius=[0.5, 0.52], mass=[1.0, 1.2])
+    law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.7)
+    scene = dk.Scene(p, [law, dk.Wall([0, 0, 0], [0, 0, 1]), dk.Gravity([0, 0, -1])])
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    young = 2 * 2e4 / 1.3  # LAMMPS' wall formula 4/3 E/(2 (1 - nu)) then gives demkit's 4/3 E/(1 - nu^2)
+    assert f"wall/gran granular hertz/material {young:.17g} " in files.deck.read_text()
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
+    assert traj.velocity[-1, 0, 2] > 0.3  # bounced off the wall (e = 0.7)
+    assert dx < 1e-12 and dv < 1e-12 and dw == 0.0
