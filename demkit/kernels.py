@@ -545,12 +545,12 @@ class _Source:
                 elif any(inter.slow != (speed == "slow") for _, inter in group.members):
                     continue
             if sub.parallel:
-                extra = f", commit, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
+                extra = f", commit_flag, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
                 lines.append("    power += " + self.group_call(g, sub, "forces_parallel", "force, torque, ", extra, name))
             else:
-                lines.append("    power += " + self.group_call(g, sub, "forces", "force, torque, ", ", commit", name))
+                lines.append("    power += " + self.group_call(g, sub, "forces", "force, torque, ", ", commit_flag", name))
         if plan.effects and speed != "slow":
-            lines.append(f"    power += sphere_forces({_state_fields()}, force, torque, s.sphere_history, commit)")
+            lines.append(f"    power += sphere_forces({_state_fields()}, force, torque, s.sphere_history, commit_flag)")
         return lines
 
     def scene_functions(self):
@@ -604,7 +604,10 @@ class _Source:
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
         if plan.lists:
             lines.append("    maintain_lists(s, strict)")
-        lines += ["    clear(force, torque)", "    power = 0.0"] + self.force_calls(None)
+        # commit_flag: a plain bool. Called with the constants True/False, numba would compile every
+        # pair loop once per literal value and once more for calls from Python (3x the compile time
+        # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
+        lines += ["    clear(force, torque)", "    power = 0.0", "    commit_flag = commit != False"] + self.force_calls(None)
         lines += ["    return power",
                   "", "", "@njit(**OUTER)", "def forces_of(s, commit):",
                   '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""',
@@ -614,7 +617,7 @@ class _Source:
                       f'    """The {speed} forces and torques only (see Interaction.slow) into force/torque."""']
             if plan.lists:
                 lines.append("    maintain_lists(s, True)")
-            lines += ["    clear(force, torque)", "    power = 0.0"] + self.force_calls(speed) + ["    return power"]
+            lines += ["    clear(force, torque)", "    power = 0.0", "    commit_flag = commit != False"] + self.force_calls(speed) + ["    return power"]
         # contact events (VelocityVerlet(resolve_contacts=True)): compiled only when called
         lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
                   '    """Earliest time in (0, horizon] at which a pair of a contact law starts or stops',
