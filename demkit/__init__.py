@@ -14,6 +14,7 @@ from . import two_magnets  # the seed paper's two-body study: its scene, analysi
 from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 from . import accuracy  # adaptive reference solutions and work-precision reports
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
+from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep hides the module name)
 
 __version__ = "0.1.0"
 
@@ -22,4 +23,5 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards"]
+           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards",
+           "sweep", "sweep_file"]

@@ -2,6 +2,7 @@
 
     demkit accuracy scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
                              [--plot wp.png] [--csv wp.csv]
+    demkit sweep sweep.toml [--scheduler tcp://host:8786] [--workers N]   (docs/sweeps.md)
 
 ``accuracy`` runs :func:`demkit.accuracy.work_precision` on the scene a Python file builds and prints
 the table (method, dt, errors, wall time, force evaluations, stable?) and writes the figure. The file
@@ -91,6 +92,14 @@ def accuracy_command(args):
     return 0
 
 
+def sweep_command(args):
+    from .sweep import read_sweep_file, sweep_file
+    rows = sweep_file(args.file, workers=args.workers, scheduler=args.scheduler)
+    failed = sum(r["status"] != "ok" for r in rows)
+    print(f"{len(rows)} points, {failed} failed: {read_sweep_file(args.file)['results']}")
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="demkit", description="demkit: spinning magnetic spheres.")
     commands = parser.add_subparsers(dest="command", required=True)
@@ -102,10 +111,19 @@ def main(argv=None):
     study.add_argument("--methods", help="comma-separated methods (default: EulerCromer,VelocityVerlet)")
     study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")
     study.add_argument("--csv", help="also write the table as CSV")
+    study.set_defaults(run=accuracy_command)
+    sweeping = commands.add_parser("sweep", help="run a parameter sweep file (TOML) into a results table",
+                                   description="Run the sweep a TOML file describes (docs/sweeps.md); "
+                                               "finished points are not rerun.")
+    sweeping.add_argument("file", help="the sweep file (TOML)")
+    sweeping.add_argument("--scheduler", help="Dask: 'local' (a LocalCluster) or an address tcp://host:8786 "
+                                              "(default: local processes)")
+    sweeping.add_argument("--workers", type=int, help="processes, or Dask workers of a LocalCluster")
+    sweeping.set_defaults(run=sweep_command)
     args = parser.parse_args(argv)
     try:
-        return accuracy_command(args)
-    except ValueError as err:
+        return args.run(args)
+    except (ValueError, ImportError) as err:
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
 
 
