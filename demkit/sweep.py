@@ -43,6 +43,8 @@ import numpy as np
 STATUS_COLUMNS = ("status", "error", "wall_s")
 #: significant digits at which two numeric parameter values count as the same point
 KEY_DIGITS = 12
+# cells may hold long JSON (a time series); the csv module's default limit is 128 kB
+csv.field_size_limit(min(sys.maxsize, 2 ** 31 - 1))
 
 
 # ---- points --------------------------------------------------------------------------------------
@@ -94,9 +96,16 @@ def cell(value):
         return repr(float(value))
     if isinstance(value, str):
         return value
+    return json.dumps(value, default=_plain)
+
+
+def _plain(value):
+    """JSON of numpy values (arrays as lists; floats stay exact: JSON writes them with repr)."""
     if isinstance(value, np.ndarray):
-        value = value.tolist()
-    return json.dumps(value)
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"cannot store a {type(value).__name__} in a table cell")
 
 
 def key_part(text):
@@ -133,8 +142,11 @@ def read_table(path):
 
 
 # ---- running one point ----------------------------------------------------------------------------
-def run_point(task, point):
-    """``task(point)`` -> the point's row (dict of cells); an exception becomes a 'failed' row."""
+def run_point(task, point, names=()):
+    """``task(point)`` -> the point's row (dict of cells); an exception becomes a 'failed' row.
+
+    Entries of the task's result named like the point's parameters are dropped (echoes); named like
+    another parameter of the sweep (``names``) they fail the point (they would spoil its key)."""
     start = time.perf_counter()
     try:
         out = task(dict(point))
@@ -143,6 +155,9 @@ def run_point(task, point):
         clash = sorted(set(out) & set(STATUS_COLUMNS))
         if clash:
             raise ValueError(f"the task returned reserved column(s) {clash}: rename them")
+        clash = sorted((set(out) & set(names)) - set(point))
+        if clash:
+            raise ValueError(f"the task returned {clash}, parameter name(s) of this sweep: rename them")
         row = {k: cell(v) for k, v in out.items() if k not in point}
         row.update(status="ok", error="")
     except Exception as exc:  # noqa: BLE001 (recorded in the table; the sweep goes on)
@@ -301,12 +316,12 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         if todo:
             if scheduler is None:
                 pool, close = _local_pool(min(workers, len(todo)))
-                futures = [pool.submit(run_point, task, p) for p in todo]
+                futures = [pool.submit(run_point, task, p, names) for p in todo]
                 finished = cf.as_completed(futures)
             else:
                 client, close = _dask_client(scheduler, workers)
                 from dask.distributed import as_completed
-                futures = [client.submit(run_point, task, p, pure=False) for p in todo]
+                futures = [client.submit(run_point, task, p, names, pure=False) for p in todo]
                 finished = as_completed(futures)
             for future in finished:
                 table.add(future.result())
@@ -335,14 +350,39 @@ def _write_parquet(csv_path, parquet_path):
 
 
 # ---- sweep files ---------------------------------------------------------------------------------
-def flatten(table, prefix=""):
+RANGE_KEYS = {"start", "stop", "num", "log"}
+
+
+def grid_range(spec, name="a grid entry"):
+    """Values of a range entry {start, stop, num[, log]}: num evenly spaced values from start to
+    stop inclusive (log = true: evenly spaced in log), rounded to 12 significant digits."""
+    missing = {"start", "stop", "num"} - set(spec)
+    if missing or set(spec) - RANGE_KEYS:
+        raise ValueError(f"{name} = {spec!r}: a range needs start, stop, num (and optionally log)")
+    num = spec["num"]
+    if not isinstance(num, int) or num < 1:
+        raise ValueError(f"{name}: num must be a positive whole number, got {num!r}")
+    start, stop = float(spec["start"]), float(spec["stop"])
+    if spec.get("log", False):
+        if start <= 0 or stop <= 0:
+            raise ValueError(f"{name}: a log range needs positive start and stop")
+        values = np.geomspace(start, stop, num)
+    else:
+        values = np.linspace(start, stop, num)
+    return [float(f"{v:.12g}") for v in values]
+
+
+def flatten(table, prefix="", ranges=False):
     """{'a': {'b': 1}} -> {'a.b': 1}: TOML's dotted keys (a.b = 1) become nested tables; key paths
-    are joined back with dots."""
+    are joined back with dots. ``ranges``: a table {start, stop, num[, log]} is a range of values
+    (:func:`grid_range`)."""
     flat = {}
     for k, v in table.items():
         path = f"{prefix}{k}"
-        if isinstance(v, dict):
-            flat.update(flatten(v, path + "."))
+        if ranges and isinstance(v, dict) and v and set(v) <= RANGE_KEYS:
+            flat[path] = grid_range(v, path)
+        elif isinstance(v, dict):
+            flat.update(flatten(v, path + ".", ranges))
         else:
             flat[path] = v
     return flat
@@ -371,7 +411,7 @@ def read_sweep_file(path):
     if ("grid" in spec) == ("points" in spec):
         raise ValueError(f"{path} needs exactly one of a [grid] table (name = [values]) or [[points]] tables")
     if "grid" in spec:
-        parameters = flatten(spec["grid"])
+        parameters = flatten(spec["grid"], ranges=True)
         for name, values in parameters.items():
             if not isinstance(values, list):
                 raise ValueError(f"{path}: [grid] {name} = {values!r} must be a list of values")

@@ -2,6 +2,7 @@
 import csv
 import functools
 import importlib
+import json
 import math
 import os
 import subprocess
@@ -88,6 +89,16 @@ def test_resume_skips_finished_points_and_reruns_failed_ones(tmp_path):
     assert CALLS == []
 
 
+def test_arrays_and_long_cells_round_trip(tmp_path):
+    import numpy as np
+
+    def series(point):
+        return {"s": np.linspace(0, 1, 30001) * point["x"], "n": np.int64(3), "f": np.float64(1 / 3)}
+    rows = dk.sweep(series, {"x": [0.1]}, results=tmp_path / "s.csv", workers=1, progress=False)
+    assert rows[0]["n"] == 3 and rows[0]["f"] == 1 / 3
+    assert np.array_equal(json.loads(rows[0]["s"]), np.linspace(0, 1, 30001) * 0.1)  # exact
+
+
 def test_rows_are_appended_as_points_finish(tmp_path):
     out = tmp_path / "t.csv"
 
@@ -106,6 +117,12 @@ def test_bad_tasks_and_arguments(tmp_path):
         return 3.0
     rows = dk.sweep(returns_a_number, {"x": [1]}, results=tmp_path / "a.csv", workers=1, progress=False)
     assert rows[0]["status"] == "failed" and "must return a dict" in rows[0]["error"]
+    def echoes(point):
+        # x: an echo (dropped); z: another point's parameter (fails the first point)
+        return {"x": point["x"], "z": 1.0} if "x" in point else {"z": 5.0, "w": 1}
+    rows = dk.sweep(echoes, [{"x": 1}, {"z": 2}], results=tmp_path / "e.csv", workers=1, progress=False)
+    assert rows[0]["status"] == "failed" and "parameter name" in rows[0]["error"]
+    assert rows[1]["status"] == "ok" and rows[1]["z"] == 2 and rows[1]["x"] is None and rows[1]["w"] == 1
     with pytest.raises(ValueError, match="repeat"):
         dk.sweep(square, [{"x": 1}, {"x": 1.0}], results=tmp_path / "b.csv", workers=1)
     with pytest.raises(ValueError, match="another sweep"):
@@ -139,6 +156,8 @@ SWEEP_FILE = textwrap.dedent("""
     [grid]
     particles.speed = [0.01, 0.02]
     "interactions.0.prefactor" = [0.5]
+    b = {start = 0, stop = 1, num = 5}
+    v = {start = 1e-3, stop = 1e-1, num = 3, log = true}
 """)
 
 
@@ -146,7 +165,8 @@ def test_sweep_file_parsing(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text(SWEEP_FILE)
     spec = read_sweep_file(path)
-    assert spec["parameters"] == {"particles.speed": [0.01, 0.02], "interactions.0.prefactor": [0.5]}
+    assert spec["parameters"] == {"particles.speed": [0.01, 0.02], "interactions.0.prefactor": [0.5],
+                                  "b": [0.0, 0.25, 0.5, 0.75, 1.0], "v": [0.001, 0.01, 0.1]}
     assert spec["seeds"] == 2 and spec["workers"] == 3 and spec["scheduler"] is None
     assert spec["results"] == tmp_path / "out" / "map.csv"
     task = spec["task"]
@@ -165,6 +185,7 @@ def test_sweep_file_parsing(tmp_path):
                           ('scene = "a.toml"\nobservables = ["colour"]\n[grid]\nx = [1]\n', "unknown observable"),
                           ('scene = "a.toml"\nsteps = 3\n[grid]\nx = [1]\n', "unknown setting"),
                           ('scene = "a.toml"\nworkers = 0\n[grid]\nx = [1]\n', "workers"),
+                          ('task = "math:hypot"\n[grid]\nx = {start = 0, stop = 1}\n', "a range needs"),
                           ('scene = \n', "not valid TOML")]:
         path.write_text(text)
         with pytest.raises(ValueError, match=message):
