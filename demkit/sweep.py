@@ -316,15 +316,20 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         if todo:
             if scheduler is None:
                 pool, close = _local_pool(min(workers, len(todo)))
-                futures = [pool.submit(run_point, task, p, names) for p in todo]
+                futures = {pool.submit(run_point, task, p, names): p for p in todo}
                 finished = cf.as_completed(futures)
             else:
                 client, close = _dask_client(scheduler, workers)
                 from dask.distributed import as_completed
-                futures = [client.submit(run_point, task, p, names, pure=False) for p in todo]
-                finished = as_completed(futures)
+                futures = {client.submit(run_point, task, p, names, pure=False): p for p in todo}
+                finished = as_completed(list(futures))
             for future in finished:
-                table.add(future.result())
+                try:
+                    row = future.result()
+                except Exception as exc:  # noqa: BLE001 (the worker died: a broken pool, a killed Dask worker)
+                    row = {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " "),
+                           "wall_s": "", **{k: cell(v) for k, v in futures[future].items()}}
+                table.add(row)
                 bar.update()
     finally:
         bar.close()

@@ -28,6 +28,13 @@ def square(point):
     return {"y": x * x + point.get("seed", 0), "label": f"x={x}"}
 
 
+def dies(point):
+    """Tiny task whose process dies at x = 2 (not an exception: the worker is gone)."""
+    if point["x"] == 2:
+        os._exit(3)
+    return {"y": point["x"]}
+
+
 def counted(point):
     CALLS.append(dict(point))
     return square(point)
@@ -222,3 +229,10 @@ def test_a_clear_error_without_dask(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "dask", None)  # import dask fails as if not installed
     with pytest.raises(ImportError, match=r"demkit\[dask\]"):
         dk.sweep(square, {"x": [1]}, results=tmp_path / "a.csv", scheduler="local", progress=False)
+
+
+def test_a_worker_that_dies_is_recorded_as_failed(tmp_path):
+    # two points so that a process pool runs them (one point would run in this process)
+    rows = dk.sweep(dies, {"x": [1, 2]}, results=tmp_path / "d.csv", workers=2, progress=False)
+    assert rows[1]["status"] == "failed" and "BrokenProcessPool" in rows[1]["error"]
+    assert rows[0]["status"] == "ok" or "BrokenProcessPool" in rows[0]["error"]  # the pool may take it along
