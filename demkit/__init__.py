@@ -16,6 +16,7 @@ from . import accuracy  # adaptive reference solutions and work-precision report
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
 from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # TOML scene files
 from .lammps import export_lammps  # a scene as a LAMMPS data file and input deck
+from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep hides the module name)
 
 __version__ = "0.1.0"
 
@@ -25,4 +26,4 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards",
-           "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps"]
+           "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

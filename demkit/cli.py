@@ -2,6 +2,7 @@
 
     demkit accuracy scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
                              [--plot wp.png] [--csv wp.csv]
+    demkit sweep sweep.toml [--scheduler tcp://host:8786] [--workers N]   (docs/sweeps.md)
 
 ``accuracy`` runs :func:`demkit.accuracy.work_precision` on the scene a Python file builds and prints
 the table (method, dt, errors, wall time, force evaluations, stable?) and writes the figure. The file
@@ -122,6 +123,14 @@ def export_lammps_command(args):
     return 0
 
 
+def sweep_command(args):
+    from .sweep import read_sweep_file, sweep_file
+    rows = sweep_file(args.file, workers=args.workers, scheduler=args.scheduler)
+    failed = sum(r["status"] != "ok" for r in rows)
+    print(f"{len(rows)} points, {failed} failed: {read_sweep_file(args.file)['results']}")
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="demkit", description="demkit: spinning magnetic spheres.")
     commands = parser.add_subparsers(dest="command", required=True)
@@ -143,14 +152,22 @@ def main(argv=None):
     export.add_argument("out_dir", help="folder for scene.data, in.scene (created if needed)")
     export.add_argument("--allow-differences", action="store_true",
                         help="export what LAMMPS runs differently from demkit (listed as notes) instead of refusing")
+    export.set_defaults(run=export_lammps_command)
+    study.set_defaults(run=accuracy_command)
+    sweeping = commands.add_parser("sweep", help="run a parameter sweep file (TOML) into a results table",
+                                   description="Run the sweep a TOML file describes (docs/sweeps.md); "
+                                               "finished points are not rerun.")
+    sweeping.add_argument("file", help="the sweep file (TOML)")
+    sweeping.add_argument("--scheduler", help="Dask: 'local' (a LocalCluster) or an address tcp://host:8786 "
+                                              "(default: local processes)")
+    sweeping.add_argument("--workers", type=int, help="processes, or Dask workers of a LocalCluster")
+    sweeping.set_defaults(run=sweep_command)
     args = parser.parse_args(argv)
     if args.command in ("run", "info"):
         return scene_commands.main_errors(parser, args)
     try:
-        if args.command == "export-lammps":
-            return export_lammps_command(args)
-        return accuracy_command(args)
-    except ValueError as err:
+        return args.run(args)
+    except (ValueError, ImportError) as err:
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
 
 

@@ -27,7 +27,9 @@ def test_quick_replication_writes_everything(replicate, tmp_path):
     data = docs / "data" / "two_magnets"
     rows = list(csv.DictReader(open(data / "sweep.csv")))
     assert len(rows) == 6 and all(r["outcome"] == "stick" for r in rows)
-    assert json.loads((data / "summary.json").read_text())["quick"] is True
+    stored = json.loads((data / "summary.json").read_text())
+    assert stored["quick"] is True and not {"wall_s", "cpu_s", "workers"} & set(stored)  # no timings
+    assert (tmp_path / "examples" / "two_magnets" / "output" / "replication_timing.json").exists()
     report = (docs / "two_magnets.md").read_text()
     assert "$" not in report.replace("$ ", "")  # every placeholder filled
     assert "figures/two_magnets/omega_vs_b.png" in report
@@ -39,7 +41,13 @@ def test_quick_replication_writes_everything(replicate, tmp_path):
 
 
 def test_serial_execution_gives_the_same_result(replicate):
-    tasks = [(1.0, replicate.sweep_point, ("dipole", 3.0, 2))]
-    serial = replicate.execute(tasks, workers=1)[0]
-    parallel = replicate.execute(tasks + tasks, workers=2)[0]
-    assert serial["omega"] == parallel["omega"]  # deterministic, bit for bit
+    tasks = [(1.0, "sweep", {"model": "dipole", "b_over_R": 3.0, "revolutions": 2}),
+             (0.5, "outcome", {"speed": 2e-2, "b_over_R": 0.5})]
+    serial = replicate.execute(tasks, workers=1)
+    parallel = replicate.execute(tasks, workers=2)
+    direct = replicate.sweep_point("dipole", 3.0, 2)
+    for row in serial + parallel:
+        assert row.pop("wall_s") >= 0
+    # deterministic, bit for bit, and the sweep's table gives back what the task returned
+    assert serial == parallel and serial[0] == direct and list(serial[0]) == list(direct)
+    assert serial[1]["outcome"] == "bounce"

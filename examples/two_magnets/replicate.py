@@ -1,24 +1,25 @@
 """Replicate the seed paper (Bartz & Shaw, non-central collisions of spherical magnets) end to end.
 
-    python examples/two_magnets/replicate.py [--quick] [--workers N] [--out DIR]
+    python examples/two_magnets/replicate.py [--quick] [--workers N] [--scheduler ADDR] [--out DIR]
 
-Runs every simulation in parallel (one process per core), prints a paper-vs-demkit summary and
-writes, under DIR (default: the repository root),
+Runs every simulation with :func:`demkit.sweep` (one process per core, or a Dask cluster with
+``--scheduler local`` or ``tcp://host:8786``), prints a paper-vs-demkit summary and writes, under DIR
+(default: the repository root),
     docs/figures/two_magnets/*.png   figures
     docs/data/two_magnets/*.csv      every run (runs.csv) and each result table
     docs/data/two_magnets/summary.json
     docs/two_magnets.md              the report (numbers and tables generated, prose from
                                      examples/two_magnets/report_template.md)
 ``--quick`` is a reduced replication for tests (3 impact parameters, one threshold).
+The sweeps' own tables (one row per simulation job, with its wall time) and the timings go to
+DIR/examples/two_magnets/output/ (not tracked), so the tracked files change only when results do.
 """
 from __future__ import annotations
 
 import argparse
-import concurrent.futures as cf
 import csv
 import json
 import math
-import multiprocessing as mp
 import os
 import sys
 import time
@@ -50,7 +51,6 @@ ENERGY_CASE = {"b_over_R": 4.5, "speed": 4.3e-3}
 # ---- tasks (module-level functions so that worker processes can run them) ------------------------
 def sweep_point(model, b_over_R, revolutions=5):
     """One run of the omega_f(b/R) sweep at the paper's settings -> a dict (one CSV row)."""
-    start = time.perf_counter()
     setup = TwoMagnets(b_over_R, model=model)
     trajectory = setup.run(revolutions=revolutions)
     row = {"kind": "sweep", "model": model, "b_over_R": b_over_R, "speed": setup.speed,
@@ -75,7 +75,6 @@ def sweep_point(model, b_over_R, revolutions=5):
         row["rev_s"] = row["omega_rad_s"] / (2 * math.pi)
         row["spin_fraction_at_contact"] = spin_fraction_at_contact(trajectory, setup)
     row["sim_time"] = float(trajectory.time[-1])
-    row["wall_s"] = time.perf_counter() - start
     return row
 
 
@@ -100,7 +99,6 @@ def static_compression(setup, omega):
 
 def energy_series(dipoles, revolutions=5, keep_every=10):
     """Energies over a whole run at b/R = 4.5, v = 4.3e-3 (the paper's energy figures)."""
-    start = time.perf_counter()
     setup = TwoMagnets(ENERGY_CASE["b_over_R"], speed=ENERGY_CASE["speed"], dipoles=dipoles)
     trajectory = setup.run(revolutions=revolutions)
     e = trajectory.energy
@@ -125,13 +123,11 @@ def energy_series(dipoles, revolutions=5, keep_every=10):
             "final_abs_m_dot_n": float(0.5 * (np.abs((m1 * n).sum(axis=1)) + np.abs((m2 * n).sum(axis=1))).mean()),
             "kinetic_range": [float(series["kinetic"][window].min()), float(series["kinetic"][window].max())],
             "series": {k: v[::keep_every] for k, v in series.items()},
-            "zoom": {k: v[zoom] for k, v in series.items()},
-            "wall_s": time.perf_counter() - start}
+            "zoom": {k: v[zoom] for k, v in series.items()}}
 
 
 def threshold(name, group, setup_kwargs, lo, hi, tol, dt=0.01, integrator="euler_cromer"):
     """Largest sticking b/R by bisection (see demkit.two_magnets.capture.capture_threshold)."""
-    start = time.perf_counter()
     setup = TwoMagnets(5.0, **setup_kwargs)
     found = capture.capture_threshold(setup, lo, hi, tol=tol, dt=dt, integrator=INTEGRATORS[integrator])
     central = capture.central_capture(setup.speed, setup.radius, setup.x0, alpha=2 * setup.prefactor,
@@ -142,20 +138,57 @@ def threshold(name, group, setup_kwargs, lo, hi, tol, dt=0.01, integrator="euler
             "dt": dt, "integrator": integrator, "b_max": found.b_over_R, "b_stick": found.stick,
             "b_escape": found.escape, "half_width": found.half_width,
             "escape_outcome": found.escape_outcome, "central_estimate": central,
-            "evaluations": found.evaluations, "wall_s": time.perf_counter() - start}
+            "evaluations": found.evaluations}
 
 
 def outcome_point(speed, b_over_R):
     """Outcome of one collision (for the outcome map at higher speeds)."""
-    start = time.perf_counter()
     fate, trajectory = TwoMagnets(b_over_R, speed=speed).fate()
     return {"kind": "outcome", "speed": speed, "b_over_R": b_over_R, "outcome": fate,
-            "sim_time": float(trajectory.time[-1]), "wall_s": time.perf_counter() - start}
+            "sim_time": float(trajectory.time[-1])}
+
+
+# ---- the same tasks taking one point of a sweep (dk.sweep) ------------------------------------------
+def sweep_task(point):
+    return sweep_point(point["model"], point["b_over_R"], point["revolutions"])
+
+
+def energy_task(point):
+    return energy_series(point["dipoles"], point["revolutions"])
+
+
+def threshold_task(point):
+    return threshold(point["name"], point["group"], point["setup"], point["lo"], point["hi"], point["tol"],
+                     point["dt"], point["integrator"])
+
+
+def outcome_task(point):
+    return outcome_point(point["speed"], point["b_over_R"])
+
+
+#: kind -> its task; the sweeps run in this order (the longest jobs first)
+TASKS = {"threshold": threshold_task, "sweep": sweep_task, "energy": energy_task, "outcome": outcome_task}
+#: the order of each kind's result keys (as the tasks return them; the tables store them by column)
+KEY_ORDER = {
+    "sweep": ["kind", "model", "b_over_R", "speed", "x0", "outcome", "first_contact", "omega", "sigma",
+              "beta_point", "k_ratio_from_omega", "k_ratio_measured", "compression", "compression_static",
+              "settle_time", "window_end", "omega_rad_s", "omega_rad_s_demkit_scales", "rev_s",
+              "spin_fraction_at_contact", "sim_time"],
+    "energy": ["kind", "dipoles", "initial_energy", "initial_kinetic", "first_contact", "settle_time",
+               "final_total", "final_kinetic", "omega", "sigma", "final_magnetic", "final_m1_dot_m2",
+               "final_abs_m_dot_n", "kinetic_range", "series", "zoom"],
+    "threshold": ["kind", "name", "group", "model", "speed", "x0", "damping", "prefactor", "dipoles", "dt",
+                  "integrator", "b_max", "b_stick", "b_escape", "half_width", "escape_outcome",
+                  "central_estimate", "evaluations"],
+    "outcome": ["kind", "speed", "b_over_R", "outcome", "sim_time"],
+}
+#: result entries stored as JSON in the tables
+JSON_KEYS = ("kinetic_range", "series", "zoom", "evaluations")
 
 
 # ---- the plan -------------------------------------------------------------------------------------
 def plan(quick):
-    """List of (cost estimate, function, args); the most expensive are submitted first."""
+    """List of (cost estimate, kind, point) (kind: a key of TASKS); the most expensive run first."""
     tasks = []
     if quick:
         grid = {"dipole": [1.5, 3.0, 4.5], "power_law": [1.5, 3.0, 4.5]}
@@ -164,9 +197,9 @@ def plan(quick):
                 "power_law": list(np.round(np.arange(1.0, 5.01, 0.5), 2)) + [5.35]}
     for model, values in grid.items():
         for b in values:
-            tasks.append((1.0 / b, sweep_point, (model, float(b))))
-    tasks.append((1.0, energy_series, ("aligned", 2 if quick else 5)))
-    tasks.append((1.0, energy_series, ("anti-aligned", 2 if quick else 5)))
+            tasks.append((1.0 / b, "sweep", {"model": model, "b_over_R": float(b), "revolutions": 5}))
+    for dipoles in ("aligned", "anti-aligned"):
+        tasks.append((1.0, "energy", {"dipoles": dipoles, "revolutions": 2 if quick else 5}))
 
     def bracket(kwargs, model="dipole"):
         setup = TwoMagnets(5.0, **kwargs)
@@ -177,7 +210,8 @@ def plan(quick):
         lo, hi = bracket(kwargs, kwargs.get("model", "dipole"))
         x0 = kwargs.get("x0", 150.0)
         cost = 1.5 * (x0 / 150.0) * (5.78e-3 / kwargs.get("speed", 5.78e-3)) * (0.01 / dt)
-        tasks.append((cost, threshold, (name, group, kwargs, lo, hi, tol, dt, integrator)))
+        tasks.append((cost, "threshold", {"name": name, "group": group, "setup": kwargs, "lo": lo, "hi": hi,
+                                          "tol": tol, "dt": dt, "integrator": integrator}))
 
     add("paper settings", "paper", {}, 0.05 if quick else 0.01)
     if quick:
@@ -196,23 +230,8 @@ def plan(quick):
     add("half-strength dipoles", "what-if", {"prefactor": 1.0 / 6.0}, 0.02)
     for v in (5.78e-3, 1.0e-2, 1.156e-2, 1.445e-2):
         for b in np.round(np.arange(0.0, 5.01, 0.25), 2):
-            tasks.append((0.05, outcome_point, (v, float(b))))
+            tasks.append((0.05, "outcome", {"speed": v, "b_over_R": float(b)}))
     return tasks
-
-
-class _Serial:
-    """In-process stand-in for an executor (one core, or --workers 1)."""
-
-    def submit(self, fn, *args):
-        future = cf.Future()
-        try:
-            future.set_result(fn(*args))
-        except Exception as exc:  # noqa: BLE001 (re-raised by future.result())
-            future.set_exception(exc)
-        return future
-
-    def shutdown(self, wait=True):
-        pass
 
 
 def _warm_up(quick):
@@ -234,30 +253,57 @@ def _importable():
     sys.modules[__name__] = module
 
 
-def execute(tasks, workers):
-    """Run the tasks, the most expensive first, on ``workers`` processes; results in task order."""
-    order = sorted(range(len(tasks)), key=lambda k: -tasks[k][0])
-    if workers > 1:
+def execute(tasks, workers, scheduler=None, tables=None, resume=False):
+    """Run the tasks with :func:`demkit.sweep`, one sweep per kind, the most expensive points first;
+    returns the results in task order (each a dict as its task returned it, with ``wall_s``).
+
+    ``tables``: folder of the sweeps' tables (default: a temporary one); without ``resume`` they are
+    started afresh, so that every result comes from this run.
+    """
+    import tempfile
+    if workers > 1 and scheduler is None:
         _importable()
-        # not "fork": once a parallel numba kernel has run (threaded N-body scenes), GNU OpenMP makes
-        # fork() unsafe; a fork server starts clean
-        methods = mp.get_all_start_methods()
-        context = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
-        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context)
-    else:
-        pool = _Serial()
-    try:
-        futures = {k: pool.submit(tasks[k][1], *tasks[k][2]) for k in order}
-        return [futures[k].result() for k in range(len(tasks))]
-    finally:
-        pool.shutdown(wait=True)
+    results = [None] * len(tasks)
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(tables) if tables is not None else Path(scratch)
+        folder.mkdir(parents=True, exist_ok=True)
+        for kind, task in TASKS.items():
+            order = sorted((k for k in range(len(tasks)) if tasks[k][1] == kind), key=lambda k: -tasks[k][0])
+            if not order:
+                continue
+            table = folder / f"replication_{kind}.csv"
+            if not resume and table.exists():
+                table.unlink()
+            rows = dk.sweep(task, [tasks[k][2] for k in order], results=table, workers=workers,
+                            scheduler=scheduler, progress=False)
+            for k, row in zip(order, rows):
+                results[k] = _restore(kind, row, tasks[k][2])
+    return results
+
+
+def _restore(kind, row, point):
+    """A table row back to the task's dict (keys in the task's order, JSON entries decoded), with wall_s."""
+    if row["status"] != "ok":
+        raise RuntimeError(f"replication job {kind} {point} failed: {row['error']}")
+    out = {}
+    for key in KEY_ORDER[kind]:
+        value = point.get(key, row.get(key))
+        if value is None:
+            continue
+        if key in JSON_KEYS and isinstance(value, str):
+            value = json.loads(value)
+            if key in ("series", "zoom"):
+                value = {k: np.asarray(v) for k, v in value.items()}
+        out[key] = value
+    out["wall_s"] = row["wall_s"]
+    return out
 
 
 # ---- analysis of the results ------------------------------------------------------------------------
-def summarise(results, wall, workers, quick):
+def summarise(results, quick):
+    """Every number of the report (no timings: this goes to the tracked summary.json)."""
     sweep = [r for r in results if r["kind"] == "sweep"]
-    out = {"quick": quick, "workers": workers, "wall_s": wall, "paper": PAPER, "models": {},
-           "cpu_s": sum(r["wall_s"] for r in results), "runs": count_runs(results)}
+    out = {"quick": quick, "paper": PAPER, "models": {}, "runs": count_runs(results)}
     for model in ("dipole", "power_law"):
         rows = [r for r in sweep if r["model"] == model and r["outcome"] == "stick"]
         b = np.array([r["b_over_R"] for r in rows])
@@ -292,7 +338,7 @@ def summarise(results, wall, workers, quick):
             "not_sticking": [r["b_over_R"] for r in sweep if r["model"] == model and r["outcome"] != "stick"],
         }
     thresholds = [r for r in results if r["kind"] == "threshold"]
-    # timings only in wall_s / cpu_s above, so that the data files change only when results do
+    # no timings in the data files, so that they change only when results do
     out["thresholds"] = [{k: v for k, v in r.items() if k not in ("evaluations", "wall_s")} for r in thresholds]
     speed_rows = [r for r in thresholds if r["model"] == "dipole" and r["group"] in ("paper", "speed")
                   and r["dipoles"] == "aligned" and r["prefactor"] == 1 / 3]
@@ -409,25 +455,29 @@ def _json_default(value):
 
 def main(argv=None):
     """Run the replication with command-line ``argv`` (None: the defaults); returns the summary
-    dict (also written to docs/data/two_magnets/summary.json)."""
+    dict (also written to docs/data/two_magnets/summary.json) with the timings added."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="reduced replication (for tests)")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: cores)")
+    parser.add_argument("--scheduler", help="Dask: 'local' or tcp://host:8786 (default: local processes)")
     parser.add_argument("--out", type=Path, default=ROOT, help="root folder of docs/ (default: repository)")
     args = parser.parse_args([] if argv is None else list(argv))  # None: defaults, not sys.argv
     workers = max(1, args.workers)
+    output = args.out / "examples" / "two_magnets" / "output"  # not tracked
     start = time.perf_counter()
     _warm_up(args.quick)
-    results = execute(plan(args.quick), workers)
+    results = execute(plan(args.quick), workers, args.scheduler, tables=output)
     wall = time.perf_counter() - start
-    summary = summarise(results, wall, workers, args.quick)
+    summary = summarise(results, args.quick)
     write_outputs(results, summary, args.out)
-    summary["wall_total_s"] = time.perf_counter() - start
+    timing = {"workers": workers, "scheduler": args.scheduler, "wall_s": wall,
+              "cpu_s": sum(r["wall_s"] for r in results), "wall_total_s": time.perf_counter() - start}
+    (output / "replication_timing.json").write_text(json.dumps(timing, indent=1))
     print(report.console_table(summary))
     print(f"{summary['runs']} runs, simulations {wall:.1f} s wall on {workers} worker(s) "
-          f"({summary['cpu_s']:.1f} s summed over runs); with figures and report "
-          f"{summary['wall_total_s']:.1f} s. Outputs under {args.out / 'docs'}")
-    return summary
+          f"({timing['cpu_s']:.1f} s summed over runs); with figures and report "
+          f"{timing['wall_total_s']:.1f} s. Outputs under {args.out / 'docs'}; timings in {output}")
+    return dict(summary, **timing)
 
 
 if __name__ == "__main__":

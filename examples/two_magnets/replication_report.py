@@ -31,8 +31,7 @@ def values(results, summary, paper, paper_scales, demkit_scales):
     sweep = {m: sorted([r for r in results if r["kind"] == "sweep" and r["model"] == m
                         and r["outcome"] == "stick"], key=lambda r: r["b_over_R"])
              for m in ("dipole", "power_law")}
-    v = {"wall": f"{summary['wall_s']:.0f}", "workers": summary["workers"], "runs": summary["runs"],
-         "cpu": f"{summary['cpu_s']:.0f}",
+    v = {"runs": summary["runs"],
          "beta_d": f"{d['beta']:.4f}", "beta_d_sig": f"{d['beta_sigma']:.4f}", "n_d": d["n"],
          "brange_d": f"{d['b_range'][0]:g}–{d['b_range'][1]:g}",
          "beta_pt_d_min": f"{d['beta_point_min']:.4f}", "beta_pt_d_max": f"{d['beta_point_max']:.4f}",

@@ -1,0 +1,560 @@
+"""Parameter sweeps: run a task over a grid or list of points, on local processes or a Dask cluster,
+into one tidy, resumable results table.
+
+    rows = dk.sweep(task, {"b_over_R": [1, 2, 3], "speed": [5e-3, 1e-2]}, results="map.csv")
+
+``task(point) -> dict`` takes one point (a dict of parameter values, plus ``seed`` when seeds are
+given) and returns its observables (a dict of numbers or strings). It must be picklable: a function
+defined at the top level of a module (or a :func:`functools.partial` of one).
+
+The table (CSV) has one row per point: the parameters (and ``seed``), ``status`` ('ok' or 'failed'),
+``error`` (empty when fine, else 'Type: message'), ``wall_s`` (seconds the task took) and the
+observables. Rows are appended (and flushed) as points finish, so an interrupted sweep keeps what it
+finished; at the end the table is rewritten in the order of the points. Running the same sweep again
+skips the points that already have an 'ok' row (same parameter values, compared at 12 significant
+digits) and reruns the failed ones. A failing point is recorded with its error; the others go on.
+
+Where: ``workers`` local processes (default: the machine's cores; 1 runs in this process), or Dask
+(``pip install "demkit[dask]"``): ``scheduler="local"`` starts a ``dask.distributed.LocalCluster`` of
+``workers`` processes, ``scheduler="tcp://host:8786"`` uses that cluster, and a
+``dask.distributed.Client`` is used as it is. Sweep files (TOML) and ``demkit sweep``: :func:`sweep_file`.
+See docs/sweeps.md.
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import functools
+import importlib
+import itertools
+import json
+import math
+import multiprocessing as mp
+import numbers
+import os
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+#: columns every table has, after the parameters (and seed)
+STATUS_COLUMNS = ("status", "error", "wall_s")
+#: significant digits at which two numeric parameter values count as the same point
+KEY_DIGITS = 12
+# cells may hold long JSON (a time series); the csv module's default limit is 128 kB
+csv.field_size_limit(min(sys.maxsize, 2 ** 31 - 1))
+
+
+# ---- points --------------------------------------------------------------------------------------
+def expand(parameters, seeds=None):
+    """The list of points (dicts): a grid ``{name: [values]}`` gives the Cartesian product (the last
+    name varying fastest), a list of dicts is taken as it is; ``seeds`` (a count n -> 0..n-1, or a
+    list) repeats every point once per seed with a ``seed`` entry."""
+    if isinstance(parameters, dict):
+        if not parameters:
+            raise ValueError("the grid is empty: give {name: [values, ...]}")
+        names = list(parameters)
+        values = []
+        for name in names:
+            v = parameters[name]
+            if isinstance(v, (str, bytes)) or not hasattr(v, "__iter__"):
+                raise ValueError(f"grid values of {name!r} must be a list, got {v!r}; "
+                                 f"write [{v!r}] for a single value")
+            v = list(v)
+            if not v:
+                raise ValueError(f"grid values of {name!r} are an empty list")
+            values.append(v)
+        points = [dict(zip(names, combo)) for combo in itertools.product(*values)]
+    else:
+        points = [dict(p) for p in parameters]
+        if not points:
+            raise ValueError("no points: give a grid {name: [values]} or a non-empty list of dicts")
+    if seeds is not None:
+        if isinstance(seeds, numbers.Integral) and not isinstance(seeds, bool):
+            if seeds < 1:
+                raise ValueError(f"seeds must be a positive count or a list, got {seeds}")
+            seeds = range(int(seeds))
+        seeds = list(seeds)
+        if any("seed" in p for p in points):
+            raise ValueError("points already have a 'seed' parameter: drop it or do not pass seeds=")
+        points = [dict(p, seed=s) for p in points for s in seeds]
+    return points
+
+
+def cell(value):
+    """The CSV text of a value: floats in full (repr), integers and strings as they are, None as
+    empty, anything else (lists, arrays) as JSON."""
+    if value is None:
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return str(bool(value))
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        return repr(float(value))
+    if isinstance(value, str):
+        return value
+    return json.dumps(value, default=_plain)
+
+
+def _plain(value):
+    """JSON of numpy values (arrays as lists; floats stay exact: JSON writes them with repr)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"cannot store a {type(value).__name__} in a table cell")
+
+
+def key_part(text):
+    """One parameter's part of a point's key, from its CSV text: numbers at :data:`KEY_DIGITS`
+    significant digits (so 1, 1.0 and 0.30000000000000004 / 0.3 match), other text as it is."""
+    try:
+        return format(float(text), f".{KEY_DIGITS}g")
+    except ValueError:
+        return text
+
+
+def point_key(point, names):
+    return tuple(key_part(cell(point.get(n))) for n in names)
+
+
+def parse(text):
+    """A table cell back to a value: int, float, True/False, None (empty) or the text."""
+    if text == "":
+        return None
+    if text in ("True", "False"):
+        return text == "True"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def read_table(path):
+    """The rows of a results table as dicts of values (numbers parsed, empty cells None)."""
+    with open(path, newline="") as fh:
+        return [{k: parse(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+
+# ---- running one point ----------------------------------------------------------------------------
+def run_point(task, point, names=()):
+    """``task(point)`` -> the point's row (dict of cells); an exception becomes a 'failed' row.
+
+    Entries of the task's result named like the point's parameters are dropped (echoes); named like
+    another parameter of the sweep (``names``) they fail the point (they would spoil its key)."""
+    start = time.perf_counter()
+    try:
+        out = task(dict(point))
+        if not isinstance(out, dict):
+            raise TypeError(f"the task must return a dict of observables, got {type(out).__name__}")
+        clash = sorted(set(out) & set(STATUS_COLUMNS))
+        if clash:
+            raise ValueError(f"the task returned reserved column(s) {clash}: rename them")
+        clash = sorted((set(out) & set(names)) - set(point))
+        if clash:
+            raise ValueError(f"the task returned {clash}, parameter name(s) of this sweep: rename them")
+        row = {k: cell(v) for k, v in out.items() if k not in point}
+        row.update(status="ok", error="")
+    except Exception as exc:  # noqa: BLE001 (recorded in the table; the sweep goes on)
+        row = {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")}
+    row["wall_s"] = cell(time.perf_counter() - start)
+    row.update({k: cell(v) for k, v in point.items()})
+    return row
+
+
+# ---- the table -----------------------------------------------------------------------------------
+class _Table:
+    """A CSV table appended row by row (flushed each time); rewritten when a new column appears."""
+
+    def __init__(self, path, names):
+        self.path = Path(path)
+        self.names = list(names)
+        self.rows, self.columns = [], self.names + list(STATUS_COLUMNS)
+        if self.path.exists() and self.path.stat().st_size > 0:
+            with open(self.path, newline="") as fh:
+                reader = csv.DictReader(fh)
+                old = list(reader.fieldnames or [])
+                self.rows = list(reader)
+            missing = [n for n in self.names if n not in old]
+            if missing:
+                raise ValueError(f"{self.path} has no column(s) {missing} for this sweep's parameters "
+                                 f"(it was written by another sweep): choose another results file")
+            self.columns = old + [c for c in self.columns if c not in old]
+        self._rewrite()
+
+    def done(self):
+        return {point_key(r, self.names) for r in self.rows if r.get("status") == "ok"}
+
+    def _rewrite(self):
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        with open(tmp, "w", newline="") as fh:
+            w = csv.DictWriter(fh, self.columns, restval="")
+            w.writeheader()
+            w.writerows(self.rows)
+        os.replace(tmp, self.path)
+
+    def add(self, row):
+        self.rows.append(row)
+        new = [c for c in row if c not in self.columns]
+        if new:
+            self.columns += new
+            self._rewrite()
+            return
+        with open(self.path, "a", newline="") as fh:
+            csv.DictWriter(fh, self.columns, restval="").writerow(row)
+            fh.flush()
+
+    def finish(self, points):
+        """Rewrite in the points' order: one row per point (its latest), then rows of other sweeps."""
+        latest = {}
+        for r in self.rows:
+            k = point_key(r, self.names)
+            if k not in latest or latest[k].get("status") != "ok" or r.get("status") == "ok":
+                latest[k] = r
+        order = []
+        for p in points:
+            k = point_key(p, self.names)
+            if k in latest:
+                order.append(latest.pop(k))
+        self.rows = order + [r for r in latest.values()]
+        # observables' columns in order of first appearance in this order (not of completion)
+        fixed = self.names + list(STATUS_COLUMNS)
+        seen = dict.fromkeys(c for r in self.rows for c in r if c not in fixed)
+        self.columns = fixed + list(seen) + [c for c in self.columns if c not in fixed and c not in seen]
+        self._rewrite()
+
+
+# ---- executors -----------------------------------------------------------------------------------
+class _InProcess:
+    def submit(self, fn, *args):
+        future = cf.Future()
+        future.set_result(fn(*args))  # run_point never raises
+        return future
+
+
+def _local_pool(workers):
+    if workers == 1:
+        return _InProcess(), None
+    # not "fork": once a parallel numba kernel ran, GNU OpenMP makes fork() unsafe; a fork server starts clean
+    methods = mp.get_all_start_methods()
+    context = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    return pool, pool.shutdown
+
+
+def _dask_client(scheduler, workers):
+    try:
+        from dask import distributed
+    except ImportError:
+        raise ImportError('a Dask sweep needs dask.distributed: pip install "demkit[dask]" '
+                          '(or leave scheduler=None for local processes)') from None
+    if hasattr(scheduler, "submit"):  # a Client already
+        return scheduler, None
+    if scheduler == "local":
+        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                           dashboard_address=None)
+        client = distributed.Client(cluster)
+
+        def close():
+            client.close()
+            cluster.close()
+        return client, close
+    if not isinstance(scheduler, str) or "://" not in scheduler:
+        raise ValueError(f"scheduler must be 'local', an address such as 'tcp://host:8786' or a "
+                         f"dask.distributed.Client, got {scheduler!r}")
+    client = distributed.Client(scheduler)
+    return client, client.close
+
+
+def _progress(total, progress):
+    from tqdm import tqdm
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    return tqdm(total=total, disable=not show, unit="point", desc="sweep")
+
+
+# ---- the sweep -----------------------------------------------------------------------------------
+def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, scheduler=None, progress=None):
+    """Run ``task(point)`` for every point not finished in ``results``; returns the table's rows
+    (:func:`read_table`) in the points' order.
+
+    parameters : grid {name: [values]} (Cartesian product) or a list of point dicts.
+    seeds : a count n (seeds 0..n-1) or a list; adds a ``seed`` parameter.
+    results : the CSV table (created, or resumed when it exists). A copy as Parquet is written
+        next to it if the name ends in '.parquet' (needs pyarrow; the CSV stays the working table).
+    workers : processes (default: the machine's cores; 1: in this process) or Dask workers of a
+        LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
+        'tcp://host:8786', or a dask.distributed.Client.
+    progress : tqdm bar; None shows it only on a terminal.
+    """
+    if not callable(task):
+        raise ValueError(f"task must be a function of one point (a dict), got {task!r}")
+    points = expand(parameters, seeds)
+    names = list(dict.fromkeys(n for p in points for n in p))
+    keys = [point_key(p, names) for p in points]
+    if len(set(keys)) != len(keys):
+        raise ValueError("some points repeat (same parameter values): each point must be distinct")
+    results = Path(results)
+    parquet = None
+    if results.suffix == ".parquet":
+        parquet, results = results, results.with_suffix(".csv")
+        _require_pyarrow()
+    table = _Table(results, names)
+    done = table.done()
+    todo = [p for p, k in zip(points, keys) if k not in done]
+    workers = int(workers) if workers is not None else (os.cpu_count() or 1)
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    bar = _progress(len(todo), progress)
+    close = None
+    try:
+        if todo:
+            if scheduler is None:
+                pool, close = _local_pool(min(workers, len(todo)))
+                futures = {pool.submit(run_point, task, p, names): p for p in todo}
+                finished = cf.as_completed(futures)
+            else:
+                client, close = _dask_client(scheduler, workers)
+                from dask.distributed import as_completed
+                futures = {client.submit(run_point, task, p, names, pure=False): p for p in todo}
+                finished = as_completed(list(futures))
+            for future in finished:
+                try:
+                    row = future.result()
+                except Exception as exc:  # noqa: BLE001 (the worker died: a broken pool, a killed Dask worker)
+                    row = {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " "),
+                           "wall_s": "", **{k: cell(v) for k, v in futures[future].items()}}
+                table.add(row)
+                bar.update()
+    finally:
+        bar.close()
+        if close is not None:
+            close()
+    table.finish(points)
+    if parquet is not None:
+        _write_parquet(results, parquet)
+    return read_table(results)[:len(points)]
+
+
+def _require_pyarrow():
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        raise ImportError("a .parquet results table needs pyarrow (pip install pyarrow); "
+                          "or write results='....csv'") from None
+
+
+def _write_parquet(csv_path, parquet_path):
+    from pyarrow import csv as pacsv, parquet as pq
+    pq.write_table(pacsv.read_csv(csv_path), parquet_path)
+
+
+# ---- sweep files ---------------------------------------------------------------------------------
+RANGE_KEYS = {"start", "stop", "num", "log"}
+
+
+def grid_range(spec, name="a grid entry"):
+    """Values of a range entry {start, stop, num[, log]}: num evenly spaced values from start to
+    stop inclusive (log = true: evenly spaced in log), rounded to 12 significant digits."""
+    missing = {"start", "stop", "num"} - set(spec)
+    if missing or set(spec) - RANGE_KEYS:
+        raise ValueError(f"{name} = {spec!r}: a range needs start, stop, num (and optionally log)")
+    num = spec["num"]
+    if not isinstance(num, int) or num < 1:
+        raise ValueError(f"{name}: num must be a positive whole number, got {num!r}")
+    start, stop = float(spec["start"]), float(spec["stop"])
+    if spec.get("log", False):
+        if start <= 0 or stop <= 0:
+            raise ValueError(f"{name}: a log range needs positive start and stop")
+        values = np.geomspace(start, stop, num)
+    else:
+        values = np.linspace(start, stop, num)
+    return [float(f"{v:.12g}") for v in values]
+
+
+def flatten(table, prefix="", ranges=False):
+    """{'a': {'b': 1}} -> {'a.b': 1}: TOML's dotted keys (a.b = 1) become nested tables; key paths
+    are joined back with dots. ``ranges``: a table {start, stop, num[, log]} is a range of values
+    (:func:`grid_range`)."""
+    flat = {}
+    for k, v in table.items():
+        path = f"{prefix}{k}"
+        if ranges and isinstance(v, dict) and v and set(v) <= RANGE_KEYS:
+            flat[path] = grid_range(v, path)
+        elif isinstance(v, dict):
+            flat.update(flatten(v, path + ".", ranges))
+        else:
+            flat[path] = v
+    return flat
+
+
+SWEEP_KEYS = {"scene", "task", "grid", "points", "seeds", "seed_key", "observables", "results", "workers",
+              "scheduler"}
+
+
+def read_sweep_file(path):
+    """The settings of a sweep file (TOML) as a dict: task (a callable), parameters, seeds, results
+    (a path), workers, scheduler. See docs/sweeps.md for the format."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"sweep file {path} does not exist")
+    try:
+        spec = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path} is not valid TOML: {err}") from None
+    unknown = sorted(set(spec) - SWEEP_KEYS)
+    if unknown:
+        raise ValueError(f"{path}: unknown setting(s) {unknown}; known: {sorted(SWEEP_KEYS)}")
+    if ("scene" in spec) == ("task" in spec):
+        raise ValueError(f"{path} needs exactly one of scene = 'file.toml' (a scene file) or "
+                         f"task = 'module:function'")
+    if ("grid" in spec) == ("points" in spec):
+        raise ValueError(f"{path} needs exactly one of a [grid] table (name = [values]) or [[points]] tables")
+    if "grid" in spec:
+        parameters = flatten(spec["grid"], ranges=True)
+        for name, values in parameters.items():
+            if not isinstance(values, list):
+                raise ValueError(f"{path}: [grid] {name} = {values!r} must be a list of values")
+    else:
+        if not isinstance(spec["points"], list) or not all(isinstance(p, dict) for p in spec["points"]):
+            raise ValueError(f"{path}: points must be [[points]] tables")
+        parameters = [flatten(p) for p in spec["points"]]
+    observables = spec.get("observables")
+    if observables is not None and (not isinstance(observables, list)
+                                    or not all(isinstance(o, str) for o in observables)):
+        raise ValueError(f"{path}: observables must be a list of names, got {observables!r}")
+    if "scene" in spec:
+        scene = (path.parent / spec["scene"]).resolve()
+        observables = list(observables or ["sim_time"])
+        unknown = [o for o in observables if o not in OBSERVABLES]
+        if unknown:
+            raise ValueError(f"{path}: unknown observable(s) {unknown}; known: {sorted(OBSERVABLES)}")
+        task = functools.partial(run_scene_point, scene=str(scene), observables=tuple(observables),
+                                 seed_key=spec.get("seed_key", "seed"))
+    else:
+        task = import_task(spec["task"])
+        if observables is not None:
+            raise ValueError(f"{path}: observables are for scene sweeps; task = ... returns its own")
+    results = path.parent / spec.get("results", path.stem + ".csv")
+    workers = spec.get("workers")
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"{path}: workers must be a positive whole number, got {workers!r}")
+    return {"task": task, "parameters": parameters, "seeds": spec.get("seeds"), "results": results,
+            "workers": workers, "scheduler": spec.get("scheduler")}
+
+
+def import_task(text):
+    """The function named by 'package.module:function'."""
+    module, _, name = str(text).partition(":")
+    if not module or not name:
+        raise ValueError(f"task must be 'module:function' (e.g. 'demkit.two_magnets.outcome_map:"
+                         f"two_magnets_point'), got {text!r}")
+    try:
+        function = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as err:
+        raise ValueError(f"cannot import task {text!r}: {err}") from None
+    if not callable(function):
+        raise ValueError(f"task {text!r} is not a function")
+    return function
+
+
+def sweep_file(path, workers=None, scheduler=None, progress=None):
+    """Run the sweep a TOML file describes (``demkit sweep``); arguments given here win over the file's."""
+    spec = read_sweep_file(path)
+    return sweep(spec["task"], spec["parameters"], results=spec["results"], seeds=spec["seeds"],
+                 workers=workers if workers is not None else spec["workers"],
+                 scheduler=scheduler if scheduler is not None else spec["scheduler"], progress=progress)
+
+
+# ---- scene sweeps: observables -------------------------------------------------------------------
+#: name -> f(loaded, trajectory) -> a value or a dict of {column suffix: value}
+OBSERVABLES = {}
+
+
+def observable(name):
+    """Register ``f(loaded, trajectory)`` as a named observable of scene sweeps (a dict result
+    becomes columns name_<key>, its '' key the column name itself)."""
+    def register(f):
+        OBSERVABLES[name] = f
+        return f
+    return register
+
+
+@observable("sim_time")
+def _sim_time(loaded, trajectory):
+    """Simulated time at the end of the run."""
+    return float(trajectory.time[-1])
+
+
+@observable("kinetic_energy")
+def _kinetic(loaded, trajectory):
+    """Translational + rotational kinetic energy in the last frame."""
+    e = trajectory.energy
+    return float(e["kinetic"][-1] + e.get("rotational", np.zeros(1))[-1])
+
+
+@observable("energy_drift")
+def _drift(loaded, trajectory):
+    """(E_total + E_dissipated)(end) - (...)(start), over |E_total(start)| (0 when that is 0):
+    the integrator's error in energy."""
+    e = trajectory.energy
+    kept = e["total"] + e.get("dissipated", np.zeros_like(e["total"]))
+    scale = abs(float(e["total"][0])) or 1.0
+    return float((kept[-1] - kept[0]) / scale)
+
+
+@observable("contacts")
+def _contacts(loaded, trajectory):
+    """Touching pairs (r <= R_i + R_j) in the last frame."""
+    from scipy.spatial import cKDTree
+    x, radius = trajectory.unwrapped()[-1], trajectory.radius
+    pairs = np.array(sorted(cKDTree(x).query_pairs(2.0 * float(radius.max()))), dtype=np.int64).reshape(-1, 2)
+    if len(pairs) == 0:
+        return 0
+    gap = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1) - radius[pairs].sum(axis=1)
+    return int((gap <= 0).sum())
+
+
+@observable("outcome")
+def _outcome(loaded, trajectory):
+    """'miss', 'bounce' or 'stick' of a two-sphere scene (:func:`demkit.two_magnets.analysis.outcome`)."""
+    from .two_magnets import analysis
+    return analysis.outcome(trajectory)
+
+
+@observable("final_spin")
+def _final_spin(loaded, trajectory):
+    """omega and its sigma of a settled pair (:func:`demkit.two_magnets.analysis.final_spin`)."""
+    from .two_magnets import analysis
+    omega, sigma = analysis.final_spin(trajectory)
+    return {"": omega, "sigma": sigma}
+
+
+def observe(names, loaded, trajectory):
+    """The observables ``names`` of a run as one flat dict."""
+    out = {}
+    for name in names:
+        value = OBSERVABLES[name](loaded, trajectory)
+        if isinstance(value, dict):
+            out.update({name if k == "" else f"{name}_{k}": v for k, v in value.items()})
+        else:
+            out[name] = value
+    return out
+
+
+def run_scene_point(point, scene, observables=("sim_time",), seed_key="seed"):
+    """Task of scene sweeps: load the scene file with the point's values as overrides (dotted key
+    paths; the ``seed`` goes to ``seed_key``), run it, and measure ``observables``. The file's
+    [outputs] are not written (every point would overwrite the same files): the observables are
+    the result."""
+    from .scenefile import load_scene
+    overrides = {(seed_key if k == "seed" else k): v for k, v in point.items()}
+    loaded = load_scene(scene, overrides=overrides)
+    loaded.outputs = {}
+    trajectory = loaded.run()
+    return observe(observables, loaded, trajectory)
