@@ -3,6 +3,9 @@
     demkit accuracy scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
                              [--plot wp.png] [--csv wp.csv]
 
+    demkit render SERIES.pvd -o run.mp4 [--fps 20] [--max-frames 200] [--color-by speed] ...
+
+``render`` draws a written series to an animation or a picture (:mod:`demkit.viz.command`).
 ``accuracy`` runs :func:`demkit.accuracy.work_precision` on the scene a Python file builds and prints
 the table (method, dt, errors, wall time, force evaluations, stable?) and writes the figure. The file
 defines ``scene`` (a :class:`demkit.Scene`) or ``make_scene()`` returning one, and may define
@@ -102,9 +105,15 @@ def main(argv=None):
     study.add_argument("--methods", help="comma-separated methods (default: EulerCromer,VelocityVerlet)")
     study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")
     study.add_argument("--csv", help="also write the table as CSV")
+    study.set_defaults(handler=accuracy_command)
+    from .viz import command as render
+    drawing = commands.add_parser("render", help="draw a series (.pvd) to an animation (.mp4, .gif) or a picture",
+                                  description=render.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    render.add_arguments(drawing)
+    drawing.set_defaults(handler=render.render)
     args = parser.parse_args(argv)
     try:
-        return accuracy_command(args)
+        return args.handler(args)
     except ValueError as err:
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
 
