@@ -87,7 +87,7 @@ class Progress:
             self.auto = False  # judged once
             if elapsed + remaining < AUTO_SECONDS or done >= self.total:
                 return
-            self._open(done0)
+            self._open(done)  # tqdm's rate and time left count from here
         if self.scale is not None:
             self.bar.set_postfix_str(f"{self.label} = {self.start + done * self.scale:.6g}/{self.span:.6g}",
                                      refresh=False)

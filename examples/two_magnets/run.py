@@ -21,7 +21,7 @@ import watch  # noqa: E402
 STAGES = {
     "collision": ("one collision (b/R = 4)", "6.4 million Euler-Cromer steps, about 1 s"),
     "watch": ("VTK series for ParaView and an animation",
-              "451 VTK frames (about 1 s), then 120 animation frames (about 10 s)"),
+              "451 VTK frames (about 1 s), then 120 animation frames (about 8 s)"),
     "replication": ("replication of Bartz & Shaw",
                     "the paper's sweeps, figures and report; the longest stage"),
 }

@@ -52,7 +52,7 @@ def main(argv=None):
     begin = max(0.0, t_touch - 8000.0) if t_touch is not None else 0.0
     movie = args.out / f"collision.{args.movie}"
     print(f"rendering {args.frames} frames of t = {begin:g} .. {args.duration:g} to {movie.name} off-screen "
-          f"(about {max(1, round(args.frames / 13))} s; a progress bar on a terminal)...", flush=True)
+          f"(about {max(1, round(args.frames / 15))} s; a progress bar on a terminal)...", flush=True)
     start = time.perf_counter()
     try:
         dk.viz.animate(writer.pvd, movie, time_range=(begin, None), max_frames=args.frames,
