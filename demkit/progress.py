@@ -8,9 +8,11 @@ Progress bars (:class:`Progress`) are drawn on stderr by tqdm for simulation run
   nothing for short steps. ``DEMKIT_QUIET=1`` in the environment turns these automatic bars off.
 * ``progress=True``: a bar always (also when stderr is redirected); ``False``: never.
 
-The compile notice (:func:`compile_notice`): when demkit's compiled kernels are not in the on-disk
+The compile notice (:class:`compile_notice`): when demkit's compiled kernels are not in the on-disk
 cache and must be compiled (the first run of a scene on a machine, 5-30 s), one line on stderr
-says so before, and one how long it took after; nothing is printed when the cache is warm.
+says so (once the compilation has taken :data:`NOTICE_AFTER` = 1 s), and one how long it took after;
+nothing is printed when the cache is warm. Scenes announce it while being built, simulations
+while being made and during the first chunk of a run.
 It is printed also when stderr is not a terminal (it explains a slow start in a log);
 ``DEMKIT_QUIET=1`` turns it off. A cache miss is known exactly, not guessed from timings: numba
 announces a real compilation with its ``numba:compile`` event (loading from the cache does not).
