@@ -4,6 +4,9 @@
                              [--plot wp.png] [--csv wp.csv]
     demkit sweep sweep.toml [--scheduler tcp://host:8786] [--workers N]   (docs/sweeps.md)
 
+    demkit render SERIES.pvd -o run.mp4 [--fps 20] [--max-frames 200] [--color-by speed] ...
+
+``render`` draws a written series to an animation or a picture (:mod:`demkit.viz.command`).
 ``accuracy`` runs :func:`demkit.accuracy.work_precision` on the scene a Python file builds and prints
 the table (method, dt, errors, wall time, force evaluations, stable?) and writes the figure. The file
 defines ``scene`` (a :class:`demkit.Scene`) or ``make_scene()`` returning one, and may define
@@ -152,8 +155,8 @@ def main(argv=None):
     export.add_argument("out_dir", help="folder for scene.data, in.scene (created if needed)")
     export.add_argument("--allow-differences", action="store_true",
                         help="export what LAMMPS runs differently from demkit (listed as notes) instead of refusing")
-    export.set_defaults(run=export_lammps_command)
-    study.set_defaults(run=accuracy_command)
+    export.set_defaults(handler=export_lammps_command)
+    study.set_defaults(handler=accuracy_command)
     sweeping = commands.add_parser("sweep", help="run a parameter sweep file (TOML) into a results table",
                                    description="Run the sweep a TOML file describes (docs/sweeps.md); "
                                                "finished points are not rerun.")
@@ -161,12 +164,17 @@ def main(argv=None):
     sweeping.add_argument("--scheduler", help="Dask: 'local' (a LocalCluster) or an address tcp://host:8786 "
                                               "(default: local processes)")
     sweeping.add_argument("--workers", type=int, help="processes, or Dask workers of a LocalCluster")
-    sweeping.set_defaults(run=sweep_command)
+    sweeping.set_defaults(handler=sweep_command)
+    from .viz import command as render
+    drawing = commands.add_parser("render", help="draw a series (.pvd) to an animation (.mp4, .gif) or a picture",
+                                  description=render.__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    render.add_arguments(drawing)
+    drawing.set_defaults(handler=render.render)
     args = parser.parse_args(argv)
     if args.command in ("run", "info"):
         return scene_commands.main_errors(parser, args)
     try:
-        return args.run(args)
+        return args.handler(args)
     except (ValueError, ImportError) as err:
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
 

@@ -828,5 +828,6 @@ def _load_in_memory(name, source, plan):
                 force, energy = inter.pair_functions()
                 setattr(module, f"{prefix}force_{k}", force)
                 setattr(module, f"{prefix}energy_{k}", energy)
+    module.DEMKIT_IN_MEMORY = True  # not cached: the compile notice says every run compiles
     exec(compile(source, f"<{name}>", "exec"), module.__dict__)
     return module

@@ -26,6 +26,7 @@ from .interactions.sphere import SphereInteraction
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
+from .progress import compile_notice
 from .state import DEEP_OVERLAP_FRACTION, STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -113,16 +114,17 @@ class Scene:
         self.force = np.zeros((n, 3))
         self.torque = np.zeros((n, 3))
         self.accum = np.zeros(1)  # accum[0]: work dissipated so far
-        self.state = self._make_state()
-        self.kernels = build_module(self.plan, TEMPLATES)
         self._synced = None  # digest of the user's arrays when they last matched the kernels' (see push)
         self.stepping = False  # inside a Simulation.run: the arrays are the kernels' (push has nothing to do)
         self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
-        self.validate()
-        self.push()
-        if self.plan.sorted:
-            self.kernels.sort_particles(self.state)
-        self.pull()
+        with compile_notice():  # a line on stderr when the kernels are not cached yet
+            self.state = self._make_state()
+            self.kernels = build_module(self.plan, TEMPLATES)
+            self.validate()
+            self.push()
+            if self.plan.sorted:
+                self.kernels.sort_particles(self.state)
+            self.pull()
 
     def _sorting(self, sort_every):
         plan, n = self.plan, len(self.particles)
@@ -337,6 +339,14 @@ class Scene:
     def close_pairs(self, reach):
         """(P, 2) particle indices of the pairs closer than ``reach`` (minimum image), via a cell list."""
         p = self.particles
+        if not self.plan.lists and len(p) <= ALL_PAIRS_MAX:  # all pairs directly: no cell list (nor its
+            # compilation: 6 s once per install) for scenes without lists. Scenes with lists keep the
+            # cell list: their kernels crash when loaded from the cache in a process that has not
+            # called neighbours.rebuild from Python yet (a one-sphere periodic scene shows it)
+            i, j = np.triu_indices(len(p), k=1)
+            d = self.separations(np.column_stack([i, j]))
+            close = np.einsum("ij,ij->i", d, d) < reach * reach
+            return np.column_stack([i[close], j[close]]).astype(np.int64)
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
         neighbours.rebuild(pl, p.position, index, self.arrays["box"], self.arrays["periodic"])

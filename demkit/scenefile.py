@@ -738,15 +738,15 @@ class LoadedScene:
 
     def run(self, progress=None, out_dir=None):
         """Run to ``duration`` (from a checkpoint when there is one) and write every output the file
-        asks for; returns the Trajectory (from where this run started). ``progress`` is passed on to
-        the progress display where available."""
+        asks for; returns the Trajectory (from where this run started). ``progress``: as for
+        Simulation.run (None: a bar on a terminal for runs longer than a moment)."""
         sim = self.simulation(out_dir)
         end = round(self.duration / self.integrator.dt)
         if sim.step >= end:  # a finished run's checkpoint: nothing left to do
             sim.close()
             return sim.trajectory
         try:
-            trajectory = sim.run(until=self.duration, record_every=self.record_every)
+            trajectory = sim.run(until=self.duration, record_every=self.record_every, progress=progress)
         finally:
             sim.close()
         self.write_outputs(trajectory, out_dir, sim)

@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from . import checks, guards
+from .progress import Progress, check_progress, compile_notice
 from .scene import energy_dict
 from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
 
@@ -169,8 +170,9 @@ class Simulation:
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
         self._rate = None  # measured steps per second of wall time (sizes the compiled chunks)
         self.forces_valid = False  # do the scene's force arrays hold the forces of its current state?
-        guards.before_stepping(scene, integrator)
-        integrator.check(scene)
+        with compile_notice():  # the guards may compile demkit's cell lists (once per install)
+            guards.before_stepping(scene, integrator)
+            integrator.check(scene)
         self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
 
     @property
@@ -188,20 +190,32 @@ class Simulation:
             raise ValueError(f"{what} = {interval:.6g} is shorter than the time step dt = {dt:.6g}")
         return steps
 
-    def run(self, duration=None, record_every=None, until=None):
+    def run(self, duration=None, record_every=None, until=None, progress=None):
         """Advance by ``duration`` (rounded to whole steps), or up to the time ``until``, and return
         the recorded Trajectory.
 
         record_every : time between recorded frames (rounded to whole steps); None records only the
             start and the end. The first frame is the state at the start of this run.
+        progress : None (default): a progress bar on stderr (simulated time, steps per second,
+            time left) when stderr is a terminal and the run looks like taking more than about 2 s
+            of wall time; True: a bar always; False: never (see :mod:`demkit.progress`). The bar
+            is updated between compiled chunks (about every 0.2 s) and closed however the run ends.
+        When the scene's kernels must first be compiled (not in the on-disk cache), a line on stderr
+        says so, and another how long it took.
 
         Ctrl-C (SIGINT) ends the run at the next chunk boundary (within about 0.2 s): the frames
         recorded so far and the state reached are kept in ``trajectory`` (last frame: the state at
         the interruption), ``time``/``step`` say where it stopped, writers are closed, a
         checkpoint is written when there is one, and KeyboardInterrupt is raised again.
         """
+        check_progress(progress)
         nsteps = self._run_length(duration, until)
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
+        with compile_notice() as notice:  # ended after the first chunk: the compilation is done then
+            return self._advance(nsteps, stride, progress, notice)
+
+    def _advance(self, nsteps, stride, progress, notice):
+        """The body of :meth:`run`."""
         nframes = nsteps // stride + 1
         extra_final = nsteps % stride != 0
         self._check_record_size(nframes + extra_final)
@@ -232,7 +246,10 @@ class Simulation:
         clock = time.perf_counter()
         done = 0
         chunk_steps = 16 if self._rate is None else max(1, int(self._rate * CHUNK_SECONDS))
-        with _CatchInterrupt() as interrupt, _Stepping(scene):
+        dt = self.integrator.dt
+        bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
+                       start=self.time, span=self.time + nsteps * dt)
+        with _CatchInterrupt() as interrupt, _Stepping(scene), bar:
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
@@ -248,6 +265,8 @@ class Simulation:
                 done += chunk
                 self.step = start_step + done
                 chunk_steps = self._next_chunk(chunk, time.perf_counter() - began, chunk_steps)
+                notice.end()
+                bar.update(done)
                 for w, ws in zip(self.writers, writer_steps):
                     if self.step % ws == 0:
                         w.write(self)

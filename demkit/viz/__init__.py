@@ -110,20 +110,24 @@ def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size
 
 def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None, window_size=(800, 600),
             background="white", arrows=True, view="auto", label=True, frame="auto", bounds=None,
-            zoom=1.0, color_by=None, color_label=None, cmap=None, clim=None, subset=None):
+            zoom=1.0, color_by=None, color_label=None, cmap=None, clim=None, subset=None, progress=None):
     """Render the frames of ``source`` to an animation, ``path`` ending in .gif or .mp4.
 
     max_frames : at most this many frames, evenly chosen from those in ``time_range``
         (a (start, stop) pair of simulation times, either may be None).
     fps : frames per second of the animation.
+    progress : a progress bar over the frames on stderr: None (default) when stderr is a terminal
+        and rendering looks like taking more than about 2 s, True always, False never.
     {DRAWING}
     The camera and the colour range stay fixed for the whole animation (framing the last frame's
     cluster for frame='cluster'). Returns the path. Raises ValueError for bad arguments and
     RenderingUnavailable if nothing can render here.
     """
+    from ..progress import Progress, check_progress
     from .movie import MovieWriter
     from .render import FrameDrawer, load
 
+    check_progress(progress)
     movie = MovieWriter(path, fps)
     if int(max_frames) < 1:
         raise ValueError(f"max_frames must be at least 1, got {max_frames}")
@@ -136,10 +140,14 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None
                  color_by=color_by, color_label=color_label, cmap=cmap, clim=clim, subset=subset)
     ensure_rendering()
     drawer = FrameDrawer(plan)
+    bar = Progress(len(index), progress, desc="rendering frames", unit="frame")
     try:
-        for k in index:
+        bar.update(0)
+        for done, k in enumerate(index, 1):
             movie.add(drawer.draw(k))
+            bar.update(done)
     finally:
+        bar.close()
         drawer.close()
     return movie.close()
 

@@ -23,7 +23,7 @@ def main(argv=None):
     scene = dk.two_magnets.TwoMagnets(b_over_R=args.b_over_r).scene()
     e0, l0 = scene.energy(), scene.angular_momentum()
     print(f"two magnets: b/R = {args.b_over_r}, v = {V}, R = {R}; U/K at the start = "
-          f"{e0['magnetic'] / e0['kinetic']:.1e}")
+          f"{e0['magnetic'] / e0['kinetic']:.1e}", flush=True)
     predicted = V * args.b_over_r * R / (14 / 5 * R**2)
     duration = 32000 + 6 * 2 * np.pi / predicted
     start = time.perf_counter()

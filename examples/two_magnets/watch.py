@@ -31,6 +31,9 @@ def main(argv=None):
     args = parser.parse_args([] if argv is None else argv)
     args.out.mkdir(parents=True, exist_ok=True)
 
+    frames = int(args.duration // args.every) + 1
+    print(f"simulating t = 0 .. {args.duration:g} with a VTK frame every {args.every:g} ({frames} frames, "
+          f"about 1 s)...", flush=True)
     start = time.perf_counter()
     writer = dk.VTKWriter(args.out / "vtk", every=args.every, overwrite=True)
     scene = dk.two_magnets.TwoMagnets(b_over_R=4.0).scene()  # the paper's collision at b = 4R
@@ -48,6 +51,8 @@ def main(argv=None):
     # the animation: from shortly before the contact to the end (the approach, the hit, the spin)
     begin = max(0.0, t_touch - 8000.0) if t_touch is not None else 0.0
     movie = args.out / f"collision.{args.movie}"
+    print(f"rendering {args.frames} frames of t = {begin:g} .. {args.duration:g} to {movie.name} off-screen "
+          f"(about {max(1, round(args.frames / 15))} s; a progress bar on a terminal)...", flush=True)
     start = time.perf_counter()
     try:
         dk.viz.animate(writer.pvd, movie, time_range=(begin, None), max_frames=args.frames,

@@ -1,0 +1,271 @@
+"""What long steps tell the user while they work: progress bars (tqdm) and the compile notice.
+
+Progress bars (:class:`Progress`) are drawn on stderr by tqdm for simulation runs
+(``Simulation.run(progress=...)``) and for rendering animations (``demkit.viz.animate``):
+
+* ``progress=None`` (the default): a bar only when stderr is a terminal and the work is going to
+  take more than about :data:`AUTO_SECONDS` of wall time; nothing in logs, pipes or tests, and
+  nothing for short steps. ``DEMKIT_QUIET=1`` in the environment turns these automatic bars off.
+* ``progress=True``: a bar always (also when stderr is redirected); ``False``: never.
+
+The compile notice (:class:`compile_notice`): when demkit's compiled kernels are not in the on-disk
+cache and must be compiled (the first run of a scene on a machine, 5-30 s), one line on stderr
+says so (once the compilation has taken :data:`NOTICE_AFTER` = 1 s), and one how long it took after;
+nothing is printed when the cache is warm. Scenes announce it while being built, simulations
+while being made and during the first chunk of a run.
+It is printed also when stderr is not a terminal (it explains a slow start in a log);
+``DEMKIT_QUIET=1`` turns it off. A cache miss is known exactly, not guessed from timings: numba
+announces a real compilation with its ``numba:compile`` event (loading from the cache does not).
+"""
+from __future__ import annotations
+
+import os
+import sys
+import threading
+import time
+
+#: automatic bars appear only for work estimated to take longer than this (wall-clock seconds)
+AUTO_SECONDS = 2.0
+#: ... judged after this much wall time of the work (and never before its second update)
+AUTO_AFTER = 0.5
+
+
+def quiet():
+    """True when ``DEMKIT_QUIET`` is set to anything but '' or '0'."""
+    return os.environ.get("DEMKIT_QUIET", "") not in ("", "0")
+
+
+def check_progress(progress):
+    """``progress`` as given (None, True or False); TypeError for anything else."""
+    if progress is None or isinstance(progress, bool):
+        return progress
+    raise TypeError(f"progress must be None (a bar on a terminal for long work), True or False, got {progress!r}")
+
+
+class Progress:
+    """A tqdm bar over ``total`` units of work, made only when wanted (see the module docstring).
+
+    Call :meth:`update` with the units done so far (absolute, not increments) and :meth:`close`
+    when the work ends (however it ends). A forced bar is made at the first update; with
+    ``progress=None`` it is made at the first update
+    after :data:`AUTO_AFTER` seconds when the work then looks like it will take longer than
+    :data:`AUTO_SECONDS` in all; before that, and when no bar is wanted, an update costs one clock
+    reading. ``scale``/``span``: the postfix shows ``label = start + done * scale`` / ``span``
+    (simulated time for runs); None: no postfix. ``tqdm_options`` go to tqdm (unit, unit_scale, ...).
+    """
+
+    def __init__(self, total, progress=None, desc="demkit", scale=None, start=0.0, span=None, label="t",
+                 **tqdm_options):
+        progress = check_progress(progress)
+        self.total = total
+        self.forced = progress is True
+        self.auto = progress is None and not quiet() and _is_terminal(sys.stderr)
+        self.bar = None
+        self.desc, self.options = desc, tqdm_options
+        self.scale, self.start, self.span, self.label = scale, start, span, label
+        self._first = None  # (clock, done) at the first update: the rate is judged from there on
+
+    @property
+    def active(self):
+        """Is a bar shown or still possible?"""
+        return self.bar is not None or self.auto or (self.forced and self.total > 0)
+
+    def update(self, done):
+        """``done`` units of ``total`` are done."""
+        if self.bar is None and self.forced:
+            self._open(0)  # at the first update, not before: after any compile notice
+        elif self.bar is None:
+            if not self.auto:
+                return
+            now = time.perf_counter()
+            if self._first is None:
+                self._first = (now, done)
+                return
+            began, done0 = self._first
+            elapsed = now - began
+            if elapsed < AUTO_AFTER or done <= done0:
+                return
+            remaining = (self.total - done) * elapsed / (done - done0)
+            self.auto = False  # judged once
+            if elapsed + remaining < AUTO_SECONDS or done >= self.total:
+                return
+            self._open(done)  # tqdm's rate and time left count from here
+        if self.scale is not None:
+            self.bar.set_postfix_str(f"{self.label} = {self.start + done * self.scale:.6g}/{self.span:.6g}",
+                                     refresh=False)
+        self.bar.update(done - self.bar.n)
+
+    def _open(self, initial):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=self.total, initial=initial, desc=self.desc, file=sys.stderr, leave=True,
+                        dynamic_ncols=True, mininterval=0.2, **self.options)
+
+    def close(self):
+        """End the bar (idempotent); it stays on screen where it stopped."""
+        self.auto = False
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def _is_terminal(stream):
+    try:
+        return stream is not None and stream.isatty()
+    except (AttributeError, ValueError):  # closed or replaced by an object without isatty
+        return False
+
+
+# ---- the compile notice ------------------------------------------------------------------------
+#: what the notice says the first compile takes (measured on this project's 2-core machines: 4-5 s
+#: for the two-magnet scene and one integrator, plus 6 s once per install for the cell lists)
+COMPILE_ESTIMATE = "usually 5-30 s"
+#: a compilation is announced once it has taken this long (wall-clock seconds): shorter ones pass
+#: silently (one scene's small diagnostics kernels compile in a fraction of a second)
+NOTICE_AFTER = 1.0
+
+
+class _Notice:
+    """State of the compile notice. numba compiles under its global lock, so one thread compiles at
+    a time; ``lock`` orders the listener, the timer that announces and the end of the scopes."""
+
+    def __init__(self):
+        self.lock = threading.RLock()
+        self.listening = False
+        self.reset()
+
+    def reset(self):
+        self.scopes = 0          # open compile_notice scopes
+        self.depth = 0           # nesting of numba's compile events (callees compile inside callers)
+        self.top_start = None    # perf_counter when the running top-level compilation began
+        self.compiling = 0.0     # seconds of top-level compilation in the open scopes
+        self.announced = False   # was the first line printed?
+        self.cached = True       # are these kernels cached on disk (False: compiled in memory)
+        self.timer = None
+
+
+_NOTICE = _Notice()
+
+
+def _is_demkit(dispatcher):
+    module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+    return module == "demkit" or module.startswith(("demkit.", "demkit_kernel_"))
+
+
+def _cached(dispatcher):
+    """False for kernels compiled in memory (pair functions defined in __main__ or a notebook)."""
+    return dispatcher.py_func.__globals__.get("DEMKIT_IN_MEMORY") is not True
+
+
+def _announce():
+    n = _NOTICE
+    with n.lock:
+        n.timer = None
+        if n.announced or n.top_start is None or not n.scopes:  # finished (or left) in time
+            return
+        n.announced = True
+        when = f"first run only, {COMPILE_ESTIMATE}" if n.cached else \
+            "every run: pair functions defined in __main__ or a notebook are not cached"
+    _say(f"demkit: compiling kernels for this scene ({when})...")
+
+
+def _listener():
+    from numba.core import event
+
+    class CompileListener(event.Listener):
+        """numba's compile events: time demkit's top-level compilations inside a notice scope and
+        announce them once they take longer than NOTICE_AFTER."""
+
+        def on_start(self, ev):
+            n = _NOTICE
+            with n.lock:
+                n.depth += 1
+                dispatcher = ev.data.get("dispatcher")
+                if n.depth != 1 or not n.scopes or not _is_demkit(dispatcher):
+                    return
+                n.top_start = time.perf_counter()
+                n.cached = n.cached and _cached(dispatcher)
+                if n.announced or n.timer is not None:
+                    return
+                if NOTICE_AFTER > 0:
+                    n.timer = threading.Timer(max(0.0, NOTICE_AFTER - n.compiling), _announce)
+                    n.timer.daemon = True
+                    n.timer.start()
+                    return
+            _announce()
+
+        def on_end(self, ev):
+            n = _NOTICE
+            with n.lock:
+                n.depth -= 1
+                if n.depth == 0 and n.top_start is not None:
+                    n.compiling += time.perf_counter() - n.top_start
+                    n.top_start = None
+                    if n.timer is not None:
+                        n.timer.cancel()
+                        n.timer = None
+
+    return CompileListener()
+
+
+def _say(text):
+    stream = sys.stderr
+    if stream is not None:
+        try:
+            print(text, file=stream, flush=True)
+        except (OSError, ValueError):
+            pass
+
+
+class compile_notice:
+    """Scope in which compiling demkit's kernels is announced on stderr (see the module docstring):
+    a compilation that takes more than :data:`NOTICE_AFTER` seconds prints a line; leaving the
+    outermost scope (or :meth:`end`) then prints how long compiling took. Re-entrant; free when
+    nothing compiles (numba calls the listener, registered once, only for a real compilation)."""
+
+    def __init__(self):
+        self._open = False
+
+    def __enter__(self):
+        if quiet():
+            return self
+        n = _NOTICE
+        with n.lock:
+            if not n.listening:
+                from numba.core import event
+
+                event.register("numba:compile", _listener())
+                n.listening = True
+            n.scopes += 1
+        self._open = True
+        return self
+
+    def end(self):
+        """Leave the scope now (idempotent)."""
+        if not self._open:
+            return
+        self._open = False
+        n = _NOTICE
+        with n.lock:
+            n.scopes -= 1
+            if n.scopes:
+                return
+            if n.timer is not None:
+                n.timer.cancel()
+            announced, seconds, cached = n.announced, n.compiling, n.cached
+            depth = n.depth
+            n.reset()
+            n.depth = depth
+        if announced:
+            _say(f"demkit: kernels compiled in {seconds:.1f} s" + (" (cached for the next runs)" if cached else ""))
+
+    def __exit__(self, *exc):
+        self.end()
+        return False

@@ -1,0 +1,225 @@
+"""Progress bars (tqdm) for runs and animations, the compile notice, and `demkit render`."""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+
+import numpy as np
+import pytest
+from conftest import two_magnets
+from tqdm import tqdm
+
+import demkit as dk
+from demkit import progress as prog
+
+
+@pytest.fixture
+def warm():
+    """A simulation of the paper's collision whose kernels are compiled (no compile notice later)."""
+    sim = dk.Simulation(two_magnets(), dk.EulerCromer(dt=0.01))
+    sim.run(1.0, progress=False)
+    return sim
+
+
+def final_line(err):
+    """The bar as last drawn: tqdm redraws in place with carriage returns."""
+    return err.replace("\r", "\n").strip().splitlines()[-1]
+
+
+def test_a_forced_bar_reaches_the_total_with_the_simulated_time_and_closes(warm, capsys):
+    capsys.readouterr()
+    warm.run(2000.0, record_every=10.0, progress=True)
+    err = capsys.readouterr().err
+    last = final_line(err)
+    assert "100%" in last and "200k/200k" in last and "t = 2001/2001" in last and "step/s" in last
+    assert err.endswith("\n") and not tqdm._instances  # closed, left on screen
+    warm.run(until=3001.0, progress=True)  # continuing: simulated time counts from where it is
+    assert "t = 3001/3001" in final_line(capsys.readouterr().err)
+
+
+def test_no_bar_without_a_terminal_or_when_switched_off(warm, capsys, monkeypatch):
+    capsys.readouterr()
+    warm.run(3000.0, progress=None)  # stderr is captured: not a terminal
+    warm.run(3000.0, progress=False)
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(prog, "_is_terminal", lambda stream: True)
+    monkeypatch.setenv("DEMKIT_QUIET", "1")
+    warm.run(3000.0)
+    assert capsys.readouterr().err == ""
+    with pytest.raises(TypeError, match="progress must be None"):
+        warm.run(10.0, progress="yes")
+
+
+class FakeClock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+
+@pytest.mark.parametrize("seconds_per_unit, shown", [(0.1, True), (0.002, False)])
+def test_automatic_bars_only_for_long_work_on_a_terminal(monkeypatch, capsys, seconds_per_unit, shown):
+    clock = FakeClock()
+    monkeypatch.setattr(prog.time, "perf_counter", clock)
+    monkeypatch.setattr(prog, "_is_terminal", lambda stream: True)
+    monkeypatch.delenv("DEMKIT_QUIET", raising=False)
+    with prog.Progress(100, None, desc="work") as bar:
+        for done in range(0, 101, 10):
+            bar.update(done)
+            clock.now += 10 * seconds_per_unit
+    err = capsys.readouterr().err
+    # 100 units at 0.1 s: 10 s in all, shown from the first update after 0.5 s; at 2 ms: 0.2 s, never
+    assert ("100/100" in final_line(err)) if shown else err == ""
+
+
+def test_the_bar_is_closed_when_a_run_stops_with_an_error(capsys):
+    p = dk.Particles([[0.0, 0, 0], [3.0, 0, 0]], velocity=[[2.0, 0, 0], [-2.0, 0, 0]], radius=1.0)
+    sim = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(0.5)]), dk.EulerCromer(1e-3))  # tunnels at t ~ 0.5
+    with pytest.raises(dk.SimulationError, match="overlap by more than"):
+        sim.run(5.0, progress=True)
+    err = capsys.readouterr().err
+    assert not tqdm._instances and err.endswith("\n")
+    assert "100%" not in final_line(err)  # stopped where the run stopped
+
+
+def test_the_bar_is_closed_on_ctrl_c_and_the_run_is_kept(warm, capsys):
+    capsys.readouterr()
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt, match="interrupted at step"):
+            warm.run(1e9, progress=True)  # ~10^11 steps: ends only by the interrupt
+    finally:
+        timer.cancel()
+    assert not tqdm._instances and capsys.readouterr().err.endswith("\n")
+    assert warm.trajectory.time[-1] == pytest.approx(warm.time)
+
+
+PAIR = '''
+import numba
+import demkit as dk
+
+@numba.njit
+def soft_force(i, j, dx, dy, dz, r2, strength):
+    s = -strength / (r2 * r2)
+    return s * dx, s * dy, s * dz
+
+@numba.njit
+def soft_energy(i, j, dx, dy, dz, r2, strength):
+    return strength / (2.0 * r2)
+
+class Soft(dk.PairInteraction):
+    parameters = ("strength",)
+    force_function = soft_force
+    energy_function = soft_energy
+    energy_kind = "soft"
+
+    def __init__(self, strength):
+        self.strength = strength
+'''
+
+
+def plugin(folder, name):
+    """The namespace of PAIR run as a module that cannot be imported: compiled in memory, every time."""
+    path = folder / f"{name}.py"
+    path.write_text(PAIR)
+    ns = {"__name__": name}
+    exec(compile(PAIR, str(path), "exec"), ns)
+    return ns
+
+
+def test_compiling_is_announced_before_and_timed_after_and_a_warm_scene_is_silent(monkeypatch, capsys, tmp_path):
+    monkeypatch.setattr(prog, "NOTICE_AFTER", 0.0)
+    monkeypatch.delenv("DEMKIT_QUIET", raising=False)
+    ns = plugin(tmp_path, "progress_test_plugin")
+    p = dk.Particles(position=[[0, 0, 0], [3.0, 0.1, 0]], radius=1.0)
+    capsys.readouterr()
+    scene = dk.Scene(p, [ns["Soft"](strength=1.0)])
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2, err
+    assert err[0].startswith("demkit: compiling kernels for this scene (every run:")
+    assert err[1].startswith("demkit: kernels compiled in ") and err[1].endswith(" s")
+    assert scene.energy()["soft"] == pytest.approx(1.0 / (2 * 9.01))  # compiled outside a notice: silent
+    assert capsys.readouterr().err == ""
+    dk.Scene(dk.Particles(position=[[0, 0, 0], [3.0, 0.1, 0]], radius=1.0), [ns["Soft"](strength=2.0)])
+    assert capsys.readouterr().err == ""  # the same kernels again: nothing compiles, nothing is said
+    monkeypatch.setenv("DEMKIT_QUIET", "1")
+    ns2 = plugin(tmp_path, "progress_test_plugin_2")
+    dk.Scene(dk.Particles(position=[[0, 0, 0], [3.0, 0.1, 0]], radius=1.0), [ns2["Soft"](strength=1.0)])
+    assert capsys.readouterr().err == ""
+
+
+def test_small_scenes_find_close_pairs_like_the_cell_list(rng):
+    box = dk.Box([10.0, 10.0, 10.0], periodic=[True, True, False])
+    for n, b in ((40, box), (40, None), (3, None)):
+        p = dk.Particles(position=rng.uniform(0.5, 9.5, (n, 3)), radius=0.1)
+        scene = dk.Scene(p, [dk.KelvinVoigt(1.0)], box=b)
+        small = {tuple(sorted(pair)) for pair in scene.close_pairs(3.0).tolist()}
+        d = p.position[:, None] - p.position[None]
+        if b is not None:
+            d = b.minimum_image(d)
+        r = np.linalg.norm(d, axis=2)
+        truth = {(i, j) for i in range(n) for j in range(i + 1, n) if r[i, j] < 3.0}
+        assert small == truth and (len(truth) > 0 or n == 3)
+
+
+def render_child(*args, timeout=300):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    return subprocess.run([sys.executable, "-m", "demkit", "render", *map(str, args)], capture_output=True,
+                          text=True, env=env, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def series(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("render")
+    writer = dk.VTKWriter(folder / "series", every=25.0)
+    sim = dk.Simulation(two_magnets(x0=25.0), dk.EulerCromer(dt=0.01), writers=[writer])
+    sim.run(400.0, progress=False)
+    sim.close()
+    return writer.pvd
+
+
+def test_demkit_render_writes_an_animation_and_a_picture(series, tmp_path):
+    from PIL import Image, ImageSequence
+
+    done = render_child(series, "-o", tmp_path / "run.gif", "--max-frames", "5", "--size", "160x120", "--fps", "5")
+    if done.returncode == 1 and "render" in done.stderr:
+        pytest.skip(f"no off-screen rendering here: {done.stderr.strip()}")
+    assert done.returncode == 0, done.stderr
+    with Image.open(tmp_path / "run.gif") as gif:
+        assert sum(1 for _ in ImageSequence.Iterator(gif)) == 5 and gif.size == (160, 120)
+    done = render_child(series, "-o", tmp_path / "last.png", "--time", "100", "--size", "200x150")
+    assert done.returncode == 0, done.stderr
+    with Image.open(tmp_path / "last.png") as png:
+        assert png.size == (200, 150)
+
+
+def test_animate_shows_a_bar_over_the_frames_when_asked(series, tmp_path):
+    code = textwrap.dedent(f"""
+        import demkit as dk
+        dk.viz.animate({str(series)!r}, {str(tmp_path / 'bar.gif')!r}, max_frames=4, window_size=(120, 90),
+                       progress=True)
+    """)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    if done.returncode != 0 and "RenderingUnavailable" in done.stderr:
+        pytest.skip("no off-screen rendering here")
+    assert done.returncode == 0, done.stderr
+    last = final_line(done.stderr)
+    assert last.startswith("rendering frames") and "4/4" in last
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-o", "run.avi"], "the suffix chooses what is written"),
+    (["-o", "run.gif", "--time", "3"], "--time chooses the frame of a picture"),
+    (["-o", "run.gif", "--size", "big"], "--size must be WIDTHxHEIGHT"),
+])
+def test_demkit_render_refuses_bad_options_in_one_line(series, tmp_path, args, message):
+    args = [str(tmp_path / a) if a.startswith("run.") else a for a in args]
+    done = render_child(series, *args)
+    assert done.returncode == 2 and message in done.stderr and "Traceback" not in done.stderr
+    done = render_child(tmp_path / "missing.pvd", "-o", tmp_path / "x.gif")
+    assert done.returncode == 2 and "does not exist" in done.stderr
