@@ -794,6 +794,11 @@ def build_module(plan, templates):
         module = _load_from_file(name, source)
     else:
         module = _load_in_memory(name, source, plan)
+    # Start numba's threading layer before any kernel runs. Kernels loaded from the disk cache call
+    # the threaded list builder (neighbours.fill_threads) through code that expects the layer to
+    # be running; nothing else starts it when no threaded function was called from Python first
+    # (a one-sphere periodic scene segfaulted on its second run). get_num_threads() launches it.
+    numba.get_num_threads()
     module.source = source
     _MODULES[key] = module
     return module

@@ -1,0 +1,29 @@
+"""Kernels loaded from the disk cache in a fresh process run (they compiled in another process)."""
+import os
+import subprocess
+import sys
+import textwrap
+
+SCRIPT = textwrap.dedent("""
+    import numpy as np
+    import demkit as dk
+    # one sphere in a periodic box: no neighbour-list call from Python before the cached kernels run
+    p = dk.Particles(position=[[1.0, 2.0, 3.0]], velocity=[[0.5, 0.0, 0.0]], radius=0.1)
+    scene = dk.Scene(p, [dk.KelvinVoigt(1.0)], box=dk.Box([10, 10, 10], periodic=[True, True, False]))
+    traj = dk.Simulation(scene, dk.VelocityVerlet(dt=0.01)).run(duration=30.0, record_every=10.0)
+    print(repr(float(traj.unwrapped()[-1, 0, 0])))
+""")
+
+
+def test_a_scene_whose_kernels_load_from_the_cache_runs_in_a_new_process(tmp_path):
+    """The second process loads every kernel from the cache: it segfaulted (exit -11) when numba's
+    threading layer had not been started, which the threaded list builder in the cached code needs."""
+    env = dict(os.environ, DEMKIT_CACHE_DIR=str(tmp_path / "cache"), DEMKIT_QUIET="1")
+    outputs = []
+    for _ in range(2):
+        run = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=300)
+        assert run.returncode == 0, run.stderr[-2000:]
+        outputs.append(float(run.stdout.strip().splitlines()[-1]))
+    # free flight across the periodic x boundary: x = 1 + 0.5 t, unwrapped
+    assert outputs[0] == outputs[1]
+    assert abs(outputs[0] - 16.0) < 1e-9
