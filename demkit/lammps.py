@@ -430,8 +430,9 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
 
 
 def read_dump(path):
-    """{step: (N, 13) array sorted by id} from the dump of an exported deck (columns of
-    :data:`DUMP_COLUMNS`: id, unwrapped x (3), v (3), omega (3), moment in demkit's units (3))."""
+    """{step: (N, columns) array sorted by id} from a LAMMPS custom dump with id in the first column,
+    e.g. the dump of an exported deck (columns of :data:`DUMP_COLUMNS`: id, unwrapped x (3), v (3),
+    omega (3), moment in demkit's units (3))."""
     frames, lines = {}, Path(path).read_text().splitlines()
     k = 0
     while k < len(lines):

@@ -340,9 +340,8 @@ class Scene:
         """(P, 2) particle indices of the pairs closer than ``reach`` (minimum image), via a cell list."""
         p = self.particles
         if not self.plan.lists and len(p) <= ALL_PAIRS_MAX:  # all pairs directly: no cell list (nor its
-            # compilation: 6 s once per install) for scenes without lists. Scenes with lists keep the
-            # cell list: their kernels crash when loaded from the cache in a process that has not
-            # called neighbours.rebuild from Python yet (a one-sphere periodic scene shows it)
+            # compilation: 6 s once per install) for scenes without lists; scenes with lists compile
+            # the cell list for their kernels anyway
             i, j = np.triu_indices(len(p), k=1)
             d = self.separations(np.column_stack([i, j]))
             close = np.einsum("ij,ij->i", d, d) < reach * reach

@@ -34,26 +34,15 @@ import numpy as np
 import pytest
 
 import demkit as dk
+from demkit.lammps import read_dump
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+# frames of benchmarks/lammps/in.reference's dump (id xu yu zu vx vy vz fx fy fz tqx tqy tqz mux muy muz
+# omegax omegay omegaz), read with the exporter's reader
 pytestmark = pytest.mark.skipif(shutil.which("lmp") is None,
                                 reason="LAMMPS (lmp, Debian package 'lammps') is not installed")
-
-
-def read_dump(path):
-    """{step: (N, 19) array sorted by id} from a LAMMPS custom dump of benchmarks/lammps/in.reference
-    (id xu yu zu vx vy vz fx fy fz tqx tqy tqz mux muy muz omegax omegay omegaz)."""
-    frames, lines = {}, Path(path).read_text().splitlines()
-    k = 0
-    while k < len(lines):
-        step = int(lines[k + 1])
-        n = int(lines[k + 3])
-        rows = np.array(" ".join(lines[k + 9:k + 9 + n]).split(), dtype=float).reshape(n, -1)
-        frames[step] = rows[np.argsort(rows[:, 0])]
-        k += 9 + n
-    return frames
 
 
 def run_lammps(folder, data, model, nsteps, dump, dumpevery, update="dipole"):
