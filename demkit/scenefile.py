@@ -192,6 +192,16 @@ SCHEMA = Table({
         "periodic": Key("flags", False, "periodic axes: true/false or three of them")},
         "the simulation box (none: open space)"),
     "interactions": INTERACTIONS,
+    "scene": Table({
+        "skin": _n("extra reach of the neighbour lists (default 0.3 mean diameters); lists are rebuilt when a "
+                   "sphere has moved skin/2", check="positive", dim="length"),
+        "parallel": Key("bool_or_auto", "auto", 'threads for the pair loops: "auto" (from 2000 spheres), true or '
+                                                'false'),
+        "sort_every": Key("integer", doc="re-order the spheres by cell every this many steps, 0: never (default: "
+                                         "every 1000 steps from 1000 spheres with neighbour lists)",
+                          check="non_negative")},
+        "how the compiled loops work (the keywords skin, parallel, sort_every of dk.Scene); none of it changes "
+        "the physics"),
     "integrator": Table({
         "method": Key("string", "VelocityVerlet", "EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep "
                                                   "(or a name as `demkit accuracy --methods` takes)"),
@@ -410,10 +420,12 @@ def _convert(schema, data, scale):
 # ---- building -------------------------------------------------------------------------------------
 class _At:
     """Turn a ValueError or TypeError of a constructor into a SceneFileError at ``path``; with
-    ``keys`` (the table's keys), at the first of them the message names (as a whole word)."""
+    ``keys`` (the table's keys), at the first of them the message names (as a whole word), in the
+    table ``keyed`` (default: ``path``)."""
 
-    def __init__(self, src, *path, keys=()):
+    def __init__(self, src, *path, keys=(), keyed=None):
         self.src, self.path, self.keys = src, path, keys
+        self.keyed = path if keyed is None else keyed  # where the keys are (default: in ``path``)
 
     def __enter__(self):
         return self
@@ -424,7 +436,7 @@ class _At:
             message = str(err)
             named = [(m.start(), key) for key in self.keys
                      for m in [re.search(rf"(?<![\w.]){re.escape(key)}(?!\w)", message)] if m]
-            path = self.path + ((min(named)[1],) if named else ())
+            path = self.keyed + (min(named)[1],) if named else self.path
             raise self.src.error(path, message) from None
         return False
 
@@ -663,8 +675,12 @@ def _build(data, src, base):
     particles, made = _particles(data, box, src, base, scale)
     box = made if made is not None else box
     interactions = _interactions(data, src)
-    with _At(src, "particles"):
-        scene = Scene(particles, interactions, box=box)
+    options = data["scene"] or {"skin": None, "parallel": "auto", "sort_every": None}
+    parallel = None if options["parallel"] == "auto" else options["parallel"]
+    given = [k for k in ("skin", "sort_every") if options[k] is not None] + ["parallel"] * (parallel is not None)
+    with _At(src, "particles", keys=given, keyed=("scene",)):
+        scene = Scene(particles, interactions, box=box, skin=options["skin"], parallel=parallel,
+                      sort_every=options["sort_every"])
     integrator = _integrator(data, scene, src)
     run = data["run"]
     with _At(src, "integrator"):
@@ -794,7 +810,8 @@ def save_trajectory(trajectory, path):
 _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
           "size": "number or [x, y, z]", "cells": "integer or 3 integers", "flags": "bool or 3 bools",
           "numbers": "number or list (per sphere)", "vectors": "list of [x, y, z]", "bools": "list of bools",
-          "integers": "list of integers", "number_or_auto": 'number or "auto"', "direction": 'string or [x, y, z]'}
+          "integers": "list of integers", "number_or_auto": 'number or "auto"',
+          "bool_or_auto": 'bool or "auto"', "direction": 'string or [x, y, z]'}
 
 
 def reference():

@@ -11,7 +11,7 @@ Value kinds (``Key.kind``): ``number`` (int or float, finite), ``integer``, ``bo
 ``vector`` (three numbers), ``size`` (one number or three), ``flags`` (a bool or three bools),
 ``numbers`` (a number, or a list of them: one per sphere), ``vectors`` (a list of three-number
 lists), ``bools`` (a list of bools), ``integers`` (a list of integers), ``number_or_auto`` (a
-number or the string "auto"), ``direction`` (three numbers, or one of ``choices``). Constraints
+number or the string "auto"), ``bool_or_auto`` (true, false or "auto"), ``direction`` (three numbers, or one of ``choices``). Constraints
 (``Key.check``): ``positive``, ``non_negative``, ``at_least_one`` (integers).
 """
 from __future__ import annotations
@@ -115,7 +115,9 @@ def validate(schema, data, path=()):
     if unknown:
         key = unknown[0]
         near = difflib.get_close_matches(key, list(schema.keys), n=1, cutoff=0.6)
-        hint = f"; did you mean {near[0]!r}?" if near else f"; known keys: {', '.join(schema.keys)}"
+        home = [name for name, entry in schema.keys.items() if isinstance(entry, Table) and key in entry.keys]
+        hint = (f"; did you mean {near[0]!r}?" if near else
+                f"; it belongs in [{dotted(path + (home[0],))}]" if home else f"; known keys: {', '.join(schema.keys)}")
         raise SchemaError(path + (key,), f"unknown key{hint}")
     for group in schema.one_of:
         names, required = group
@@ -209,6 +211,10 @@ def value(key, raw, where):
         out = _number(raw, where)
     elif kind == "number_or_auto":
         out = raw if raw == "auto" else _number(raw, where, 'a number or "auto"')
+    elif kind == "bool_or_auto":
+        if raw != "auto" and not isinstance(raw, bool):
+            raise SchemaError(where, f'must be true, false or "auto", got {type_name(raw)} ({quote(raw)})')
+        out = raw
     elif kind == "integer":
         out = _integer(raw, where)
     elif kind == "bool":

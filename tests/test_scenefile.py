@@ -89,8 +89,8 @@ GAS = textwrap.dedent("""\
 """)
 
 
-def gas_in_python():
-    """The scene GAS describes, built with the Python API."""
+def gas_in_python(**options):
+    """The scene GAS describes, built with the Python API (``options``: dk.Scene's keywords)."""
     rng = np.random.default_rng(7)
     box = dk.Box([12.0, 12.0, 8.0], periodic=[True, True, False])
     x = dk.build.random_packing(80, 0.5, box, seed=rng)
@@ -101,7 +101,7 @@ def gas_in_python():
     law = dk.KelvinVoigt(2000.0, 5.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05))
     scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0), law, dk.Gravity([0, 0, -1.0]),
                          dk.Wall([0, 0, 0], [0, 0, 1]), dk.Wall([0, 0, 8.0], [0, 0, -1], velocity=[0.1, 0, 0])],
-                     box=box)
+                     box=box, **options)
     return scene
 
 
@@ -133,6 +133,39 @@ def test_an_nbody_file_with_box_friction_walls_is_the_python_scene_bit_for_bit()
     b = dk.Simulation(gas_in_python(), dk.VelocityVerlet(dt=0.002)).run(duration=0.4, record_every=0.02)
     same(a, b)
     assert np.abs(a.angular_velocity[-1]).max() > 0 and a.image is not None
+
+
+def test_the_scene_table_sets_skin_parallel_and_sorting_bit_for_bit():
+    loaded = dk.parse_scene(GAS + "[scene]\nskin = 0.45\nparallel = true\nsort_every = 7\n")
+    scene = loaded.scene
+    assert (scene.skin, scene.parallel, scene.sort_every) == (0.45, True, 7)
+    a = dk.Simulation(scene, loaded.integrator).run(duration=0.4, record_every=0.02)
+    python = gas_in_python(skin=0.45, parallel=True, sort_every=7)
+    b = dk.Simulation(python, dk.VelocityVerlet(dt=0.002)).run(duration=0.4, record_every=0.02)
+    same(a, b)
+    default = dk.parse_scene(GAS).scene  # no [scene]: dk.Scene's defaults
+    assert (default.skin, default.parallel, default.sort_every) == (0.3, False, 0)
+
+
+@pytest.mark.parametrize("table, message", [
+    ("skin = -0.1", "gas.toml:48: scene.skin: must be positive, got -0.1"),
+    ('skin = "0.3"', "gas.toml:48: scene.skin: must be a number, got a string ('0.3')"),
+    ('parallel = "yes"', 'gas.toml:48: scene.parallel: must be true, false or "auto", got a string'),
+    ("sort_every = 2.5", "gas.toml:48: scene.sort_every: must be a whole number, got a number (2.5)"),
+    ("sort_every = -1", "gas.toml:48: scene.sort_every: must be zero or positive, got -1"),
+    ("skni = 0.3", "gas.toml:48: scene.skni: unknown key; did you mean 'skin'?"),
+])
+def test_bad_scene_options_are_one_error_at_their_key(table, message):
+    with pytest.raises(dk.SceneFileError) as err:
+        dk.parse_scene(GAS + "[scene]\n" + table + "\n", source="gas.toml")
+    assert str(err.value).startswith(message), str(err.value)
+
+
+def test_scene_options_the_constructor_refuses_and_misplaced_ones():
+    with pytest.raises(dk.SceneFileError, match=r"^s.toml:\d+: scene.sort_every: sort_every needs neighbour lists"):
+        dk.parse_scene(SMALL + "[scene]\nsort_every = 10\n", source="s.toml")
+    with pytest.raises(dk.SceneFileError, match=r"^s.toml:1: skin: unknown key; it belongs in \[scene\]"):
+        dk.parse_scene("skin = 0.2\n" + SMALL, source="s.toml")
 
 
 def test_inline_particles_and_defaults():
