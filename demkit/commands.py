@@ -34,6 +34,12 @@ SPHERE_SECONDS = 5.0e-8
 EVALUATIONS = {"EulerCromer": 1, "VelocityVerlet": 1, "ForestRuth": 3, "RK4": 4}
 
 
+#: printed by `demkit run` before running a file without outputs (it still runs: a check of the
+#: scene, a timing, a stop on max_energy_growth are worth a run that saves nothing)
+NO_OUTPUTS = ('no outputs requested: this run saves nothing. Add to the file [outputs] trajectory = "traj.npz" '
+              '(and/or [outputs.vtk], docs/scene_files.md), or pass --set outputs.trajectory=traj.npz')
+
+
 def add_commands(commands):
     """Register ``run`` and ``info`` on an argparse sub-parser collection."""
     import argparse
@@ -85,6 +91,8 @@ def run_command(args):
     n = len(loaded.scene.particles)
     steps = round(loaded.duration / loaded.integrator.dt)
     print(f"{loaded.path}: {n} spheres, {loaded.integrator!r}, t = 0 .. {loaded.duration:g} ({steps:,} steps)")
+    if not any(_outputs(loaded, args.out)):
+        print(NO_OUTPUTS)
     clock = time.perf_counter()
     try:
         trajectory = loaded.run(progress=args.progress, out_dir=args.out)

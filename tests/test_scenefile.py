@@ -400,6 +400,17 @@ def test_demkit_run_the_examples(tmp_path):
     assert (tmp_path / "k" / "output" / "cluster_vtk" / "particles.pvd").is_file()
 
 
+def test_demkit_run_without_outputs_says_so_and_set_adds_one(tmp_path):
+    (tmp_path / "s.toml").write_text(SMALL)
+    done = demkit("run", "s.toml", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "no outputs requested: this run saves nothing" in done.stdout and "wrote" not in done.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+    done = demkit("run", "s.toml", "--set", "outputs.trajectory=traj.npz", cwd=tmp_path)
+    assert done.returncode == 0 and "no outputs" not in done.stdout and "wrote trajectory" in done.stdout
+    assert np.load(tmp_path / "traj.npz")["position"].shape == (6, 2, 3)
+
+
 def test_demkit_info_and_errors(tmp_path):
     done = demkit("info", str(COLLISION), cwd=ROOT)
     assert done.returncode == 0, done.stderr
