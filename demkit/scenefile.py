@@ -127,6 +127,37 @@ PARTICLES = Table({
                          "ids")),
               ("file", ("velocity", "dipole", "angular_velocity", "fixed", "ids"))))
 
+_PLACE = {  # where a magpylib source is and how it is turned; magpylib's SI units, whatever `units` says
+    "position": Key("vector", [0.0, 0.0, 0.0], "centre, m"),
+    "rotation_vector": Key("vector", doc="orientation: rotation axis times angle in radians "
+                                         "(scipy Rotation.from_rotvec); none: unrotated"),
+    "axis": Key("vector", doc="or orientation as an axis ..."),
+    "angle": _n("... and an angle in degrees about it (needs axis)"),
+}
+_MAGNET = {
+    "polarization": Key("vector", doc="magnetic polarization J = mu0 M, T (e.g. [0, 0, 1.2])"),
+    "magnetization": Key("vector", doc="or magnetization M, A/m"),
+}
+_ONE_MAGNETISATION = ((("polarization", "magnetization"), True), (("rotation_vector", "axis"), False))
+_ANGLE = (("rotation_vector", ("angle",)),)
+MAGNET_SOURCES = {
+    "cuboid": Table({"dimension": Key("vector", REQUIRED, "side lengths [a, b, c], m", check="positive"),
+                     **_MAGNET, **_PLACE}, "a block magnet (magpylib.magnet.Cuboid)", one_of=_ONE_MAGNETISATION,
+                    excludes=_ANGLE),
+    "cylinder": Table({"dimension": Key("row", REQUIRED, "[diameter, height], m", check="positive", length=2),
+                       **_MAGNET, **_PLACE}, "a cylinder magnet, axis along z before rotation "
+                                             "(magpylib.magnet.Cylinder)", one_of=_ONE_MAGNETISATION,
+                      excludes=_ANGLE),
+    "sphere": Table({"diameter": _n("diameter, m", default=REQUIRED, check="positive"), **_MAGNET, **_PLACE},
+                    "a ball magnet (magpylib.magnet.Sphere)", one_of=_ONE_MAGNETISATION, excludes=_ANGLE),
+    "circle": Table({"diameter": _n("loop diameter, m", default=REQUIRED, check="positive"),
+                     "current": _n("current, A", default=REQUIRED), **_PLACE},
+                    "a circular current loop in the xy plane before rotation (magpylib.current.Circle)",
+                    one_of=(_ONE_MAGNETISATION[1],), excludes=_ANGLE),
+    "dipole": Table({"moment": Key("vector", REQUIRED, "magnetic moment, A m^2"), **_PLACE},
+                    "a point dipole (magpylib.misc.Dipole)", one_of=(_ONE_MAGNETISATION[1],), excludes=_ANGLE),
+}
+
 _CUTOFF = {"cutoff": _n("centre distance beyond which pairs are ignored (none: never)", check="positive",
                         dim="length"),
            "switch_width": _n("smooth switch-off over [cutoff - width, cutoff] (none: plain cut)", check="positive",
@@ -164,6 +195,21 @@ INTERACTIONS = Table({
                      "uniform gravity (dk.Gravity)"),
     "uniform_field": Table({"field": Key("vector", REQUIRED, "B (energy = -m . B)", dim="field")},
                            "a uniform magnetic field (dk.UniformField)"),
+    "magnet_field": Tables(Table({
+        "region": Key("vectors", REQUIRED, "two corners [[x0, y0, z0], [x1, y1, z1]] of the box the spheres stay "
+                                           "in (scene lengths); no magnet or wire inside it", dim="length"),
+        "spacing": _n("largest grid spacing of the table (scene length)", default=REQUIRED, check="positive",
+                      dim="length"),
+        "length_unit": _n("metres per scene length (units = \"si\": from [scales])", check="positive"),
+        "field_unit": _n("tesla per scene field unit (units = \"si\": from [scales])", check="positive"),
+        "source": Tables(Variant("kind", MAGNET_SOURCES, "a magpylib source: kind = cuboid, cylinder, sphere, "
+                                                         "circle (a current loop) or dipole",
+                                 aliases={"coil": "circle", "loop": "circle", "current": "circle", "ring": "circle",
+                                          "block": "cuboid", "box": "cuboid", "cube": "cuboid", "ball": "sphere",
+                                          "disc": "cylinder", "disk": "cylinder", "rod": "cylinder"}),
+                         "the sources, [[interactions.magnet_field.source]], at least one")},
+        "the field of magpylib magnets and coils, tabulated over region (dk.MagnetField); needs magpylib: "
+        "pip install \"demkit[magnets]\""), "fields of real magnets, [[interactions.magnet_field]], any number"),
     "wall": Tables(Table({
         "point": Key("vector", REQUIRED, "a point of the plane", dim="length"),
         "normal": Key("vector", REQUIRED, "normal pointing to the spheres' side"),
@@ -238,7 +284,8 @@ SCHEMA = Table({
 }, "the keys outside any table")
 
 #: order in which the interactions enter the scene (the file's order does not matter)
-INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field", "wall")
+INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field",
+                     "magnet_field", "wall")
 
 
 # ---- reading --------------------------------------------------------------------------------------
@@ -605,7 +652,7 @@ def _particles(d, box, src, base, scale):
         return Particles(**kw), made
 
 
-def _interactions(d, src):
+def _interactions(d, src, scale=None):
     from . import interactions as I
     inter = d["interactions"] or {}
     friction = rolling = None
@@ -632,11 +679,72 @@ def _interactions(d, src):
                 out.append(I.Gravity(value["acceleration"]))
             elif name == "uniform_field":
                 out.append(I.UniformField(value["field"]))
+        if name == "magnet_field":
+            for k, table in enumerate(value):
+                out.append(_magnet_field(table, ("interactions", "magnet_field", k), src, scale))
         if name == "wall":
             for k, wall in enumerate(value):
                 with _At(src, "interactions", "wall", k, keys=wall):
                     out.append(I.Wall(**wall))
     return out
+
+
+def magnet_source(s):
+    """A magpylib source from a validated [[interactions.magnet_field.source]] table (SI units)."""
+    import magpylib
+    from scipy.spatial.transform import Rotation
+    kw = {"position": s["position"]}
+    if s["rotation_vector"] is not None:
+        kw["orientation"] = Rotation.from_rotvec(s["rotation_vector"])
+    elif s["axis"] is not None:
+        axis = np.asarray(s["axis"], dtype=np.float64)
+        if not np.linalg.norm(axis) > 0:
+            raise ValueError("axis must be a non-zero vector")
+        kw["orientation"] = Rotation.from_rotvec(math.radians(s["angle"]) * axis / np.linalg.norm(axis))
+    kind = s["kind"]
+    if kind in ("cuboid", "cylinder", "sphere"):
+        kw["polarization" if s["polarization"] is not None else "magnetization"] = \
+            s["polarization"] if s["polarization"] is not None else s["magnetization"]
+        if kind == "sphere":
+            return magpylib.magnet.Sphere(diameter=s["diameter"], **kw)
+        cls = magpylib.magnet.Cuboid if kind == "cuboid" else magpylib.magnet.Cylinder
+        return cls(dimension=s["dimension"], **kw)
+    if kind == "circle":
+        return magpylib.current.Circle(diameter=s["diameter"], current=s["current"], **kw)
+    return magpylib.misc.Dipole(moment=s["moment"], **kw)
+
+
+def _magnet_field(table, where, src, scale):
+    """A dk.MagnetField from a validated [[interactions.magnet_field]] table."""
+    from .interactions.magnets import MagnetField
+    try:
+        import magpylib  # noqa: F401
+    except ImportError:
+        raise src.error(where, 'needs magpylib, an optional extra: pip install "demkit[magnets]"') from None
+    if not table["source"]:
+        raise src.error(where, "needs at least one source: add [[interactions.magnet_field.source]] with kind = "
+                               "cuboid, cylinder, sphere, circle or dipole")
+    if len(table["region"]) != 2:
+        raise src.error(where + ("region",), f"must be two corners [[x0, y0, z0], [x1, y1, z1]], got "
+                                             f"{len(table['region'])} rows")
+    units = {"length_unit": table["length_unit"], "field_unit": table["field_unit"]}
+    if scale is not None:  # units = "si": the scene's length and field units are the paper's
+        for name in units:
+            if units[name] is not None:
+                raise src.error(where + (name,), 'is set from [scales] with units = "si": leave it out')
+        units = {"length_unit": scale["length"], "field_unit": scale["field"]}
+    sources = []
+    for k, source in enumerate(table["source"]):
+        at = where + ("source", k)
+        if (source["axis"] is None) != (source["angle"] is None):
+            raise src.error(at + ("axis" if source["axis"] is None else "angle",),
+                            "missing: an orientation by axis and angle needs both (or give rotation_vector)")
+        with _At(src, *at, keys=[key for key in source if key != "kind"]):
+            sources.append(magnet_source(source))
+    with _At(src, *where, keys=("region", "spacing", "length_unit", "field_unit")):
+        return MagnetField(sources, table["region"], table["spacing"],
+                           length_unit=1.0 if units["length_unit"] is None else units["length_unit"],
+                           field_unit=1.0 if units["field_unit"] is None else units["field_unit"])
 
 
 def _integrator(d, scene, src):
@@ -674,7 +782,7 @@ def _build(data, src, base):
             box = Box(data["box"]["size"], data["box"]["periodic"])
     particles, made = _particles(data, box, src, base, scale)
     box = made if made is not None else box
-    interactions = _interactions(data, src)
+    interactions = _interactions(data, src, scale)
     options = data["scene"] or {"skin": None, "parallel": "auto", "sort_every": None}
     parallel = None if options["parallel"] == "auto" else options["parallel"]
     given = [k for k in ("skin", "sort_every") if options[k] is not None] + ["parallel"] * (parallel is not None)
@@ -811,7 +919,7 @@ _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "s
           "size": "number or [x, y, z]", "cells": "integer or 3 integers", "flags": "bool or 3 bools",
           "numbers": "number or list (per sphere)", "vectors": "list of [x, y, z]", "bools": "list of bools",
           "integers": "list of integers", "number_or_auto": 'number or "auto"',
-          "bool_or_auto": 'bool or "auto"', "direction": 'string or [x, y, z]'}
+          "bool_or_auto": 'bool or "auto"', "row": "list of numbers", "direction": 'string or [x, y, z]'}
 
 
 def reference():
@@ -841,12 +949,17 @@ def reference():
             path = f"{name}.{k}" if name else k
             if isinstance(e, Table):
                 table(path, e, path)
+            elif isinstance(e, Tables) and isinstance(e.table, Variant):
+                variant(path, e.table, f"[{path}]")
             elif isinstance(e, Tables):
                 table(path, e.table, f"[{path}]")
             elif isinstance(e, Variant):
-                out.append(f"### `{path}`\n\n{e.doc}.\n")
-                for kind, sub in e.variants.items():
-                    table(path, sub, f'{path}, kind = "{kind}"')
+                variant(path, e, path)
+
+    def variant(path, e, header):
+        out.append(f"### `{header}`\n\n{e.doc}.\n")
+        for kind, sub in e.variants.items():
+            table(path, sub, f'{header}, kind = "{kind}"')
 
     table("", SCHEMA, "top level")
     return "\n".join(out).replace("### `top level`", "### Top level")

@@ -11,7 +11,8 @@ Value kinds (``Key.kind``): ``number`` (int or float, finite), ``integer``, ``bo
 ``vector`` (three numbers), ``size`` (one number or three), ``flags`` (a bool or three bools),
 ``numbers`` (a number, or a list of them: one per sphere), ``vectors`` (a list of three-number
 lists), ``bools`` (a list of bools), ``integers`` (a list of integers), ``number_or_auto`` (a
-number or the string "auto"), ``bool_or_auto`` (true, false or "auto"), ``direction`` (three numbers, or one of ``choices``). Constraints
+number or the string "auto"), ``bool_or_auto`` (true, false or "auto"), ``direction`` (three
+numbers, or one of ``choices``), ``row`` (``Key.length`` numbers). Constraints
 (``Key.check``): ``positive``, ``non_negative``, ``at_least_one`` (integers).
 """
 from __future__ import annotations
@@ -43,6 +44,7 @@ class Key:
     check: str | None = None
     choices: tuple = ()
     dim: str | None = None  # physical dimension, for units = "si" (see demkit.scenefile)
+    length: int | None = None  # kind "row": how many numbers
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,8 @@ class Variant:
     doc: str = ""
     required: bool = False
     common: dict = field(default_factory=dict)
+    #: {a likely wrong word: the variant meant}, for "did you mean" where spelling does not help
+    aliases: dict = field(default_factory=dict)
 
 
 def dotted(path):
@@ -163,7 +167,9 @@ def _variant(schema, data, path):
     if kind is None:
         raise SchemaError(where, f"missing: give {schema.key} = one of {', '.join(map(repr, schema.variants))}")
     if not isinstance(kind, str) or kind not in schema.variants:
-        near = difflib.get_close_matches(kind, list(schema.variants), n=1) if isinstance(kind, str) else []
+        near = [] if not isinstance(kind, str) else (
+            [schema.aliases[kind.lower()]] if kind.lower() in schema.aliases
+            else difflib.get_close_matches(kind, list(schema.variants), n=1))
         hint = f"; did you mean {near[0]!r}?" if near else ""
         raise SchemaError(where, f"must be one of {', '.join(map(repr, schema.variants))}, got {quote(kind)}{hint}")
     table = schema.variants[kind]
@@ -225,6 +231,9 @@ def value(key, raw, where):
         out = raw
     elif kind == "vector":
         out = [_number(v, where + (k,)) for k, v in enumerate(_list(raw, where, "three numbers [x, y, z]", 3))]
+    elif kind == "row":
+        out = [_number(v, where + (k,)) for k, v in enumerate(_list(raw, where, f"a list of {key.length} numbers",
+                                                                    key.length))]
     elif kind == "direction":
         if isinstance(raw, str):
             out = raw
