@@ -862,25 +862,85 @@ class LoadedScene:
 
     def run(self, progress=None, out_dir=None):
         """Run to ``duration`` (from a checkpoint when there is one) and write every output the file
-        asks for; returns the Trajectory (from where this run started). ``progress``: as for
-        Simulation.run (None: a bar on a terminal for runs longer than a moment)."""
+        asks for. ``progress``: as for Simulation.run (None: a bar on a terminal for runs longer than
+        a moment).
+
+        Frames are taken on the grid of the whole run (steps 0, s, 2s, ... with s = record_every /
+        dt, and the last step), also when resuming. A resumed run's trajectory file holds the whole
+        run: the earlier frames are read from the file the earlier run wrote (at its end, on Ctrl-C
+        or when it stopped) when that file reaches the checkpoint's step with the checkpoint's state;
+        otherwise (e.g. a process killed after a periodic checkpoint) it holds the frames from the
+        resume on, and a line says so. Returns the Trajectory written (the whole run), or without a
+        trajectory file the frames of this call (from where it started)."""
+        from .simulation import SimulationError
         sim = self.simulation(out_dir)
-        end = round(self.duration / self.integrator.dt)
-        if sim.step >= end:  # a finished run's checkpoint: nothing left to do
+        dt = self.integrator.dt
+        end = round(self.duration / dt)
+        start = sim.step
+        with _At(self.source, "run", "record_every"):
+            stride = end if self.record_every is None else sim._steps(self.record_every, "record_every")
+        target = self.output_path(self.outputs["trajectory"], out_dir) if self.outputs.get("trajectory") else None
+        earlier = self._earlier_frames(target, sim, stride) if start > 0 and target is not None else None
+        if start >= end:  # a finished run's checkpoint: nothing left to do
             sim.close()
-            return sim.trajectory
+            return earlier if earlier is not None else sim.trajectory
+        grid = -(-start // stride) * stride  # the first step of the grid at or after the start
+        plan = [] if grid in (start, end) or grid > end else [(grid * dt, None)]
+        plan.append((self.duration, self.record_every if grid < end else None))
+        parts = []
         try:
-            trajectory = sim.run(until=self.duration, record_every=self.record_every, progress=progress)
+            for until, every in plan:
+                before = sim.trajectory
+                try:
+                    parts.append(sim.run(until=until, record_every=every, progress=progress))
+                except (KeyboardInterrupt, SimulationError):
+                    if sim.trajectory is not before and sim.trajectory is not None:
+                        parts.append(sim.trajectory)  # the frames of the run that stopped (last: where)
+                    raise
         finally:
             sim.close()
-        self.write_outputs(trajectory, out_dir, sim)
+            if parts:
+                trajectory = _join(earlier, parts, start, stride, end, dt)
+                if target is not None:
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    save_trajectory(trajectory, target)
+        self.write_outputs(None, out_dir, sim)
         return trajectory
 
+    def _earlier_frames(self, target, sim, stride):
+        """The frames of the earlier runs on the grid up to the resume step, from the trajectory file,
+        or None (with a line saying why) when it does not hold them all or ends elsewhere."""
+        dt, start = self.integrator.dt, sim.step
+        why = None
+        try:
+            saved = load_trajectory(target) if target.is_file() else None
+        except ValueError as err:
+            saved, why = None, f"it cannot be read ({err})"
+        if saved is None:
+            why = why or "there is none"
+        else:
+            steps = np.rint(saved.time / dt).astype(np.int64)
+            at = np.flatnonzero(steps == start)
+            keep = (steps <= start) & (steps % stride == 0)
+            p = self.scene.particles
+            if len(saved.ids) != len(p) or not np.array_equal(saved.ids, p.ids):
+                why = "it holds other spheres"
+            elif not len(at) or not (np.array_equal(saved.position[at[-1]], p.position)
+                                     and np.array_equal(saved.velocity[at[-1]], p.velocity)):
+                why = "it does not end at the checkpoint's state (the earlier run ended without writing it)"
+            elif not np.array_equal(steps[keep], np.arange(0, start + 1, stride)):
+                why = "its frames are not on this run's record_every grid"
+            else:
+                return _frames(saved, keep)
+        print(f"{target}: frames before t = {start * dt:.6g} (the resume) are not kept: {why}; the file will hold "
+              f"t = {start * dt:.6g} .. {self.duration:g}")
+        return None
+
     def write_outputs(self, trajectory, out_dir=None, sim=None):
-        """Write the trajectory file and the animation (the VTK series and checkpoints are written
-        while running). Returns the paths written."""
+        """Write the trajectory file (unless ``trajectory`` is None) and the animation (the VTK
+        series and checkpoints are written while running). Returns the paths written."""
         out, written = self.outputs, []
-        if out.get("trajectory"):
+        if out.get("trajectory") and trajectory is not None:
             target = self.output_path(out["trajectory"], out_dir)
             target.parent.mkdir(parents=True, exist_ok=True)
             save_trajectory(trajectory, target)
@@ -899,6 +959,67 @@ class LoadedScene:
             except viz.RenderingUnavailable as err:
                 print(f"no animation: {err}")
         return written
+
+
+def _frames(trajectory, keep):
+    """The frames ``keep`` (a mask or indices) of a Trajectory, as a new Trajectory."""
+    from .simulation import Trajectory
+    t = trajectory
+
+    def pick(a):
+        return None if a is None else np.asarray(a)[keep]
+    return Trajectory(time=pick(t.time), position=pick(t.position), velocity=pick(t.velocity),
+                      angular_velocity=pick(t.angular_velocity), dipole=pick(t.dipole),
+                      energy={k: pick(v) for k, v in t.energy.items()}, angular_momentum=pick(t.angular_momentum),
+                      radius=t.radius, mass=t.mass, inertia=t.inertia, ids=t.ids, image=pick(t.image), box=t.box)
+
+
+def _join(earlier, parts, start, stride, end, dt):
+    """One Trajectory on the whole run's grid (steps that are multiples of ``stride``, and ``end``):
+    ``earlier`` (its frames up to step ``start``, or None) followed by the frames of the
+    consecutive runs ``parts`` (from ``start`` on) after ``start`` on the grid. Kept besides: the
+    last frame of the last part (where a stopped run stopped) and, without ``earlier``, the first
+    (the file then starts at the resume)."""
+    from .simulation import Trajectory
+    pieces = [] if earlier is None else [earlier]
+    for k, part in enumerate(parts):
+        steps = np.rint(part.time / dt).astype(np.int64)
+        keep = ((steps % stride == 0) | (steps == end)) & (steps > start)
+        keep[0] = earlier is None and k == 0  # later parts start where the one before ended
+        keep[-1] |= k == len(parts) - 1
+        pieces.append(_frames(part, keep))
+    first = pieces[0]
+
+    def joined(name, get=getattr):
+        arrays = [get(p, name) for p in pieces]
+        return None if arrays[0] is None else np.concatenate(arrays)
+    energy = {key: joined(key, lambda p, k: np.asarray(p.energy[k])) for key in first.energy}
+    return Trajectory(energy=energy, radius=first.radius, mass=first.mass, inertia=first.inertia, ids=first.ids,
+                      box=first.box, **{name: joined(name) for name in ("time", "position", "velocity",
+                                                                        "angular_velocity", "dipole",
+                                                                        "angular_momentum", "image")})
+
+
+def load_trajectory(path):
+    """A Trajectory from a .npz written by :func:`save_trajectory` (read without pickle). Raises
+    ValueError for a file that is not one."""
+    from .box import Box
+    from .simulation import Trajectory
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            a = {name: z[name] for name in z.files}
+    except Exception as err:  # zip or npy damage: one message
+        raise ValueError(f"cannot read {path} as .npz: {err}") from None
+    need = ("time", "position", "velocity", "angular_momentum", "radius", "mass", "inertia", "ids")
+    missing = [name for name in need if name not in a]
+    if missing:
+        raise ValueError(f"{path} is not a demkit trajectory (no {', '.join(missing)})")
+    box = Box(a["box_size"], a["box_periodic"]) if "box_size" in a else None
+    return Trajectory(time=a["time"], position=a["position"], velocity=a["velocity"],
+                      angular_velocity=a.get("angular_velocity"), dipole=a.get("dipole"),
+                      energy={k[len("energy_"):]: v for k, v in a.items() if k.startswith("energy_")},
+                      angular_momentum=a["angular_momentum"], radius=a["radius"], mass=a["mass"],
+                      inertia=a["inertia"], ids=a["ids"], image=a.get("image"), box=box)
 
 
 def save_trajectory(trajectory, path):

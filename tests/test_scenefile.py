@@ -374,11 +374,65 @@ def test_run_writes_outputs_and_a_rerun_resumes_from_the_checkpoint(tmp_path):
     assert first.time[-1] == pytest.approx(0.3)
     saved = np.load(tmp_path / "out" / "traj.npz")
     assert np.array_equal(saved["position"], first.position) and "energy_total" in saved.files
-    resumed = dk.load_scene(tmp_path / "s.toml").run()  # continues from t = 0.3
-    assert resumed.time[0] == pytest.approx(0.3) and resumed.time[-1] == pytest.approx(0.5)
+    resumed = dk.load_scene(tmp_path / "s.toml").run()  # continues from t = 0.3: the file holds t = 0 .. 0.5
+    assert resumed.time[0] == 0.0 and resumed.time[-1] == pytest.approx(0.5) and len(resumed) == 6
     straight = dk.Simulation(dk.parse_scene(SMALL).scene, dk.VelocityVerlet(0.001)).run(duration=0.5, record_every=0.1)
-    assert np.array_equal(resumed.position[-1], straight.position[-1])
+    same(resumed, straight)
     assert len(dk.read_series(tmp_path / "out" / "vtk" / "particles.pvd").time) == 6
+
+
+RESUMABLE = textwrap.dedent("""\
+    [outputs]
+    trajectory = "out/traj.npz"
+    [outputs.vtk]
+    folder = "out/vtk"
+    every = 0.05
+    [outputs.checkpoint]
+    path = "out/run.ckpt"
+    """)
+
+
+def saved_arrays(path):
+    with np.load(path) as z:
+        return {name: z[name] for name in z.files}
+
+
+@pytest.mark.parametrize("record", ["record_every = 0.1", "record_every = 0.07", ""])
+def test_a_run_stopped_by_ctrl_c_and_resumed_writes_the_npz_of_the_whole_run(tmp_path, monkeypatch, record):
+    import signal
+    text = SMALL.replace("record_every = 0.1", record) + RESUMABLE
+    for name in ("straight", "stopped"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "s.toml").write_text(text)
+    dk.load_scene(tmp_path / "straight" / "s.toml").run(progress=False)
+    write = dk.io.VTKWriter.write
+
+    def ctrl_c_at_t_015(writer, sim):  # Ctrl-C at t = 0.15, off the record grid
+        write(writer, sim)
+        if sim.step == 150:
+            signal.raise_signal(signal.SIGINT)
+    monkeypatch.setattr(dk.io.VTKWriter, "write", ctrl_c_at_t_015)
+    with pytest.raises(KeyboardInterrupt):
+        dk.load_scene(tmp_path / "stopped" / "s.toml").run(progress=False)
+    stopped = saved_arrays(tmp_path / "stopped" / "out" / "traj.npz")
+    assert stopped["time"][-1] == pytest.approx(0.15)  # the frames so far and where it stopped
+    monkeypatch.setattr(dk.io.VTKWriter, "write", write)
+    dk.load_scene(tmp_path / "stopped" / "s.toml").run(progress=False)
+    whole, straight = (saved_arrays(tmp_path / name / "out" / "traj.npz") for name in ("stopped", "straight"))
+    assert sorted(whole) == sorted(straight)
+    for name in straight:
+        assert np.array_equal(whole[name], straight[name]), name
+    assert whole["time"][0] == 0.0 and whole["time"][-1] == pytest.approx(0.5)
+
+
+def test_a_resume_without_the_earlier_frames_says_which_times_the_file_holds(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(SMALL + RESUMABLE)
+    dk.load_scene(tmp_path / "s.toml", overrides={"run.duration": 0.25}).run(progress=False)
+    (tmp_path / "out" / "traj.npz").unlink()  # as if killed after a checkpoint, before writing the frames
+    dk.load_scene(tmp_path / "s.toml").run(progress=False)
+    assert "frames before t = 0.25 (the resume) are not kept: there is none; the file will hold t = 0.25 .. 0.5" \
+        in capsys.readouterr().out
+    assert np.allclose(np.load(tmp_path / "out" / "traj.npz")["time"], [0.25, 0.3, 0.4, 0.5])
 
 
 def demkit(*args, cwd):
