@@ -371,8 +371,9 @@ def _dask_client(scheduler, workers):
         return scheduler, None
     if scheduler == "local":
         with _children_ignore_interrupt():
+            # no dashboard; its HTTP server (health checks) on a free port, not 8787 that may be taken
             cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                               dashboard_address=None)
+                                               dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"})
         client = distributed.Client(cluster)
 
         def close():
@@ -454,8 +455,31 @@ def _require_pyarrow():
 
 
 def _write_parquet(csv_path, parquet_path):
-    from pyarrow import csv as pacsv, parquet as pq
-    pq.write_table(pacsv.read_csv(csv_path), parquet_path)
+    """The CSV table as Parquet, one type per column decided over the whole column (pyarrow's own CSV
+    reader guesses from the first block and fails on a column whose text starts later, such as
+    ``error``): bool, int64, float64 (ints and floats mixed), else string; empty cells are nulls."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    with open(csv_path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        columns, rows = list(reader.fieldnames or []), list(reader)
+    arrays = {}
+    for name in columns:
+        texts = [r.get(name) or "" for r in rows]
+        values = [parse(t) for t in texts]
+        kinds = {type(v) for v in values if v is not None}
+        if kinds == {bool}:
+            arrays[name] = pa.array(values, pa.bool_())
+            continue
+        if kinds and kinds <= {int, float}:
+            try:
+                arrays[name] = (pa.array(values, pa.int64()) if kinds == {int} else
+                                pa.array([None if v is None else float(v) for v in values], pa.float64()))
+                continue
+            except OverflowError:  # an integer beyond int64: kept as text
+                pass
+        arrays[name] = pa.array([t if t != "" else None for t in texts], pa.string())
+    pq.write_table(pa.table(arrays), parquet_path)
 
 
 # ---- sweep files ---------------------------------------------------------------------------------
