@@ -13,6 +13,8 @@ observables. Rows are appended (and flushed) as points finish, so an interrupted
 finished; at the end the table is rewritten in the order of the points. Running the same sweep again
 skips the points that already have an 'ok' row (same parameter values, compared at 12 significant
 digits) and reruns the failed ones. A failing point is recorded with its error; the others go on.
+Ctrl-C stops the workers at once and raises KeyboardInterrupt saying how many points are done.
+Points run with DEMKIT_QUIET=1 (:func:`quietly`): no progress bars or compile notices of their own.
 
 Where: ``workers`` local processes (default: the machine's cores; 1 runs in this process), or Dask
 (``pip install "demkit[dask]"``): ``scheduler="local"`` starts a ``dask.distributed.LocalCluster`` of
@@ -406,6 +408,10 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
         'tcp://host:8786', or a dask.distributed.Client.
     progress : tqdm bar; None shows it only on a terminal.
+
+    Ctrl-C (KeyboardInterrupt): running points are abandoned (worker processes terminated, a
+    LocalCluster closed, queued Dask points cancelled), finished ones stay in the table, and a
+    KeyboardInterrupt says how many are done; the same call again finishes the rest.
     """
     if not callable(task):
         raise ValueError(f"task must be a function of one point (a dict), got {task!r}")
