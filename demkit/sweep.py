@@ -13,6 +13,8 @@ observables. Rows are appended (and flushed) as points finish, so an interrupted
 finished; at the end the table is rewritten in the order of the points. Running the same sweep again
 skips the points that already have an 'ok' row (same parameter values, compared at 12 significant
 digits) and reruns the failed ones. A failing point is recorded with its error; the others go on.
+Ctrl-C stops the workers at once and raises KeyboardInterrupt saying how many points are done.
+Points run with DEMKIT_QUIET=1 (:func:`quietly`): no progress bars or compile notices of their own.
 
 Where: ``workers`` local processes (default: the machine's cores; 1 runs in this process), or Dask
 (``pip install "demkit[dask]"``): ``scheduler="local"`` starts a ``dask.distributed.LocalCluster`` of
@@ -23,6 +25,7 @@ See docs/sweeps.md.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import csv
 import functools
 import importlib
@@ -32,7 +35,9 @@ import math
 import multiprocessing as mp
 import numbers
 import os
+import signal
 import sys
+import threading
 import time
 import tomllib
 from pathlib import Path
@@ -142,14 +147,42 @@ def read_table(path):
 
 
 # ---- running one point ----------------------------------------------------------------------------
+_QUIET = {"lock": threading.Lock(), "depth": 0, "saved": None}
+
+
+@contextlib.contextmanager
+def quietly():
+    """Points run with ``DEMKIT_QUIET=1``: no automatic progress bars or compile notices of their
+    own (a worker's would be drawn over the user's terminal; the sweep's bar is the progress).
+    Thread-safe (a Dask worker may run several points in threads); the old value comes back after."""
+    q = _QUIET
+    with q["lock"]:
+        if q["depth"] == 0:
+            q["saved"] = os.environ.get("DEMKIT_QUIET")
+            os.environ["DEMKIT_QUIET"] = "1"
+        q["depth"] += 1
+    try:
+        yield
+    finally:
+        with q["lock"]:
+            q["depth"] -= 1
+            if q["depth"] == 0:
+                if q["saved"] is None:
+                    os.environ.pop("DEMKIT_QUIET", None)
+                else:
+                    os.environ["DEMKIT_QUIET"] = q["saved"]
+
+
 def run_point(task, point, names=()):
     """``task(point)`` -> the point's row (dict of cells); an exception becomes a 'failed' row.
+    The task runs :func:`quietly`.
 
     Entries of the task's result named like the point's parameters are dropped (echoes); named like
     another parameter of the sweep (``names``) they fail the point (they would spoil its key)."""
     start = time.perf_counter()
     try:
-        out = task(dict(point))
+        with quietly():
+            out = task(dict(point))
         if not isinstance(out, dict):
             raise TypeError(f"the task must return a dict of observables, got {type(out).__name__}")
         clash = sorted(set(out) & set(STATUS_COLUMNS))
@@ -230,22 +263,104 @@ class _Table:
         self._rewrite()
 
 
-# ---- executors -----------------------------------------------------------------------------------
-class _InProcess:
-    def submit(self, fn, *args):
-        future = cf.Future()
-        future.set_result(fn(*args))  # run_point never raises
-        return future
+# ---- executors: generators of finished rows -----------------------------------------------------
+def _lost_row(exc, point):
+    """The row of a point whose worker died (a broken pool, a killed Dask worker)."""
+    return {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " "), "wall_s": "",
+            **{k: cell(v) for k, v in point.items()}}
 
 
-def _local_pool(workers):
+def _ignore_interrupt():
+    """Pool workers leave Ctrl-C (SIGINT, sent to the whole terminal's process group) to the sweep,
+    which stops them; otherwise each would print a traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def _children_ignore_interrupt():
+    """Processes started (spawned) inside this scope inherit an ignored SIGINT, as pool workers do with
+    :func:`_ignore_interrupt`: Ctrl-C goes to the sweep, which stops them (Dask's worker processes
+    would each print a traceback). Only the main thread can set signal handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _local_rows(task, todo, names, workers):
+    """Rows of ``todo`` as they finish: in this process (workers = 1) or a pool of processes.
+    Interrupted (Ctrl-C, or the consumer stops), the pool's processes are terminated at once."""
     if workers == 1:
-        return _InProcess(), None
+        for point in todo:
+            yield run_point(task, point, names)
+        return
     # not "fork": once a parallel numba kernel ran, GNU OpenMP makes fork() unsafe; a fork server starts clean
     methods = mp.get_all_start_methods()
     context = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context)
-    return pool, pool.shutdown
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_ignore_interrupt)
+    try:
+        futures = {pool.submit(run_point, task, p, names): p for p in todo}
+        for future in cf.as_completed(futures):
+            try:
+                row = future.result()
+            except Exception as exc:  # noqa: BLE001 (the worker died)
+                row = _lost_row(exc, futures[future])
+            yield row
+    except BaseException:  # KeyboardInterrupt, GeneratorExit: stop the running points now
+        _terminate(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate(pool):
+    """Terminate a ProcessPoolExecutor's worker processes (Python 3.14 has pool.terminate_workers)."""
+    if hasattr(pool, "terminate_workers"):
+        pool.terminate_workers()
+        return
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            process.terminate()
+        except (OSError, ValueError, AttributeError):
+            pass
+
+
+def _quiet_dask_logs():
+    """On a LocalCluster's workers before it is closed mid-sweep: only errors in their logs."""
+    import logging
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+
+
+def _dask_rows(task, todo, names, workers, scheduler):
+    """Rows of ``todo`` as they finish on a Dask cluster; interrupted, the points are cancelled and a
+    LocalCluster is closed."""
+    client, close = _dask_client(scheduler, workers)
+    futures = {}
+    try:
+        from dask.distributed import as_completed
+        futures = {client.submit(run_point, task, p, names, pure=False): p for p in todo}
+        for future in as_completed(list(futures)):
+            try:
+                row = future.result()
+            except Exception as exc:  # noqa: BLE001 (the worker died)
+                row = _lost_row(exc, futures[future])
+            yield row
+    except BaseException:
+        try:
+            if scheduler == "local":  # closed with its running points: no warnings about them
+                client.run(_quiet_dask_logs)
+            else:
+                client.cancel(list(futures))
+        except Exception:  # noqa: BLE001 (closing anyway)
+            pass
+        raise
+    finally:
+        if close is not None:
+            close()
 
 
 def _dask_client(scheduler, workers):
@@ -257,8 +372,10 @@ def _dask_client(scheduler, workers):
     if hasattr(scheduler, "submit"):  # a Client already
         return scheduler, None
     if scheduler == "local":
-        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None)
+        with _children_ignore_interrupt():
+            # no dashboard; its HTTP server (health checks) on a free port, not 8787 that may be taken
+            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"})
         client = distributed.Client(cluster)
 
         def close():
@@ -291,6 +408,10 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
         'tcp://host:8786', or a dask.distributed.Client.
     progress : tqdm bar; None shows it only on a terminal.
+
+    Ctrl-C (KeyboardInterrupt): running points are abandoned (worker processes terminated, a
+    LocalCluster closed, queued Dask points cancelled), finished ones stay in the table, and a
+    KeyboardInterrupt says how many are done; the same call again finishes the rest.
     """
     if not callable(task):
         raise ValueError(f"task must be a function of one point (a dict), got {task!r}")
@@ -310,31 +431,21 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
     workers = int(workers) if workers is not None else (os.cpu_count() or 1)
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
+    rows = (_local_rows(task, todo, names, min(workers, len(todo))) if scheduler is None
+            else _dask_rows(task, todo, names, workers, scheduler))
     bar = _progress(len(todo), progress)
-    close = None
     try:
-        if todo:
-            if scheduler is None:
-                pool, close = _local_pool(min(workers, len(todo)))
-                futures = {pool.submit(run_point, task, p, names): p for p in todo}
-                finished = cf.as_completed(futures)
-            else:
-                client, close = _dask_client(scheduler, workers)
-                from dask.distributed import as_completed
-                futures = {client.submit(run_point, task, p, names, pure=False): p for p in todo}
-                finished = as_completed(list(futures))
-            for future in finished:
-                try:
-                    row = future.result()
-                except Exception as exc:  # noqa: BLE001 (the worker died: a broken pool, a killed Dask worker)
-                    row = {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " "),
-                           "wall_s": "", **{k: cell(v) for k, v in futures[future].items()}}
+        with contextlib.closing(rows):
+            for row in (rows if todo else ()):
                 table.add(row)
                 bar.update()
+    except KeyboardInterrupt:
+        bar.close()
+        finished = len(table.done() & set(keys))
+        raise KeyboardInterrupt(f"sweep interrupted: {finished} of {len(points)} points done in {results}; "
+                                f"run it again to finish the rest") from None
     finally:
         bar.close()
-        if close is not None:
-            close()
     table.finish(points)
     if parquet is not None:
         _write_parquet(results, parquet)
@@ -350,8 +461,31 @@ def _require_pyarrow():
 
 
 def _write_parquet(csv_path, parquet_path):
-    from pyarrow import csv as pacsv, parquet as pq
-    pq.write_table(pacsv.read_csv(csv_path), parquet_path)
+    """The CSV table as Parquet, one type per column decided over the whole column (pyarrow's own CSV
+    reader guesses from the first block and fails on a column whose text starts later, such as
+    ``error``): bool, int64, float64 (ints and floats mixed), else string; empty cells are nulls."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    with open(csv_path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        columns, rows = list(reader.fieldnames or []), list(reader)
+    arrays = {}
+    for name in columns:
+        texts = [r.get(name) or "" for r in rows]
+        values = [parse(t) for t in texts]
+        kinds = {type(v) for v in values if v is not None}
+        if kinds == {bool}:
+            arrays[name] = pa.array(values, pa.bool_())
+            continue
+        if kinds and kinds <= {int, float}:
+            try:
+                arrays[name] = (pa.array(values, pa.int64()) if kinds == {int} else
+                                pa.array([None if v is None else float(v) for v in values], pa.float64()))
+                continue
+            except OverflowError:  # an integer beyond int64: kept as text
+                pass
+        arrays[name] = pa.array([t if t != "" else None for t in texts], pa.string())
+    pq.write_table(pa.table(arrays), parquet_path)
 
 
 # ---- sweep files ---------------------------------------------------------------------------------
