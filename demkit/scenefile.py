@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -933,7 +934,7 @@ class LoadedScene:
             else:
                 return _frames(saved, keep)
         print(f"{target}: frames before t = {start * dt:.6g} (the resume) are not kept: {why}; the file will hold "
-              f"t = {start * dt:.6g} .. {self.duration:g}")
+              f"t = {start * dt:.6g} .. {self.duration:g}", file=sys.stderr)
         return None
 
     def write_outputs(self, trajectory, out_dir=None, sim=None):

@@ -431,7 +431,7 @@ def test_a_resume_without_the_earlier_frames_says_which_times_the_file_holds(tmp
     (tmp_path / "out" / "traj.npz").unlink()  # as if killed after a checkpoint, before writing the frames
     dk.load_scene(tmp_path / "s.toml").run(progress=False)
     assert "frames before t = 0.25 (the resume) are not kept: there is none; the file will hold t = 0.25 .. 0.5" \
-        in capsys.readouterr().out
+        in capsys.readouterr().err
     assert np.allclose(np.load(tmp_path / "out" / "traj.npz")["time"], [0.25, 0.3, 0.4, 0.5])
 
 
