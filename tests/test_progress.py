@@ -303,3 +303,59 @@ def test_demkit_accuracy_shows_the_bar_unless_told_not_to(capsys, terminal_and_e
     assert "3/3" in final_line(captured.err) and "VelocityVerlet" in captured.out
     assert main(["accuracy", *common, "--no-progress"]) == 0
     assert capsys.readouterr().err == ""
+
+
+# ---- demkit render interrupted -------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def long_series(tmp_path_factory):
+    """400 frames: long enough to interrupt a render in the middle."""
+    folder = tmp_path_factory.mktemp("long")
+    writer = dk.VTKWriter(folder / "series", every=1.0, trails=False)
+    sim = dk.Simulation(two_magnets(x0=25.0), dk.EulerCromer(dt=0.01), writers=[writer])
+    sim.run(400.0, progress=False)
+    sim.close()
+    return writer.pvd
+
+
+def test_ctrl_c_stops_a_render_with_one_line_and_no_partial_animation(long_series, tmp_path):
+    out, partial = tmp_path / "run.mp4", tmp_path / "run.partial.mp4"
+    out.write_bytes(b"an older animation")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    child = subprocess.Popen([sys.executable, "-m", "demkit", "render", str(long_series), "-o", str(out),
+                              "--max-frames", "400", "--size", "96x64"], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        for _ in range(1200):  # the partial file appears with the first frame
+            if partial.exists() or child.poll() is not None:
+                break
+            threading.Event().wait(0.05)
+        if child.poll() is None:
+            child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    if child.returncode == 1 and "render" in err:
+        pytest.skip(f"no off-screen rendering here: {err.strip()}")
+    assert child.returncode == 130, err
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("demkit render: rendering interrupted after ") and "of 400 frames" in line
+    assert "was not written (the partial file was removed)" in line and "Traceback" not in err
+    assert not partial.exists() and out.read_bytes() == b"an older animation"  # left as it was
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4"])
+def test_an_animation_gets_its_name_only_when_complete(tmp_path, suffix):
+    from demkit.viz.movie import MovieWriter
+
+    frame = np.zeros((32, 48, 3), np.uint8)
+    frame[:, :24] = (200, 30, 30)
+    movie = MovieWriter(tmp_path / f"a{suffix}", fps=10)
+    for _ in range(3):
+        movie.add(frame)
+    movie.abort()
+    assert list(tmp_path.iterdir()) == []  # nothing on disk, not even a partial file
+    movie = MovieWriter(tmp_path / f"b{suffix}", fps=10)
+    for _ in range(3):
+        movie.add(frame)
+    assert movie.close() == tmp_path / f"b{suffix}"
+    assert [p.name for p in tmp_path.iterdir()] == [f"b{suffix}"] and (tmp_path / f"b{suffix}").stat().st_size > 0
