@@ -46,7 +46,9 @@ class MovieWriter:
         if self.gif:
             from PIL import Image
 
-            self._frames.append(Image.fromarray(image).quantize(colors=255, method=Image.Quantize.MEDIANCUT,
+            # 255 colours by Pillow's fast octree: 3.4 ms for an 800x600 frame of 256 spheres against 84 ms
+            # by median cut, mean colour error 1.5/255 against 0.6/255 (measured; docs/progress.md)
+            self._frames.append(Image.fromarray(image).quantize(colors=255, method=Image.Quantize.FASTOCTREE,
                                                                 dither=Image.Dither.NONE))
             return
         if self._ffmpeg is None:
