@@ -94,12 +94,12 @@ class Progress:
             if elapsed + remaining < AUTO_SECONDS or done >= self.total:
                 return
             self._open(done)  # tqdm's rate and time left count from here
-        if note is not None and note != self.bar.postfix:  # a new stage (a few per run at most): show it now
-            self.bar.set_postfix_str(note)
-        elif self.scale is not None:
+        if self.scale is not None and note is None:
             self.bar.set_postfix_str(f"{self.label} = {self.start + done * self.scale:.6g}/{self.span:.6g}",
                                      refresh=False)
         self.bar.update(done - self.bar.n)
+        if note is not None and note != self.bar.postfix:  # a new stage (a few per run at most): show it now
+            self.bar.set_postfix_str(note)
 
     def _open(self, initial):
         from tqdm import tqdm
