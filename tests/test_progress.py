@@ -271,6 +271,8 @@ def test_an_accuracy_study_shows_one_bar_over_its_runs_and_the_same_results(caps
     for stage in ("EulerCromer dt = 0.02", "VelocityVerlet dt = 0.01", "reference: adaptive DOP853"):
         assert stage in err
     assert "demkit run" not in err and not tqdm._instances  # the runs drew no bars; the study's is closed
+    fourth = [line for line in err.replace("\r", "\n").splitlines() if "VelocityVerlet dt = 0.01]" in line]
+    assert fourth and all(" 3/5 " in line for line in fourth)  # shown with the runs done before it
     same_rows(quiet, shown)
     assert quiet.reference["evaluations"] == shown.reference["evaluations"]
     assert study(None).rows[0]["position_error"] == quiet.rows[0]["position_error"]  # automatic: a bar
