@@ -25,6 +25,7 @@ from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions.contact import KelvinVoigt
 from .interactions.hertz import Hertz
 from .interactions.wall import Wall
+from .progress import Progress, check_progress
 from .scene import Scene, energy_dict
 from .simulation import Simulation, SimulationError, Trajectory
 
@@ -882,7 +883,8 @@ def _run(scene, make, dt, duration, times, record_every, particles=None):
             piece = stop - done
             if piece <= 0:
                 continue
-            parts.append(sim.run(piece * integrator.dt, record_every=min(piece, stride) * integrator.dt))
+            parts.append(sim.run(piece * integrator.dt, record_every=min(piece, stride) * integrator.dt,
+                                 progress=False))
             seconds += sim.statistics["seconds"]
             done = stop
     except SimulationError as error:
@@ -1142,7 +1144,7 @@ def _evaluate_observable(observable, traj):
 
 
 def work_precision(scene, duration, methods=None, dts=None, reference="auto", times=None, energy_scale=None,
-                   observable=None, spread=None, record_every=None, repeats=1, rtol=1e-12):
+                   observable=None, spread=None, record_every=None, repeats=1, rtol=1e-12, progress=None):
     """Run ``scene`` with every method and time step from its current state and compare each run with
     a reference: a :class:`WorkPrecision` report.
 
@@ -1164,12 +1166,26 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
     record_every : frame interval of every run (energy balance, angular momentum, observable);
         default duration / 200.
     repeats : time each run this many times and keep the least wall time.
+    progress : one progress bar on stderr over the study's runs (each method and dt, then the
+        adaptive reference and the spread's references), the run under way in its postfix: None
+        (default) when stderr is a terminal and the study looks like taking more than about 2 s,
+        True always, False never (see :mod:`demkit.progress`). The runs themselves draw no bars;
+        the results do not depend on it.
 
     Every run starts from a fresh copy of the scene (no contact history, no dissipated work) after an
     untimed warm-up of each method, so compilation is not timed. A run that fails (SimulationError,
     or the ValueError for a time step above the scene's safe limit) gives a row with stable=False,
     NaN errors and the message.
     """
+    check_progress(progress)
+    with Progress(0, progress, desc="accuracy study", unit="run") as bar:  # total set once known
+        return _work_precision(scene, duration, methods, dts, reference, times, energy_scale, observable, spread,
+                               record_every, repeats, rtol, bar)
+
+
+def _work_precision(scene, duration, methods, dts, reference, times, energy_scale, observable, spread,
+                    record_every, repeats, rtol, bar):
+    """The body of :func:`work_precision`, updating ``bar`` (a Progress) at every run."""
     duration = float(duration)
     if not math.isfinite(duration) or duration <= 0:
         raise ValueError(f"duration must be a positive finite time, got {duration}")
@@ -1199,13 +1215,6 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
     for k, label in enumerate(labels):
         if labels.count(label) > 1:
             makers[k][0] = f"{label}#{labels[:k + 1].count(label)}"
-    # untimed warm-up: compile each method's loop and the recording on this scene's kernels
-    for label, make, _ in makers:
-        try:
-            warm = Simulation(copy_scene(scene), _integrator(make, dts[-1]))
-            warm.run(2 * dts[-1], record_every=dts[-1])
-        except (ValueError, SimulationError):
-            pass
     # choose the reference
     mode = reference
     if isinstance(reference, str):
@@ -1215,6 +1224,16 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
             mode = "adaptive" if len(scene.particles) <= MAX_PARTICLES and not scene.history_keepers() else "finest"
     elif not isinstance(reference, Trajectory):
         raise TypeError(f"reference must be 'auto', 'adaptive', 'finest' or a Trajectory, got {reference!r}")
+    # the bar's units: every (method, dt), the adaptive reference, the spread's references
+    adaptive = mode == "adaptive" and not isinstance(reference, Trajectory)
+    bar.total = len(makers) * len(dts) + adaptive + (int(dict(spread).get("samples", 5)) if spread else 0)
+    # untimed warm-up: compile each method's loop and the recording on this scene's kernels
+    for label, make, _ in makers:
+        try:
+            warm = Simulation(copy_scene(scene), _integrator(make, dts[-1]))
+            warm.run(2 * dts[-1], record_every=dts[-1], progress=False)
+        except (ValueError, SimulationError):
+            pass
     best = max(range(len(makers)), key=lambda k: (makers[k][2], k))  # highest order, last given on ties
     # every run stops at its own whole steps nearest to the check times
     all_check = sorted({float(s * _integrator(m[1], dt).dt) for m in makers for dt in dts
@@ -1223,6 +1242,7 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
     rows, runs = [], []
     for label, make, _ in makers:
         for dt in dts:
+            bar.update(len(rows), f"{label} dt = {dt:.4g}")
             traj, seconds, steps = None, math.inf, 0
             for _ in range(repeats):
                 traj, took, steps, integrator, message = _run(scene, make, dt, duration, all_check, record_every)
@@ -1245,6 +1265,7 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
     elif mode == "adaptive":
         # runs end on whole steps, which may lie a little beyond duration
         horizon = max([duration] + all_check)
+        bar.update(len(rows), f"reference: adaptive DOP853, rtol = {rtol:g}")
         ref = _adaptive(scene, horizon, times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
         info = {"kind": "adaptive", "description": f"adaptive DOP853, rtol={rtol:g} ({ref.evaluations} force "
                                                    f"evaluations, {ref.restarts} restarts at events, "
@@ -1305,12 +1326,13 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
     if spread:
         spread_info = _spread(scene, duration, spread, mode if not isinstance(reference, Trajectory) else "finest",
                               ref, times, all_check, frame_grid, observable, ref_obs, rtol, makers[best],
-                              info.get("dt", dts[-1]), record_every)
+                              info.get("dt", dts[-1]), record_every, bar)
+    bar.update(bar.total, "done")
     return WorkPrecision(rows, info, scale, source, list(times), duration, spread_info, _observable_name(observable))
 
 
 def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, observable, ref_obs, rtol, best, dt,
-            record_every):
+            record_every, bar):
     """References from randomly displaced starts: how far apart they drift (the chaotic floor)."""
     options = dict(spread)
     unknown = set(options) - {"samples", "perturbation", "seed"}
@@ -1320,7 +1342,8 @@ def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, ob
     size = float(options.get("perturbation", 1e-9 * float(np.min(scene.particles.radius))))
     rng = np.random.default_rng(options.get("seed", 0))
     values, apart = [], np.zeros(len(times))
-    for _ in range(samples):
+    for sample in range(samples):
+        bar.update(bar.total - samples + sample, f"spread: perturbed reference {sample + 1}/{samples}")
         scene.pull()
         p = scene.particles.copy()
         step = rng.normal(size=p.position.shape)
@@ -1371,7 +1394,7 @@ class DtSuggestion:
 
 
 def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", dt=None, duration=None,
-               reference="auto"):
+               reference="auto", progress=None):
     """A time step for ``method`` to reach an error ``target`` in ``measure`` ("position",
     "velocity", "energy" or "angular_momentum"), from a short pilot.
 
@@ -1382,7 +1405,8 @@ def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", 
     times (clipped to [0, 3]). The suggestion is capped at the scene's largest safe step. This is
     an extrapolation: errors that grow exponentially (chaotic scenes, many-body collisions) or jump
     at events the pilot did not reach are not predicted; check with a work_precision run at the
-    suggested dt. Returns a :class:`DtSuggestion`.
+    suggested dt. ``progress``: the pilot study's bar (see :func:`work_precision`). Returns a
+    :class:`DtSuggestion`.
     """
     if measure not in MEASURES or measure == "observable":
         raise ValueError(f"measure must be one of position, velocity, energy, angular_momentum; got {measure!r}")
@@ -1394,7 +1418,8 @@ def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", 
         dt = 0.5 * limit
     dts = [dt, dt / 2, dt / 4]
     times = pilot * np.array([0.25, 0.5, 0.75, 1.0])
-    report = work_precision(scene, pilot, methods=[method], dts=dts, reference=reference, times=times)
+    report = work_precision(scene, pilot, methods=[method], dts=dts, reference=reference, times=times,
+                            progress=progress)
     key = MEASURES[measure][0]
     rows = [r for r in report.rows if r["stable"] and not r["is_reference"] and math.isfinite(r[key]) and r[key] > 0]
     if len(rows) < 2:

@@ -1,7 +1,7 @@
 """The ``demkit`` command.
 
     demkit accuracy scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
-                             [--plot wp.png] [--csv wp.csv]
+                             [--plot wp.png] [--csv wp.csv] [--no-progress]
     demkit sweep sweep.toml [--scheduler tcp://host:8786] [--workers N]   (docs/sweeps.md)
 
     demkit render SERIES.pvd -o run.mp4 [--fps 20] [--max-frames 200] [--color-by speed] ...
@@ -84,7 +84,8 @@ def accuracy_command(args):
                else namespace.get("methods"))
     dts = parse_dts(args.dts) if args.dts else namespace.get("dts")
     report = accuracy.work_precision(namespace["scene"], float(duration), methods=methods, dts=dts,
-                                     times=namespace.get("times"), observable=namespace.get("observable"))
+                                     times=namespace.get("times"), observable=namespace.get("observable"),
+                                     progress=False if args.no_progress else None)
     print(report.table())
     plot = Path(args.plot) if args.plot else Path(f"{Path(args.scene).stem}_accuracy.png")
     report.plot(plot)
@@ -149,6 +150,7 @@ def main(argv=None):
     study.add_argument("--methods", help="comma-separated methods (default: EulerCromer,VelocityVerlet)")
     study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")
     study.add_argument("--csv", help="also write the table as CSV")
+    study.add_argument("--no-progress", action="store_true", help="no progress bar over the runs")
     from . import commands as scene_commands  # demkit run / demkit info (TOML scene files)
     scene_commands.add_commands(commands)
     export = commands.add_parser("export-lammps", help="write a LAMMPS data file and input deck of a scene",

@@ -23,15 +23,16 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   friction -> ``tangential mindlin NULL sqrt(4 G*/E*) mu``;
 * ``Wall`` (axis-aligned) -> ``fix wall/gran granular hooke ... xplane lo NULL`` (Hertz: the modulus
   2 E/(1 + nu) that LAMMPS' wall formula turns into demkit's E/(1 - nu^2)), an
-  in-plane velocity -> ``shear``; ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix
+  in-plane velocity -> ``shear``; an oblique wall at rest -> ``region plane`` + ``fix
+  wall/gran/region`` (the same sphere-wall contact code); ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix
   efield`` with E = B / sqrt(A) (torque mu x E);
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
   a second-order splitting instead of demkit's exact rotation; ``dipole_update="euler"`` gives
   LAMMPS' default first-order step).
 
 Refused with a ValueError naming the part and why: PowerLawDipole, switched dipole cutoffs,
-MagnetField, custom pair or sphere interactions, inertia factors other than 2/5, walls that are
-oblique or on a periodic axis, Hertz friction or rolling whose stiffness or damping LAMMPS
+MagnetField, custom pair or sphere interactions, inertia factors other than 2/5, oblique walls that
+slide, walls with a normal component along a periodic axis, Hertz friction or rolling whose stiffness or damping LAMMPS
 cannot scale like demkit. With ``strict=True`` (default) also what would run but not reproduce
 demkit exactly: friction with demkit's own sliding rule or contact-point slip radius (use
 ``Friction(..., slip_radius="full", sliding="lammps")``), wall friction (LAMMPS' torque arm is R,
@@ -288,23 +289,32 @@ class _Export:
         return lines
 
     def wall_line(self, k, wall, periodic):
+        """The deck line(s) of a wall: ``fix wall/gran ... xplane`` for one normal to an axis, else a
+        ``region plane`` (the half-space (x - p).n >= 0, side in) and ``fix wall/gran/region``, which
+        LAMMPS runs through the same sphere-wall contact code with a flat wall (R* = R)."""
         axes = np.flatnonzero(wall.normal != 0.0)
-        if len(axes) != 1:
-            raise ValueError(f"{wall!r}: LAMMPS' fix wall/gran takes planes normal to x, y or z; this one is "
-                             f"oblique")
-        a = int(axes[0])
-        if periodic[a]:
-            raise ValueError(f"{wall!r}: a wall across the periodic axis {'xyz'[a]} cannot be exported (LAMMPS "
-                             f"refuses walls in periodic dimensions); make that axis open")
+        for a in axes:
+            if periodic[a]:
+                raise ValueError(f"{wall!r}: a wall across the periodic axis {'xyz'[a]} cannot be exported (LAMMPS "
+                                 f"refuses walls in periodic dimensions); make that axis open")
         if wall.law.friction is not None:
             self.differs(f"{wall!r} with friction", "LAMMPS' wall friction torque has the lever arm R, demkit's "
                          "R - delta (the contact point on the wall): spins differ by O(delta/R) of the friction "
                          "torque")
+        model = self.granular_model(wall.law, wall=True)
+        moving = np.flatnonzero(wall.velocity != 0.0)
+        if len(axes) > 1:
+            if len(moving):
+                raise ValueError(f"{wall!r}: an oblique wall that slides in its plane cannot be exported (LAMMPS' "
+                                 f"region walls take their velocity from moving the region itself); export it at "
+                                 f"rest or make its normal lie along x, y or z")
+            point, normal = " ".join(map(g17, wall.point)), " ".join(map(g17, wall.normal))
+            return (f"region      wallplane{k} plane {point} {normal} side in units box\n"
+                    f"fix         wall{k} mobile wall/gran/region granular {model} region wallplane{k}")
+        a = int(axes[0])
         where = g17(wall.point[a])
         bounds = f"{where} NULL" if wall.normal[a] > 0 else f"NULL {where}"
-        line = f"fix         wall{k} mobile wall/gran granular {self.granular_model(wall.law, wall=True)} " \
-               f"{'xyz'[a]}plane {bounds}"
-        moving = np.flatnonzero(wall.velocity != 0.0)
+        line = f"fix         wall{k} mobile wall/gran granular {model} {'xyz'[a]}plane {bounds}"
         if len(moving) > 1:
             raise ValueError(f"{wall!r}: LAMMPS' shear moves a wall along one axis; this one slides along "
                              f"{len(moving)}")

@@ -1,7 +1,8 @@
 """What long steps tell the user while they work: progress bars (tqdm) and the compile notice.
 
 Progress bars (:class:`Progress`) are drawn on stderr by tqdm for simulation runs
-(``Simulation.run(progress=...)``) and for rendering animations (``demkit.viz.animate``):
+(``Simulation.run(progress=...)``), for accuracy studies (``demkit.accuracy.work_precision``, one
+bar over the study's runs) and for rendering animations (``demkit.viz.animate``):
 
 * ``progress=None`` (the default): a bar only when stderr is a terminal and the work is going to
   take more than about :data:`AUTO_SECONDS` of wall time; nothing in logs, pipes or tests, and
@@ -51,7 +52,9 @@ class Progress:
     after :data:`AUTO_AFTER` seconds when the work then looks like it will take longer than
     :data:`AUTO_SECONDS` in all; before that, and when no bar is wanted, an update costs one clock
     reading. ``scale``/``span``: the postfix shows ``label = start + done * scale`` / ``span``
-    (simulated time for runs); None: no postfix. ``tqdm_options`` go to tqdm (unit, unit_scale, ...).
+    (simulated time for runs); None: no postfix; ``update(done, note)`` shows ``note`` instead.
+    ``total`` may be set after construction, before the first update (when it is known later).
+    ``tqdm_options`` go to tqdm (unit, unit_scale, ...).
     """
 
     def __init__(self, total, progress=None, desc="demkit", scale=None, start=0.0, span=None, label="t",
@@ -70,8 +73,9 @@ class Progress:
         """Is a bar shown or still possible?"""
         return self.bar is not None or self.auto or (self.forced and self.total > 0)
 
-    def update(self, done):
-        """``done`` units of ``total`` are done."""
+    def update(self, done, note=None):
+        """``done`` units of ``total`` are done; ``note`` (a short text, e.g. what runs now) replaces
+        the postfix when given."""
         if self.bar is None and self.forced:
             self._open(0)  # at the first update, not before: after any compile notice
         elif self.bar is None:
@@ -90,10 +94,12 @@ class Progress:
             if elapsed + remaining < AUTO_SECONDS or done >= self.total:
                 return
             self._open(done)  # tqdm's rate and time left count from here
-        if self.scale is not None:
+        if self.scale is not None and note is None:
             self.bar.set_postfix_str(f"{self.label} = {self.start + done * self.scale:.6g}/{self.span:.6g}",
                                      refresh=False)
         self.bar.update(done - self.bar.n)
+        if note is not None and note != self.bar.postfix:  # a new stage (a few per run at most): show it now
+            self.bar.set_postfix_str(note)
 
     def _open(self, initial):
         from tqdm import tqdm

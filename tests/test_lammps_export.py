@@ -181,7 +181,11 @@ def test_deck_without_duration_asks_for_the_number_of_steps(tmp_path):
                       [dk.Dipole(1.0, cutoff=3.0, switch_width=1.0)]), "switch_width"),
     (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]], inertia_factor=0.5), [dk.KelvinVoigt(10.0)]),
      "inertia_factor"),
-    (lambda: dk.Scene(dk.Particles([[1, 1, 1]]), [dk.KelvinVoigt(10.0), dk.Wall([0, 0, 0], [1, 1, 0])]), "oblique"),
+    (lambda: dk.Scene(dk.Particles([[1, 1, 1]]), [dk.KelvinVoigt(10.0), dk.Wall([0, 0, 0], [1, 1, 0],
+                                                                                 velocity=[1, -1, 0])]),
+     "oblique wall that slides"),
+    (lambda: dk.Scene(dk.Particles([[1, 1, 1]]), [dk.KelvinVoigt(10.0), dk.Wall([0, 0, 0], [0, 1, 1])],
+                      box=dk.Box(5.0, periodic=(False, True, False))), "periodic axis y"),
     (lambda: dk.Scene(dk.Particles([[1, 1, 1]]), [dk.KelvinVoigt(10.0), dk.Wall([0, 0, 0], [0, 0, 1])],
                       box=dk.Box(5.0, periodic=True)), "periodic axis z"),
     (lambda: dk.Scene(dk.Particles([[0, 0, 0], [2, 0, 0]]),
@@ -314,3 +318,35 @@ def test_hertz_spheres_bouncing_on_a_hertz_wall_agree_to_round_off(tmp_path):
     (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
     assert traj.velocity[-1, 0, 2] > 0.3  # bounced off the wall (e = 0.7)
     assert dx < 1e-12 and dv < 1e-12 and dw == 0.0
+
+
+def tilted_walls():
+    """A sphere sliding down a tilted Kelvin-Voigt wall (resting on it at its equilibrium overlap) and
+    one bouncing off another tilted wall with its own Hertz law, under gravity: oblique walls."""
+    na, nb = np.array([0.3, -0.2, 1.0]), np.array([-0.5, 0.1, 1.0])
+    na, nb = na / np.linalg.norm(na), nb / np.linalg.norm(nb)
+    pa, pb = np.array([0.2, 0.1, 0.3]), np.array([5.0, 0.0, 0.0])
+    downhill = np.array([0, 0, -1.0]) + na[2] * na
+    x0 = pa + (0.5 - 1.0 * na[2] / 1000.0) * na  # overlap m g n_z / k: pressed on by gravity
+    x1 = pb + np.array([0.3, 0.2, 0.0])
+    x1 += (0.51 - (x1 - pb) @ nb) * nb
+    p = dk.Particles(position=[x0, x1], velocity=[0.5 * downhill, -1.0 * nb + [0.1, 0.2, 0]],
+                     angular_velocity=[[0, 0, 0], [1.0, 0, 2.0]], radius=[0.5, 0.52], mass=[1.0, 1.2])
+    hertz = dk.Hertz(young=2e4, poisson=0.3, restitution=0.7)
+    return dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0), dk.Wall(pa, na), dk.Wall(pb, nb, contact=hertz),
+                        dk.Gravity([0, 0, -1])]), na, nb
+
+
+@needs_lammps
+def test_oblique_walls_agree_to_round_off(tmp_path):
+    scene, na, nb = tilted_walls()
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    deck = files.deck.read_text()
+    assert "region      wallplane0 plane 0.20000000000000001 0.10000000000000001 0.29999999999999999 " in deck
+    assert "wall/gran/region granular hooke 1000 1 " in deck and "wall/gran/region granular hertz/material" in deck
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files))
+    height = (traj.position[:, 0] - [0.2, 0.1, 0.3]) @ na
+    assert height.max() < 0.5 and abs(traj.velocity[-1, 0] @ na) < 1e-3  # slid in contact, did not bounce
+    assert traj.velocity[-1, 0] @ traj.velocity[0, 0] > 1.05 * (traj.velocity[0, 0] @ traj.velocity[0, 0])
+    assert traj.velocity[0, 1] @ nb < -0.9 and traj.velocity[-1, 1] @ nb > 0.5  # bounced (e = 0.7)
+    assert dx < 1e-12 and dv < 1e-12 and dw == 0.0  # measured 7e-16, 1.2e-14

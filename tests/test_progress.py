@@ -223,3 +223,141 @@ def test_demkit_render_refuses_bad_options_in_one_line(series, tmp_path, args, m
     assert done.returncode == 2 and message in done.stderr and "Traceback" not in done.stderr
     done = render_child(tmp_path / "missing.pvd", "-o", tmp_path / "x.gif")
     assert done.returncode == 2 and "does not exist" in done.stderr
+
+
+# ---- accuracy studies: one bar over the runs ---------------------------------------------------
+def collision():
+    """Two spheres that meet head-on at t ~ 0.25 and part again (a small, fast study)."""
+    p = dk.Particles([[0.0, 0, 0], [2.2, 0.3, 0]], velocity=[[0.4, 0, 0], [-0.4, 0, 0]], radius=1.0)
+    return dk.Scene(p, [dk.KelvinVoigt(50.0, 0.5)])
+
+
+def study(progress):
+    return dk.accuracy.work_precision(collision(), 1.0, methods=[dk.EulerCromer, dk.VelocityVerlet],
+                                      dts=[0.02, 0.01], progress=progress)
+
+
+def same_rows(a, b):
+    """Every entry of the two reports' rows equal (NaN equal to NaN), wall times aside."""
+    assert len(a.rows) == len(b.rows)
+    for x, y in zip(a.rows, b.rows):
+        assert x.keys() == y.keys()
+        for key in x:
+            if key != "seconds":
+                assert np.array_equal(x[key], y[key], equal_nan=not isinstance(x[key], str)), key
+
+
+@pytest.fixture
+def terminal_and_eager(monkeypatch):
+    """stderr taken for a terminal, and automatic bars shown for any work: a run that drew its own
+    bar would show it here. The study's kernels are compiled first (no compile notice later)."""
+    monkeypatch.setenv("DEMKIT_QUIET", "1")
+    study(False)
+    monkeypatch.delenv("DEMKIT_QUIET")
+    monkeypatch.setattr(prog, "_is_terminal", lambda stream: True)
+    monkeypatch.setattr(prog, "AUTO_SECONDS", 0.0)
+    monkeypatch.setattr(prog, "AUTO_AFTER", 0.0)
+    monkeypatch.setattr(dk.simulation, "CHUNK_SECONDS", 1e-9)  # runs of one-step chunks: many updates
+
+
+def test_an_accuracy_study_shows_one_bar_over_its_runs_and_the_same_results(capsys, terminal_and_eager):
+    quiet = study(False)
+    assert capsys.readouterr().err == ""
+    shown = study(True)
+    err = capsys.readouterr().err
+    last = final_line(err)
+    # 2 methods x 2 dts and the adaptive reference: 5 runs, the current one in the postfix
+    assert last.startswith("accuracy study: 100%") and "5/5" in last and "done" in last
+    for stage in ("EulerCromer dt = 0.02", "VelocityVerlet dt = 0.01", "reference: adaptive DOP853"):
+        assert stage in err
+    assert "demkit run" not in err and not tqdm._instances  # the runs drew no bars; the study's is closed
+    fourth = [line for line in err.replace("\r", "\n").splitlines() if "VelocityVerlet dt = 0.01]" in line]
+    assert fourth and all(" 3/5 " in line for line in fourth)  # shown with the runs done before it
+    same_rows(quiet, shown)
+    assert quiet.reference["evaluations"] == shown.reference["evaluations"]
+    assert study(None).rows[0]["position_error"] == quiet.rows[0]["position_error"]  # automatic: a bar
+    assert "accuracy study" in capsys.readouterr().err
+
+
+def test_no_study_bar_when_quiet_or_switched_off(capsys, monkeypatch, terminal_and_eager):
+    study(False)
+    assert capsys.readouterr().err == ""
+    monkeypatch.setenv("DEMKIT_QUIET", "1")
+    study(None)
+    assert capsys.readouterr().err == ""
+    with pytest.raises(TypeError, match="progress must be None"):
+        dk.accuracy.work_precision(collision(), 1.0, dts=[0.01], progress=1)
+
+
+def test_demkit_accuracy_shows_the_bar_unless_told_not_to(capsys, terminal_and_eager, tmp_path):
+    from demkit.cli import main
+
+    scene = tmp_path / "pair.py"
+    scene.write_text(textwrap.dedent("""
+        import demkit as dk
+        p = dk.Particles([[0.0, 0, 0], [2.2, 0.3, 0]], velocity=[[0.4, 0, 0], [-0.4, 0, 0]], radius=1.0)
+        scene = dk.Scene(p, [dk.KelvinVoigt(50.0, 0.5)])
+        duration = 1.0
+    """))
+    common = [str(scene), "--dts", "0.02,0.01", "--methods", "VelocityVerlet", "--plot", str(tmp_path / "wp.png")]
+    assert main(["accuracy", *common]) == 0
+    captured = capsys.readouterr()
+    assert "3/3" in final_line(captured.err) and "VelocityVerlet" in captured.out
+    assert main(["accuracy", *common, "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+# ---- demkit render interrupted -------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def long_series(tmp_path_factory):
+    """400 frames: long enough to interrupt a render in the middle."""
+    folder = tmp_path_factory.mktemp("long")
+    writer = dk.VTKWriter(folder / "series", every=1.0, trails=False)
+    sim = dk.Simulation(two_magnets(x0=25.0), dk.EulerCromer(dt=0.01), writers=[writer])
+    sim.run(400.0, progress=False)
+    sim.close()
+    return writer.pvd
+
+
+def test_ctrl_c_stops_a_render_with_one_line_and_no_partial_animation(long_series, tmp_path):
+    out, partial = tmp_path / "run.mp4", tmp_path / "run.partial.mp4"
+    out.write_bytes(b"an older animation")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    child = subprocess.Popen([sys.executable, "-m", "demkit", "render", str(long_series), "-o", str(out),
+                              "--max-frames", "400", "--size", "96x64"], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        for _ in range(1200):  # the partial file appears with the first frame
+            if partial.exists() or child.poll() is not None:
+                break
+            threading.Event().wait(0.05)
+        if child.poll() is None:
+            child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    if child.returncode == 1 and "render" in err:
+        pytest.skip(f"no off-screen rendering here: {err.strip()}")
+    assert child.returncode == 130, err
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("demkit render: rendering interrupted after ") and "of 400 frames" in line
+    assert "was not written (the partial file was removed)" in line and "Traceback" not in err
+    assert not partial.exists() and out.read_bytes() == b"an older animation"  # left as it was
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4"])
+def test_an_animation_gets_its_name_only_when_complete(tmp_path, suffix):
+    from demkit.viz.movie import MovieWriter
+
+    frame = np.zeros((32, 48, 3), np.uint8)
+    frame[:, :24] = (200, 30, 30)
+    movie = MovieWriter(tmp_path / f"a{suffix}", fps=10)
+    for _ in range(3):
+        movie.add(frame)
+    movie.abort()
+    assert list(tmp_path.iterdir()) == []  # nothing on disk, not even a partial file
+    movie = MovieWriter(tmp_path / f"b{suffix}", fps=10)
+    for _ in range(3):
+        movie.add(frame)
+    assert movie.close() == tmp_path / f"b{suffix}"
+    assert [p.name for p in tmp_path.iterdir()] == [f"b{suffix}"] and (tmp_path / f"b{suffix}").stat().st_size > 0

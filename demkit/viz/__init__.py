@@ -121,7 +121,10 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None
     {DRAWING}
     The camera and the colour range stay fixed for the whole animation (framing the last frame's
     cluster for frame='cluster'). Returns the path. Raises ValueError for bad arguments and
-    RenderingUnavailable if nothing can render here.
+    RenderingUnavailable if nothing can render here. The animation is written to
+    ``<name>.partial.<suffix>`` and renamed to ``path`` when complete; on Ctrl-C (within a frame's
+    drawing time) or an error the partial file is removed, ``path`` is left as it was, and
+    KeyboardInterrupt says how many frames were drawn.
     """
     from ..progress import Progress, check_progress
     from .movie import MovieWriter
@@ -141,15 +144,28 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None
     ensure_rendering()
     drawer = FrameDrawer(plan)
     bar = Progress(len(index), progress, desc="rendering frames", unit="frame")
+    done = 0
     try:
         bar.update(0)
-        for done, k in enumerate(index, 1):
+        for k in index:
             movie.add(drawer.draw(k))
+            done += 1
             bar.update(done)
+    except KeyboardInterrupt:
+        movie.abort()
+        raise KeyboardInterrupt(f"rendering interrupted after {done} of {len(index)} frames: {movie.path} was not "
+                                f"written (the partial file was removed)") from None
+    except BaseException:
+        movie.abort()
+        raise
     finally:
         bar.close()
         drawer.close()
-    return movie.close()
+    try:
+        return movie.close()
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(f"interrupted while writing {movie.path}: it was not written (the partial file "
+                                f"was removed)") from None
 
 
 snapshot.__doc__ = snapshot.__doc__.replace("{DRAWING}", DRAWING.strip("\n").lstrip())

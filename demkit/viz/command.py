@@ -80,5 +80,8 @@ def render(args):
     except RenderingUnavailable as err:
         print(f"demkit render: {err}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt as err:  # Ctrl-C: one line, no traceback, the shell's status for SIGINT
+        print(f"demkit render: {err or 'interrupted'}", file=sys.stderr)
+        return 130
     print(f"wrote {path}")
     return 0
