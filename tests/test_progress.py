@@ -325,7 +325,8 @@ def test_ctrl_c_stops_a_render_with_one_line_and_no_partial_animation(long_serie
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     child = subprocess.Popen([sys.executable, "-m", "demkit", "render", str(long_series), "-o", str(out),
                               "--max-frames", "400", "--size", "96x64"], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True, env=env)
+                             stderr=subprocess.PIPE, text=True, env=env,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as in a terminal
     try:
         for _ in range(1200):  # the partial file appears with the first frame
             if partial.exists() or child.poll() is not None:

@@ -151,6 +151,12 @@ def test_points_run_quietly_and_the_setting_comes_back(tmp_path, monkeypatch):
 NAPS = 'task = "sweep_tasks:nap"\nresults = "nap.csv"\n[grid]\nx = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]\nt = [0.3]\n'
 
 
+def answer_ctrl_c():
+    """In the child before exec: SIGINT back to its default, as in a terminal (a test suite started
+    in the background of a shell inherits SIGINT ignored, and Python then never raises KeyboardInterrupt)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def started_points(log):
     return sorted(int(line) for line in log.read_text().split()) if log.exists() else []
 
@@ -165,7 +171,8 @@ def test_ctrl_c_stops_demkit_sweep_keeps_finished_points_and_a_rerun_finishes_th
     command = [sys.executable, "-m", "demkit", "sweep", "nap.toml", *where]
     # its own session, as a terminal's foreground job: Ctrl-C sends SIGINT to every process of the group
     process = subprocess.Popen(command, cwd=tmp_path, env=dict(ENV, SWEEP_TASKS_LOG=str(tmp_path / "first.log")),
-                               start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=answer_ctrl_c)
     try:
         deadline = time.monotonic() + 60
         while not (table.exists() and len(read_table(table)) >= 1):
