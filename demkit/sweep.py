@@ -31,6 +31,7 @@ import functools
 import importlib
 import itertools
 import json
+import logging
 import math
 import multiprocessing as mp
 import numbers
@@ -329,12 +330,6 @@ def _terminate(pool):
             pass
 
 
-def _quiet_dask_logs():
-    """On a LocalCluster's workers before it is closed mid-sweep: only errors in their logs."""
-    import logging
-    logging.getLogger("distributed").setLevel(logging.ERROR)
-
-
 def _dask_rows(task, todo, names, workers, scheduler):
     """Rows of ``todo`` as they finish on a Dask cluster; interrupted, the points are cancelled and a
     LocalCluster is closed."""
@@ -351,9 +346,7 @@ def _dask_rows(task, todo, names, workers, scheduler):
             yield row
     except BaseException:
         try:
-            if scheduler == "local":  # closed with its running points: no warnings about them
-                client.run(_quiet_dask_logs)
-            else:
+            if scheduler != "local":  # a LocalCluster is closed with its running points below
                 client.cancel(list(futures))
         except Exception:  # noqa: BLE001 (closing anyway)
             pass
@@ -374,7 +367,10 @@ def _dask_client(scheduler, workers):
     if scheduler == "local":
         with _children_ignore_interrupt():
             # no dashboard; its HTTP server (health checks) on a free port, not 8787 that may be taken
+            # silence_logs: closed mid-sweep (Ctrl-C), its workers would log their lost scheduler as
+            # errors with tracebacks on the user's terminal; a point's own failure comes back in its row
             cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               silence_logs=logging.CRITICAL,
                                                dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"})
         client = distributed.Client(cluster)
 
