@@ -189,12 +189,12 @@ def info_command(args):
         print(f"units         the paper's: length {u.length:.4g} m, time {u.time:.4g} s, mass {u.mass:.4g} kg")
     steps = round(loaded.duration / integ.dt)
     print(f"integrator    {integ!r}: {steps:,} steps to t = {loaded.duration:g}")
-    limit = scene.max_time_step()
+    limit, why = guards.largest_safe_step(scene)
     if math.isfinite(limit):
-        print(f"time step     dt = {integ.dt:.6g}; largest safe step {limit:.6g} (contacts and fields, "
-              f"Scene.max_time_step) -> dt is {integ.contact_step / limit:.2f} of it")
+        print(f"time step     dt = {integ.dt:.6g}; largest safe step {limit:.6g} (dk.guards.largest_safe_step: "
+              f"{why}) -> dt is {integ.contact_step / limit:.2f} of it")
     else:
-        print(f"time step     dt = {integ.dt:.6g}; no contact or field limits it (dipoles are checked at the "
+        print(f"time step     dt = {integ.dt:.6g}; nothing limits it yet ({why}; dipoles are checked at the "
               f"closest approach)")
     try:
         guards.before_stepping(scene, integ)

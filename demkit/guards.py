@@ -77,6 +77,20 @@ def before_stepping(scene, integrator):
         raise ValueError(" Also: ".join(problems))
 
 
+def largest_safe_step(scene):
+    """(limit, why): the largest time step the contact and field checks of :func:`before_stepping`
+    accept, and what sets it (Hertz contacts at the approach speed of the spheres' speeds and of
+    touching magnets snapping together); (math.inf, why) when nothing limits it yet."""
+    limits = _limits(scene)
+    if not limits:
+        return math.inf, "no contact law, field or plug-in interaction sets a largest time step"
+    limit, what, why, _ = min(limits, key=lambda item: item[0])
+    if not math.isfinite(limit):
+        return math.inf, (f"{what} has no limit yet: every sphere is at rest and no touching magnets snap "
+                          f"together, so the impact speed it must resolve is unknown")
+    return limit, f"{what}: {why}"
+
+
 def while_stepping(scene, integrator):
     """A message saying why the run can no longer be trusted, or None. O(N) and cheap: the fastest
     speed and spin, and a cell list only in scenes whose dipoles no contact law keeps apart or a

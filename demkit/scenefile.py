@@ -252,7 +252,7 @@ SCHEMA = Table({
     "integrator": Table({
         "method": Key("string", "VelocityVerlet", "EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep "
                                                   "(or a name as `demkit accuracy --methods` takes)"),
-        "dt": Key("number_or_auto", REQUIRED, 'time step, or "auto": half the scene\'s largest safe step',
+        "dt": Key("number_or_auto", REQUIRED, 'time step, or "auto": half the largest safe step (dk.guards.largest_safe_step)',
                   check="positive", dim="time"),
         "inner": Key("integer", doc="MultipleTimeStep: inner steps per step (default 4)", check="at_least_one"),
         "resolve_contacts": Key("bool", False, "VelocityVerlet, MultipleTimeStep: resolve contact events")},
@@ -296,6 +296,7 @@ class _Source:
     def __init__(self, text, name, overrides):
         self.text, self.name = text, name
         self.overridden = [tuple(_split(k)) for k in (overrides or {})]
+        self.units_note = ""  # units = "si": constructors' messages quote converted numbers; this says so
         self._lines = None
 
     def error(self, path, message):
@@ -485,7 +486,7 @@ class _At:
             named = [(m.start(), key) for key in self.keys
                      for m in [re.search(rf"(?<![\w.]){re.escape(key)}(?!\w)", message)] if m]
             path = self.keyed + (min(named)[1],) if named else self.path
-            raise self.src.error(path, message) from None
+            raise self.src.error(path, message + self.src.units_note) from None
         return False
 
 
@@ -760,10 +761,12 @@ def _integrator(d, scene, src):
         make = parse_method(text)
     dt = integ["dt"]
     if dt == "auto":
-        limit = scene.max_time_step()
+        from .guards import largest_safe_step
+        limit, why = largest_safe_step(scene)
         if not math.isfinite(limit):
-            raise src.error(("integrator", "dt"), '"auto" needs a scene with a largest safe step (contacts or '
-                                                  'fields); give dt as a number')
+            raise src.error(("integrator", "dt"), f'"auto" found no largest safe step ({why}); give dt as a '
+                                                  f'number (for an impact at speed v: a tenth of the contact time '
+                                                  f'at v, docs/contacts.md)')
         dt = 0.5 * limit
     with _At(src, "integrator"):
         return make(dt)
@@ -777,6 +780,8 @@ def _build(data, src, base):
         with _At(src, "scales"):
             units, scale = si_scales(data["scales"])
         _convert(SCHEMA, data, scale)
+        src.units_note = (f" [numbers in the paper's units, converted from SI: length {units.length:.4g} m, "
+                          f"time {units.time:.4g} s, mass {units.mass:.4g} kg]")
     box = None
     if data["box"] is not None:
         with _At(src, "box", keys=("size", "periodic")):

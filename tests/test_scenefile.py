@@ -239,7 +239,7 @@ def test_overrides_apply_before_validation_and_unknown_ones_are_errors():
     loaded = dk.parse_scene(GAS, overrides={"interactions.dipole.prefactor": 0.5, "interactions.wall.1.velocity": [0.0, 0.2, 0.0],
                                             "integrator.dt": "auto"})
     assert loaded.scene.interactions[0].prefactor == 0.5 and loaded.scene.effects[2].velocity.tolist() == [0, 0.2, 0]
-    assert loaded.integrator.dt == 0.5 * loaded.scene.max_time_step()
+    assert loaded.integrator.dt == 0.5 * dk.guards.largest_safe_step(loaded.scene)[0]
     with pytest.raises(dk.SceneFileError, match=r"interactions.dipole.prefator: unknown key; did you mean 'prefactor'\? "
                                                 r"\(set by override"):
         dk.parse_scene(GAS, overrides={"interactions.dipole.prefator": 0.5})
@@ -292,6 +292,41 @@ def test_si_input_is_the_papers_units():
     assert loaded.integrator.dt == pytest.approx(0.01, rel=1e-12) and loaded.duration == pytest.approx(1.0)
     with pytest.raises(dk.SceneFileError, match="scales: give one of stiffness, young_modulus"):
         dk.parse_scene(text.replace("young_modulus = 39.5e9\n", ""))
+    # a refusal quotes converted numbers, and says they are in the paper's units (10 time units here)
+    with pytest.raises(dk.SceneFileError, match=rf"dt = 10 is too large.*\[numbers in the paper's units, converted from "
+                                                rf"SI: length {s.length:.4g} m, time {s.time:.4g} s"):
+        dk.parse_scene(text.replace(f"dt = {0.01 * s.time!r}", f"dt = {10 * s.time!r}"))
+
+
+AT_REST = """\
+[particles]
+position = [[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]
+dipole = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+[interactions.dipole]
+prefactor = 1.0
+[interactions.hertz]
+young = 1000.0
+poisson = 0.3
+[integrator]
+dt = "auto"
+[run]
+duration = 1.0
+"""
+
+
+def test_auto_time_step_resolves_magnets_snapping_together_from_rest_and_says_when_nothing_limits_it():
+    """Touching magnets at rest: Hertz' own limit is infinite (no speed), the checks before a run use
+    the speed of the magnets snapping together; "auto" is half of what they accept, and passes them."""
+    loaded = dk.parse_scene(AT_REST)
+    limit, why = dk.guards.largest_safe_step(loaded.scene)
+    assert loaded.scene.max_time_step() == math.inf and math.isfinite(limit) and "snapping together" in why
+    assert loaded.integrator.dt == 0.5 * limit
+    dk.guards.before_stepping(loaded.scene, loaded.integrator)  # raises if refused
+    alone = AT_REST.replace("[[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]", "[[0.0, 0.0, 1.0]]").replace(
+        "[[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]", "[[1.0, 0.0, 0.0]]")
+    with pytest.raises(dk.SceneFileError, match=r'integrator.dt: "auto" found no largest safe step \(the stiffest '
+                                                r'contact .* every sphere is at rest.*give dt as a number'):
+        dk.parse_scene(alone)
 
 
 # ---- fuzz ------------------------------------------------------------------------------------------
