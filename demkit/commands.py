@@ -17,6 +17,7 @@ measured on this project's 2-core machine) or, with ``--measure``, a timing run 
 from __future__ import annotations
 
 import math
+import sys
 import time
 import tomllib
 
@@ -93,12 +94,21 @@ def run_command(args):
     print(f"{loaded.path}: {n} spheres, {loaded.integrator!r}, t = 0 .. {loaded.duration:g} ({steps:,} steps)")
     if not any(_outputs(loaded, args.out)):
         print(NO_OUTPUTS)
+    checkpoint = dict(_outputs(loaded, args.out)).get("checkpoint")
+    if checkpoint is not None and checkpoint.exists():
+        print(f"resuming from {checkpoint} (delete it to start over)")
     clock = time.perf_counter()
     try:
         trajectory = loaded.run(progress=args.progress, out_dir=args.out)
     except SimulationError as err:
         print(f"demkit run: stopped: {err}")
         return 1
+    except KeyboardInterrupt:
+        kept = [f"{name} {where}" for name, where in _outputs(loaded, args.out) if where.exists()]
+        again = ("run the same command to resume" if checkpoint is not None else
+                 "no [outputs.checkpoint]: a rerun starts over")
+        print(f"demkit run: interrupted; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
+        return 130
     seconds = time.perf_counter() - clock
     frames = len(trajectory) if trajectory is not None else 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")
