@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .guards import largest_safe_step
 from .integrators import EulerCromer, Integrator, VelocityVerlet
 from .interactions.contact import KelvinVoigt
 from .interactions.hertz import Hertz
@@ -1191,13 +1192,16 @@ def _work_precision(scene, duration, methods, dts, reference, times, energy_scal
         raise ValueError(f"duration must be a positive finite time, got {duration}")
     makers = _makers(methods)
     if dts is None:
-        limit = scene.max_time_step()
+        limit, why = largest_safe_step(scene)
         if not math.isfinite(limit):
-            raise ValueError("this scene sets no largest safe time step: pass dts=[...]")
+            raise ValueError(f"this scene sets no largest safe time step ({why}): pass dts=[...]")
         dts = [limit / 2 ** k for k in range(5)]
     dts = sorted({float(dt) for dt in np.atleast_1d(dts)}, reverse=True)
     if not dts or any(not math.isfinite(dt) or dt <= 0 for dt in dts):
         raise ValueError(f"dts must be positive finite time steps, got {dts}")
+    if duration < dts[0]:
+        raise ValueError(f"duration {duration:.6g} is shorter than the largest time step {dts[0]:.6g}: give a "
+                         f"longer duration or smaller dts")
     if times is None:
         times = duration * np.arange(1, 6) / 5.0
     times = np.unique(np.asarray(times, dtype=np.float64).ravel())
@@ -1275,7 +1279,9 @@ def _work_precision(scene, duration, methods, dts, reference, times, energy_scal
         label = makers[best][0]
         stable = [r for r in rows if r["method"] == label and r["stable"]]
         if not stable:
-            raise ValueError(f"no stable run of {label} to serve as the reference")
+            last = min((r for r in rows if r["method"] == label), key=lambda r: r["dt"])
+            raise ValueError(f"no stable run of {label} to serve as the reference; at dt = {last['dt']:.4g}: "
+                             f"{last['message']}")
         finest = min(stable, key=lambda r: r["dt"])
         ref = runs[rows.index(finest)]
         finest["is_reference"] = True
@@ -1411,10 +1417,10 @@ def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", 
     if measure not in MEASURES or measure == "observable":
         raise ValueError(f"measure must be one of position, velocity, energy, angular_momentum; got {measure!r}")
     pilot = float(pilot)
-    limit = scene.max_time_step()
+    limit, why = largest_safe_step(scene)
     if dt is None:
         if not math.isfinite(limit):
-            raise ValueError("this scene sets no largest safe time step: pass dt=...")
+            raise ValueError(f"this scene sets no largest safe time step ({why}): pass dt=...")
         dt = 0.5 * limit
     dts = [dt, dt / 2, dt / 4]
     times = pilot * np.array([0.25, 0.5, 0.75, 1.0])

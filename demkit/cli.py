@@ -1,20 +1,13 @@
 """The ``demkit`` command.
 
-    demkit accuracy scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
+    demkit accuracy scene.toml|scene.py [--duration T] [--dts 0.01,0.005] [--methods VelocityVerlet,RK4]
                              [--plot wp.png] [--csv wp.csv] [--no-progress]
     demkit sweep sweep.toml [--scheduler tcp://host:8786] [--workers N]   (docs/sweeps.md)
 
     demkit render SERIES.pvd -o run.mp4 [--fps 20] [--max-frames 200] [--color-by speed] ...
 
-``render`` draws a written series to an animation or a picture (:mod:`demkit.viz.command`).
-``accuracy`` runs :func:`demkit.accuracy.work_precision` on the scene a Python file builds and prints
-the table (method, dt, errors, wall time, force evaluations, stable?) and writes the figure. The file
-defines ``scene`` (a :class:`demkit.Scene`) or ``make_scene()`` returning one, and may define
-``duration``, ``dts``, ``methods`` (as for work_precision), ``times`` and ``observable``; options on
-the command line win. Method names: EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep
-(``MultipleTimeStep:8`` for 8 inner steps; 4 by default), and ``:resolve`` after VelocityVerlet or
-MultipleTimeStep to resolve contact events (``VelocityVerlet:resolve``, ``MultipleTimeStep:8:resolve``).
-"""
+``render`` draws a written series to an animation or a picture (:mod:`demkit.viz.command`);
+``accuracy`` runs a work-precision study (:data:`ACCURACY_HELP`)."""
 from __future__ import annotations
 
 import argparse
@@ -25,6 +18,20 @@ from pathlib import Path
 from . import accuracy
 from .integrators import RK4, EulerCromer, ForestRuth, MultipleTimeStep, VelocityVerlet
 from .scene import Scene
+
+#: the description of `demkit accuracy --help`
+ACCURACY_HELP = """\
+Run demkit.accuracy.work_precision on a scene and print the table (method, dt, errors, wall time,
+force evaluations, stable?) and write the figure.
+
+The scene is a TOML scene file (docs/scene_files.md; its run.duration is the default --duration, its
+integrator and outputs are not used) or a Python file that defines `scene` (a demkit.Scene) or
+`make_scene()` returning one, and may define `duration`, `dts`, `methods` (as for work_precision),
+`times` and `observable`; options on the command line win. Method names:
+EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep (MultipleTimeStep:8 for 8 inner steps;
+4 by default), and :resolve after VelocityVerlet or MultipleTimeStep to resolve contact events
+(VelocityVerlet:resolve, MultipleTimeStep:8:resolve).
+"""
 
 PLAIN = {"EulerCromer": EulerCromer, "VelocityVerlet": VelocityVerlet, "ForestRuth": ForestRuth, "RK4": RK4}
 
@@ -76,7 +83,16 @@ def load_scene_file(path):
 
 
 def accuracy_command(args):
-    namespace = load_scene_file(args.scene)
+    if Path(args.scene).suffix == ".py":
+        namespace = load_scene_file(args.scene)
+    else:
+        from .scenefile import load_scene
+        loaded = load_scene(args.scene)
+        namespace = {"scene": loaded.scene, "duration": loaded.duration}
+        if loaded.units is not None:  # units = "si": --duration and --dts in seconds, like the file
+            scale = loaded.units.time
+            args.duration = None if args.duration is None else args.duration / scale
+            args.dts = None if not args.dts else ",".join(repr(dt / scale) for dt in parse_dts(args.dts))
     duration = args.duration if args.duration is not None else namespace.get("duration")
     if duration is None:
         raise ValueError(f"give --duration or define `duration` in {args.scene}")
@@ -143,9 +159,9 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="demkit", description="demkit: spinning magnetic spheres.")
     commands = parser.add_subparsers(dest="command", required=True)
     study = commands.add_parser("accuracy", help="what accuracy costs in time: a work-precision table and figure",
-                                description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    study.add_argument("scene", help="a Python file defining `scene` or `make_scene()`")
-    study.add_argument("--duration", type=float, help="simulated time of every run")
+                                description=ACCURACY_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    study.add_argument("scene", help="a TOML scene file, or a Python file defining `scene` or `make_scene()`")
+    study.add_argument("--duration", type=float, help="simulated time of every run (in the scene file's units)")
     study.add_argument("--dts", help="comma-separated time steps (default: the safe step and 4 halvings)")
     study.add_argument("--methods", help="comma-separated methods (default: EulerCromer,VelocityVerlet)")
     study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")

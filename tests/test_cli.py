@@ -60,3 +60,34 @@ def test_method_names():
     assert parse_method("MultipleTimeStep:8:resolve")(0.01).inner == 8
     assert parse_method("MultipleTimeStep:8:resolve")(0.01).resolve_contacts
     assert parse_method("VelocityVerlet:resolve")(0.01).resolve_contacts
+
+
+TOML = textwrap.dedent("""
+    [particles]
+    position = [[0.0, 0.0, 0.0], [1.0137, 0.0, 0.0]]
+    velocity = [[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]]
+    radius = 0.5
+    [interactions.kelvin_voigt]
+    stiffness = 1000.0
+    damping = 4.0
+    [integrator]
+    dt = 0.001
+    [run]
+    duration = 0.3
+""")
+
+
+def test_accuracy_of_a_scene_file_is_that_of_the_same_python_scene(tmp_path):
+    """The .toml and the .py scene are the same scene: every error column agrees to the last digit printed."""
+    (tmp_path / "impact.py").write_text(SCENE)
+    (tmp_path / "impact.toml").write_text(TOML)
+    options = ["--dts", "0.004,0.002", "--methods", "VelocityVerlet,RK4", "--no-progress"]
+    tables = []
+    for name in ("impact.py", "impact.toml"):
+        done = demkit("accuracy", name, *options, cwd=tmp_path)
+        assert done.returncode == 0, done.stderr
+        rows = [line.split() for line in done.stdout.splitlines() if line.startswith(("VelocityVerlet", "RK4"))]
+        tables.append([r[:5] for r in rows])  # method, dt, position, velocity and energy errors (not the time)
+    assert len(tables[0]) == 4 and tables[0] == tables[1]
+    done = demkit("accuracy", "impact.toml", "--duration", "0.001", "--dts", "0.004", cwd=tmp_path)
+    assert done.returncode == 2 and "duration 0.001 is shorter than the largest time step 0.004" in done.stderr
