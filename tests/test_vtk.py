@@ -327,8 +327,11 @@ def test_paraview_script_state_has_a_view_framing_the_box_and_the_screenshot_exi
     traj, _ = crossing_trajectory()
     pvd = write_series(traj, tmp_path / "series")
     state, png = tmp_path / "view.pvsm", tmp_path / "shot.png"
-    done = subprocess.run(["xvfb-run", "-a", "pvpython", str(dk.io.paraview_script()), str(pvd), "--state",
-                           str(state), "--screenshot", str(png)], capture_output=True, text=True, timeout=120)
+    for _ in range(3):  # xvfb-run -a can race another test's X server for a display number; not ours to test
+        done = subprocess.run(["xvfb-run", "-a", "pvpython", str(dk.io.paraview_script()), str(pvd), "--state",
+                               str(state), "--screenshot", str(png)], capture_output=True, text=True, timeout=120)
+        if "bad X server connection" not in done.stderr:
+            break
     assert done.returncode == 0, done.stdout + done.stderr  # was 1 (GLXBadContext at exit)
     assert "box" in done.stdout
     from PIL import Image
