@@ -145,12 +145,18 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None
     drawer = FrameDrawer(plan)
     bar = Progress(len(index), progress, desc="rendering frames", unit="frame")
     done = 0
+    from ..simulation import _CatchInterrupt
     try:
-        bar.update(0)
-        for k in index:
-            movie.add(drawer.draw(k))
-            done += 1
-            bar.update(done)
+        # Ctrl-C is taken between frames: raised inside VTK's Python callbacks (reading a frame) it
+        # would be swallowed by VTK as a pipeline error and the render would go on
+        with _CatchInterrupt() as stop:
+            bar.update(0)
+            for k in index:
+                movie.add(drawer.draw(k))
+                done += 1
+                bar.update(done)
+                if stop.caught:
+                    raise KeyboardInterrupt
     except KeyboardInterrupt:
         movie.abort()
         raise KeyboardInterrupt(f"rendering interrupted after {done} of {len(index)} frames: {movie.path} was not "
