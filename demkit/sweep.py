@@ -32,7 +32,6 @@ import importlib
 import itertools
 import json
 import logging
-import math
 import multiprocessing as mp
 import numbers
 import os
@@ -44,6 +43,8 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+
+from .progress import Progress
 
 #: columns every table has, after the parameters (and seed)
 STATUS_COLUMNS = ("status", "error", "wall_s")
@@ -195,7 +196,7 @@ def run_point(task, point, names=()):
         row = {k: cell(v) for k, v in out.items() if k not in point}
         row.update(status="ok", error="")
     except Exception as exc:  # noqa: BLE001 (recorded in the table; the sweep goes on)
-        row = {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " ")}
+        row = {"status": "failed", "error": _error_text(exc)}
     row["wall_s"] = cell(time.perf_counter() - start)
     row.update({k: cell(v) for k, v in point.items()})
     return row
@@ -265,9 +266,14 @@ class _Table:
 
 
 # ---- executors: generators of finished rows -----------------------------------------------------
+def _error_text(exc):
+    """A failed point's error cell: 'Type: message' on one line."""
+    return f"{type(exc).__name__}: {exc}".replace("\n", " ")
+
+
 def _lost_row(exc, point):
     """The row of a point whose worker died (a broken pool, a killed Dask worker)."""
-    return {"status": "failed", "error": f"{type(exc).__name__}: {exc}".replace("\n", " "), "wall_s": "",
+    return {"status": "failed", "error": _error_text(exc), "wall_s": "",
             **{k: cell(v) for k, v in point.items()}}
 
 
@@ -385,12 +391,6 @@ def _dask_client(scheduler, workers):
     return client, client.close
 
 
-def _progress(total, progress):
-    from tqdm import tqdm
-    show = sys.stderr.isatty() if progress is None else bool(progress)
-    return tqdm(total=total, disable=not show, unit="point", desc="sweep")
-
-
 # ---- the sweep -----------------------------------------------------------------------------------
 def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, scheduler=None, progress=None):
     """Run ``task(point)`` for every point not finished in ``results``; returns the table's rows
@@ -403,7 +403,8 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
     workers : processes (default: the machine's cores; 1: in this process) or Dask workers of a
         LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
         'tcp://host:8786', or a dask.distributed.Client.
-    progress : tqdm bar; None shows it only on a terminal.
+    progress : a bar over the points (:class:`demkit.progress.Progress`): None on a terminal for a
+        sweep that looks longer than a moment (not with DEMKIT_QUIET), True always, False never.
 
     Ctrl-C (KeyboardInterrupt): running points are abandoned (worker processes terminated, a
     LocalCluster closed, queued Dask points cancelled), finished ones stay in the table, and a
@@ -429,12 +430,12 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         raise ValueError(f"workers must be at least 1, got {workers}")
     rows = (_local_rows(task, todo, names, min(workers, len(todo))) if scheduler is None
             else _dask_rows(task, todo, names, workers, scheduler))
-    bar = _progress(len(todo), progress)
+    bar = Progress(len(todo), progress, desc="sweep", unit="point")
     try:
         with contextlib.closing(rows):
-            for row in (rows if todo else ()):
+            for finished, row in enumerate(rows if todo else (), start=1):
                 table.add(row)
-                bar.update()
+                bar.update(finished)
     except KeyboardInterrupt:
         bar.close()
         finished = len(table.done() & set(keys))
