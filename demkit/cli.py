@@ -82,23 +82,28 @@ def load_scene_file(path):
     return namespace
 
 
+def scene_namespace(path):
+    """What a scene file defines, as a dict: a Python file's names (:func:`load_scene_file`), or for a
+    TOML scene file (:func:`demkit.load_scene`) its ``scene``, ``integrator``, ``duration``,
+    ``record_every`` and ``time_unit`` (seconds per time unit with units = "si", else 1)."""
+    if Path(path).suffix == ".py":
+        return load_scene_file(path)
+    from .scenefile import load_scene
+    loaded = load_scene(path)
+    return {"scene": loaded.scene, "integrator": loaded.integrator, "duration": loaded.duration,
+            "record_every": loaded.record_every,
+            "time_unit": loaded.units.time if loaded.units is not None else 1.0}
+
+
 def accuracy_command(args):
-    if Path(args.scene).suffix == ".py":
-        namespace = load_scene_file(args.scene)
-    else:
-        from .scenefile import load_scene
-        loaded = load_scene(args.scene)
-        namespace = {"scene": loaded.scene, "duration": loaded.duration}
-        if loaded.units is not None:  # units = "si": --duration and --dts in seconds, like the file
-            scale = loaded.units.time
-            args.duration = None if args.duration is None else args.duration / scale
-            args.dts = None if not args.dts else ",".join(repr(dt / scale) for dt in parse_dts(args.dts))
-    duration = args.duration if args.duration is not None else namespace.get("duration")
+    namespace = scene_namespace(args.scene)
+    time_unit = namespace.get("time_unit", 1.0)  # units = "si": --duration and --dts in seconds, like the file
+    duration = args.duration / time_unit if args.duration is not None else namespace.get("duration")
     if duration is None:
         raise ValueError(f"give --duration or define `duration` in {args.scene}")
     methods = ({m: parse_method(m) for m in args.methods.split(",") if m.strip()} if args.methods
                else namespace.get("methods"))
-    dts = parse_dts(args.dts) if args.dts else namespace.get("dts")
+    dts = [dt / time_unit for dt in parse_dts(args.dts)] if args.dts else namespace.get("dts")
     report = accuracy.work_precision(namespace["scene"], float(duration), methods=methods, dts=dts,
                                      times=namespace.get("times"), observable=namespace.get("observable"),
                                      progress=False if args.no_progress else None)
@@ -116,11 +121,7 @@ def load_run(path):
     """(scene, integrator, duration, record_every) of a scene file for export-lammps: a TOML scene
     file (:func:`demkit.load_scene`), or a Python file (``.py``) that defines ``scene`` (or
     ``make_scene()``) and ``integrator``, and may define ``duration`` and ``record_every``."""
-    if Path(path).suffix != ".py":
-        from .scenefile import load_scene
-        loaded = load_scene(path)
-        return loaded.scene, loaded.integrator, loaded.duration, loaded.record_every
-    namespace = load_scene_file(path)
+    namespace = scene_namespace(path)
     integrator = namespace.get("integrator")
     if integrator is None:
         raise ValueError(f"{path} must define `integrator` (e.g. demkit.VelocityVerlet(dt=1e-3))")
@@ -193,12 +194,7 @@ def main(argv=None):
     render.add_arguments(drawing)
     drawing.set_defaults(handler=render.render)
     args = parser.parse_args(argv)
-    if args.command in ("run", "info"):
-        return scene_commands.main_errors(parser, args)
-    try:
-        return args.handler(args)
-    except (ValueError, ImportError) as err:
-        parser.exit(2, f"demkit {args.command}: error: {err}\n")
+    return scene_commands.main_errors(parser, args)
 
 
 if __name__ == "__main__":

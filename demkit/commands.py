@@ -23,7 +23,7 @@ import tomllib
 
 import numpy as np
 
-from .scenefile import SceneFileError, load_scene
+from .scenefile import load_scene
 
 #: rough wall time of one pair evaluation in one force evaluation (seconds): measured on the 2-core
 #: project machine with examples/magnetic_cluster/cluster.toml (400 dipoles, all 79,800 pairs,
@@ -31,8 +31,6 @@ from .scenefile import SceneFileError, load_scene
 PAIR_SECONDS = 1.2e-8
 #: and per sphere and force evaluation (integration, neighbour-list checks)
 SPHERE_SECONDS = 5.0e-8
-#: force evaluations per step of each integrator (MultipleTimeStep: the fast forces inner times)
-EVALUATIONS = {"EulerCromer": 1, "VelocityVerlet": 1, "ForestRuth": 3, "RK4": 4}
 
 
 #: printed by `demkit run` before running a file without outputs (it still runs: a check of the
@@ -92,9 +90,10 @@ def run_command(args):
     n = len(loaded.scene.particles)
     steps = round(loaded.duration / loaded.integrator.dt)
     print(f"{loaded.path}: {n} spheres, {loaded.integrator!r}, t = 0 .. {loaded.duration:g} ({steps:,} steps)")
-    if not any(_outputs(loaded, args.out)):
+    outputs = dict(_outputs(loaded, args.out))
+    if not outputs:
         print(NO_OUTPUTS)
-    checkpoint = dict(_outputs(loaded, args.out)).get("checkpoint")
+    checkpoint = outputs.get("checkpoint")
     if checkpoint is not None and checkpoint.exists():
         print(f"resuming from {checkpoint} (delete it to start over)")
     clock = time.perf_counter()
@@ -104,7 +103,7 @@ def run_command(args):
         print(f"demkit run: stopped: {err}")
         return 1
     except KeyboardInterrupt:
-        kept = [f"{name} {where}" for name, where in _outputs(loaded, args.out) if where.exists()]
+        kept = [f"{name} {where}" for name, where in outputs.items() if where.exists()]
         again = ("run the same command to resume" if checkpoint is not None else
                  "no [outputs.checkpoint]: a rerun starts over")
         print(f"demkit run: interrupted; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
@@ -112,7 +111,7 @@ def run_command(args):
     seconds = time.perf_counter() - clock
     frames = len(trajectory) if trajectory is not None else 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")
-    for name, where in _outputs(loaded, args.out):
+    for name, where in outputs.items():
         print(f"wrote {name}: {where}")
     return 0
 
@@ -171,13 +170,6 @@ def estimate_pairs(scene):
             tree = cKDTree(p.position)
         out.append(("neighbour list", group.reach, len(tree.query_pairs(reach)), group.width))
     return out
-
-
-def _evaluations(integrator):
-    name = type(integrator).__name__
-    if name == "MultipleTimeStep":
-        return integrator.inner
-    return EVALUATIONS.get(name, 1)
 
 
 def info_command(args):
@@ -242,8 +234,8 @@ def info_command(args):
         per_step = seconds / count
         how = f"measured over {count:,} steps"
     else:
-        per_step = _evaluations(integ) * (total_pairs * PAIR_SECONDS + n * SPHERE_SECONDS)
-        how = (f"rough: {_evaluations(integ)} force evaluation(s) per step x ({total_pairs:,} pairs x "
+        per_step = integ.evaluations_per_step * (total_pairs * PAIR_SECONDS + n * SPHERE_SECONDS)
+        how = (f"rough: {integ.evaluations_per_step} force evaluation(s) per step x ({total_pairs:,} pairs x "
                f"{PAIR_SECONDS:.0e} s + {n} spheres x {SPHERE_SECONDS:.0e} s); --measure times it")
     print(f"cost          {per_step * 1e6:.3g} us per step ({how}) -> ~{_duration(per_step * steps)} for the run "
           f"(one core, compilation not included)")
@@ -259,10 +251,11 @@ def _duration(seconds):
 
 
 def main_errors(parser, args):
-    """Run the chosen handler; a bad scene file or option is one line on stderr and exit code 2."""
+    """Run the chosen command's handler; a bad scene file, option or missing extra is one line on
+    stderr and exit code 2, Ctrl-C not handled by the command one line and exit code 130."""
     try:
         return args.handler(args)
-    except (SceneFileError, ValueError) as err:
+    except (ValueError, ImportError) as err:  # SceneFileError is a ValueError
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
     except KeyboardInterrupt:
         parser.exit(130, f"demkit {args.command}: interrupted\n")
