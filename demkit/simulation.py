@@ -249,7 +249,7 @@ class Simulation:
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
-        with _CatchInterrupt() as interrupt, _Stepping(scene), bar:
+        with CatchInterrupt() as interrupt, _Stepping(scene), bar:
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
@@ -613,7 +613,7 @@ class _Stepping:
         return False
 
 
-class _CatchInterrupt:
+class CatchInterrupt:
     """Within a run: SIGINT (Ctrl-C) sets ``caught`` instead of raising wherever Python happens to
     be; the run looks at it between compiled chunks. Only in the main thread (signal handlers can
     only be set there); elsewhere Ctrl-C behaves as usual."""

@@ -145,11 +145,11 @@ def animate(source, path, fps=20, max_frames=200, time_range=None, *, trail=None
     drawer = FrameDrawer(plan)
     bar = Progress(len(index), progress, desc="rendering frames", unit="frame")
     done = 0
-    from ..simulation import _CatchInterrupt
+    from ..simulation import CatchInterrupt
     try:
         # Ctrl-C is taken between frames: raised inside VTK's Python callbacks (reading a frame) it
         # would be swallowed by VTK as a pipeline error and the render would go on
-        with _CatchInterrupt() as stop:
+        with CatchInterrupt() as stop:
             bar.update(0)
             for k in index:
                 movie.add(drawer.draw(k))
