@@ -641,14 +641,9 @@ def _drift(loaded, trajectory):
 
 @observable("contacts")
 def _contacts(loaded, trajectory):
-    """Touching pairs (r <= R_i + R_j) in the last frame."""
-    from scipy.spatial import cKDTree
-    x, radius = trajectory.unwrapped()[-1], trajectory.radius
-    pairs = np.array(sorted(cKDTree(x).query_pairs(2.0 * float(radius.max()))), dtype=np.int64).reshape(-1, 2)
-    if len(pairs) == 0:
-        return 0
-    gap = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1) - radius[pairs].sum(axis=1)
-    return int((gap <= 0).sum())
+    """Touching pairs (r < R_i + R_j, minimum image in a periodic box) in the last frame."""
+    from .viz.analysis import close_pairs
+    return len(close_pairs(trajectory.position[-1], trajectory.radius, trajectory.box))
 
 
 @observable("outcome")

@@ -212,6 +212,14 @@ def test_observables_of_a_trajectory():
     assert out["kinetic_energy"] == pytest.approx(e["kinetic"][-1] + e["rotational"][-1])
 
 
+def test_contacts_are_counted_across_periodic_faces():
+    """Two spheres touching through the x faces of a periodic box (and a third apart): one contact."""
+    box = dk.Box([10.0, 10.0, 10.0], periodic=[True, False, False])
+    p = dk.Particles(position=[[0.3, 5, 5], [9.4, 5, 5], [5, 5, 5]], radius=0.5)
+    trajectory = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(100.0)], box=box), dk.VelocityVerlet(1e-3)).run(2e-3)
+    assert sweep_module.observe(["contacts"], None, trajectory) == {"contacts": 1}
+
+
 def test_demkit_sweep_command_runs_a_sweep_file(tmp_path):
     (tmp_path / "s.toml").write_text('task = "math:hypot"\nworkers = 1\n[[points]]\nx = 1\n')
     root = str(Path(dk.__file__).resolve().parents[1])  # this checkout's demkit, not an installed one
