@@ -239,6 +239,8 @@ def info_command(args):
                f"{PAIR_SECONDS:.0e} s + {n} spheres x {SPHERE_SECONDS:.0e} s); --measure times it")
     print(f"cost          {per_step * 1e6:.3g} us per step ({how}) -> ~{_duration(per_step * steps)} for the run "
           f"(one core, compilation not included)")
+    from .threads import ThreadChoice
+    print(f"threads       {ThreadChoice(scene, integ.template).describe()}")
     return 0
 
 

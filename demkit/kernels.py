@@ -165,8 +165,9 @@ def _callable_arguments(inter, args):
 class _Source:
     """Builds the text of the generated module."""
 
-    def __init__(self, plan, importable):
+    def __init__(self, plan, importable, threads=False):
         self.plan = plan
+        self.threads = threads  # the thread module: chunked loops on prange, per-step passes on threads
         self.kinds = energy_kinds(plan.interactions + plan.effects)
         self.importable = importable
         self.parts = self.split_groups()
@@ -397,19 +398,22 @@ class _Source:
         signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         lines = ["", "", "@njit(**INNER)", f"def {name}_forces({signature}):",
                  f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
-        lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
-        lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
-        lines.append("    return power")
         if not group.parallel:
+            lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
+            lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
+            lines.append("    return power")
             return lines
-        lines += ["", "", "@njit(**PARALLEL)",
-                  f"def {name}_forces_parallel({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
-                  '    """As the serial loop, owners cut into fixed chunks: chunk 0 adds into force/torque, the',
-                  '    others into buffers of their own, summed in chunk order (the same result for any number',
-                  '    of threads)."""']
+        # chunked: the same text runs on threads (prange, the thread module) or chunk after chunk
+        # (range, the serial module), so both give the same bits
+        loop = "prange" if self.threads else "range"
+        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
+                 f"def {name}_forces_chunked({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
+                 '    """Owners cut into fixed chunks: chunk 0 adds into force/torque, the others into buffers',
+                 '    of their own, summed in chunk order (the same result for any number of threads, and',
+                 '    in the serial module, where the chunks run one after the other)."""']
         lines += self.prelude(group)
         lines += ["    chunks = bounds.shape[0] - 1",
-                  "    for t in prange(chunks):",
+                  f"    for t in {loop}(chunks):",
                   "        cf = force if t == 0 else chunk_force[t - 1]",
                   "        ct = torque if t == 0 else chunk_torque[t - 1]",
                   "        co = scratch[t]",
@@ -423,17 +427,10 @@ class _Source:
         lines += ["        power = 0.0"]
         lines += self.loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
         lines += ["        chunk_power[t] = power",
-                  "    for i in prange(n):",
-                  "        for a in range(3):",
-                  "            total = force[i, a]",
-                  "            for t in range(chunks - 1):",
-                  "                total += chunk_force[t, i, a]",
-                  "            force[i, a] = total"]
+                  "    if chunks > 1:",
+                  "        sum_chunks(force, chunk_force, chunks - 1)"]
         if group.torque:
-            lines += ["            total = torque[i, a]",
-                      "            for t in range(chunks - 1):",
-                      "                total += chunk_torque[t, i, a]",
-                      "            torque[i, a] = total"]
+            lines += ["        sum_chunks(torque, chunk_torque, chunks - 1)"]
         lines += ["    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
                   "    return power"]
         return lines
@@ -546,7 +543,7 @@ class _Source:
                     continue
             if sub.parallel:
                 extra = f", commit_flag, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
-                lines.append("    power += " + self.group_call(g, sub, "forces_parallel", "force, torque, ", extra, name))
+                lines.append("    power += " + self.group_call(g, sub, "forces_chunked", "force, torque, ", extra, name))
             else:
                 lines.append("    power += " + self.group_call(g, sub, "forces", "force, torque, ", ", commit_flag", name))
         if plan.effects and speed != "slow":
@@ -699,7 +696,7 @@ class _Source:
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
-                 "                           total_forces,",
+                 "                           total_forces, sum_chunks,",
                  "                           KERNEL_OPTIONS)",
                  "from demkit.events import earliest_crossing_all, earliest_crossing_list",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
@@ -710,11 +707,14 @@ class _Source:
                  ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.events import earliest_wall_crossing", ""]
-        if plan.growing and any(group.parallel for group in plan.groups):  # the per-step passes on threads
+        if self.threads:  # the chunk sums on threads, and in scenes with lists every per-step pass
+            lines += ["from demkit.motion import sum_chunks_threads as sum_chunks"]
+        if self.threads and plan.growing:
             lines += ["from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
                       "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
                       "                           state_is_finite_threads as state_is_finite)",
-                      "from demkit.neighbours import max_displacement_threads as max_displacement", ""]
+                      "from demkit.neighbours import (max_displacement_threads as max_displacement,",
+                      "                               rebuild_threads as rebuild, build_threads as build)", ""]
         if self.importable:
             for k, inter in enumerate(plan.interactions):
                 for kind, fn in zip(("force", "energy"), inter.pair_functions()):
@@ -732,7 +732,7 @@ class _Source:
         lines += [f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
-                  f"LOOP = dict(cache={cache}, {fast}{nrt})"]
+                  f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})"]  # time loops let other threads run (threads.py)
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group)
         for g, name, sub, _ in self.parts:
@@ -745,9 +745,10 @@ class _Source:
         return "\n".join(lines) + "\n"
 
 
-def generate_source(plan, templates, importable):
-    """Python source of the fused kernel module (see module docstring)."""
-    return _Source(plan, importable).text(templates)
+def generate_source(plan, templates, importable, threads=False):
+    """Python source of the fused kernel module (see module docstring); ``threads``: the module
+    whose chunked loops and per-step passes run on threads."""
+    return _Source(plan, importable, threads).text(templates)
 
 
 def _cache_dir():
@@ -774,8 +775,9 @@ def _fingerprint(source, interactions):
     return h.hexdigest()[:20]
 
 
-def build_module(plan, templates):
-    """Return the compiled kernel module for this plan and these integrator templates."""
+def build_module(plan, templates, threads=False):
+    """Return the compiled kernel module for this plan and these integrator templates (the thread
+    module with ``threads``: the same arithmetic, loops on numba's threads)."""
     interactions = plan.interactions + plan.effects
     for inter in interactions:
         for fn in inter.pair_functions():
@@ -783,7 +785,7 @@ def build_module(plan, templates):
                 raise TypeError(f"{type(inter).__name__}: pair functions must be numba @njit functions")
     importable = all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
     importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
-    source = generate_source(plan, templates, importable)
+    source = generate_source(plan, templates, importable, threads)
     key = _fingerprint(source, interactions)
     name = f"demkit_kernel_{key}"
     if not importable:  # in memory: bind to these very function objects, not look-alikes
@@ -820,7 +822,50 @@ def _load_from_file(name, source):
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
+    _compile_one_at_a_time(module, folder / f"{name}.lock")
     return module
+
+
+class _FileLock:
+    """An exclusive lock on a file shared by processes (re-entrant within one), so that processes
+    needing the same kernels at once (test workers, sweep workers, two terminals) compile them once:
+    the others wait, then load what the first wrote to numba's cache."""
+
+    def __init__(self, path):
+        self.path, self.depth, self.fh = path, 0, None
+
+    def __enter__(self):
+        if self.depth == 0:
+            try:
+                import fcntl
+                self.fh = open(self.path, "a")
+                fcntl.flock(self.fh, fcntl.LOCK_EX)
+            except (ImportError, OSError):  # no locking here (Windows, a read-only cache): just compile
+                self.fh = None
+        self.depth += 1
+        return self
+
+    def __exit__(self, *exc):
+        self.depth -= 1
+        if self.depth == 0 and self.fh is not None:
+            self.fh.close()  # releases the lock
+            self.fh = None
+        return False
+
+
+def _compile_one_at_a_time(module, lock_path):
+    """Every compilation of the module's functions under one file lock (see _FileLock)."""
+    lock = _FileLock(lock_path)
+    for obj in list(vars(module).values()):
+        if isinstance(obj, numba.core.registry.CPUDispatcher) and getattr(obj, "__module__", None) == module.__name__:
+            obj.compile = _locked(obj.compile, lock)
+
+
+def _locked(compile_, lock):
+    def compile(sig):
+        with lock:
+            return compile_(sig)
+    return compile
 
 
 def _load_in_memory(name, source, plan):

@@ -313,6 +313,17 @@ def empty_vectors(dtype=np.float64):
     return np.zeros((0, 3), dtype=dtype)
 
 
+@njit(**KERNEL_OPTIONS)
+def sum_chunks(target, buffers, count):
+    """target += buffers[0] + ... + buffers[count - 1], in that order (chunked pair loops)."""
+    for i in range(target.shape[0]):
+        for a in range(3):
+            total = target[i, a]
+            for t in range(count):
+                total += buffers[t, i, a]
+            target[i, a] = total
+
+
 # ---- the same passes on threads, for threaded scenes with neighbour lists (their generated module
 # imports these under the plain names, so integrator templates stay as they are)
 THREAD_OPTIONS = dict(cache=True, _nrt=False, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")
@@ -360,6 +371,17 @@ def kick_all_threads(velocity, angular_velocity, dipole, force, torque, mass, in
     """:func:`kick_all` with its passes on threads."""
     kick_threads(velocity, force, mass, h)
     advance_spin_threads(angular_velocity, dipole, torque, inertia, h, rotate_h)
+
+
+@njit(**THREAD_OPTIONS)
+def sum_chunks_threads(target, buffers, count):
+    """:func:`sum_chunks`, particles split among threads (the same sums, the same order)."""
+    for i in prange(target.shape[0]):
+        for a in range(3):
+            total = target[i, a]
+            for t in range(count):
+                total += buffers[t, i, a]
+            target[i, a] = total
 
 
 @njit(**THREAD_OPTIONS)

@@ -287,16 +287,18 @@ def fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_star
 
 @njit(**LOOP_OPTIONS)
 def fill_chunks(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
-                end, partner, lo, hi, image, d2, cells, region, used):
-    """fill_threads, or for a single chunk a plain call (a scene without threads never starts the
-    threading layer: GNU OpenMP, once started, makes fork() unsafe)."""
-    if cells.shape[0] > 2:
+                end, partner, lo, hi, image, d2, cells, region, used, threads):
+    """fill_threads (``threads`` and more than one chunk), or the chunks one after the other: the
+    same lists either way (each chunk fills its own region). A scene that never runs on threads
+    never starts the threading layer (GNU OpenMP, once started, makes fork() unsafe)."""
+    if threads and cells.shape[0] > 2:
         fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
                      end, partner, lo, hi, image, d2, cells, region, used)
-    else:
-        used[0] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts,
-                             start, end, partner, lo[0], hi[0], image[0], d2[0], cells[0], cells[1], region[0],
-                             region[1])
+        return
+    for t in range(cells.shape[0] - 1):
+        used[t] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts,
+                             start, end, partner, lo[t], hi[t], image[t], d2[t], cells[t], cells[t + 1], region[t],
+                             region[t + 1])
 
 
 @njit(**LOOP_OPTIONS)
@@ -317,6 +319,18 @@ def split_cells(cell_start, cells):
 
 @njit(cache=True)
 def build(pl, position, tag, box, periodic):
+    """:func:`build_chunks`, the chunks one after the other."""
+    build_chunks(pl, position, tag, box, periodic, False)
+
+
+@njit(cache=True)
+def build_threads(pl, position, tag, box, periodic):
+    """:func:`build_chunks`, the chunks on threads (the same lists)."""
+    build_chunks(pl, position, tag, box, periodic, True)
+
+
+@njit(cache=True)
+def build_chunks(pl, position, tag, box, periodic, threads):
     """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
     into len(pl.bounds) - 1 chunks filled side by side, each in its own region of ``partner``
     (grown, and the regions resized, when one overflows)."""
@@ -355,7 +369,7 @@ def build(pl, position, tag, box, periodic):
         region[t] = (pl.partner.shape[0] * (cell_start[cells[t]] if t < chunks else n)) // max(n, 1)
     region[chunks] = pl.partner.shape[0]
     fill_chunks(ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts,
-                pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
+                pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used, threads)
     full = False
     for t in range(chunks):
         full = full or used[t] >= region[t + 1] - region[t]
@@ -365,7 +379,7 @@ def build(pl, position, tag, box, periodic):
             region[t + 1] = region[t] + used[t] + used[t] // GROWTH + 16
         pl.partner = np.empty(region[chunks], dtype=np.int32)
         fill_chunks(ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts,
-                    pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
+                    pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used, threads)
     total = 0
     for t in range(chunks):
         total += used[t]
@@ -462,12 +476,24 @@ def balance(start, end, bounds):
 @njit(cache=True)
 def rebuild(pl, position, tag, box, periodic):
     """Rebuild one list, carrying its per-pair history by tag."""
+    rebuild_chunks(pl, position, tag, box, periodic, False)
+
+
+@njit(cache=True)
+def rebuild_threads(pl, position, tag, box, periodic):
+    """:func:`rebuild` with the list's chunks filled on threads (the same list)."""
+    rebuild_chunks(pl, position, tag, box, periodic, True)
+
+
+@njit(cache=True)
+def rebuild_chunks(pl, position, tag, box, periodic, threads):
+    """Rebuild one list, carrying its per-pair history by tag; ``threads``: chunks on threads."""
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, tag)
-        build(pl, position, tag, box, periodic)
+        build_chunks(pl, position, tag, box, periodic, threads)
         restore_history(pl, tag, owners, partners, rows)
     else:
-        build(pl, position, tag, box, periodic)
+        build_chunks(pl, position, tag, box, periodic, threads)
     balance(pl.start, pl.end, pl.bounds)
 
 

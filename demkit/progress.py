@@ -67,6 +67,7 @@ class Progress:
         self.desc, self.options = desc, tqdm_options
         self.scale, self.start, self.span, self.label = scale, start, span, label
         self._first = None  # (clock, done) at the first update: the rate is judged from there on
+        self.extra = None  # a few words after the postfix (runs: how many threads)
 
     @property
     def active(self):
@@ -95,7 +96,8 @@ class Progress:
                 return
             self._open(done)  # tqdm's rate and time left count from here
         if self.scale is not None and note is None:
-            self.bar.set_postfix_str(f"{self.label} = {self.start + done * self.scale:.6g}/{self.span:.6g}",
+            extra = f", {self.extra}" if self.extra else ""
+            self.bar.set_postfix_str(f"{self.label} = {self.start + done * self.scale:.6g}/{self.span:.6g}{extra}",
                                      refresh=False)
         self.bar.update(done - self.bar.n)
         if note is not None and note != self.bar.postfix:  # a new stage (a few per run at most): show it now
@@ -136,6 +138,8 @@ COMPILE_ESTIMATE = "usually 5-30 s"
 #: a compilation is announced once it has taken this long (wall-clock seconds): shorter ones pass
 #: silently (one scene's small diagnostics kernels compile in a fraction of a second)
 NOTICE_AFTER = 1.0
+#: name of the thread that compiles a scene's thread module in the background (demkit.threads)
+BACKGROUND = "demkit-compile-threads"
 
 
 class _Notice:
@@ -190,6 +194,8 @@ def _listener():
         announce them once they take longer than NOTICE_AFTER."""
 
         def on_start(self, ev):
+            if threading.current_thread().name == BACKGROUND:
+                return  # the thread module compiling beside a run (demkit.threads): not announced
             n = _NOTICE
             with n.lock:
                 n.depth += 1
@@ -208,6 +214,8 @@ def _listener():
             _announce()
 
         def on_end(self, ev):
+            if threading.current_thread().name == BACKGROUND:
+                return
             n = _NOTICE
             with n.lock:
                 n.depth -= 1

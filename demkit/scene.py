@@ -60,10 +60,11 @@ class Scene:
     box : :class:`demkit.Box` or None (open space)
     skin : extra reach of the neighbour lists (length); default 0.3 mean diameters. Lists are
         rebuilt when a sphere has moved skin/2.
-    parallel : None (threads when the scene is large enough to gain), True or False. Threads
-        follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops are cut into
-        ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results do not depend on how many
-        threads run them.
+    parallel : None (default: a scene of at least 2000 spheres may use threads, and each run
+        measures whether they pay, see :mod:`demkit.threads`), True (always threads) or False
+        (never). Threads follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops
+        of such a scene are cut into ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results
+        do not depend on how many threads run them, nor on whether threads run them at all.
     sort_every : re-order the spheres by cell every this many steps (at the next list rebuild) for
         memory locality; None: every 1000 steps in scenes with lists and at least 1000 spheres, 0:
         never. Invisible to the user: ``particles`` keeps its order, compiled code works on its
@@ -104,9 +105,15 @@ class Scene:
         self.skin = self._skin(skin)
         self.reaches = [inter.cutoff(particles) for inter in self.interactions]
         self._check_geometry()
-        self.chunks = max(1, int(numba.config.NUMBA_NUM_THREADS))
-        auto = self.chunks > 1 and len(particles) >= PARALLEL_MIN
-        self.parallel = auto if parallel is None else bool(parallel)
+        machine = max(1, int(numba.config.NUMBA_NUM_THREADS))
+        wanted = len(particles) >= PARALLEL_MIN if parallel is None else parallel
+        #: how threads are chosen: None (measured while running), True (always), False (never)
+        self.threads_requested = parallel
+        #: the pair loops are cut into this many fixed chunks (the machine's thread count when the
+        #: scene may run on threads, else 1), whoever runs them: the same bits on any thread count
+        self.chunks = machine if wanted and machine > 1 else 1
+        self.parallel = self.chunks > 1  # may run on threads
+        self._thread_kernels = None
         self.plan = self._plan()
         self._sorting(sort_every)
         self.energy_kinds = energy_kinds(self.interactions + self.effects)
@@ -125,6 +132,14 @@ class Scene:
             if self.plan.sorted:
                 self.kernels.sort_particles(self.state)
             self.pull()
+
+    @property
+    def thread_kernels(self):
+        """The kernel module whose loops run on numba's threads (the same arithmetic as
+        ``kernels``; compiled when first asked for)."""
+        if self._thread_kernels is None:
+            self._thread_kernels = build_module(self.plan, TEMPLATES, threads=True)
+        return self._thread_kernels
 
     def _sorting(self, sort_every):
         plan, n = self.plan, len(self.particles)
@@ -174,8 +189,11 @@ class Scene:
             for (k, inter), reach in zip(members, self.reaches):
                 by_reach.setdefault(reach, []).append((k, inter))
             groups = [Group(m, "all" if math.isinf(r) else "list", r) for r, m in sorted(by_reach.items())]
+        chunked = any(g.kind == "list" for g in groups) or self.parallel
         for group in groups:
-            group.parallel = self.parallel and n > 1
+            # chunked loops in every scene with lists, whatever its size or thread count, so that
+            # neither changes the compiled code (a scene of 1 chunk runs them as one loop)
+            group.parallel = chunked and n > 1
             if group.kind == "all" and group.width:
                 size = n * (n - 1) // 2 * group.width * 8
                 if size > MAX_ALL_PAIRS_HISTORY:
@@ -193,8 +211,7 @@ class Scene:
         for group in plan.groups:
             bounds = np.zeros(self.chunks + 1, dtype=np.int64)
             if group.kind == "list":  # a parallel group's lists are also built in chunks side by side
-                lists.append(new_pair_list(group.reach + self.skin, n, group.width,
-                                           self.chunks if group.parallel else 1))
+                lists.append(new_pair_list(group.reach + self.skin, n, group.width, self.chunks))
                 continue
             neighbours.triangle_bounds(n, bounds)
             history = np.zeros((n * (n - 1) // 2 if group.width else 0, group.width))

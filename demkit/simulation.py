@@ -18,6 +18,7 @@ import numpy as np
 from . import checks, guards
 from .progress import Progress, check_progress, compile_notice
 from .scene import energy_dict
+from .threads import ThreadChoice
 from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
@@ -173,7 +174,7 @@ class Simulation:
         with compile_notice():  # the guards may compile demkit's cell lists (once per install)
             guards.before_stepping(scene, integrator)
             integrator.check(scene)
-        self._loop = getattr(scene.kernels, f"{integrator.template}_steps")
+        self._threads = ThreadChoice(scene, integrator.template)
 
     @property
     def time(self):
@@ -254,9 +255,11 @@ class Simulation:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
                     chunk = min(chunk, every - (start_step + done) % every)
+                loop, chunk = self._threads.loop(chunk, nsteps - done)
+                bar.extra = self._threads.label
                 began = time.perf_counter()
                 try:
-                    failed = self._loop(chunk, done, stride, self.integrator.dt, forces_ready, state, record)
+                    failed = loop(chunk, done, stride, self.integrator.dt, forces_ready, state, record)
                 finally:
                     scene.pull()
                 forces_ready = self.forces_valid = True
@@ -264,7 +267,11 @@ class Simulation:
                     self._fail(done + failed + 1, start_step, stride, record)
                 done += chunk
                 self.step = start_step + done
-                chunk_steps = self._next_chunk(chunk, time.perf_counter() - began, chunk_steps)
+                seconds = time.perf_counter() - began
+                probe = self._threads.probing  # a probe's rate does not size the next chunks
+                self._threads.measured(chunk, seconds, first=self._rate is None)
+                if not probe:
+                    chunk_steps = self._next_chunk(chunk, seconds, chunk_steps)
                 notice.end()
                 bar.update(done)
                 for w, ws in zip(self.writers, writer_steps):
@@ -490,8 +497,8 @@ class Simulation:
             "neighbour_list_builds": rebuilds,
             "steps_per_build": nsteps / rebuilds if rebuilds else None,
             "lists": scene.neighbour_lists(), "skin": scene.skin if scene.plan.lists else None,
-            "threads": numba.get_num_threads() if scene.parallel else 1,
-            "chunks": scene.chunks if scene.parallel else 1,
+            **self._threads.statistics(),
+            "chunks": scene.chunks,
         }
 
     def close(self):

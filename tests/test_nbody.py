@@ -222,7 +222,10 @@ def test_thread_count_changes_nothing_and_threads_agree_with_the_serial_loop():
     inters = [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.0)]
     serial = dk.Scene(p.copy(), inters, box=box, parallel=False)
     threaded = dk.Scene(p.copy(), inters, box=box, parallel=True)
-    assert "prange" in threaded.kernels.source and "_parallel(" not in serial.kernels.source
+    # one serial module for any size and thread setting (nothing recompiles), loops on threads in
+    # the thread module only
+    assert serial.kernels.source == threaded.kernels.source and "prange(" not in serial.kernels.source
+    assert "prange(" in threaded.thread_kernels.source
     f0, t0 = serial.forces()
     f1, t1 = threaded.forces()
     np.testing.assert_allclose(f1, f0, rtol=0, atol=1e-12 * np.abs(f0).max())
@@ -313,3 +316,48 @@ def test_replacing_a_particle_array_between_runs_takes_effect(n):
     scene.particles.velocity = np.zeros((n + 1, 3))
     with pytest.raises(ValueError, match="shape"):
         scene.forces()
+
+
+def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_thread(monkeypatch):
+    """The serial and the thread module run the same fixed chunks: a run that switches between them
+    at every compiled chunk (forced here) ends bit for bit where a run on threads and a run on one
+    thread end; statistics say how many threads ran and why."""
+    import demkit.scene as scene_module
+    import demkit.simulation as simulation_module
+    import demkit.threads as threads
+    p, box = gas(n=300, periodic=True, seed=10)
+    inters = [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.0)]
+    before = numba.get_num_threads()
+
+    def final(parallel, nthreads):
+        numba.set_num_threads(nthreads)
+        scene = dk.Scene(p.copy(), inters, box=box, parallel=parallel)
+        sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
+        sim.run(duration=0.3)
+        return scene.particles.position.copy(), sim
+
+    try:
+        on_threads, sim = final(True, numba.config.NUMBA_NUM_THREADS)
+        assert sim.statistics["threads_reason"] == "parallel=True"
+        one_thread, sim = final(True, 1)
+        assert sim.statistics["threads"] == 1 and "set_num_threads(1)" in sim.statistics["threads_reason"]
+        monkeypatch.setattr(scene_module, "PARALLEL_MIN", 100)  # parallel=None: threads measured
+        monkeypatch.setattr(simulation_module, "CHUNK_SECONDS", 1e-4)  # many chunks
+        monkeypatch.setattr(threads, "WORTH_COMPILING", 0.0)
+        monkeypatch.setattr(threads, "RECHECK_SECONDS", 0.0)  # every chunk a probe: switch all the time
+        monkeypatch.setattr(threads, "MARGIN", math.inf)  # threads never kept
+        switching, sim = final(None, numba.config.NUMBA_NUM_THREADS)
+        sim._threads._compiling.join()
+        sim.run(duration=0.1)  # now with the thread module ready
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(one_thread, on_threads)
+    assert sim.statistics["threads"] == 1 and "measured" in sim.statistics["threads_reason"]
+    assert set(sim.statistics["steps_per_second_by_threads"]) == {1, numba.config.NUMBA_NUM_THREADS}
+    ref_sim = dk.Simulation(dk.Scene(p.copy(), inters, box=box, parallel=True), dk.VelocityVerlet(dt=1e-3))
+    numba.set_num_threads(1)
+    try:
+        ref_sim.run(duration=0.4)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(sim.scene.particles.position, ref_sim.scene.particles.position)

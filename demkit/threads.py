@@ -1,0 +1,185 @@
+"""How many threads a run uses: measured while it runs, never a slowdown.
+
+A scene that may run on threads (``Scene.parallel``: neighbour lists and at least 2000 spheres,
+or ``parallel=True``) has two compiled modules with the same arithmetic: the serial one
+(``scene.kernels``) and the thread module (``scene.thread_kernels``). Both cut the pair loops into
+the same fixed chunks, summed in the same order, so a run gives the same bits whichever module
+runs each of its compiled chunks (about 0.2 s of wall time each), and switching costs nothing.
+
+Threads wait for each other at the end of every parallel loop (about a dozen per step). On an
+idle machine that is cheap; with another busy program on one of the cores, each wait can last a
+scheduler time slice, and two threads ran a 4000-sphere gas 8-40x slower than one. So with
+``parallel=None`` (the default) a run
+
+1. starts on one thread, and meanwhile compiles the thread module in the background (loaded from
+   numba's cache when it was compiled before);
+2. then runs a short probe chunk (about :data:`PROBE_SECONDS` of one-thread time) on all threads
+   and keeps whichever ran more steps per second;
+3. checks again after :data:`RECHECK_SECONDS` (doubling up to :data:`RECHECK_MAX` while threads keep
+   losing), and leaves threads at once when a chunk on threads runs slower than one thread did.
+
+``parallel=True`` always runs on threads, ``parallel=False`` never. ``Simulation.statistics``
+(``threads``, ``threads_reason``), the progress bar and ``demkit info`` say what was chosen and why.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import numba
+
+from .progress import BACKGROUND
+
+#: length of a probe chunk on threads, in seconds of one-thread time (short: under load a chunk
+#: on threads can run 40x slower than on one)
+PROBE_SECONDS = 0.01
+#: first re-check of the choice, seconds of wall time; doubled each time threads lose, up to RECHECK_MAX
+RECHECK_SECONDS = 4.0
+RECHECK_MAX = 64.0
+#: threads must be at least this much faster to be kept (timing noise between chunks)
+MARGIN = 1.05
+#: a run shorter than this (seconds, at the one-thread rate) does not compile the thread module
+WORTH_COMPILING = 5.0
+
+
+class ThreadChoice:
+    """Chooses, chunk by chunk, the serial or the thread module for one Simulation."""
+
+    def __init__(self, scene, template):
+        self.scene = scene
+        self.name = f"{template}_steps"
+        self.serial_loop = getattr(scene.kernels, self.name)
+        self.thread_loop = None
+        self.max_threads = numba.get_num_threads() if scene.parallel else 1
+        self.rates = {1: None, self.max_threads: None}  # steps per second of wall time, last measured
+        self.recheck = RECHECK_SECONDS
+        self.next_check = None
+        self._compiling = None
+        self.probing = False  # is the current chunk a probe (or the untimed "warm-up" step)?
+        self._warm = False
+        self._after_probe = False
+        if not scene.parallel:
+            self.fixed, self.reason = 1, self._why_serial()
+        elif self.max_threads == 1:
+            self.fixed, self.reason = 1, "numba.set_num_threads(1) was called"
+        elif scene.threads_requested is True:
+            self.fixed, self.reason = self.max_threads, "parallel=True"
+        else:
+            self.fixed, self.reason = None, "measuring: one thread until the thread module is ready"
+        self.threads = self.fixed or 1
+
+    def _why_serial(self):
+        scene = self.scene
+        if scene.threads_requested is False:
+            return "parallel=False"
+        if int(numba.config.NUMBA_NUM_THREADS) < 2:
+            return "numba has one thread (NUMBA_NUM_THREADS=1 or a one-core machine)"
+        if not scene.plan.growing:
+            return "a small open scene (all pairs, no neighbour lists)"
+        return f"fewer than {_parallel_min()} spheres"
+
+    @property
+    def label(self):
+        """A few words for the progress bar."""
+        return "1 thread" if self.threads == 1 else f"{self.threads} threads"
+
+    def loop(self, steps, remaining):
+        """The compiled loop for the next chunk and its number of steps (at most ``steps``)."""
+        if self.fixed is not None:
+            self.threads = self.fixed
+            if self.fixed > 1:
+                numba.set_num_threads(self.fixed)
+                return self._threaded(), steps
+            return self.serial_loop, steps
+        now = time.perf_counter()
+        serial = self.rates[1]
+        if self.thread_loop is None:
+            if serial is not None and self._compiling is None and remaining / serial >= WORTH_COMPILING:
+                self._start_compiling()
+            if self._compiling is not None and not self._compiling.is_alive():
+                self.thread_loop = getattr(self.scene.thread_kernels, self.name)
+                self.next_check = now  # probe now
+        after_probe, self._after_probe = self._after_probe, False
+        if self.thread_loop is not None and serial is not None and now >= self.next_check and not after_probe:
+            self._after_probe = True  # the next chunk runs on the choice made, whatever the clock says
+            self.next_check = now + self.recheck
+            probe = max(1, int(serial * PROBE_SECONDS))
+            if self.threads == 1:  # probe the threads briefly
+                numba.set_num_threads(self.max_threads)
+                self.threads = self.max_threads
+                self.probing = True
+                if not self._warm:  # one step first, not timed: starting the thread pool, loading code
+                    self._warm, self.probing, self.next_check = True, "warm-up", now
+                    return self.thread_loop, 1
+                return self.thread_loop, min(steps, probe)
+            self.threads = 1  # on threads: look at one thread again, briefly
+            self.probing = True
+            return self.serial_loop, min(steps, probe)
+        self.probing = False
+        if self.threads > 1:
+            numba.set_num_threads(self.threads)
+            return self.thread_loop, steps
+        return self.serial_loop, steps
+
+    def measured(self, steps, seconds, first=False):
+        """The last chunk, of ``steps`` steps, took ``seconds`` on the current choice; ``first``: it
+        included compilation (no rate to learn)."""
+        probing, self.probing = self.probing, False
+        if first or seconds <= 0 or probing == "warm-up":
+            if probing == "warm-up":
+                self.threads = 1
+            return
+        ran = self.threads
+        self.rates[ran] = steps / seconds
+        one, many = self.rates[1], self.rates[self.max_threads]
+        if self.fixed is not None or one is None or many is None or (ran == 1 and not probing):
+            return  # nothing to decide (an ordinary one-thread chunk decides nothing)
+        faster = many > MARGIN * one
+        self.threads = self.max_threads if faster else 1
+        if faster:
+            self.reason = f"{self.max_threads} threads measured {many / one:.2f}x as fast as one"
+            self.recheck = RECHECK_SECONDS
+        else:
+            self.reason = (f"one thread: {self.max_threads} threads measured {many / one:.2f}x as fast "
+                           f"(cores busy with other work, or too little work per step)")
+            if probing and ran > 1:  # threads lost their probe: look again later and later
+                self.recheck = min(2.0 * self.recheck, RECHECK_MAX)
+            self.next_check = time.perf_counter() + self.recheck
+
+    def _threaded(self):
+        if self.thread_loop is None:
+            self.thread_loop = getattr(self.scene.thread_kernels, self.name)
+        return self.thread_loop
+
+    def _start_compiling(self):
+        """Compile (or load from the cache) the thread module on another thread while the run goes
+        on with one: the compiled chunks release the GIL."""
+        scene, name = self.scene, self.name
+
+        def work():
+            try:
+                module = scene.thread_kernels
+                getattr(module, name).compile(getattr(scene.kernels, name).signatures[0])
+            except Exception:  # noqa: BLE001 - a failed compile just keeps the run on one thread
+                pass
+
+        self._compiling = threading.Thread(target=work, name=BACKGROUND, daemon=True)
+        self._compiling.start()
+
+    def describe(self):
+        """One line for ``demkit info``: how many threads runs of this scene use and why."""
+        if self.fixed == 1:
+            return f"1 ({self.reason})"
+        if self.fixed:
+            return f"{self.fixed} ({self.reason})"
+        return (f"1 or {self.max_threads}, measured while running: one thread until {self.max_threads} prove "
+                f"faster, checked again now and then (docs/nbody.md, Threads)")
+
+    def statistics(self):
+        return {"threads": self.threads, "threads_reason": self.reason,
+                "steps_per_second_by_threads": {k: v for k, v in self.rates.items() if v is not None}}
+
+
+def _parallel_min():
+    from .scene import PARALLEL_MIN
+    return PARALLEL_MIN
