@@ -151,11 +151,10 @@ class Scene:
         p, plan = self.particles, self.plan
         n = len(p)
         lists, history = [], 0
-        if n:
-            lo, hi = p.position.min(axis=0), p.position.max(axis=0)
-            radius = float(np.mean(p.radius))
         for group in plan.groups:
-            if group.kind == "list":
+            if group.kind == "list" and n:
+                lo, hi = p.position.min(axis=0), p.position.max(axis=0)
+                radius = float(np.mean(p.radius))
                 reach = group.reach + self.skin
                 span = hi - lo + reach
                 if self.box is not None:
@@ -164,7 +163,7 @@ class Scene:
                 count = min(memory.pairs_per_sphere(n, reach, radius, float(np.prod(span))),
                             memory.pairs_per_sphere(n, reach, radius))
                 lists.append((count, group.width))
-            else:
+            elif group.kind != "list":
                 history += group.width
         threads = self.chunks if any(g.parallel for g in plan.groups) else 1
         return memory.estimate(n, dipoles=p.dipole is not None, spins=p.angular_velocity is not None,
