@@ -258,7 +258,7 @@ def test_a_pour_from_rest_runs_to_its_end_at_the_step_the_guards_give():
     """40 Hertz spheres with friction, nearly at rest (1e-5 m/s), poured 0.3 m onto a floor. Before,
     the largest safe step came from the speeds at the start: half of it (what dt = "auto" takes) was
     stopped at step 16, when the fall had reached 0.08 m/s (measured). Now it is set by the impact
-    at sqrt(2 g h) = 2.47 m/s, and the pour runs to its end (the fastest sphere reaches 2.2 m/s)."""
+    at sqrt(2 g h) = 2.47 m/s, and the pour runs to its end (the fastest sphere reaches 2.35 m/s)."""
     n, R, g = 40, 0.01, 9.81
     rng = np.random.default_rng(2)
     k = np.arange(n)
