@@ -23,7 +23,7 @@ import numbers
 import numpy as np
 from numba import njit
 
-from . import checks
+from . import checks, memory
 from .box import Box
 
 __all__ = ["RSA_LIMIT", "box_for", "random_packing", "spatial_order", "lattice", "chain", "ring",
@@ -46,6 +46,17 @@ def _count(n, what="n"):
     if n < 1:
         raise ValueError(f"{what} must be at least 1, got {n}")
     return int(n)
+
+
+def _spheres(n, what=None):
+    """``n`` checked as a count of spheres (:func:`_count`) that a scene can hold: refused (ValueError)
+    when even the arrays of a scene of them (:func:`demkit.memory.estimate`, no neighbour lists
+    nor record) exceed the memory available, before anything is allocated."""
+    n = _count(n)
+    arrays = memory.estimate(n)["arrays"]
+    memory.refuse_above(arrays, f"{what or f'n = {n:,}'}: {n:,} spheres need", f"fewer spheres (a smaller "
+                        f"{'shape' if what else 'n'})", parts="the arrays of a scene of them alone")
+    return n
 
 
 def _positive(value, what):
@@ -117,7 +128,7 @@ def box_for(n, radius, volume_fraction, periodic=True):
 
     Returns a :class:`demkit.Box` with side L = (sum 4/3 pi r^3 / volume_fraction)^(1/3).
     """
-    n = _count(n)
+    n = _spheres(n)
     r, _ = _radii(n, radius)
     phi = _fraction(volume_fraction)
     return Box((_sphere_volume(r) / phi) ** (1.0 / 3.0), periodic=periodic)
@@ -301,7 +312,7 @@ def random_packing(n, radius, box, seed=None, max_attempts=None):
     RSA_LIMIT = 0.38 (random sequential addition saturates at 0.384), or when max_attempts run out
     (the message says how far it got).
     """
-    n = _count(n)
+    n = _spheres(n)
     r, same = _radii(n, radius)
     if not isinstance(box, Box):
         raise ValueError(f"box must be a demkit.Box (make one with dk.build.box_for(n, radius, "
@@ -392,6 +403,9 @@ def lattice(kind, shape, spacing=None, radius=None, periodic=True):
                          f"got {shape!r}")
     if (spacing is None) == (radius is None):
         raise ValueError("give exactly one of spacing (nearest-neighbour distance) and radius (touching spheres)")
+    count = math.prod(int(c) for c in cells.tolist()) * len(_LATTICES[kind][1])
+    _spheres(count, f"shape = {' x '.join(str(int(c)) for c in cells.tolist())} cells of {len(_LATTICES[kind][1])} "
+                    f"({kind})")
     s = _positive(spacing, "spacing") if spacing is not None else 2 * _positive(radius, "radius")
     edges, basis, _ = _LATTICES[kind]
     edge = np.array(edges) * s
@@ -413,7 +427,7 @@ def chain(n, radius, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0), gap=0.0, 
     Centres start + k (2 radius + gap) u, k = 0..n-1, u = direction / |direction| (gap = 0: touching).
     Every dipole is moment * u. Returns (positions (n, 3), dipoles (n, 3)).
     """
-    n = _count(n)
+    n = _spheres(n)
     r = _positive(radius, "radius")
     u = _unit(direction, "direction")
     p0 = _point(start, "start")
@@ -445,7 +459,7 @@ def ring(n, radius, centre=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), gap=0.0, mom
     dipole is moment times the unit tangent, counter-clockwise seen from the tip of ``normal``
     (right-handed about it). Returns (positions (n, 3), dipoles (n, 3)).
     """
-    n = _count(n)
+    n = _spheres(n)
     if n < 3:
         raise ValueError(f"a ring needs at least 3 spheres, got n = {n}")
     r = _positive(radius, "radius")
@@ -464,7 +478,7 @@ def ring(n, radius, centre=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), gap=0.0, mom
 
 def random_directions(n, seed=None):
     """n unit vectors uniformly distributed on the sphere, shape (n, 3)."""
-    n = _count(n)
+    n = _spheres(n)
     rng = np.random.default_rng(seed)
     u = rng.normal(size=(n, 3))
     norm = np.linalg.norm(u, axis=1)
@@ -500,7 +514,7 @@ def thermal_velocities(n, kT, mass, seed=None):
     sum(m v) / sum(m) is subtracted, so sum_i m_i v_i = 0 (to round-off) and the expected kinetic
     energy is 3/2 (n - 1) kT. mass : scalar or (n,). Returns (n, 3).
     """
-    n = _count(n)
+    n = _spheres(n)
     t = _kT(kT)
     m = _per_sphere(n, mass, "mass")
     rng = np.random.default_rng(seed)
@@ -515,7 +529,7 @@ def thermal_spins(n, kT, inertia, seed=None):
     inertia : scalar or (n,) moments of inertia (2/5 m r^2 for solid spheres). Returns (n, 3).
     Total angular momentum is not removed (spins exchange it with orbits through friction and torques).
     """
-    n = _count(n)
+    n = _spheres(n)
     t = _kT(kT)
     inertia = _per_sphere(n, inertia, "inertia")
     rng = np.random.default_rng(seed)

@@ -128,28 +128,6 @@ def _outputs(loaded, out_dir):
         yield "checkpoint", loaded.output_path(out["checkpoint"]["path"], out_dir)
 
 
-def _size(nbytes):
-    for unit in ("B", "kB", "MB", "GB", "TB"):
-        if nbytes < 1000 or unit == "TB":
-            return f"{nbytes:.3g} {unit}"
-        nbytes /= 1000.0
-
-
-def _arrays_bytes(value, seen):
-    """Bytes of the numpy arrays in a (nested) state."""
-    if isinstance(value, np.ndarray):
-        if id(value) in seen:
-            return 0
-        seen.add(id(value))
-        return value.nbytes
-    if isinstance(value, (list, tuple)):
-        return sum(_arrays_bytes(v, seen) for v in value)
-    fields = getattr(value, "_fields", None) or getattr(type(value), "_fields", None)
-    if fields:
-        return sum(_arrays_bytes(getattr(value, f), seen) for f in fields)
-    return 0
-
-
 def estimate_pairs(scene):
     """[(group kind, reach, pairs, history width)]: the pairs each pair loop visits per force
     evaluation, all pairs or those within reach + skin now (a k-d tree; periodic only when every
@@ -168,7 +146,9 @@ def estimate_pairs(scene):
             tree = cKDTree(np.mod(p.position, box.size), boxsize=box.size)
         else:
             tree = cKDTree(p.position)
-        out.append(("neighbour list", group.reach, len(tree.query_pairs(reach)), group.width))
+        # counted, not listed (a set of every pair took ~150 bytes per pair): ordered pairs with i = j
+        within = int(tree.count_neighbors(tree, reach))
+        out.append(("neighbour list", group.reach, (within - n) // 2, group.width))
     return out
 
 
@@ -205,15 +185,16 @@ def info_command(args):
         print(f"checks        refused: {err}")
     print("              (a time step for a target accuracy: dk.accuracy.suggest_dt, or `demkit accuracy`)")
     # memory
-    state = _arrays_bytes(scene.state, set()) + _arrays_bytes([scene.force, scene.torque], set())
+    from . import memory
     pairs = estimate_pairs(scene)
-    lists = sum(int(1.5 * count) * (4 + 8 * width) + 16 * n for kind, _, count, width in pairs
-                if kind == "neighbour list")
     frames = (steps // max(1, round(loaded.record_every / integ.dt)) + 2) if loaded.record_every else 2
-    vectors = 2 + (p.angular_velocity is not None) + (p.dipole is not None) + (p.image is not None)
-    record = frames * n * 3 * 8 * vectors
-    print(f"memory        arrays {_size(state)}, neighbour lists ~{_size(lists)}, record of {frames:,} frames "
-          f"{_size(record)}: ~{_size(state + lists + record)}")
+    parts = scene.memory_estimate(frames=frames, stages=integ.stage_arrays)
+    listed = [(count / max(n, 1), width) for kind, _, count, width in pairs if kind == "neighbour list"]
+    parts["lists"] = memory.estimate(n, lists=listed)["lists"]  # the pairs counted now
+    parts["total"] = parts["arrays"] + parts["lists"] + parts["record"]
+    available, total = memory.machine_memory()
+    print(f"memory        ~{memory.describe(parts, frames)}: ~{parts['total'] / memory.GB:.3g} GB in all "
+          f"({available / memory.GB:.3g} GB free of {total / memory.GB:.3g} GB; dk.Scene.memory_estimate)")
     # cost
     total_pairs = sum(count for _, _, count, _ in pairs)
     for kind, reach, count, width in pairs:

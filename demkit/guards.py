@@ -10,8 +10,9 @@ steps).
 The checks (thresholds and the measurements behind them: docs/stability.md):
 
 1. the time step against every stiff effect present: contacts and walls (a tenth of the contact
-   duration; Hertz at the fastest approach speed present or the speed magnets reach snapping
-   together), dipoles at the closest approach possible (omega dt <= SAFE_PHASE = 0.5, omega from
+   duration; Hertz at twice the fastest impact speed possible (:func:`fastest_impact`: the speeds
+   present, what gravity adds over the drop to the walls below, the walls' own speeds) combined with
+   the speed magnets reach snapping together), dipoles at the closest approach possible (omega dt <= SAFE_PHASE = 0.5, omega from
    :meth:`demkit.Dipole.rate_coefficients`: touching spheres when a contact law keeps them apart,
    else the closest pair now), uniform fields, and any interaction's ``max_time_step``;
 2. spins: a sphere that feels torques turns by at most :data:`MAX_TURN` = 1 rad per step;
@@ -37,6 +38,7 @@ import numpy as np
 from .interactions.base import SAFE_PHASE, inverse_inertia
 from .interactions.contact import KelvinVoigt
 from .interactions.dipole import Dipole
+from .interactions.fields import Gravity
 from .interactions.hertz import Hertz
 from .interactions.wall import Wall
 from .state import DEEP_OVERLAP_FRACTION
@@ -79,16 +81,87 @@ def before_stepping(scene, integrator):
 
 def largest_safe_step(scene):
     """(limit, why): the largest time step the contact and field checks of :func:`before_stepping`
-    accept, and what sets it (Hertz contacts at the approach speed of the spheres' speeds and of
-    touching magnets snapping together); (math.inf, why) when nothing limits it yet."""
+    accept, and what sets it (Hertz contacts at twice the fastest impact speed possible,
+    :func:`fastest_impact`, combined with the speed of touching magnets snapping together);
+    (math.inf, why) when nothing limits it yet."""
     limits = _limits(scene)
     if not limits:
         return math.inf, "no contact law, field or plug-in interaction sets a largest time step"
     limit, what, why, _ = min(limits, key=lambda item: item[0])
     if not math.isfinite(limit):
-        return math.inf, (f"{what} has no limit yet: every sphere is at rest and no touching magnets snap "
-                          f"together, so the impact speed it must resolve is unknown")
+        return math.inf, (f"{what} has no limit yet: every sphere is at rest, nothing pulls them onto a wall "
+                          f"(gravity with a wall below) or drags them (a moving wall) and no touching magnets "
+                          f"snap together, so the impact speed it must resolve is unknown")
     return limit, f"{what}: {why}"
+
+
+def fastest_impact(scene):
+    """(speed, why): an upper bound of the speed (length/time) any moving sphere can hit a wall or
+    another sphere with, before it has been stepped:
+
+        v_i = sqrt(|v0_i|^2 + 2 |g| h_i) + u,   speed = max_i v_i,
+
+    with v0_i the speed now, g the scene's gravity, h_i the distance the sphere's centre can fall
+    along g before the walls stop it (:func:`fall_heights`; energy conservation: the drop's
+    potential energy g h per unit mass becomes kinetic at most) and u the fastest wall's speed
+    (a moving wall drags spheres up to its speed and hits them at its speed plus theirs). Gravity
+    with no wall below (a fall the walls do not bound) adds nothing here: ``why`` says so, and the
+    speeds are re-checked while stepping. Magnets snapping together are added by the guards."""
+    p = scene.particles
+    moving = ~p.fixed if p.fixed is not None else np.ones(len(p), dtype=bool)
+    if not moving.any():
+        return 0.0, "every sphere is fixed"
+    v0 = np.linalg.norm(p.velocity, axis=1)
+    walls = [e for e in scene.effects if isinstance(e, Wall)]
+    drag = max((float(np.linalg.norm(w.velocity)) for w in walls), default=0.0)
+    heights, g, note = fall_heights(scene)
+    k = int(np.argmax(np.where(moving, v0, -1.0)))
+    why = f"the fastest speed present, {v0[k]:.4g}"
+    speed = float(v0[k])
+    if heights is not None:
+        reach = np.where(moving, np.sqrt(v0**2 + 2.0 * g * heights), -1.0)
+        k = int(np.argmax(reach))
+        speed = float(reach[k])
+        why = (f"particle {p.ids[k]} falling from speed {v0[k]:.4g} through h = {heights[k]:.4g} under g = {g:.4g} "
+               f"to the walls below: sqrt(v0^2 + 2 g h) = {speed:.4g}")
+    elif note:
+        why = f"{why}; {note}"
+    if drag > 0.0:
+        speed += drag
+        why = f"{why}, plus {drag:.4g} of the fastest moving wall"
+    return speed, why
+
+
+def fall_heights(scene):
+    """(h (N,), |g|, note): how far each sphere's centre can fall along the scene's gravity before
+    the walls stop it (length; 0 for a sphere already at its lowest place), or (None, |g|, note)
+    when the scene has no gravity or the walls do not bound the fall (``note`` says which).
+
+    The lowest place is that of the smallest sphere (radius R_min, so that the bound holds for all)
+    in the region the walls leave it, {x : (x - p_w).n_w >= R_min for every wall w}: the largest
+    x.g/|g| there, a linear programme (scipy.optimize.linprog; a flat floor under a walled box
+    gives its height + R_min, a V-shaped trough the bottom of the V). h_i = max(0, lowest - x_i.g/|g|).
+    An open box does not stop spheres (docs/stability.md), so only walls count."""
+    p = scene.particles
+    field = [e for e in scene.effects + scene.interactions if isinstance(e, Gravity)]
+    g = np.sum([e.acceleration for e in field], axis=0) if field else np.zeros(3)
+    size = float(np.linalg.norm(g))
+    if size == 0.0 or not len(p):
+        return None, size, ""
+    down = g / size
+    walls = [e for e in scene.effects if isinstance(e, Wall)]
+    normals = np.array([w.normal for w in walls]).reshape(-1, 3)
+    unbounded = (f"gravity ({size:.4g}) has no wall below the spheres to stop their fall, so it does not bound "
+                 f"the impact speed (checked while stepping)")
+    if not len(walls) or not np.any(normals @ down < 0.0):
+        return None, size, unbounded
+    from scipy.optimize import linprog
+    plane = np.array([w.plane for w in walls]) + float(np.min(p.radius))
+    found = linprog(-down, A_ub=-normals, b_ub=-plane, bounds=[(None, None)] * 3, method="highs")
+    if found.status != 0:  # unbounded (a tilted floor with nothing at its foot), or no room at all
+        return None, size, unbounded
+    lowest = float(down @ found.x)
+    return np.maximum(lowest - p.position @ down, 0.0), size, ""
 
 
 def while_stepping(scene, integrator):
@@ -263,11 +336,14 @@ def _too_soft(p, dipoles, laws, i, j):
 
 # ---- 1: the time step against contacts, walls, fields, plug-ins -------------------------------
 def _approach_speed(scene):
-    """(speed, why): the approach speed Hertz contacts must be resolved at: twice the fastest speed
-    present, combined (in energy) with the speed touching magnets reach snapping together."""
+    """(speed, why): the approach speed Hertz contacts must be resolved at: twice the fastest
+    impact speed possible (:func:`fastest_impact`: two spheres meeting head on; a sphere hitting a
+    wall at v is the same contact time as a pair approaching at 2 v), combined (in energy) with the
+    speed touching magnets reach snapping together."""
     p = scene.particles
-    speed = 2.0 * float(np.max(np.linalg.norm(p.velocity, axis=1))) if len(p) else 0.0
-    why = f"twice the fastest speed present, {speed:.4g}"
+    impact, how = fastest_impact(scene) if len(p) else (0.0, "no spheres")
+    speed = 2.0 * impact
+    why = f"twice the fastest impact speed, {impact:.4g}: {how}"
     dipoles = _dipoles(scene)
     if dipoles and len(p) > 1:
         i, j = _cached_kinds(scene)

@@ -116,6 +116,7 @@ class Scene:
         self._thread_kernels = None
         self.plan = self._plan()
         self._sorting(sort_every)
+        self._check_memory()
         self.energy_kinds = energy_kinds(self.interactions + self.effects)
         n = len(particles)
         self.force = np.zeros((n, 3))
@@ -157,6 +158,42 @@ class Scene:
         self.sort_every = every
 
     # ---- set-up ----------------------------------------------------------------------------
+    def memory_estimate(self, frames=0, stages=0):
+        """Bytes this scene's arrays, neighbour lists and a record of ``frames`` frames need
+        (:func:`demkit.memory.estimate`; the lists' pairs from the spheres' density within the box,
+        or within their bounding box extended by the reach)."""
+        from . import memory
+        p, plan = self.particles, self.plan
+        n = len(p)
+        lists, history = [], 0
+        for group in plan.groups:
+            if group.kind == "list" and n:
+                lo, hi = p.position.min(axis=0), p.position.max(axis=0)
+                radius = float(np.mean(p.radius))
+                reach = group.reach + self.skin
+                span = hi - lo + reach
+                if self.box is not None:
+                    periodic = np.array(self.periodic)
+                    span[periodic] = self.box.size[periodic]
+                count = min(memory.pairs_per_sphere(n, reach, radius, float(np.prod(span))),
+                            memory.pairs_per_sphere(n, reach, radius))
+                lists.append((count, group.width))
+            elif group.kind != "list":
+                history += group.width
+        threads = self.chunks if any(g.parallel for g in plan.groups) else 1
+        return memory.estimate(n, dipoles=p.dipole is not None, spins=p.angular_velocity is not None,
+                               periodic=any(self.periodic), fixed=self.has_fixed, sorted_copies=plan.sorted,
+                               threads=threads, stages=stages, sphere_history=plan.effect_width, lists=lists,
+                               all_pairs_history=history, frames=frames)
+
+    def _check_memory(self):
+        """Refuse (ValueError) a scene whose arrays and neighbour lists would not fit in the memory
+        available, before they are allocated."""
+        from . import memory
+        parts = self.memory_estimate()
+        memory.refuse_above(parts["total"], f"a Scene of {len(self.particles):,} spheres needs",
+                            "fewer spheres, or shorter cutoffs (smaller neighbour lists)", parts=memory.describe(parts))
+
     def _skin(self, skin):
         if skin is None:
             return DEFAULT_SKIN * 2.0 * float(np.mean(self.particles.radius))

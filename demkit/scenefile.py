@@ -620,6 +620,81 @@ def _builder(b, box, src):
     return out, made
 
 
+def _check_memory(data, box, interactions, src):
+    """Refuse a [particles.build] table whose spheres, with the file's interactions and record, would
+    not fit in the memory available (:func:`demkit.memory.estimate`), before anything is built: a
+    SceneFileError at its ``cells`` (lattice) or ``n`` key with the estimate and what the machine
+    has. Other particles are checked by dk.Scene (:meth:`demkit.Scene.memory_estimate`)."""
+    from types import SimpleNamespace
+
+    import numba
+
+    from . import build as B
+    from . import memory
+    from .cli import parse_method
+    from .interactions.base import PairInteraction
+    from .scene import DEFAULT_SKIN, PARALLEL_MIN, SORT_MIN
+    b = data["particles"]["build"] if data["particles"] else None
+    if b is None or b["kind"] == "two_magnets":
+        return
+    kind, radius = b["kind"], float(b["radius"])
+    volume, periodic = None, box is not None and box.any_periodic
+    if kind == "lattice":
+        key = "cells"
+        cells = [int(c) for c in np.broadcast_to(np.asarray(b["cells"], dtype=object), (3,))]
+        edges, basis, _ = B._LATTICES[b["lattice"]]
+        n = math.prod(cells) * len(basis)
+        spacing = b["spacing"] if b["spacing"] is not None else 2.0 * radius
+        volume = math.prod(cells) * math.prod(edges) * spacing**3
+        periodic = bool(np.any(b["periodic"]))
+        subject = f"{n:,} spheres ({' x '.join(map(str, cells))} cells of {len(basis)}, {b['lattice']}) need"
+    else:
+        key, n = "n", int(b["n"])
+        if kind == "random_packing":
+            if b["volume_fraction"] is not None:
+                volume = n * 4.0 / 3.0 * math.pi * radius**3 / b["volume_fraction"]
+                periodic = bool(np.any(b["periodic"]))
+            elif b["region"] is not None:
+                volume = float(np.prod(np.broadcast_to(b["region"], (3,))))
+            elif box is not None:
+                volume = box.volume
+        subject = f"{n:,} spheres need"
+    proxy = SimpleNamespace(radius=np.array([radius]), mass=np.array([float(b["mass"])]))
+    reaches = {}
+    for inter in interactions:
+        if isinstance(inter, PairInteraction):
+            try:
+                reach = float(inter.cutoff(proxy))
+            except Exception:  # a plug-in that needs more of the particles: a contact's reach  # noqa: BLE001
+                reach = 2.0 * radius
+            reaches[reach] = reaches.get(reach, 0) + inter.history_size
+    options = data["scene"] or {}
+    skin = options.get("skin") or DEFAULT_SKIN * 2.0 * radius
+    lists = [(min(memory.pairs_per_sphere(n, r + skin, radius, volume), memory.pairs_per_sphere(n, r + skin, radius)),
+              width) for r, width in reaches.items() if math.isfinite(r)]
+    run = data["run"]
+    frames = int(run["duration"] / run["record_every"]) + 2 if run["record_every"] else 2
+    torques = any(inter.torque or "angular_velocity" in inter.reads for inter in interactions)
+    threads = int(numba.config.NUMBA_NUM_THREADS) if n >= PARALLEL_MIN and options.get("parallel") is not False else 1
+    try:
+        stages = parse_method(data["integrator"]["method"])(1.0).stage_arrays
+    except Exception:  # the method is checked, with its own message, once the scene is built  # noqa: BLE001
+        stages = 0
+    parts = memory.estimate(n, dipoles=kind in ("chain", "ring") or b.get("moment") is not None,
+                            spins=torques or b.get("spin_kT") is not None, periodic=periodic,
+                            sorted_copies=n >= SORT_MIN and bool(lists) and options.get("sort_every") != 0,
+                            threads=threads, stages=stages, lists=lists,
+                            all_pairs_history=sum(w for r, w in reaches.items() if not math.isfinite(r)),
+                            frames=frames)
+    advice = f"fewer spheres ({'fewer cells' if key == 'cells' else 'a smaller n'})"
+    if parts["record"] > parts["arrays"] + parts["lists"]:
+        advice += ", or fewer frames in memory (a larger run.record_every; the record is the largest part)"
+    try:
+        memory.refuse_above(parts["total"], subject, advice, parts=memory.describe(parts, frames))
+    except ValueError as err:
+        raise src.error(("particles", "build", key), str(err)) from None
+
+
 def _particles(d, box, src, base, scale):
     from .particles import Particles
     p = d["particles"]
@@ -786,9 +861,10 @@ def _build(data, src, base):
     if data["box"] is not None:
         with _At(src, "box", keys=("size", "periodic")):
             box = Box(data["box"]["size"], data["box"]["periodic"])
+    interactions = _interactions(data, src, scale)
+    _check_memory(data, box, interactions, src)  # before a builder allocates anything
     particles, made = _particles(data, box, src, base, scale)
     box = made if made is not None else box
-    interactions = _interactions(data, src, scale)
     options = data["scene"] or {"skin": None, "parallel": "auto", "sort_every": None}
     parallel = None if options["parallel"] == "auto" else options["parallel"]
     given = [k for k in ("skin", "sort_every") if options[k] is not None] + ["parallel"] * (parallel is not None)
