@@ -555,6 +555,8 @@ class _Source:
         lines = self.sphere_functions()
         spheres = _state_fields()
         if plan.lists:
+            # callers pass strict as a bool *variable* (True != False): numba compiles a function
+            # once per literal argument value, and this one links the whole list builder
             lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
                       '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
                       '    build; ``strict``: flag MOVED_TOO_FAR when it moved more than the skin (a step too long',
@@ -600,7 +602,7 @@ class _Source:
         lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
         if plan.lists:
-            lines.append("    maintain_lists(s, strict)")
+            lines.append("    maintain_lists(s, strict != False)")
         # commit_flag: a plain bool. Called with the constants True/False, numba would compile every
         # pair loop once per literal value and once more for calls from Python (3x the compile time
         # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
@@ -613,7 +615,7 @@ class _Source:
             lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(s, force, torque, commit):",
                       f'    """The {speed} forces and torques only (see Interaction.slow) into force/torque."""']
             if plan.lists:
-                lines.append("    maintain_lists(s, True)")
+                lines.append("    maintain_lists(s, True != False)")
             lines += ["    clear(force, torque)", "    power = 0.0", "    commit_flag = commit != False"] + self.force_calls(speed) + ["    return power"]
         # contact events (VelocityVerlet(resolve_contacts=True)): compiled only when called
         lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
@@ -640,7 +642,7 @@ class _Source:
         lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
         if plan.lists:
-            lines.append("    maintain_lists(s, False)")
+            lines.append("    maintain_lists(s, False != False)")
         lines += ["    for a in range(out.shape[0]):", "        out[a] = 0.0",
                   "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
         for g, group in enumerate(plan.groups):
@@ -650,12 +652,12 @@ class _Source:
         for g, group in enumerate(plan.groups):
             lines += ["", "", "@njit(**OUTER)", f"def pair_energies_{g}(s, owners, partners, out):"]
             if plan.lists:
-                lines.append("    maintain_lists(s, False)")
+                lines.append("    maintain_lists(s, False != False)")
             lines.append("    " + self.group_call(g, group, "pair_energies", "", ", owners, partners, out"))
         lines += ["", "", "@njit(**OUTER)", "def prepare(s):",
                   '    """Before stepping: lists up to date, periodic coordinates wrapped into the box."""']
         if plan.lists:
-            lines.append("    maintain_lists(s, False)")
+            lines.append("    maintain_lists(s, False != False)")
         if any(plan.periodic):
             lines.append("    wrap(s.position, s.reference, s.image, s.box, s.periodic)")
         lines.append("    return 0")
