@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from . import checks
+from .outputs import check_writable, sync_folder
 from .state import PAIR_LIST_FIELDS, PairList, PairListTuple
 
 #: bumped whenever the layout of the file changes
@@ -61,7 +62,11 @@ class Checkpoint:
         folder = self.path.parent if str(self.path.parent) else Path(".")
         if not folder.is_dir():
             raise ValueError(f"the folder of the checkpoint {self.path} does not exist")
+        check_writable(self.path, "checkpoint")  # found now, not at the first save
         self.saves = 0
+        #: None, or a callable(simulation) -> dict called before every save (its dict goes into the
+        #: metadata): demkit run writes the trajectory so far there, before the checkpoint
+        self.before_save = None
         self.last_save = None  # wall-clock time of the last save
         self.saved_step = None  # step count of the last save
 
@@ -75,7 +80,8 @@ class Checkpoint:
 
     def save(self, simulation):
         """Write ``simulation``'s state now (atomically). Returns the path."""
-        save(simulation, self.path)
+        extra = self.before_save(simulation) if self.before_save is not None else None
+        save(simulation, self.path, extra)
         self.saves += 1
         self.saved_step = simulation.step
         self.last_save = time.perf_counter()
@@ -138,8 +144,9 @@ def state_arrays(scene):
     return arrays
 
 
-def save(simulation, path):
-    """Write the checkpoint of ``simulation`` to ``path`` atomically (see the module docstring)."""
+def save(simulation, path, extra=None):
+    """Write the checkpoint of ``simulation`` to ``path`` atomically (see the module docstring);
+    ``extra``: more metadata (a dict)."""
     from . import __version__
     path = Path(path)
     scene = simulation.scene
@@ -147,7 +154,7 @@ def save(simulation, path):
             "integrator": repr(simulation.integrator), "step": int(simulation.step),
             "time": float(simulation.time), "particles": len(scene.particles),
             "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin,
-            "forces_valid": bool(simulation.forces_valid)}
+            "forces_valid": bool(simulation.forces_valid), **(extra or {})}
     arrays = state_arrays(scene)
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     folder = path.parent if str(path.parent) else Path(".")
@@ -164,14 +171,7 @@ def save(simulation, path):
         except OSError:
             pass
         raise
-    try:  # the rename itself survives a power cut once the folder is synced
-        dir_fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(dir_fd)
-        finally:
-            os.close(dir_fd)
-    except OSError:
-        pass
+    sync_folder(folder)  # the rename itself survives a power cut once the folder is synced
     return path
 
 
