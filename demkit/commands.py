@@ -94,11 +94,11 @@ def run_command(args):
     if not outputs:
         print(NO_OUTPUTS)
     checkpoint = outputs.get("checkpoint")
-    if checkpoint is not None and checkpoint.exists():
-        print(f"resuming from {checkpoint} (delete it to start over)")
     clock = time.perf_counter()
-    try:
-        trajectory = loaded.run(progress=args.progress, out_dir=args.out)
+    try:  # the checkpoint is checked against the scene before it is announced
+        trajectory = loaded.run(progress=args.progress, out_dir=args.out,
+                                on_resume=lambda path: print(f"resuming from {path} (delete it to start over)",
+                                                             flush=True))
     except SimulationError as err:
         print(f"demkit run: stopped: {err}")
         return 1
@@ -108,11 +108,15 @@ def run_command(args):
                  "no [outputs.checkpoint]: a rerun starts over")
         print(f"demkit run: interrupted; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
         return 130
+    except OSError as err:  # an output that could be written nowhere (write_or_rescue says where it tried)
+        print(f"demkit run: error: {err}", file=sys.stderr)
+        return 1
     seconds = time.perf_counter() - clock
     frames = len(trajectory) if trajectory is not None else 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")
     for name, where in outputs.items():
-        print(f"wrote {name}: {where}")
+        rescued = loaded.rescued.get(name)
+        print(f"wrote {name}: {where}" if rescued is None else f"wrote {name}: {rescued} (could not write {where})")
     return 0
 
 

@@ -978,7 +978,8 @@ class LoadedScene:
             elif not np.array_equal(steps[keep], grid[grid <= start]):
                 why = "its frames are not on this run's record_every grid"
             elif recorded is not None and frames_digest(saved, keep) != recorded.get("sha256"):
-                why = "its frames up to the checkpoint are not those the checkpoint's run recorded (another run wrote it)"
+                why = ("its frames up to the checkpoint are not those the checkpoint's run recorded (another run "
+                       "wrote it)")
             elif recorded is None and not _holds_state(saved, steps == start, _state_frame(sim)):
                 why = (f"its frame at t = {start * dt:.6g} is not the checkpoint's state (another run wrote it)"
                        if (steps == start).any() else f"it has no frame at the checkpoint's t = {start * dt:.6g}")
