@@ -255,11 +255,15 @@ def _duration(seconds):
 
 
 def main_errors(parser, args):
-    """Run the chosen command's handler; a bad scene file, option or missing extra is one line on
-    stderr and exit code 2, Ctrl-C not handled by the command one line and exit code 130."""
+    """Run the chosen command's handler; a bad scene file, option, missing extra or output path that
+    cannot be written is one line on stderr and exit code 2, a file that fails while it is read or
+    written (OSError) one line and exit code 1, Ctrl-C not handled by the command one line and exit
+    code 130."""
     try:
         return args.handler(args)
     except (ValueError, ImportError) as err:  # SceneFileError is a ValueError
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
     except KeyboardInterrupt:
         parser.exit(130, f"demkit {args.command}: interrupted\n")
+    except OSError as err:  # a file that could not be read or written (a full disk, ...): one line too
+        parser.exit(1, f"demkit {args.command}: error: {err}\n")
