@@ -896,7 +896,8 @@ class LoadedScene:
         them. A resumed run's file holds the whole run: the earlier frames are taken from the file
         when they are the ones the checkpoint's run recorded (checked by that digest, or, for a
         checkpoint without one, against the checkpoint's state in the file's wrapped convention);
-        otherwise it holds the frames from the resume on, and a line says why. When the file cannot
+        otherwise the old file is renamed ``<name>.set-aside.npz`` (never overwritten), the new one
+        holds the frames from the resume on, and a line says why. When the file cannot
         be written at the end (a full disk), it is saved elsewhere (:func:`demkit.outputs.write_or_rescue`)
         and a line says where. ``on_resume(path)`` is called once the checkpoint has been checked and
         loaded. Returns the Trajectory written (the whole run), or without a trajectory file the
@@ -985,8 +986,19 @@ class LoadedScene:
                        if (steps == start).any() else f"it has no frame at the checkpoint's t = {start * dt:.6g}")
             else:
                 return _frames(saved, keep)
-        print(f"{target}: frames before t = {start * dt:.6g} (the resume) are not kept: {why}; the file will hold "
-              f"t = {start * dt:.6g} .. {self.duration:g}", file=sys.stderr)
+        aside = ""
+        if target.is_file():  # not overwritten: what another run wrote may be all there is of it
+            k, kept = 1, target.with_name(f"{target.stem}.set-aside{target.suffix}")
+            while kept.exists():
+                k += 1
+                kept = target.with_name(f"{target.stem}.set-aside-{k}{target.suffix}")
+            try:
+                target.rename(kept)
+                aside = f" (the file is kept as {kept})"
+            except OSError as err:
+                aside = f" (it could not be set aside: {err.strerror or err}; it will be replaced)"
+        print(f"{target}: frames before t = {start * dt:.6g} (the resume) are not kept: {why}{aside}; the file will "
+              f"hold t = {start * dt:.6g} .. {self.duration:g}", file=sys.stderr)
         return None
 
     def write_outputs(self, trajectory, out_dir=None, sim=None):
