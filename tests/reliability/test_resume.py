@@ -137,3 +137,26 @@ def test_a_file_that_ends_before_the_checkpoint_says_so(tmp_path, capsys):
     assert "it ends at t = 0.06, before the checkpoint's t = 0.12" in err, err
     assert "ended without writing it" not in err
     assert np.array_equal(old["time"], [0.0, 0.03, 0.06])
+
+
+def test_a_checkpoint_without_a_digest_is_matched_in_the_files_convention(tmp_path, monkeypatch, straight):
+    """A checkpoint that names no digest of the frames (written by dk.Checkpoint alone): the file's
+    last frame is compared with the checkpoint's state folded as frames are, so a sphere across the
+    face (x > L in the checkpoint, x - L in the file) still matches and every frame is kept."""
+    import json
+
+    import numpy as np
+    path = scene_file(tmp_path)
+    dk.load_scene(path, overrides={"run.duration": 0.07}).run(progress=False)
+    target = tmp_path / "out" / "run.ckpt"
+    assert outside(target)
+    with np.load(target) as z:
+        saved = {name: z[name] for name in z.files}
+    meta = json.loads(saved["meta"].tobytes().decode())
+    del meta["trajectory"]
+    saved["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+    with open(target, "wb") as fh:
+        np.savez(fh, **saved)
+    injected("checkpoint without a digest, sphere across a periodic face")
+    dk.load_scene(path).run(progress=False)
+    assert_same_npz(tmp_path / "out" / "traj.npz", straight)
