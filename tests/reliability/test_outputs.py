@@ -65,6 +65,21 @@ def test_pictures_and_animations_are_checked_before_rendering(tmp_path, monkeypa
             draw(traj, tmp_path / "ro" / name)
 
 
+@pytest.mark.parametrize("name, what", [("x.png", "picture"), ("x.mp4", "animation")])
+def test_demkit_render_to_a_read_only_folder_is_one_line_before_rendering(tmp_path, monkeypatch, capsys, name, what):
+    source = scene_file(tmp_path)  # never read: the output is checked first
+    monkeypatch.setattr(dk.viz, "ensure_rendering", lambda: pytest.fail("rendering started"))
+    (tmp_path / "ro").mkdir()
+    failing_writes(monkeypatch, tmp_path / "ro", errno.EROFS)
+    injected(f"read-only folder (demkit render {what})")
+    with pytest.raises(SystemExit) as exit:
+        main(["render", str(source), "-o", str(tmp_path / "ro" / name)])
+    err = capsys.readouterr().err
+    assert exit.value.code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"demkit render: error: cannot write the {what} {tmp_path / 'ro' / name}: Read-only file "
+                          f"system"), err
+
+
 def _full_disk_from_the_first_step(monkeypatch, folder):
     """The disk under ``folder`` fills up once stepping starts (after the checks before it)."""
     run = dk.Simulation.run
