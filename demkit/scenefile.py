@@ -891,7 +891,7 @@ class LoadedScene:
         Frames are taken on the grid of the whole run (steps 0, s, 2s, ... with s = record_every /
         dt, and the last step), also when resuming. The trajectory file is written atomically at
         the end, on Ctrl-C, when the run stops, and, with a checkpoint, just before every checkpoint
-        (the frames so far and the state of the checkpoint): a run killed at any moment leaves a
+        (the frames recorded so far): a run killed at any moment leaves a
         file that holds at least every frame up to its checkpoint, and the checkpoint a digest of
         them. A resumed run's file holds the whole run: the earlier frames are taken from the file
         when they are the ones the checkpoint's run recorded (checked by that digest, or, for a
@@ -924,8 +924,11 @@ class LoadedScene:
         if target is not None and sim.checkpoint is not None:
             def before_checkpoint(s):
                 so_far = _join(earlier, parts + _current(s), start, stride, end, dt)
+                steps = np.rint(so_far.time / dt).astype(np.int64)
+                if len(steps) > 1 and steps[-1] <= steps[-2]:  # mid-run: the last frame kept twice
+                    so_far = _frames(so_far, np.arange(len(steps) - 1))
                 save_trajectory(so_far, target)
-                written["step"] = s.step
+                written["step"] = s.step if round(so_far.time[-1] / dt) == s.step else None  # all of it?
                 kept = _kept(np.rint(so_far.time / dt).astype(np.int64), stride, s.step)
                 return {"trajectory": {"sha256": frames_digest(so_far, kept), "frames": int(kept.sum())}}
             sim.checkpoint.before_save = before_checkpoint
@@ -973,11 +976,11 @@ class LoadedScene:
             p = self.scene.particles
             if len(saved.ids) != len(p) or not np.array_equal(saved.ids, p.ids):
                 why = "it holds other spheres"
-            elif len(steps) and steps.max() < start:
-                why = (f"it ends at t = {steps.max() * dt:.6g}, before the checkpoint's t = {start * dt:.6g} (the "
-                       f"earlier run was stopped before writing the frames in between)")
             elif not np.array_equal(steps[keep], grid[grid <= start]):
-                why = "its frames are not on this run's record_every grid"
+                why = (f"it ends at t = {steps.max() * dt:.6g}, before the checkpoint's t = {start * dt:.6g} (the "
+                       f"earlier run was stopped before writing the frames in between)"
+                       if len(steps) and steps.max() < grid[grid <= start].max() else
+                       "its frames are not on this run's record_every grid")
             elif recorded is not None and frames_digest(saved, keep) != recorded.get("sha256"):
                 why = ("its frames up to the checkpoint are not those the checkpoint's run recorded (another run "
                        "wrote it)")
@@ -1036,18 +1039,24 @@ def _kept(steps, stride, upto):
 
 
 def _current(sim):
-    """[the frames of ``sim``'s run in progress on its record grid up to now, + the state now when
-    that is off the grid]: the part of a run not yet returned by Simulation.run."""
+    """[the frames of ``sim``'s run in progress]: the part of a run not yet returned by
+    Simulation.run. At its end or on Ctrl-C the run has recorded the state it stopped at
+    (``sim.trajectory``); in the middle, only the frames on its record grid so far are taken (the
+    kernels are not asked to record the state now: that would maintain the neighbour lists at a
+    moment an uninterrupted run does not, and change its last bits)."""
     record, first, local = sim._recording
     dt = sim.integrator.dt
+    t = sim.trajectory
+    if t is not None and len(t.time) and round(t.time[0] / dt) == first and round(t.time[-1] / dt) == sim.step:
+        return [t]
     n = (sim.step - first) // local + 1
-    part = sim._trajectory(record, (first + np.arange(n) * local) * dt)
-    return [part] if (sim.step - first) % local == 0 else [part, _state_frame(sim)]
+    return [sim._trajectory(record, (first + np.arange(n) * local) * dt)]
 
 
 def _state_frame(sim):
     """The state of ``sim`` now as a one-frame Trajectory, recorded by the kernels as a run records
-    its frames (periodic coordinates folded into the box, image counts moved along)."""
+    its frames (periodic coordinates folded into the box, image counts moved along). Only where the
+    next run records this state anyway (right after a resume)."""
     record = sim._allocate(1)
     sim.scene.kernels.record_frame(0, sim.scene.state, record)
     return sim._trajectory(record, np.array([sim.time]))
