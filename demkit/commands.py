@@ -102,15 +102,13 @@ def run_command(args):
     except SimulationError as err:
         print(f"demkit run: stopped: {err}")
         return 1
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, OSError) as err:  # Ctrl-C, or a file that failed while running (a full disk)
         kept = [f"{name} {where}" for name, where in outputs.items() if where.exists()]
         again = ("run the same command to resume" if checkpoint is not None else
                  "no [outputs.checkpoint]: a rerun starts over")
-        print(f"demkit run: interrupted; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
-        return 130
-    except OSError as err:  # an output that could be written nowhere (write_or_rescue says where it tried)
-        print(f"demkit run: error: {err}", file=sys.stderr)
-        return 1
+        what = "interrupted" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
+        print(f"demkit run: {what}; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
+        return 130 if isinstance(err, KeyboardInterrupt) else 1
     seconds = time.perf_counter() - clock
     frames = len(trajectory) if trajectory is not None else 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")

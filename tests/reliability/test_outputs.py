@@ -133,3 +133,33 @@ def test_nowhere_to_write_is_one_line_naming_every_place_tried(tmp_path, monkeyp
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("demkit run: error: could not write the trajectory anywhere: tried ") and \
         err[-1].count("No space left on device") == 2, err
+
+
+def test_a_full_disk_under_the_vtk_series_mid_run_keeps_the_checkpoint_and_frames(tmp_path, monkeypatch, capsys,
+                                                                                   straight):
+    """A VTK frame that cannot be written stops the run in one line (exit 1); the checkpoint and the
+    trajectory file written before it are kept, and the same command finishes the run."""
+    path = scene_file(tmp_path)
+    command = ["run", str(path), "--no-progress", '--set=outputs.vtk.folder="out/vtk"', "--set=outputs.vtk.every=0.05"]
+    write = dk.io.VTKWriter.write
+
+    def full_at_step_250(writer, sim):
+        if sim.step >= 250:
+            raise OSError(errno.ENOSPC, "No space left on device", str(writer.series.folder))
+        return write(writer, sim)
+    monkeypatch.setattr(dk.io.VTKWriter, "write", full_at_step_250)
+    injected("full disk under the VTK series mid-run")
+    assert main(command) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("demkit run: error: [Errno 28] No space left on device"), err
+    assert err.rstrip().endswith(f"kept: trajectory {tmp_path / 'out' / 'traj.npz'}, VTK series "
+                                 f"{tmp_path / 'out' / 'vtk' / 'particles.pvd'}, checkpoint "
+                                 f"{tmp_path / 'out' / 'run.ckpt'}; run the same command to resume"), err
+    monkeypatch.setattr(dk.io.VTKWriter, "write", write)
+    kept = arrays(tmp_path / "out" / "traj.npz")
+    assert kept["time"][-1] == pytest.approx(0.24)  # the frames up to the last checkpoint (t = 0.24)
+    assert main(command) == 0
+    assert_same_npz(tmp_path / "out" / "traj.npz", straight)
+    series = dk.read_series(tmp_path / "out" / "vtk" / "particles.pvd").time
+    on_grid = np.isclose(series / 0.05, np.round(series / 0.05))  # (a resumed series also holds the resume)
+    assert np.allclose(series[on_grid], np.arange(11) * 0.05), series
