@@ -890,18 +890,18 @@ class LoadedScene:
         Every output path is checked writable before the first step (SceneFileError otherwise).
         Frames are taken on the grid of the whole run (steps 0, s, 2s, ... with s = record_every /
         dt, and the last step), also when resuming. The trajectory file is written atomically at
-        the end, on Ctrl-C, when the run stops, and, with a checkpoint, just before every checkpoint
-        (the frames recorded so far): a run killed at any moment leaves a
-        file that holds at least every frame up to its checkpoint, and the checkpoint a digest of
+        the end, on Ctrl-C, when the run stops, and, with a checkpoint, just before every
+        checkpoint (the frames recorded so far): a run killed at any moment leaves a file that
+        holds at least every frame on the grid up to its checkpoint, and the checkpoint a digest of
         them. A resumed run's file holds the whole run: the earlier frames are taken from the file
         when they are the ones the checkpoint's run recorded (checked by that digest, or, for a
-        checkpoint without one, against the checkpoint's state in the file's wrapped convention);
-        otherwise the old file is renamed ``<name>.set-aside.npz`` (never overwritten), the new one
-        holds the frames from the resume on, and a line says why. When the file cannot
-        be written at the end (a full disk), it is saved elsewhere (:func:`demkit.outputs.write_or_rescue`)
-        and a line says where. ``on_resume(path)`` is called once the checkpoint has been checked and
-        loaded. Returns the Trajectory written (the whole run), or without a trajectory file the
-        frames of this call (from where it started)."""
+        checkpoint without one, against the checkpoint's state in the file's folded convention);
+        otherwise the old file is renamed ``<name>.set-aside.npz`` (never overwritten), the new
+        one holds the frames from the resume on, and a line says why. When the file cannot be
+        written at the end (a full disk), it is saved elsewhere
+        (:func:`demkit.outputs.write_or_rescue`) and a line says where. ``on_resume(path)`` is
+        called once the checkpoint has been checked and loaded. Returns the Trajectory written (the
+        whole run), or without a trajectory file the frames of this call (from where it started)."""
         from .simulation import SimulationError
         sim = self.simulation(out_dir)
         if getattr(sim, "resumed_meta", None) is not None and on_resume is not None:

@@ -3,7 +3,6 @@ problem, exit 2 through `demkit run`), and a run whose output then cannot be wri
 saves it elsewhere and says where. Read-only folders are simulated by failing the file system calls
 (tests run as root, for whom permission bits stop nothing)."""
 import errno
-import os
 
 import numpy as np
 import pytest
