@@ -12,6 +12,7 @@ over ``path`` (and the folder synced); on any error or Ctrl-C the temporary file
 from __future__ import annotations
 
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -59,6 +60,24 @@ def write_atomically(path, write):
         raise
     sync_folder(folder)
     return path
+
+
+def remove_partials(path):
+    """Remove the temporary files :func:`write_atomically` left beside ``path`` when a process was
+    killed while writing it (``<stem>.<8 characters>.partial<suffix>``). Call only where no other
+    process writes ``path``. Returns the paths removed."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    pattern = re.compile(re.escape(path.stem) + r"\.[A-Za-z0-9_]{8}\.partial" + re.escape(path.suffix) + "$")
+    removed = []
+    try:
+        for candidate in folder.iterdir():
+            if pattern.match(candidate.name) and candidate.is_file():
+                candidate.unlink()
+                removed.append(candidate)
+    except OSError:
+        pass
+    return removed
 
 
 def sync_folder(folder):

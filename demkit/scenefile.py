@@ -912,6 +912,9 @@ class LoadedScene:
         with _At(self.source, "run", "record_every"):
             stride = end if self.record_every is None else sim._steps(self.record_every, "record_every")
         target = self.output_path(self.outputs["trajectory"], out_dir) if self.outputs.get("trajectory") else None
+        if target is not None:
+            from .outputs import remove_partials
+            remove_partials(target)  # left by a process killed while writing the file
         earlier = self._earlier_frames(target, sim, stride) if start > 0 and target is not None else None
         if start >= end:  # a finished run's checkpoint: nothing left to do
             sim.close()

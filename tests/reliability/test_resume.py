@@ -114,6 +114,8 @@ def test_kill_9_at_chosen_moments_across_a_face_loses_no_frame(tmp_path, straigh
                        (kill_while_stepping, 130)):
         _killed_child(path, kill(step))
         injected(f"SIGKILL {kill.__name__}")
+        if kill is kill_while_writing_the_trajectory:
+            assert len(list(out.glob("traj.*.partial.npz"))) == 1  # its half-written temporary file
         meta, _ = ckpt.load(out / "run.ckpt")
         assert meta["step"] < step
         assert outside(out / "run.ckpt"), "the kill should land while a sphere is across the face"
@@ -123,6 +125,7 @@ def test_kill_9_at_chosen_moments_across_a_face_loses_no_frame(tmp_path, straigh
         assert np.array_equal(on_grid, np.arange(0, meta["step"] + 1, 30)), steps  # nothing written is lost
     dk.load_scene(path).run(progress=False)
     assert_same_npz(out / "traj.npz", straight)
+    assert not list(out.glob("*.partial*"))  # removed by the run that owns the file
 
 
 def test_a_file_that_ends_before_the_checkpoint_says_so(tmp_path, capsys):
