@@ -17,7 +17,8 @@ bytes) and is read with ``allow_pickle=False``, so loading one executes nothing.
 A checkpoint names the demkit version and a hash of the scene's constant parameters (interactions
 and their parameters, radii, masses, inertias, ids, fixed spheres, box, skin, sorting, thread
 chunks, integrator); resuming into another scene or with another version is refused before
-anything is changed.
+anything is changed, naming the parameter that differs (it also keeps those parameters in its
+metadata: interactions, box, skin, ...; radii, masses and inertias are in its arrays).
 """
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from . import checks
+from .outputs import check_writable, sync_folder
 from .state import PAIR_LIST_FIELDS, PairList, PairListTuple
 
 #: bumped whenever the layout of the file changes
@@ -61,7 +63,11 @@ class Checkpoint:
         folder = self.path.parent if str(self.path.parent) else Path(".")
         if not folder.is_dir():
             raise ValueError(f"the folder of the checkpoint {self.path} does not exist")
+        check_writable(self.path, "checkpoint")  # found now, not at the first save
         self.saves = 0
+        #: None, or a callable(simulation) -> dict called before every save (its dict goes into the
+        #: metadata): demkit run writes the trajectory so far there, before the checkpoint
+        self.before_save = None
         self.last_save = None  # wall-clock time of the last save
         self.saved_step = None  # step count of the last save
 
@@ -75,7 +81,8 @@ class Checkpoint:
 
     def save(self, simulation):
         """Write ``simulation``'s state now (atomically). Returns the path."""
-        save(simulation, self.path)
+        extra = self.before_save(simulation) if self.before_save is not None else None
+        save(simulation, self.path, extra)
         self.saves += 1
         self.saved_step = simulation.step
         self.last_save = time.perf_counter()
@@ -138,8 +145,21 @@ def state_arrays(scene):
     return arrays
 
 
-def save(simulation, path):
-    """Write the checkpoint of ``simulation`` to ``path`` atomically (see the module docstring)."""
+def constants(scene):
+    """The scene's constant parameters that a checkpoint names when they differ (JSON-ready)."""
+    box = scene.box
+    return {"interactions": [repr(inter) for inter in scene.interactions + scene.effects],
+            "box size": box.size.tolist() if box is not None else None,
+            "box periodic": [bool(b) for b in box.periodic] if box is not None else None,
+            "skin": scene.skin, "sort_every": scene.sort_every, "parallel": bool(scene.parallel),
+            "chunks": scene.chunks, "ids": hashlib.sha256(np.ascontiguousarray(scene.particles.ids)).hexdigest(),
+            "fixed": None if scene.particles.fixed is None else
+            [int(i) for i in np.asarray(scene.particles.ids)[np.asarray(scene.particles.fixed, dtype=bool)][:1000]]}
+
+
+def save(simulation, path, extra=None):
+    """Write the checkpoint of ``simulation`` to ``path`` atomically (see the module docstring);
+    ``extra``: more metadata (a dict)."""
     from . import __version__
     path = Path(path)
     scene = simulation.scene
@@ -147,7 +167,7 @@ def save(simulation, path):
             "integrator": repr(simulation.integrator), "step": int(simulation.step),
             "time": float(simulation.time), "particles": len(scene.particles),
             "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin,
-            "forces_valid": bool(simulation.forces_valid)}
+            "forces_valid": bool(simulation.forces_valid), "constants": constants(scene), **(extra or {})}
     arrays = state_arrays(scene)
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     folder = path.parent if str(path.parent) else Path(".")
@@ -164,14 +184,7 @@ def save(simulation, path):
         except OSError:
             pass
         raise
-    try:  # the rename itself survives a power cut once the folder is synced
-        dir_fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(dir_fd)
-        finally:
-            os.close(dir_fd)
-    except OSError:
-        pass
+    sync_folder(folder)  # the rename itself survives a power cut once the folder is synced
     return path
 
 
@@ -219,8 +232,10 @@ def check_compatible(meta, arrays, simulation, path):
         raise ValueError(f"checkpoint {path} was written with {meta.get('integrator')}, this simulation "
                          f"uses {simulation.integrator!r}: an exact restart needs the same integrator")
     if meta.get("scene") != scene_hash(scene, simulation.integrator):
-        raise ValueError(f"checkpoint {path} belongs to another scene: its parameters (interactions, radii, "
-                         f"masses, box, skin, threads chunks, ...) differ from this scene's")
+        what = difference(meta, arrays, scene)
+        raise ValueError(f"checkpoint {path} belongs to another scene: "
+                         + (f"{what}" if what else "its parameters (interactions, radii, masses, box, skin, thread "
+                                                    "chunks, ...) differ from this scene's"))
     expected = state_arrays(scene)
     for name, value in expected.items():
         if name not in arrays:
@@ -235,6 +250,67 @@ def check_compatible(meta, arrays, simulation, path):
     step = meta.get("step")
     if not isinstance(step, int) or step < 0:
         raise ValueError(f"checkpoint {path} has an invalid step count {step!r}")
+
+
+def _arguments(text):
+    """{name: value text} of a repr like ``Name(a=1, b=Other(c=2))`` (top-level keywords only)."""
+    inner = text[text.find("(") + 1:text.rfind(")")] if "(" in text else ""
+    out, depth, part = {}, 0, ""
+    for ch in inner + ",":
+        if ch == "," and depth == 0:
+            name, sep, value = part.partition("=")
+            out[name.strip() if sep else f"#{len(out)}"] = value.strip() if sep else name.strip()
+            part = ""
+            continue
+        depth += (ch in "([{") - (ch in ")]}")
+        part += ch
+    return out
+
+
+def difference(meta, arrays, scene):
+    """The first constant parameter in which the checkpoint and ``scene`` differ, as one phrase
+    ("radius of sphere id 3: checkpoint 0.5, scene 0.6"), or None when none is found."""
+    saved = meta.get("constants")
+    now = constants(scene)
+    if isinstance(saved, dict):
+        old, new = saved.get("interactions", []), now["interactions"]
+        if len(old) != len(new):
+            return f"{len(old)} interactions in the checkpoint ({', '.join(old)}), {len(new)} in the scene"
+        for k, (a, b) in enumerate(zip(old, new)):
+            if a == b:
+                continue
+            name_a, name_b = a.split("(")[0], b.split("(")[0]
+            if name_a != name_b:
+                return f"interaction {k}: checkpoint {name_a}, scene {name_b}"
+            args_a, args_b = _arguments(a), _arguments(b)
+            for key in list(args_a) + [k2 for k2 in args_b if k2 not in args_a]:
+                if args_a.get(key) != args_b.get(key):
+                    label = "" if key.startswith("#") else f" {key}"
+                    return f"interaction {k} {name_a}{label}: checkpoint {args_a.get(key)}, scene {args_b.get(key)}"
+            return f"interaction {k}: checkpoint {a}, scene {b}"
+    tag_old, tag_new = arrays.get("state.tag"), scene.arrays["tag"]
+    for name in ("radius", "mass", "inertia"):
+        got = arrays.get(f"state.{name}")
+        if got is None or tag_old is None or got.shape != scene.arrays[name].shape:
+            continue
+        old = np.empty_like(got)
+        old[tag_old] = got
+        new = np.empty_like(got)
+        new[tag_new] = scene.arrays[name]
+        bad = np.flatnonzero(~((old == new) | (np.isnan(old) & np.isnan(new))))
+        if len(bad):
+            i = int(bad[0])
+            more = f" (and {len(bad) - 1} more spheres)" if len(bad) > 1 else ""
+            return (f"{name} of sphere id {scene.particles.ids[i]}: checkpoint {float(old[i])!r}, "
+                    f"scene {float(new[i])!r}{more}"
+                    + (" (an infinite mass or inertia is a fixed sphere)" if np.isinf([old[i], new[i]]).any() else ""))
+    if isinstance(saved, dict):
+        for key in ("box size", "box periodic", "skin", "sort_every", "parallel", "chunks", "fixed"):
+            if saved.get(key) != now[key]:
+                return f"{key}: checkpoint {saved.get(key)}, scene {now[key]}"
+        if saved.get("ids") != now["ids"]:
+            return "the sphere ids differ"
+    return None
 
 
 def restore(scene, arrays):

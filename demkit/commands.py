@@ -94,25 +94,27 @@ def run_command(args):
     if not outputs:
         print(NO_OUTPUTS)
     checkpoint = outputs.get("checkpoint")
-    if checkpoint is not None and checkpoint.exists():
-        print(f"resuming from {checkpoint} (delete it to start over)")
     clock = time.perf_counter()
-    try:
-        trajectory = loaded.run(progress=args.progress, out_dir=args.out)
+    try:  # the checkpoint is checked against the scene before it is announced
+        trajectory = loaded.run(progress=args.progress, out_dir=args.out,
+                                on_resume=lambda path: print(f"resuming from {path} (delete it to start over)",
+                                                             flush=True))
     except SimulationError as err:
         print(f"demkit run: stopped: {err}")
         return 1
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, OSError) as err:  # Ctrl-C, or a file that failed while running (a full disk)
         kept = [f"{name} {where}" for name, where in outputs.items() if where.exists()]
         again = ("run the same command to resume" if checkpoint is not None else
                  "no [outputs.checkpoint]: a rerun starts over")
-        print(f"demkit run: interrupted; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
-        return 130
+        what = "interrupted" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
+        print(f"demkit run: {what}; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
+        return 130 if isinstance(err, KeyboardInterrupt) else 1
     seconds = time.perf_counter() - clock
     frames = len(trajectory) if trajectory is not None else 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")
     for name, where in outputs.items():
-        print(f"wrote {name}: {where}")
+        rescued = loaded.rescued.get(name)
+        print(f"wrote {name}: {where}" if rescued is None else f"wrote {name}: {rescued} (could not write {where})")
     return 0
 
 
@@ -234,11 +236,15 @@ def _duration(seconds):
 
 
 def main_errors(parser, args):
-    """Run the chosen command's handler; a bad scene file, option or missing extra is one line on
-    stderr and exit code 2, Ctrl-C not handled by the command one line and exit code 130."""
+    """Run the chosen command's handler; a bad scene file, option, missing extra or output path that
+    cannot be written is one line on stderr and exit code 2, a file that fails while it is read or
+    written (OSError) one line and exit code 1, Ctrl-C not handled by the command one line and exit
+    code 130."""
     try:
         return args.handler(args)
     except (ValueError, ImportError) as err:  # SceneFileError is a ValueError
         parser.exit(2, f"demkit {args.command}: error: {err}\n")
     except KeyboardInterrupt:
         parser.exit(130, f"demkit {args.command}: interrupted\n")
+    except OSError as err:  # a file that could not be read or written (a full disk, ...): one line too
+        parser.exit(1, f"demkit {args.command}: error: {err}\n")

@@ -231,6 +231,7 @@ class Simulation:
                     row[0] = value
         else:
             kern.record_frame(0, state, record)
+        self._recording = (record, self.step, stride)  # the frames so far, for Checkpoint.before_save
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
         self._warn_large_output(nsteps, writer_steps)
         if not self._opened and self.checkpoint is not None:
@@ -316,6 +317,7 @@ class Simulation:
         scene.reserve_stages(self.integrator.stage_arrays)
         ckpt.check_compatible(meta, arrays, self, path)
         ckpt.restore(scene, arrays)
+        self.resumed_meta = meta  # what the checkpoint says about the run that wrote it
         scene.set_time_step(self.integrator.contact_step)
         scene.counters[INNER_STEPS] = self.integrator.inner
         self.step = meta["step"]

@@ -29,6 +29,7 @@ import contextlib
 import csv
 import functools
 import importlib
+import io
 import itertools
 import json
 import logging
@@ -204,17 +205,27 @@ def run_point(task, point, names=()):
 
 # ---- the table -----------------------------------------------------------------------------------
 class _Table:
-    """A CSV table appended row by row (flushed each time); rewritten when a new column appears."""
+    """A CSV table appended row by row (flushed and synced each time); rewritten atomically (a
+    temporary file renamed over it) when a new column appears and at the end. A row cut short by a
+    crash while it was appended is dropped when the table is read again (the point runs again)."""
 
     def __init__(self, path, names):
+        from .outputs import check_writable
         self.path = Path(path)
         self.names = list(names)
         self.rows, self.columns = [], self.names + list(STATUS_COLUMNS)
+        check_writable(self.path, "sweep table")
         if self.path.exists() and self.path.stat().st_size > 0:
             with open(self.path, newline="") as fh:
-                reader = csv.DictReader(fh)
-                old = list(reader.fieldnames or [])
-                self.rows = list(reader)
+                text = fh.read()
+            reader = csv.DictReader(io.StringIO(text))
+            old = list(reader.fieldnames or [])
+            self.rows = list(reader)
+            if self.rows and (not text.endswith("\n") or None in self.rows[-1].values()):
+                cut = self.rows.pop()  # the row being appended when the last sweep stopped
+                print(f"{self.path}: its last row was cut short (the sweep stopped while writing it) and is "
+                      f"dropped: {', '.join(f'{k}={v}' for k, v in cut.items() if v)[:200]}; that point runs "
+                      f"again", file=sys.stderr)
             missing = [n for n in self.names if n not in old]
             if missing:
                 raise ValueError(f"{self.path} has no column(s) {missing} for this sweep's parameters "
@@ -226,13 +237,19 @@ class _Table:
         return {point_key(r, self.names) for r in self.rows if r.get("status") == "ok"}
 
     def _rewrite(self):
+        from .outputs import write_atomically
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_name(self.path.name + ".tmp")
-        with open(tmp, "w", newline="") as fh:
-            w = csv.DictWriter(fh, self.columns, restval="")
-            w.writeheader()
-            w.writerows(self.rows)
-        os.replace(tmp, self.path)
+
+        def write(tmp):
+            with open(tmp, "w", newline="") as fh:
+                w = csv.DictWriter(fh, self.columns, restval="")
+                w.writeheader()
+                w.writerows(self.rows)
+        try:
+            write_atomically(self.path, write)
+        except OSError as err:
+            raise OSError(f"could not rewrite the sweep table {self.path} ({err.strerror or err}): it holds the "
+                          f"rows written before; run the sweep again to finish the rest") from err
 
     def add(self, row):
         self.rows.append(row)
@@ -241,9 +258,15 @@ class _Table:
             self.columns += new
             self._rewrite()
             return
-        with open(self.path, "a", newline="") as fh:
-            csv.DictWriter(fh, self.columns, restval="").writerow(row)
-            fh.flush()
+        try:
+            with open(self.path, "a", newline="") as fh:
+                csv.DictWriter(fh, self.columns, restval="").writerow(row)
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as err:
+            raise OSError(f"could not add a row to the sweep table {self.path} ({err.strerror or err}): the "
+                          f"{len(self.rows) - 1} rows before it are kept; run the sweep again to finish the "
+                          f"rest") from err
 
     def finish(self, points):
         """Rewrite in the points' order: one row per point (its latest), then rows of other sweeps."""
@@ -422,6 +445,8 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
     if results.suffix == ".parquet":
         parquet, results = results, results.with_suffix(".csv")
         _require_pyarrow()
+        from .outputs import check_writable
+        check_writable(parquet, "sweep table")
     table = _Table(results, names)
     done = table.done()
     todo = [p for p, k in zip(points, keys) if k not in done]
@@ -482,7 +507,8 @@ def _write_parquet(csv_path, parquet_path):
             except OverflowError:  # an integer beyond int64: kept as text
                 pass
         arrays[name] = pa.array([t if t != "" else None for t in texts], pa.string())
-    pq.write_table(pa.table(arrays), parquet_path)
+    from .outputs import write_atomically
+    write_atomically(parquet_path, lambda tmp: pq.write_table(pa.table(arrays), tmp))  # whole or not at all
 
 
 # ---- sweep files ---------------------------------------------------------------------------------

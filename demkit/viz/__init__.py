@@ -79,14 +79,18 @@ def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size
     time : draw the frame nearest this simulation time (overrides ``frame_index``, default the last).
     frame_index : the frame to draw (an index; -1: the last).
     {DRAWING}
-    Returns the path. Raises ValueError for bad arguments (before anything renders) and
-    RenderingUnavailable if nothing can render here.
+    Returns the path. Raises ValueError for bad arguments or a path that cannot be written (before
+    anything renders) and RenderingUnavailable if nothing can render here. The picture is written
+    to a temporary file beside ``path`` and renamed to it: ``path`` is the new picture or as it was.
     """
     from .render import FrameDrawer, load
+
+    from ..outputs import check_writable, write_atomically
 
     path = Path(path)
     if not path.parent.is_dir():
         raise ValueError(f"folder {path.parent} does not exist")
+    check_writable(path, "picture")  # before rendering, not after
     frames = load(source)
     n = len(frames.time)
     if time is not None:
@@ -102,7 +106,7 @@ def snapshot(source, path, time=None, frame_index=-1, *, trail=None, window_size
     drawer = FrameDrawer(plan)
     try:
         drawer.draw(k)
-        drawer.plotter.screenshot(str(path))
+        write_atomically(path, lambda tmp: drawer.plotter.screenshot(str(tmp)))  # whole or not at all
     finally:
         drawer.close()
     return path

@@ -15,13 +15,14 @@ FORMATS = (".gif", ".mp4")
 
 
 def check_path(path):
-    """The output Path, ValueError unless it ends in .gif or .mp4 and its folder exists."""
+    """The output Path, ValueError unless it ends in .gif or .mp4 and can be written in its folder."""
     path = Path(path)
     if path.suffix.lower() not in FORMATS:
         raise ValueError(f"animations are written as .gif or .mp4, got {path}")
     if not path.parent.is_dir():
         raise ValueError(f"folder {path.parent} does not exist")
-    return path
+    from ..outputs import check_writable
+    return check_writable(path, "animation")  # before rendering, not after
 
 
 class MovieWriter:
@@ -74,6 +75,8 @@ class MovieWriter:
                 self._ffmpeg.close()
                 self._ffmpeg = None
             if self.partial.exists():
+                with open(self.partial, "rb+") as fh:
+                    os.fsync(fh.fileno())
                 os.replace(self.partial, self.path)
         except BaseException:
             self.abort()
