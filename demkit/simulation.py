@@ -223,7 +223,7 @@ class Simulation:
         scene = self.scene
         forces_ready = self._prepare()
         state = scene.state
-        kern = scene.kernels
+        kern = self._threads.kernels  # the module of the runs' loops (record_frame compiled once)
         record = self._allocate(nframes + extra_final)
         if forces_ready and self._last_frame is not None:
             for row, value in zip(record, self._last_frame):
@@ -432,7 +432,7 @@ class Simulation:
         frames = done // stride + 1
         steps = list(np.arange(frames) * stride)
         if done % stride:
-            self.scene.kernels.record_frame(frames, self.scene.state, record)
+            self._threads.kernels.record_frame(frames, self.scene.state, record)
             steps.append(done)
         self._keep(record, start_step, steps)
         self._last_frame = _frame_of(record, len(steps) - 1)

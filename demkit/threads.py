@@ -79,6 +79,12 @@ class ThreadChoice:
         return f"fewer than {_parallel_min()} spheres"
 
     @property
+    def kernels(self):
+        """The module whose record_frame a run calls from Python: the thread module when threads
+        always run (parallel=True), else the serial one (so that it is compiled once)."""
+        return self.scene.thread_kernels if self.fixed and self.fixed > 1 else self.scene.kernels
+
+    @property
     def label(self):
         """A few words for the progress bar."""
         return "1 thread" if self.threads == 1 else f"{self.threads} threads"
