@@ -145,14 +145,13 @@ def export_lammps_command(args):
 
 
 def sweep_command(args):
-    from .sweep import read_sweep_file, sweep_file
+    from .sweep import read_sweep_file, summary, sweep_file
     try:
         rows = sweep_file(args.file, workers=args.workers, scheduler=args.scheduler)
     except KeyboardInterrupt as stop:  # Ctrl-C: finished points are in the table; a rerun resumes
         print(f"demkit {stop or 'sweep interrupted'}", file=sys.stderr)
         return 130
-    failed = sum(r["status"] != "ok" for r in rows)
-    print(f"{len(rows)} points, {failed} failed: {read_sweep_file(args.file)['results']}")
+    print(summary(rows, read_sweep_file(args.file)["results"]))
     return 0
 
 
