@@ -459,7 +459,9 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
         'tcp://host:8786', or a dask.distributed.Client.
     progress : a bar over the points (:class:`demkit.progress.Progress`): None on a terminal for a
-        sweep that looks longer than a moment (not with DEMKIT_QUIET), True always, False never.
+        sweep that looks longer than a moment (not with DEMKIT_QUIET), True always, False never;
+        or a Progress of the caller's, over several steps of work: the sweep counts its points on
+        from the bar's ``done`` (those already in the table at once) and leaves it open.
 
     Ctrl-C (KeyboardInterrupt): running points are abandoned (worker processes terminated, a
     LocalCluster closed, queued Dask points cancelled), finished ones stay in the table, and a
@@ -485,19 +487,24 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         raise ValueError(f"workers must be at least 1, got {workers}")
     rows = (_local_rows(task, todo, names, min(workers, len(todo))) if scheduler is None
             else _dask_rows(task, todo, names, workers, scheduler))
-    bar = Progress(len(todo), progress, desc="sweep", unit="point")
+    shared = isinstance(progress, Progress)
+    bar = progress if shared else Progress(len(todo), progress, desc="sweep", unit="point")
+    before = bar.done + len(points) - len(todo) if shared else 0  # points done before count at once
+    if shared and before != bar.done:
+        bar.update(before)
     try:
         with contextlib.closing(rows):
             for finished, row in enumerate(rows if todo else (), start=1):
                 table.add(row)
-                bar.update(finished)
+                bar.update(before + finished)
     except KeyboardInterrupt:
         bar.close()
         finished = len(table.done() & set(keys))
         raise KeyboardInterrupt(f"sweep interrupted: {finished} of {len(points)} points done in {results}; "
                                 f"run it again to finish the rest") from None
     finally:
-        bar.close()
+        if not shared:
+            bar.close()
     table.finish(points)
     if parquet is not None:
         _write_parquet(results, parquet)
