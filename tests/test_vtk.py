@@ -164,6 +164,23 @@ def test_bad_folders_and_options(tmp_path):
         dk.VTKWriter(tmp_path / "e", every=1.0, dtype="float16")
 
 
+def test_the_series_ends_with_the_state_the_run_ends_in(tmp_path):
+    """A run that ends between two frames (1.0 with a frame every 0.3): its end state is the last
+    frame, as it is the trajectory's; a run that continues writes on the interval's grid (counted from
+    step 0) and its own end."""
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres(), duration=1.0, every=0.3)
+    entries = read_pvd(writer.pvd)
+    assert [t for t, _ in entries] == pytest.approx([0.0, 0.3, 0.6, 0.9, 1.0], abs=1e-12)
+    assert [t for t, _ in entries] == pytest.approx(traj.time, abs=1e-12)
+    np.testing.assert_array_equal(meshio.read(entries[-1][1]).points, traj.position[-1])
+    sim.run(0.25)  # to t = 1.25: a frame at 1.2 and the end
+    sim.run(0.05)  # to t = 1.3: not a frame of the grid, the end
+    sim.run(0.2)   # to t = 1.5, on the grid: written once
+    sim.close()
+    times = [t for t, _ in read_pvd(writer.pvd)]
+    assert times == pytest.approx([0.0, 0.3, 0.6, 0.9, 1.0, 1.2, 1.25, 1.3, 1.5], abs=1e-12)
+
+
 def test_existing_data_is_never_silently_replaced(tmp_path):
     sim, writer, _ = run_with_writer(tmp_path, three_spheres(), duration=2.0)  # 5 frames
     sim.close()
