@@ -241,11 +241,14 @@ def summary(rows, results=None):
     """The terminal's account of a sweep's rows: points done and failed, then each observable that
     could not be measured and each cause of failure, with how often and the first message."""
     failed = [r for r in rows if r.get("status") != "ok"]
-    head = f"{len(rows)} points, {len(failed)} failed"
+    errors = observable_errors(rows)
+    partly = sum(any(r.get(name) in (None, "") and isinstance(r.get(error_column(name)), str)
+                     and r[error_column(name)] for name in errors) for r in rows if r.get("status") == "ok")
+    head = f"{len(rows)} points, {len(failed)} failed" + (f", {partly} with observables not measured" if partly else "")
     lines = [head + (f": {results}" if results is not None else "")]
     if failed:
         lines.append(_counted("failed", [str(r.get("error") or "no message") for r in failed]))
-    for name, texts in observable_errors(rows).items():
+    for name, texts in errors.items():
         lines.append(_counted(f"{name} not measured", texts, f"; see column {error_column(name)}"))
     return "\n".join(lines)
 
@@ -736,8 +739,8 @@ def observe(names, loaded, trajectory):
         try:
             value = OBSERVABLES[name](loaded, trajectory)
         except Exception as exc:  # noqa: BLE001 (recorded in the table next to the others)
-            out.update({f"{name}_{k}": None for k in COLUMNS.get(name, ()) if k != ""})
             out[name] = exc
+            out.update({f"{name}_{k}": None for k in COLUMNS.get(name, ()) if k != ""})
             continue
         if isinstance(value, dict):
             out.update({name if k == "" else f"{name}_{k}": v for k, v in value.items()})

@@ -233,7 +233,7 @@ def test_an_observable_that_cannot_be_measured_keeps_the_others(tmp_path):
                                                "ValueError: no spin at x = 0.0", None]
     text = sweep_module.summary(rows, out)
     assert text.splitlines() == [
-        f"4 points, 1 failed: {out}",
+        f"4 points, 1 failed, 2 with observables not measured: {out}",
         "  failed in 1 point; first: ValueError: x = -2.0 is out of range",
         "  spin not measured in 2 points (2 different messages); see column spin_error; "
         "first: ValueError: no spin at x = -1.0"]
@@ -260,7 +260,7 @@ def test_demkit_sweep_command_runs_a_sweep_file(tmp_path):
     rows = read_table(tmp_path / "s.csv")
     assert [r["status"] for r in rows] == ["failed", "ok", "ok"] and rows[1]["y"] == 0.0
     assert done.stdout.splitlines() == [
-        "3 points, 1 failed: s.csv",
+        "3 points, 1 failed, 1 with observables not measured: s.csv",
         "  failed in 1 point; first: ValueError: x = -2.0 is out of range",
         "  spin not measured in 1 point; see column spin_error; first: ValueError: no spin at x = 0.0"]
 
