@@ -473,7 +473,11 @@ def main(argv=None):
     output = args.out / "examples" / "two_magnets" / "output"  # not tracked
     start = time.perf_counter()
     _warm_up(args.quick)
-    results = execute(plan(args.quick), workers, args.scheduler, tables=output)
+    # the replication always takes a while: on a terminal its bar shows from the start, not only once
+    # the first (longest) job is done and the automatic bar could judge
+    from demkit.progress import quiet
+    results = execute(plan(args.quick), workers, args.scheduler, tables=output,
+                      progress=sys.stderr is not None and sys.stderr.isatty() and not quiet())
     wall = time.perf_counter() - start
     print(f"simulations done in {wall:.0f} s; writing the figures and the report (a few seconds)...", flush=True)
     summary = summarise(results, args.quick)
