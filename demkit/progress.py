@@ -10,8 +10,8 @@ bar over the study's runs) and for rendering animations (``demkit.viz.animate``)
 * ``progress=True``: a bar always (also when stderr is redirected); ``False``: never.
 
 On a terminal that reports 0 columns (some CI runners and containers; tqdm draws nothing there) the
-bar is plain lines instead (:class:`PlainBar`): one every :data:`PLAIN_SECONDS`, one when the stage
-shown changes, and the last one at the end.
+bar is plain lines instead (:class:`PlainBar`): one at the first update, then one at most every
+:data:`PLAIN_SECONDS`, one when the stage shown changes, and the last one at the end.
 
 The compile notice (:class:`compile_notice`): when demkit's compiled kernels are not in the on-disk
 cache and must be compiled (the first run of a scene on a machine, 5-30 s), one line on stderr

@@ -11,8 +11,9 @@ The table (CSV) has one row per point: the parameters (and ``seed``), ``status``
 ``error`` (empty when fine, else 'Type: message'), ``wall_s`` (seconds the task took) and the
 observables. An observable that could not be measured (the task returned an exception for it; scene
 sweeps do so for each observable that raises) leaves its cell empty with 'Type: message' in
-``<name>_error``, and the point is still 'ok': the others are kept. :func:`summary` counts both. Rows are appended (and flushed) as points finish, so an interrupted sweep keeps what it
-finished; at the end the table is rewritten in the order of the points. Running the same sweep again
+``<name>_error``, and the point is still 'ok': the others are kept. :func:`summary` counts both.
+Rows are appended (and flushed) as points finish, so an interrupted sweep keeps what it finished;
+at the end the table is rewritten in the order of the points. Running the same sweep again
 skips the points that already have an 'ok' row (same parameter values, compared at 12 significant
 digits) and reruns the failed ones. A failing point is recorded with its error; the others go on.
 Ctrl-C stops the workers at once and raises KeyboardInterrupt saying how many points are done.
