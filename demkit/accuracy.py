@@ -39,6 +39,17 @@ CROSSING_MARGIN = 1e-12
 MAX_APPROACHES = 40
 #: points at which the dense output of a flagged step is sampled to find the first sign change
 SAMPLES = 16
+#: work-precision timing (repeats=None): a run shorter than this (wall seconds) is repeated until
+#: its timed runs add up to it, keeping the least time of a run ...
+TIMING_SECONDS = 0.2
+#: ... at least this many times, and as long as its repeats (set-up included) take less than
+REPEAT_RUNS = 5
+REPEAT_BUDGET = 0.5
+#: timings are not trusted when the repeats of a run differ by more than this fraction
+#: ((median - least) / least) ...
+TIMING_SPREAD = 0.25
+#: ... or when its wall time exceeds its CPU time by more than this factor (it waited for a processor)
+TIMING_WAIT = 1.5
 
 
 # ---------------------------------------------------------------------------------------------
@@ -864,37 +875,103 @@ def _checkpoints(times, dt):
     return steps[steps > 0]
 
 
-def _run(scene, make, dt, duration, times, record_every, particles=None):
-    """One run from the scene's initial state: (trajectory, seconds, steps, integrator, error message)."""
-    fresh = copy_scene(scene, particles)
+def _run(scene, make, dt, duration, times, record_every, particles=None, fresh=None):
+    """One run from the scene's initial state: (trajectory, seconds, cpu_seconds, steps, integrator,
+    error message). The wall and CPU (process) times are those of the ``Simulation.run`` calls; making
+    the scene's copy (or taking ``fresh``, a copy ready to run) and the Simulation is not timed."""
+    fresh = copy_scene(scene, particles) if fresh is None else fresh
     integrator = _integrator(make, dt)
     try:
         sim = Simulation(fresh, integrator)
     except ValueError as error:
-        return None, math.nan, 0, integrator, str(error)
+        return None, math.nan, math.nan, 0, integrator, str(error)
     total = int(round(duration / integrator.dt))
     if total < 1:
-        return None, math.nan, 0, integrator, f"duration {duration:.6g} is shorter than the time step {dt:.6g}"
+        return (None, math.nan, math.nan, 0, integrator,
+                f"duration {duration:.6g} is shorter than the time step {dt:.6g}")
     stops = list(_checkpoints(times, integrator.dt)) + [total]
     stops = sorted({s for s in stops if 0 < s <= total})
     stride = max(1, int(round(record_every / integrator.dt)))
-    parts, seconds, done = [], 0.0, 0
+    parts, seconds, cpu, done = [], 0.0, 0.0, 0
     try:
         for stop in stops:
             piece = stop - done
             if piece <= 0:
                 continue
+            wall0, cpu0 = _time.perf_counter(), _time.process_time()
             parts.append(sim.run(piece * integrator.dt, record_every=min(piece, stride) * integrator.dt,
                                  progress=False))
-            seconds += sim.statistics["seconds"]
+            seconds += _time.perf_counter() - wall0
+            cpu += _time.process_time() - cpu0
             done = stop
     except SimulationError as error:
         if error.trajectory is not None and len(error.trajectory):
             parts.append(error.trajectory)
-        return _joined(parts), math.nan, sim.step, integrator, str(error)
+        return _joined(parts), math.nan, math.nan, sim.step, integrator, str(error)
     except (ValueError, FloatingPointError) as error:
-        return _joined(parts), math.nan, sim.step, integrator, str(error)
-    return _joined(parts), seconds, total, integrator, ""
+        return _joined(parts), math.nan, math.nan, sim.step, integrator, str(error)
+    return _joined(parts), seconds, cpu, total, integrator, ""
+
+
+class _Spare:
+    """Copies of a scene at its initial state for repeated runs: one copy put back to the initial
+    state for each repeat (making a Scene takes tens of milliseconds, more than a small run), or a new
+    copy each time for scenes that keep per-contact history or reorder their spheres."""
+
+    FIELDS = ("position", "velocity", "angular_velocity", "dipole", "image")
+
+    def __init__(self, scene):
+        self.scene, self.copy, self.initial = scene, None, None
+        self.reuse = not scene.history_keepers() and not scene.plan.sorted
+
+    def ready(self):
+        if not self.reuse:
+            return copy_scene(self.scene)
+        if self.copy is None:
+            self.copy = copy_scene(self.scene)
+            self.initial = {name: getattr(self.copy.particles, name).copy() for name in self.FIELDS
+                            if getattr(self.copy.particles, name) is not None}
+        else:  # the next Simulation sees the changed arrays, checks them and rebuilds the lists
+            for name, value in self.initial.items():
+                getattr(self.copy.particles, name)[...] = value
+            self.copy.arrays["accum"][...] = 0.0
+        return self.copy
+
+
+def _timed(scene, make, dt, duration, times, record_every, repeats):
+    """:func:`_run`, timed robustly: (trajectory, steps, integrator, message, timing), timing a dict of
+    seconds (the least wall time of a run), cpu_seconds (the least CPU time), repeats (runs timed) and
+    timing_spread ((median - least) / least of the wall times; NaN under 3 runs).
+
+    ``repeats``: a number of runs, or None: a run shorter than :data:`TIMING_SECONDS` is repeated
+    until its runs add up to that (at least :data:`REPEAT_RUNS` runs, and no more once the repeats
+    took :data:`REPEAT_BUDGET` seconds with their set-up). Repeats start from the same state and do
+    the same work (the first run's trajectory is kept)."""
+    began = _time.perf_counter()
+    traj, seconds, cpu, steps, integrator, message = _run(scene, make, dt, duration, times, record_every)
+    walls, cpus = [seconds], [cpu]
+    spare = _Spare(scene)
+
+    def more():
+        if repeats is not None:
+            return len(walls) < repeats
+        if walls[0] >= TIMING_SECONDS:
+            return False
+        return len(walls) < REPEAT_RUNS or (sum(walls) < TIMING_SECONDS
+                                            and _time.perf_counter() - began < REPEAT_BUDGET)
+    while not message and more():
+        _, seconds, cpu, _, _, again = _run(scene, make, dt, duration, times, record_every, fresh=spare.ready())
+        if again:  # the same run failed this time: keep the timings so far
+            break
+        walls.append(seconds)
+        cpus.append(cpu)
+    if message:
+        return traj, steps, integrator, message, {"seconds": math.nan, "cpu_seconds": math.nan, "repeats": 1,
+                                                  "timing_spread": math.nan}
+    least = min(walls)
+    spread = (float(np.median(walls)) - least) / least if len(walls) >= 3 and least > 0 else math.nan
+    return traj, steps, integrator, "", {"seconds": least, "cpu_seconds": min(cpus), "repeats": len(walls),
+                                         "timing_spread": spread}
 
 
 def _joined(parts):
@@ -925,8 +1002,8 @@ def _at(traj, t, what="position"):
 class WorkPrecision:
     """What accuracy costs for one scene: one row per (method, dt) run. See :func:`work_precision`.
 
-    rows : list of dicts (method, dt, steps, evaluations, seconds, stable, message, errors,
-        observable, is_reference).
+    rows : list of dicts (method, dt, steps, evaluations, seconds, cpu_seconds, repeats,
+        timing_spread, stable, message, errors, observable, is_reference).
     reference : a dict describing the reference (kind, description, evaluations, seconds, restarts,
         energy_error, angular_momentum_drift, observable).
     energy_scale, energy_scale_source : the scale dividing the energy-balance error and where it
@@ -937,7 +1014,8 @@ class WorkPrecision:
     """
 
     def __init__(self, rows, reference, energy_scale, energy_scale_source, times, duration, spread=None,
-                 observable_name=None):
+                 observable_name=None, length_scale=None):
+        self.length_scale = length_scale  # the smallest radius: the size at which position errors saturate
         self.rows = rows
         self.reference = reference
         self.energy_scale, self.energy_scale_source = energy_scale, energy_scale_source
@@ -964,10 +1042,83 @@ class WorkPrecision:
             return self.spread["observable_range"]
         return None
 
+    def _timed_rows(self):
+        return [r for r in self.rows if r["stable"] and math.isfinite(r.get("seconds", math.nan))]
+
+    def timing_notes(self):
+        """Why the wall times cannot be trusted, one sentence each (empty when nothing says so): repeats
+        of a run that differ by more than :data:`TIMING_SPREAD`, wall time above CPU time by more than
+        :data:`TIMING_WAIT` (the process waited for a processor), and a method whose time does not
+        grow with its force evaluations (fixed costs of a run, not the integrator, are measured)."""
+        notes, rows = [], self._timed_rows()
+        spread = [r for r in rows if r.get("timing_spread", math.nan) > TIMING_SPREAD]
+        if spread:
+            worst = max(spread, key=lambda r: r["timing_spread"])
+            notes.append(f"the repeats of {len(spread)} of {len(rows)} runs differ by more than "
+                         f"{TIMING_SPREAD:.0%} (up to {worst['timing_spread']:.0%}: {worst['method']} "
+                         f"dt = {worst['dt']:.4g}, {worst['repeats']} runs): the machine was busy or the runs "
+                         f"are too short to time")
+        waited = [r for r in rows if r.get("cpu_seconds", 0) > 0 and r["seconds"] > TIMING_WAIT * r["cpu_seconds"]]
+        if waited:
+            worst = max(waited, key=lambda r: r["seconds"] / r["cpu_seconds"])
+            notes.append(f"{len(waited)} of {len(rows)} runs took more than {TIMING_WAIT:g}x their CPU time in wall "
+                         f"time (up to {worst['seconds'] / worst['cpu_seconds']:.1f}x: {worst['method']} "
+                         f"dt = {worst['dt']:.4g}): the process waited for a processor (a busy machine); "
+                         f"compare CPU times (cpu_seconds) or force evaluations")
+        for method in dict.fromkeys(r["method"] for r in rows):
+            mine = sorted((r for r in rows if r["method"] == method and not r.get("is_reference")),
+                          key=lambda r: r["evaluations"])
+            if len(mine) < 2 or mine[0]["evaluations"] == mine[-1]["evaluations"]:
+                continue
+            slope = float(np.polyfit(np.log([r["evaluations"] for r in mine]), np.log([r["seconds"] for r in mine]),
+                                     1)[0])
+            faster = [(a, b) for a, b in zip(mine, mine[1:]) if b["seconds"] < a["seconds"]]
+            if slope < 0.5 or faster:
+                a, b = faster[0] if faster else (mine[0], mine[-1])
+                notes.append(f"{method}: the wall time does not follow the work (time ~ evaluations^{slope:.2f}; "
+                             f"dt = {b['dt']:.4g} took {b['seconds']:.3g} s for {b['evaluations']} force "
+                             f"evaluations, dt = {a['dt']:.4g} {a['seconds']:.3g} s for {a['evaluations']}): "
+                             f"fixed costs of each run (Python, recording, the pieces between check times) or "
+                             f"noise dominate; compare force evaluations")
+        return notes
+
+    def convergence_notes(self):
+        """Where position errors stall while energy errors converge, and why, one sentence per method."""
+        notes = []
+        for method in dict.fromkeys(r["method"] for r in self.rows):
+            mine = sorted((r for r in self.rows if r["method"] == method and r["stable"] and not r.get("is_reference")
+                           and r["position_error"] > 0 and r["energy_error"] > 0), key=lambda r: -r["dt"])
+            if len(mine) < 3:
+                continue
+            dts = np.log([r["dt"] for r in mine])
+            position = float(np.polyfit(dts, np.log([r["position_error"] for r in mine]), 1)[0])
+            energy = float(np.polyfit(dts, np.log([r["energy_error"] for r in mine]), 1)[0])
+            rises = any(b["position_error"] > 1.2 * a["position_error"] for a, b in zip(mine, mine[1:]))
+            if energy < 0.7 or not (position < 0.5 or rises):
+                continue
+            largest = max(r["position_error"] for r in mine)
+            text = (f"{method}: position errors do not converge with dt (fitted order {position:.2f}, "
+                    f"{min(r['position_error'] for r in mine):.2e} to {largest:.2e}"
+                    f"{', rising at some halvings' if rises else ''}) while energy errors do (order {energy:.2f}). "
+                    f"Positions compared at fixed times depend on when each contact begins and ends, which a fixed "
+                    f"step finds only to within a step, differently for every dt (first order at best, erratic); "
+                    f"the energy balance is an integral over the run and averages these phase errors out")
+            if self.length_scale and largest >= 0.1 * self.length_scale:
+                text += (f". Errors of {largest:.2e}, a sizeable part of a radius ({self.length_scale:.3g}), mean "
+                         f"runs that parted from the reference for good (a chaotic scene, or a contact gained or "
+                         f"missed): such errors saturate at the size of the scene instead of shrinking")
+            floor = self.floor("position")
+            if floor is not None and min(r["position_error"] for r in mine) < 10 * floor:
+                text += f". They also reach the spread of perturbed references ({floor:.2e}), the chaotic floor"
+            notes.append(text + ". Trust the energy column, or resolve contacts (VelocityVerlet:resolve).")
+        return notes
+
     def table(self):
-        """A plain-text table: method, dt, each error, wall time, force evaluations, stable."""
+        """A plain-text table: method, dt, each error, wall time (least of its repeats), CPU time, force
+        evaluations, stable; then the reference, the notes on the timings and on convergence."""
         measures = self.measures()
-        head = ["method", "dt"] + [MEASURES[m][1] for m in measures] + ["seconds", "evaluations", "stable"]
+        head = (["method", "dt"] + [MEASURES[m][1] for m in measures]
+                + ["seconds", "cpu s", "runs", "evaluations", "stable"])
         lines = []
         for r in self.rows:
             cells = [r["method"], f"{r['dt']:.4g}"]
@@ -975,7 +1126,9 @@ class WorkPrecision:
                 value = r[MEASURES[m][0]]
                 cells.append("ref" if r.get("is_reference") else (f"{value:.3e}" if math.isfinite(value) else "nan"))
             seconds = f"{r['seconds']:.4g}" if math.isfinite(r["seconds"]) else "-"
-            cells += [seconds, str(r["evaluations"]), "yes" if r["stable"] else "NO"]
+            cpu = r.get("cpu_seconds", math.nan)
+            cells += [seconds, f"{cpu:.4g}" if math.isfinite(cpu) else "-", str(r.get("repeats", 1)),
+                      str(r["evaluations"]), "yes" if r["stable"] else "NO"]
             lines.append(cells)
         widths = [max(len(h), *(len(c[k]) for c in lines)) if lines else len(h) for k, h in enumerate(head)]
         fmt = lambda cells: "  ".join(c.rjust(w) if k else c.ljust(w) for k, (c, w) in enumerate(zip(cells, widths)))  # noqa: E731
@@ -994,6 +1147,23 @@ class WorkPrecision:
         for r in self.rows:
             if not r["stable"]:
                 out.append(f"{r['method']} dt={r['dt']:.4g}: {r['message']}")
+        notes = self.timing_notes()
+        runs = [r.get("repeats", 1) for r in self._timed_rows()]
+        if runs:
+            kept = f"the least wall time of {min(runs)}" + (f"-{max(runs)}" if max(runs) > min(runs) else "") + \
+                " runs each"
+            if notes:
+                out.append(f"timings ({kept}) cannot be trusted:")
+                out += [f"  - {note}" for note in notes]
+            else:
+                checked = (f"repeats within {TIMING_SPREAD:.0%}, " if max(runs) >= 3 else "")
+                out.append(f"timings: {kept}; {checked}wall time within {TIMING_WAIT:g}x CPU time, growing with the "
+                           f"force evaluations" + ("" if max(runs) >= 3 else
+                                                   " (runs timed fewer than 3 times cannot show how much they vary)"))
+        notes = self.convergence_notes()
+        if notes:
+            out.append("convergence:")
+            out += [f"  - {note}" for note in notes]
         return "\n".join(out)
 
     def __str__(self):
@@ -1026,7 +1196,8 @@ class WorkPrecision:
                                f".{note}")
 
     # ---- output -------------------------------------------------------------------------------
-    COLUMNS = ("method", "dt", "steps", "evaluations", "seconds", "stable", "position_error", "velocity_error",
+    COLUMNS = ("method", "dt", "steps", "evaluations", "seconds", "cpu_seconds", "repeats", "timing_spread",
+               "stable", "position_error", "velocity_error",
                "energy_error", "angular_momentum_drift", "observable", "observable_error", "is_reference", "message")
 
     def to_csv(self, path):
@@ -1053,7 +1224,8 @@ class WorkPrecision:
             return value
         return clean({"duration": self.duration, "times": list(self.times), "energy_scale": self.energy_scale,
                       "energy_scale_source": self.energy_scale_source, "reference": self.reference,
-                      "spread": self.spread, "observable": self.observable_name, "rows": self.rows})
+                      "spread": self.spread, "observable": self.observable_name, "rows": self.rows,
+                      "timing_notes": self.timing_notes(), "convergence_notes": self.convergence_notes()})
 
     def to_json(self, path=None):
         """The report as JSON (NaN as null); written to ``path`` if given, else returned as text."""
@@ -1065,13 +1237,13 @@ class WorkPrecision:
         return path
 
     def plot(self, path, x="seconds", title=None):
-        """Log-log error against cost (``x``: "seconds" or "evaluations"), one line per method, one
+        """Log-log error against cost (``x``: "seconds", "cpu_seconds" or "evaluations"), one line per method, one
         panel per error measure, dashed: the chaotic floor when a spread was measured. Saved to path."""
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        if x not in ("seconds", "evaluations"):
-            raise ValueError(f"x must be 'seconds' or 'evaluations', got {x!r}")
+        if x not in ("seconds", "cpu_seconds", "evaluations"):
+            raise ValueError(f"x must be 'seconds', 'cpu_seconds' or 'evaluations', got {x!r}")
         from matplotlib.ticker import NullFormatter
         measures = self.measures()
         ncols = min(3, len(measures))
@@ -1084,7 +1256,8 @@ class WorkPrecision:
             key = MEASURES[measure][0]
             for method in methods:
                 rows = [r for r in self.rows if r["method"] == method and r["stable"] and not r.get("is_reference")
-                        and math.isfinite(r[key]) and r[key] > 0 and math.isfinite(float(r[x])) and r[x] > 0]
+                        and math.isfinite(r[key]) and r[key] > 0 and math.isfinite(float(r.get(x, math.nan)))
+                        and r[x] > 0]
                 if not rows:
                     continue
                 rows.sort(key=lambda r: r[x])
@@ -1096,7 +1269,7 @@ class WorkPrecision:
             if floor is not None and floor > 0:
                 ax.axhline(floor, color="grey", ls="--", lw=1, label="spread of perturbed references")
             ax.xaxis.set_minor_formatter(NullFormatter())
-            ax.set_xlabel("wall time [s]" if x == "seconds" else "force evaluations")
+            ax.set_xlabel({"seconds": "wall time [s]", "cpu_seconds": "CPU time [s]"}.get(x, "force evaluations"))
             label = {"energy": f"energy balance error / {self.energy_scale:.3g}"}.get(measure, MEASURES[measure][1])
             if measure == "observable":
                 label = f"error of {self.observable_name}"
@@ -1106,6 +1279,9 @@ class WorkPrecision:
                 ax.legend(fontsize=7)
             else:  # every error is zero (angular momentum kept exactly) or failed
                 ax.text(0.5, 0.5, "all zero or not finite", transform=ax.transAxes, ha="center", fontsize=8)
+        if x != "evaluations" and self.timing_notes():
+            fig.text(0.5, 0.005, "timings cannot be trusted: see report.timing_notes()", ha="center",
+                     fontsize=7, color="firebrick")
         fig.suptitle(title or f"work-precision (numbers: dt); reference: {self.reference['kind']}", fontsize=9)
         fig.tight_layout()
         fig.savefig(path, dpi=110)
@@ -1145,7 +1321,7 @@ def _evaluate_observable(observable, traj):
 
 
 def work_precision(scene, duration, methods=None, dts=None, reference="auto", times=None, energy_scale=None,
-                   observable=None, spread=None, record_every=None, repeats=1, rtol=1e-12, progress=None):
+                   observable=None, spread=None, record_every=None, repeats=None, rtol=1e-12, progress=None):
     """Run ``scene`` with every method and time step from its current state and compare each run with
     a reference: a :class:`WorkPrecision` report.
 
@@ -1166,7 +1342,10 @@ def work_precision(scene, duration, methods=None, dts=None, reference="auto", ti
         observable): the floor below which more accuracy buys nothing (chaotic scenes).
     record_every : frame interval of every run (energy balance, angular momentum, observable);
         default duration / 200.
-    repeats : time each run this many times and keep the least wall time.
+    repeats : None (default): time a run shorter than :data:`TIMING_SECONDS` (0.2 s) again until its
+        runs add up to that (at least 5 runs, within about :data:`REPEAT_BUDGET` s of repeats a run),
+        keeping the least wall time and the least CPU time; a number: time each run that many times.
+        ``report.timing_notes()`` says when the timings cannot be trusted anyway.
     progress : one progress bar on stderr over the study's runs (each method and dt, then the
         adaptive reference and the spread's references), the run under way in its postfix: None
         (default) when stderr is a terminal and the study looks like taking more than about 2 s,
@@ -1208,7 +1387,11 @@ def _work_precision(scene, duration, methods, dts, reference, times, energy_scal
     if len(times) == 0 or times[0] <= 0 or times[-1] > duration * (1 + 1e-12):
         raise ValueError(f"times must lie in (0, duration = {duration:.6g}]")
     record_every = duration / 200.0 if record_every is None else float(record_every)
-    repeats = max(1, int(repeats))
+    if repeats is not None:
+        if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
+            raise ValueError(f"repeats must be None (repeat short runs, see TIMING_SECONDS) or a whole number "
+                             f">= 1, got {repeats!r}")
+        repeats = int(repeats)
     # labels and orders of the methods (one integrator made per method to learn them)
     for entry in makers:
         sample = _integrator(entry[1], dts[-1])
@@ -1247,16 +1430,12 @@ def _work_precision(scene, duration, methods, dts, reference, times, energy_scal
     for label, make, _ in makers:
         for dt in dts:
             bar.update(len(rows), f"{label} dt = {dt:.4g}")
-            traj, seconds, steps = None, math.inf, 0
-            for _ in range(repeats):
-                traj, took, steps, integrator, message = _run(scene, make, dt, duration, all_check, record_every)
-                seconds = min(seconds, took) if math.isfinite(took) else took
-                if message:
-                    break
+            traj, steps, integrator, message, timing = _timed(scene, make, dt, duration, all_check, record_every,
+                                                              repeats)
             runs.append(traj)
             per_step = getattr(integrator, "evaluations_per_step", 1)
             rows.append({"method": label, "dt": integrator.dt, "steps": int(steps),
-                         "evaluations": int(steps * per_step), "seconds": seconds if not message else math.nan,
+                         "evaluations": int(steps * per_step), **timing,
                          "stable": not message, "message": message, "position_error": math.nan,
                          "velocity_error": math.nan, "energy_error": math.nan,
                          "angular_momentum_drift": math.nan, "observable": math.nan,
@@ -1334,7 +1513,8 @@ def _work_precision(scene, duration, methods, dts, reference, times, energy_scal
                               ref, times, all_check, frame_grid, observable, ref_obs, rtol, makers[best],
                               info.get("dt", dts[-1]), record_every, bar)
     bar.update(bar.total, "done")
-    return WorkPrecision(rows, info, scale, source, list(times), duration, spread_info, _observable_name(observable))
+    return WorkPrecision(rows, info, scale, source, list(times), duration, spread_info, _observable_name(observable),
+                         length_scale=float(np.min(scene.particles.radius)))
 
 
 def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, observable, ref_obs, rtol, best, dt,
@@ -1362,7 +1542,7 @@ def _spread(scene, duration, spread, mode, ref, times, all_check, frame_grid, ob
             other = reference(fresh, max([duration] + list(all_check)),
                               times=np.unique(np.concatenate([[0.0], all_check, frame_grid])), rtol=rtol)
         else:
-            other, _, _, _, message = _run(fresh, best[1], dt, duration, all_check, record_every)
+            other, _, _, _, _, message = _run(fresh, best[1], dt, duration, all_check, record_every)
             if message:
                 raise RuntimeError(f"a perturbed reference run failed: {message}")
         for m, t in enumerate(times):
@@ -1425,7 +1605,7 @@ def suggest_dt(scene, target, pilot, method=VelocityVerlet, measure="position", 
     dts = [dt, dt / 2, dt / 4]
     times = pilot * np.array([0.25, 0.5, 0.75, 1.0])
     report = work_precision(scene, pilot, methods=[method], dts=dts, reference=reference, times=times,
-                            progress=progress)
+                            repeats=1, progress=progress)  # its errors are used, not its timings
     key = MEASURES[measure][0]
     rows = [r for r in report.rows if r["stable"] and not r["is_reference"] and math.isfinite(r[key]) and r[key] > 0]
     if len(rows) < 2:

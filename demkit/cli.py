@@ -106,7 +106,7 @@ def accuracy_command(args):
     dts = [dt / time_unit for dt in parse_dts(args.dts)] if args.dts else namespace.get("dts")
     report = accuracy.work_precision(namespace["scene"], float(duration), methods=methods, dts=dts,
                                      times=namespace.get("times"), observable=namespace.get("observable"),
-                                     progress=False if args.no_progress else None)
+                                     repeats=args.repeats, progress=False if args.no_progress else None)
     print(report.table())
     plot = Path(args.plot) if args.plot else Path(f"{Path(args.scene).stem}_accuracy.png")
     report.plot(plot)
@@ -145,14 +145,13 @@ def export_lammps_command(args):
 
 
 def sweep_command(args):
-    from .sweep import read_sweep_file, sweep_file
+    from .sweep import read_sweep_file, summary, sweep_file
     try:
         rows = sweep_file(args.file, workers=args.workers, scheduler=args.scheduler)
     except KeyboardInterrupt as stop:  # Ctrl-C: finished points are in the table; a rerun resumes
         print(f"demkit {stop or 'sweep interrupted'}", file=sys.stderr)
         return 130
-    failed = sum(r["status"] != "ok" for r in rows)
-    print(f"{len(rows)} points, {failed} failed: {read_sweep_file(args.file)['results']}")
+    print(summary(rows, read_sweep_file(args.file)["results"]))
     return 0
 
 
@@ -168,6 +167,8 @@ def main(argv=None):
     study.add_argument("--plot", help="figure path (default: <scene>_accuracy.png here)")
     study.add_argument("--csv", help="also write the table as CSV")
     study.add_argument("--no-progress", action="store_true", help="no progress bar over the runs")
+    study.add_argument("--repeats", type=int, help="time each run this many times (default: runs shorter than "
+                                                   "0.2 s again until they add up to 0.2 s, at least 5 times)")
     from . import commands as scene_commands  # demkit run / demkit info (TOML scene files)
     scene_commands.add_commands(commands)
     export = commands.add_parser("export-lammps", help="write a LAMMPS data file and input deck of a scene",

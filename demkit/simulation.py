@@ -286,6 +286,7 @@ class Simulation:
                     self._interrupted(done, start_step, stride, record)
         if extra_final:
             kern.record_frame(nframes, state, record)
+        self._write_end(nsteps, writer_steps)
         self._measure(nsteps, time.perf_counter() - clock, int(scene.counters[REBUILDS]) - rebuilds)
         steps = np.arange(nframes) * stride
         if extra_final:
@@ -454,6 +455,13 @@ class Simulation:
                           f"(t = {self.time:.6g}): {err}; the previous checkpoint is kept and the run goes on",
                           CheckpointWarning, stacklevel=3)
             return False
+
+    def _write_end(self, nsteps, writer_steps):
+        """The run's end state goes into every writer's output, also when the run ends between two
+        of its frames (a duration that is not a whole number of its intervals)."""
+        for w, ws in zip(self.writers, writer_steps):
+            if nsteps > 0 and self.step % ws != 0:
+                w.write(self)
 
     def _close_on_interrupt(self):
         for w in self.writers:

@@ -9,8 +9,11 @@ defined at the top level of a module (or a :func:`functools.partial` of one).
 
 The table (CSV) has one row per point: the parameters (and ``seed``), ``status`` ('ok' or 'failed'),
 ``error`` (empty when fine, else 'Type: message'), ``wall_s`` (seconds the task took) and the
-observables. Rows are appended (and flushed) as points finish, so an interrupted sweep keeps what it
-finished; at the end the table is rewritten in the order of the points. Running the same sweep again
+observables. An observable that could not be measured (the task returned an exception for it; scene
+sweeps do so for each observable that raises) leaves its cell empty with 'Type: message' in
+``<name>_error``, and the point is still 'ok': the others are kept. :func:`summary` counts both.
+Rows are appended (and flushed) as points finish, so an interrupted sweep keeps what it finished;
+at the end the table is rewritten in the order of the points. Running the same sweep again
 skips the points that already have an 'ok' row (same parameter values, compared at 12 significant
 digits) and reruns the failed ones. A failing point is recorded with its error; the others go on.
 Ctrl-C stops the workers at once and raises KeyboardInterrupt saying how many points are done.
@@ -181,7 +184,9 @@ def run_point(task, point, names=()):
     The task runs :func:`quietly`.
 
     Entries of the task's result named like the point's parameters are dropped (echoes); named like
-    another parameter of the sweep (``names``) they fail the point (they would spoil its key)."""
+    another parameter of the sweep (``names``) they fail the point (they would spoil its key).
+    An entry whose value is an exception is an observable that could not be measured: its cell
+    stays empty and ``<name>_error`` holds 'Type: message' (the point is still 'ok')."""
     start = time.perf_counter()
     try:
         with quietly():
@@ -194,13 +199,67 @@ def run_point(task, point, names=()):
         clash = sorted((set(out) & set(names)) - set(point))
         if clash:
             raise ValueError(f"the task returned {clash}, parameter name(s) of this sweep: rename them")
-        row = {k: cell(v) for k, v in out.items() if k not in point}
+        row = {}
+        for name, value in out.items():
+            if name in point:
+                continue
+            if isinstance(value, BaseException):
+                if error_column(name) in out:
+                    raise ValueError(f"the task returned {error_column(name)!r} and an error for "
+                                     f"{name!r}, whose message goes there: rename it")
+                row[name], row[error_column(name)] = "", _error_text(value)
+            else:
+                row[name] = cell(value)
         row.update(status="ok", error="")
     except Exception as exc:  # noqa: BLE001 (recorded in the table; the sweep goes on)
         row = {"status": "failed", "error": _error_text(exc)}
     row["wall_s"] = cell(time.perf_counter() - start)
     row.update({k: cell(v) for k, v in point.items()})
     return row
+
+
+def error_column(name):
+    """The column holding the error of observable ``name`` when it could not be measured."""
+    return f"{name}_error"
+
+
+def observable_errors(rows):
+    """{observable: [error text of each row where it failed]} over ``rows`` (from :func:`read_table`
+    or :func:`sweep`): rows whose ``<name>`` is empty and ``<name>_error`` holds text (a numeric
+    ``<name>_error`` of a task's own, an uncertainty say, is not an error)."""
+    columns = dict.fromkeys(c for r in rows for c in r)
+    errors = {}
+    for name in columns:
+        if error_column(name) in columns:
+            texts = [r[error_column(name)] for r in rows
+                     if r.get(name) in (None, "") and isinstance(r.get(error_column(name)), str)
+                     and r[error_column(name)]]
+            if texts:
+                errors[name] = texts
+    return errors
+
+
+def summary(rows, results=None):
+    """The terminal's account of a sweep's rows: points done and failed, then each observable that
+    could not be measured and each cause of failure, with how often and the first message."""
+    failed = [r for r in rows if r.get("status") != "ok"]
+    errors = observable_errors(rows)
+    partly = sum(any(r.get(name) in (None, "") and isinstance(r.get(error_column(name)), str)
+                     and r[error_column(name)] for name in errors) for r in rows if r.get("status") == "ok")
+    head = f"{len(rows)} points, {len(failed)} failed" + (f", {partly} with observables not measured" if partly else "")
+    lines = [head + (f": {results}" if results is not None else "")]
+    if failed:
+        lines.append(_counted("failed", [str(r.get("error") or "no message") for r in failed]))
+    for name, texts in errors.items():
+        lines.append(_counted(f"{name} not measured", texts, f"; see column {error_column(name)}"))
+    return "\n".join(lines)
+
+
+def _counted(what, texts, tail=""):
+    """'  what in n points: first message (k different messages)...' for :func:`summary`."""
+    n, kinds = len(texts), len(set(texts))
+    more = f" ({kinds} different messages)" if kinds > 1 else ""
+    return f"  {what} in {n} point{'s' if n != 1 else ''}{more}{tail}; first: {texts[0]}"
 
 
 # ---- the table -----------------------------------------------------------------------------------
@@ -427,7 +486,9 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
         'tcp://host:8786', or a dask.distributed.Client.
     progress : a bar over the points (:class:`demkit.progress.Progress`): None on a terminal for a
-        sweep that looks longer than a moment (not with DEMKIT_QUIET), True always, False never.
+        sweep that looks longer than a moment (not with DEMKIT_QUIET), True always, False never;
+        or a Progress of the caller's, over several steps of work: the sweep counts its points on
+        from the bar's ``done`` (those already in the table at once) and leaves it open.
 
     Ctrl-C (KeyboardInterrupt): running points are abandoned (worker processes terminated, a
     LocalCluster closed, queued Dask points cancelled), finished ones stay in the table, and a
@@ -455,19 +516,24 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
         raise ValueError(f"workers must be at least 1, got {workers}")
     rows = (_local_rows(task, todo, names, min(workers, len(todo))) if scheduler is None
             else _dask_rows(task, todo, names, workers, scheduler))
-    bar = Progress(len(todo), progress, desc="sweep", unit="point")
+    shared = isinstance(progress, Progress)
+    bar = progress if shared else Progress(len(todo), progress, desc="sweep", unit="point")
+    before = bar.done + len(points) - len(todo) if shared else 0  # points done before count at once
+    if shared and before != bar.done:
+        bar.update(before)
     try:
         with contextlib.closing(rows):
             for finished, row in enumerate(rows if todo else (), start=1):
                 table.add(row)
-                bar.update(finished)
+                bar.update(before + finished)
     except KeyboardInterrupt:
         bar.close()
         finished = len(table.done() & set(keys))
         raise KeyboardInterrupt(f"sweep interrupted: {finished} of {len(points)} points done in {results}; "
                                 f"run it again to finish the rest") from None
     finally:
-        bar.close()
+        if not shared:
+            bar.close()
     table.finish(points)
     if parquet is not None:
         _write_parquet(results, parquet)
@@ -631,13 +697,18 @@ def sweep_file(path, workers=None, scheduler=None, progress=None):
 # ---- scene sweeps: observables -------------------------------------------------------------------
 #: name -> f(loaded, trajectory) -> a value or a dict of {column suffix: value}
 OBSERVABLES = {}
+#: name -> the column suffixes of an observable that returns a dict (empty cells when it fails)
+COLUMNS = {}
 
 
-def observable(name):
+def observable(name, columns=None):
     """Register ``f(loaded, trajectory)`` as a named observable of scene sweeps (a dict result
-    becomes columns name_<key>, its '' key the column name itself)."""
+    becomes columns name_<key>, its '' key the column name itself; ``columns`` lists those keys, so
+    that a point where it fails has the same columns, empty)."""
     def register(f):
         OBSERVABLES[name] = f
+        if columns is not None:
+            COLUMNS[name] = tuple(columns)
         return f
     return register
 
@@ -679,7 +750,7 @@ def _outcome(loaded, trajectory):
     return analysis.outcome(trajectory)
 
 
-@observable("final_spin")
+@observable("final_spin", columns=("", "sigma"))
 def _final_spin(loaded, trajectory):
     """omega and its sigma of a settled pair (:func:`demkit.two_magnets.analysis.final_spin`)."""
     from .two_magnets import analysis
@@ -688,10 +759,16 @@ def _final_spin(loaded, trajectory):
 
 
 def observe(names, loaded, trajectory):
-    """The observables ``names`` of a run as one flat dict."""
+    """The observables ``names`` of a run as one flat dict; one that raises is there as its exception
+    (:func:`run_point` records it in ``<name>_error``) and the others are measured all the same."""
     out = {}
     for name in names:
-        value = OBSERVABLES[name](loaded, trajectory)
+        try:
+            value = OBSERVABLES[name](loaded, trajectory)
+        except Exception as exc:  # noqa: BLE001 (recorded in the table next to the others)
+            out[name] = exc
+            out.update({f"{name}_{k}": None for k in COLUMNS.get(name, ()) if k != ""})
+            continue
         if isinstance(value, dict):
             out.update({name if k == "" else f"{name}_{k}": v for k, v in value.items()})
         else:

@@ -30,3 +30,13 @@ def nap(point):
             fh.write(f"{point['x']}\n")
     time.sleep(point["t"])
     return {"y": 2 * point["x"]}
+
+
+def partly(point):
+    """y = 2x, and 'spin' measured only for x > 0 (else the exception that measuring raised); fails
+    for x < -1; notes the point in CALLS."""
+    CALLS.append(dict(point))
+    if point["x"] < -1:
+        raise ValueError(f"x = {point['x']} is out of range")
+    spin = point["x"] ** 0.5 if point["x"] > 0 else ValueError(f"no spin at x = {point['x']}")
+    return {"y": 2 * point["x"], "spin": spin}

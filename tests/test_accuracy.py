@@ -3,6 +3,7 @@
 Scenes are tiny and durations short; two kernel modules are used (Kelvin-Voigt alone, and the
 paper's Dipole + Kelvin-Voigt), both usually already in the on-disk kernel cache.
 """
+import importlib
 import math
 
 import numpy as np
@@ -189,7 +190,8 @@ def test_work_precision_on_two_magnets(tmp_path):
     scene = smooth_scene()
     # 0.5 is above the contact law's safe step (a tenth of the 2.2-long contact): a stable=False row
     report = dk.accuracy.work_precision(scene, SMOOTH_T, methods=[dk.EulerCromer, lambda dt: dk.VelocityVerlet(dt)],
-                                        dts=[0.5, 0.04, 0.02, 0.01], observable=lambda t: t.position[-1, 0, 0])
+                                        dts=[0.5, 0.04, 0.02, 0.01], observable=lambda t: t.position[-1, 0, 0],
+                                        repeats=1)
     assert report.reference["kind"] == "adaptive"
     assert [r["method"] for r in report.rows] == ["EulerCromer"] * 4 + ["VelocityVerlet"] * 4
     for method in ("EulerCromer", "VelocityVerlet"):
@@ -208,6 +210,8 @@ def test_work_precision_on_two_magnets(tmp_path):
     assert all(a["position_error"] < 0.1 * b["position_error"] for a, b in zip(vv, ec))
     text = report.table()
     assert "VelocityVerlet" in text and "NO" in text and "adaptive DOP853" in text
+    assert report.convergence_notes() == [] and "convergence:" not in text  # smooth: positions converge
+    assert all(r["repeats"] == 1 and r["cpu_seconds"] > 0 for r in report.rows if r["stable"])
     pick = report.suggest(1e-4)
     assert pick and pick.row["method"] == "VelocityVerlet"  # EulerCromer never gets there
     assert not report.suggest(1e-12) and "no run meets" in str(report.suggest(1e-12))
@@ -221,7 +225,7 @@ def test_work_precision_on_two_magnets(tmp_path):
 def test_work_precision_falls_back_to_the_finest_run_for_history_scenes():
     p = dk.Particles(position=[[-1.05, 0, 0], [1.05, 0.3, 0]], velocity=[[0.1, 0, 0], [-0.1, 0, 0]], radius=1.0)
     scene = dk.Scene(p, [dk.KelvinVoigt(1.0, 0.1, friction=dk.Friction(0.5))])
-    report = dk.accuracy.work_precision(scene, 3.0, methods=[dk.VelocityVerlet], dts=[0.02, 0.01, 0.005])
+    report = dk.accuracy.work_precision(scene, 3.0, methods=[dk.VelocityVerlet], dts=[0.02, 0.01, 0.005], repeats=1)
     assert report.reference["kind"] == "finest" and report.reference["dt"] == 0.005
     assert [r["is_reference"] for r in report.rows] == [False, False, True]
     assert report.rows[1]["position_error"] < report.rows[0]["position_error"]
@@ -240,7 +244,8 @@ def test_suggest_dt_meets_the_target_on_the_smooth_pair():
 
 def test_runs_ending_past_duration_on_a_whole_step_are_compared_there():
     # 4.0 / 0.045 = 88.9: the run takes 89 steps and ends at 4.005; its check time is 4.005
-    report = dk.accuracy.work_precision(smooth_scene(), SMOOTH_T, methods=[dk.VelocityVerlet], dts=[0.045, 0.0225])
+    report = dk.accuracy.work_precision(smooth_scene(), SMOOTH_T, methods=[dk.VelocityVerlet], dts=[0.045, 0.0225],
+                                        repeats=1)
     assert all(r["stable"] for r in report.rows)
     coarse, fine = report.rows
     assert 3.5 < coarse["position_error"] / fine["position_error"] < 4.5  # second order at the shifted times
@@ -267,7 +272,7 @@ class ThreeStageVerlet(dk.VelocityVerlet):
 
 
 def test_work_precision_takes_any_integrator_and_its_declared_cost():
-    report = dk.accuracy.work_precision(smooth_scene(), SMOOTH_T, dts=[0.04, 0.02], reference="finest",
+    report = dk.accuracy.work_precision(smooth_scene(), SMOOTH_T, dts=[0.04, 0.02], reference="finest", repeats=1,
                                         methods={"EC": dk.EulerCromer, "three": lambda dt: ThreeStageVerlet(dt)})
     assert [r["method"] for r in report.rows] == ["EC", "EC", "three", "three"]
     assert [r["evaluations"] for r in report.rows] == [100, 200, 300, 600]
@@ -310,3 +315,99 @@ def test_reference_catches_grazes_within_one_step_and_simultaneous_contacts():
     assert ref.restarts == 2 and [e["particles"] for e in ref.events] == [(0, 1), (1, 2)] * 2
     assert np.allclose(ref.velocity[-1, :, 0], [-0.1 * restitution(K, C, 1.0), 0, 0.1 * restitution(K, C, 1.0)],
                        rtol=1e-10, atol=1e-14)
+
+
+# ---- timing work-precision runs, and what the report says about its numbers -------------------------
+def glancing_scene():
+    """Two spheres meeting off-centre on a damped Kelvin-Voigt contact and parting again."""
+    p = dk.Particles([[0.0, 0, 0], [2.2, 0.3, 0]], velocity=[[0.4, 0, 0], [-0.4, 0, 0]], radius=1.0)
+    return dk.Scene(p, [dk.KelvinVoigt(50.0, 0.5)])
+
+
+def test_repeated_runs_start_from_the_same_state_and_do_the_same_work():
+    accuracy = importlib.import_module("demkit.accuracy")
+    scene = glancing_scene()
+    first = accuracy._run(scene, dk.VelocityVerlet, 0.01, 1.0, [0.5, 1.0], 0.01)[0]
+    spare = accuracy._Spare(scene)
+    assert spare.reuse  # no history: one copy, put back each time
+    for _ in range(2):
+        again = accuracy._run(scene, dk.VelocityVerlet, 0.01, 1.0, [0.5, 1.0], 0.01, fresh=spare.ready())[0]
+        assert np.array_equal(again.position, first.position) and np.array_equal(again.velocity, first.velocity)
+        assert np.array_equal(again.energy["dissipated"], first.energy["dissipated"])
+        assert first.energy["dissipated"][-1] > 0  # the contact dissipated: the count starts again at 0
+
+
+def test_short_runs_are_timed_again_and_the_least_time_kept(monkeypatch):
+    """repeats=None: a run shorter than 0.2 s is timed again until its runs add up to 0.2 s (at least 5
+    runs), keeping the least wall and CPU times and how much they varied; a long run is timed once;
+    repeats=n: n runs. The results are the first run's."""
+    accuracy = importlib.import_module("demkit.accuracy")
+    real, walls = accuracy._run, []
+
+    def scripted(*args, **options):  # a real run, with wall times from the script (CPU: half of it)
+        trajectory, _, _, steps, integrator, message = real(*args, **options)
+        wall = walls.pop(0)
+        return trajectory, wall, wall / 2, steps, integrator, message
+    monkeypatch.setattr(accuracy, "_run", scripted)
+    scene = smooth_scene()
+    walls[:] = [0.05, 0.01, 0.06, 0.02, 0.07, 0.04, 0.03]
+    traj, steps, _, message, timing = accuracy._timed(scene, dk.VelocityVerlet, 0.04, 1.0, [1.0], 0.04, None)
+    # 0.05 + 0.01 + 0.06 + 0.02 + 0.07 = 0.21 >= 0.2 after 5 runs; median 0.05
+    assert timing == {"seconds": 0.01, "cpu_seconds": 0.005, "repeats": 5, "timing_spread": pytest.approx(4.0)}
+    assert walls == [0.04, 0.03] and message == "" and steps == 25
+    direct = dk.Simulation(smooth_scene(), dk.VelocityVerlet(0.04)).run(1.0, record_every=0.04)
+    assert np.array_equal(traj.position, direct.position)
+    walls[:] = [0.3, 0.01]
+    assert accuracy._timed(scene, dk.VelocityVerlet, 0.04, 1.0, [1.0], 0.04, None)[4]["repeats"] == 1
+    walls[:] = [0.3, 0.2, 0.25]
+    timing = accuracy._timed(scene, dk.VelocityVerlet, 0.04, 1.0, [1.0], 0.04, 3)[4]
+    assert timing["repeats"] == 3 and timing["seconds"] == 0.2 and timing["timing_spread"] == pytest.approx(0.25)
+    with pytest.raises(ValueError, match="repeats must be None"):
+        dk.accuracy.work_precision(scene, 1.0, dts=[0.04], repeats=0)
+
+
+def synthetic(rows, length_scale=None):
+    """A report from given rows (the keys the notes read) against a given reference."""
+    full = [dict({"stable": True, "message": "", "is_reference": False, "repeats": 5, "timing_spread": 0.05,
+                  "velocity_error": 1.0, "angular_momentum_drift": math.nan, "observable": math.nan,
+                  "observable_error": math.nan}, **r) for r in rows]
+    return dk.accuracy.WorkPrecision(full, {"kind": "given", "description": "given"}, 1.0, "given", [1.0], 1.0,
+                                     length_scale=length_scale)
+
+
+def timing_row(dt, evaluations, seconds, cpu, spread=0.05):
+    return {"method": "EulerCromer", "dt": dt, "evaluations": evaluations, "seconds": seconds, "cpu_seconds": cpu,
+            "timing_spread": spread, "position_error": dt, "energy_error": dt}
+
+
+def test_the_report_says_when_its_timings_cannot_be_trusted():
+    good = synthetic([timing_row(0.02, 50, 0.1, 0.1), timing_row(0.01, 100, 0.2, 0.19)])
+    assert good.timing_notes() == []
+    assert "timings: the least wall time of 5 runs each; repeats within 25%" in good.table()
+    busy = synthetic([timing_row(0.02, 50, 0.1, 0.1, spread=0.8), timing_row(0.01, 100, 0.3, 0.1),
+                      timing_row(0.005, 200, 0.15, 0.15)])
+    notes = busy.timing_notes()
+    assert len(notes) == 3
+    assert notes[0].startswith("the repeats of 1 of 3 runs differ by more than 25% (up to 80%: EulerCromer dt = 0.02")
+    assert notes[1].startswith("1 of 3 runs took more than 1.5x their CPU time in wall time (up to 3.0x: "
+                               "EulerCromer dt = 0.01)")
+    assert notes[2].startswith("EulerCromer: the wall time does not follow the work") and \
+        "dt = 0.005 took 0.15 s for 200 force evaluations, dt = 0.01 0.3 s for 100" in notes[2]
+    text = busy.table()
+    assert "timings (the least wall time of 5 runs each) cannot be trusted:\n  - the repeats of 1 of 3" in text
+    assert busy.as_dict()["timing_notes"] == notes
+
+
+def test_the_report_says_why_position_errors_stall_while_energy_errors_converge():
+    report = dk.accuracy.work_precision(glancing_scene(), 1.0, methods=[dk.VelocityVerlet],
+                                        dts=[0.02, 0.01, 0.005, 0.0025], repeats=1, progress=False)
+    energy = [r["energy_error"] for r in report.rows]
+    assert all(b < a / 1.8 for a, b in zip(energy, energy[1:]))  # first order, steadily
+    notes = report.convergence_notes()
+    assert len(notes) == 1 and notes[0].startswith("VelocityVerlet: position errors do not converge with dt")
+    assert "while energy errors do" in notes[0] and "when each contact begins and ends" in notes[0]
+    assert "convergence:\n  - VelocityVerlet: position errors" in report.table()
+    # errors of a good part of a radius: runs that parted from the reference, saturated at the scene's size
+    parted = synthetic([dict(timing_row(dt, 0, 0.1, 0.1), position_error=e, energy_error=dt)
+                        for dt, e in ((0.04, 0.5), (0.02, 0.6), (0.01, 0.55))], length_scale=1.0)
+    assert "saturate at the size of the scene" in parted.convergence_notes()[0]

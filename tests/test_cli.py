@@ -23,7 +23,7 @@ def demkit(*args, cwd):
 def test_accuracy_prints_the_table_and_writes_the_figure(tmp_path):
     (tmp_path / "impact.py").write_text(SCENE)
     done = demkit("accuracy", "impact.py", "--dts", "0.004,0.002", "--methods", "VelocityVerlet,VelocityVerlet:resolve",
-                  "--csv", "wp.csv", cwd=tmp_path)
+                  "--csv", "wp.csv", "--repeats", "1", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     rows = [line.split() for line in done.stdout.splitlines() if line.startswith("VelocityVerlet")]
     assert [(r[0], r[1]) for r in rows] == [("VelocityVerlet", "0.004"), ("VelocityVerlet", "0.002"),
@@ -81,7 +81,7 @@ def test_accuracy_of_a_scene_file_is_that_of_the_same_python_scene(tmp_path):
     """The .toml and the .py scene are the same scene: every error column agrees to the last digit printed."""
     (tmp_path / "impact.py").write_text(SCENE)
     (tmp_path / "impact.toml").write_text(TOML)
-    options = ["--dts", "0.004,0.002", "--methods", "VelocityVerlet,RK4", "--no-progress"]
+    options = ["--dts", "0.004,0.002", "--methods", "VelocityVerlet,RK4", "--no-progress", "--repeats", "1"]
     tables = []
     for name in ("impact.py", "impact.toml"):
         done = demkit("accuracy", name, *options, cwd=tmp_path)

@@ -1,4 +1,5 @@
 """Progress bars (tqdm) for runs and animations, the compile notice, and `demkit render`."""
+import io
 import os
 import signal
 import subprocess
@@ -234,16 +235,16 @@ def collision():
 
 def study(progress):
     return dk.accuracy.work_precision(collision(), 1.0, methods=[dk.EulerCromer, dk.VelocityVerlet],
-                                      dts=[0.02, 0.01], progress=progress)
+                                      dts=[0.02, 0.01], progress=progress, repeats=1)
 
 
 def same_rows(a, b):
-    """Every entry of the two reports' rows equal (NaN equal to NaN), wall times aside."""
+    """Every entry of the two reports' rows equal (NaN equal to NaN), wall and CPU times aside."""
     assert len(a.rows) == len(b.rows)
     for x, y in zip(a.rows, b.rows):
         assert x.keys() == y.keys()
         for key in x:
-            if key != "seconds":
+            if key not in ("seconds", "cpu_seconds", "timing_spread"):
                 assert np.array_equal(x[key], y[key], equal_nan=not isinstance(x[key], str)), key
 
 
@@ -299,10 +300,12 @@ def test_demkit_accuracy_shows_the_bar_unless_told_not_to(capsys, terminal_and_e
         scene = dk.Scene(p, [dk.KelvinVoigt(50.0, 0.5)])
         duration = 1.0
     """))
-    common = [str(scene), "--dts", "0.02,0.01", "--methods", "VelocityVerlet", "--plot", str(tmp_path / "wp.png")]
+    common = [str(scene), "--dts", "0.02,0.01", "--methods", "VelocityVerlet", "--plot", str(tmp_path / "wp.png"),
+              "--repeats", "2"]
     assert main(["accuracy", *common]) == 0
     captured = capsys.readouterr()
     assert "3/3" in final_line(captured.err) and "VelocityVerlet" in captured.out
+    assert "the least wall time of 2 runs each" in captured.out  # --repeats
     assert main(["accuracy", *common, "--no-progress"]) == 0
     assert capsys.readouterr().err == ""
 
@@ -362,3 +365,84 @@ def test_an_animation_gets_its_name_only_when_complete(tmp_path, suffix):
         movie.add(frame)
     assert movie.close() == tmp_path / f"b{suffix}"
     assert [p.name for p in tmp_path.iterdir()] == [f"b{suffix}"] and (tmp_path / f"b{suffix}").stat().st_size > 0
+
+
+# ---- terminals of 0 columns: plain lines ------------------------------------------------------------
+class NarrowTerminal(io.StringIO):
+    """A terminal-like stderr without a file descriptor: its width is the environment's COLUMNS."""
+
+    def isatty(self):
+        return True
+
+
+def test_a_terminal_of_0_columns_gets_plain_progress_lines(monkeypatch):
+    clock = FakeClock()
+    monkeypatch.setattr(prog.time, "perf_counter", clock)
+    monkeypatch.setattr(sys, "stderr", NarrowTerminal())
+    monkeypatch.setenv("COLUMNS", "0")
+    monkeypatch.delenv("DEMKIT_QUIET", raising=False)
+    with prog.Progress(100, None, desc="work", unit="run") as bar:  # automatic: judged after 0.5 s
+        for done in range(0, 101, 5):
+            bar.update(done, note="second half" if done >= 50 else "first half")
+            clock.now += 0.5  # 10 s in all: a bar is wanted
+    # tqdm's text on whole lines: the first update, a new stage, then one at most every 5 s
+    # (PLAIN_SECONDS) and the end (already shown by the last update: not twice)
+    assert sys.stderr.getvalue().splitlines() == [
+        "work:   5% 5/100 [00:00<?, ?run/s, first half]",
+        "work:  50% 50/100 [00:04<00:04, 11.11run/s, second half]",
+        "work: 100% 100/100 [00:09<00:00, 10.53run/s, second half]"]
+    monkeypatch.setattr(sys, "stderr", NarrowTerminal())
+    with prog.Progress(3, True, desc="forced") as bar:  # forced: the same
+        for done in range(4):
+            bar.update(done)
+    assert sys.stderr.getvalue().splitlines() == ["forced:   0% 0/3 [00:00<?, ?it/s]",
+                                                  "forced: 100% 3/3 [00:00<?, ?it/s]"]
+    # a terminal of 80 columns: tqdm's bar as before
+    monkeypatch.setenv("COLUMNS", "80")
+    monkeypatch.setattr(sys, "stderr", NarrowTerminal())
+    with prog.Progress(3, True, desc="wide") as bar:
+        for done in range(4):
+            bar.update(done)
+    assert "\r" in sys.stderr.getvalue() and "|##########| 3/3" in sys.stderr.getvalue()
+
+
+def test_a_real_terminal_of_0_columns_shows_progress(tmp_path):
+    """A pseudo-terminal whose size is 0 x 0 (tqdm draws nothing on it): a forced bar is plain lines."""
+    pty, fcntl, termios, struct = (pytest.importorskip(m) for m in ("pty", "fcntl", "termios", "struct"))
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 0, 0, 0, 0))
+    code = ("import demkit.progress as p\n"
+            "with p.Progress(4, True, desc='narrow', unit='job') as bar:\n"
+            "    for k in range(5): bar.update(k, note=f'job {k}')\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    try:
+        done = subprocess.run([sys.executable, "-c", code], stderr=slave, stdout=subprocess.PIPE, env=env,
+                              timeout=60)
+        os.close(slave)
+        out = b""
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # the other end is closed and everything read
+                break
+            if not chunk:
+                break
+            out += chunk
+    finally:
+        os.close(master)
+    assert done.returncode == 0
+    lines = out.decode().replace("\r\n", "\n").splitlines()
+    assert lines[-1].startswith("narrow: 100% 4/4") and lines[-1].endswith("job 4]")
+    assert [line.split("[")[0].split()[-1] for line in lines] == ["0/4", "1/4", "2/4", "3/4", "4/4"]
+
+
+def test_sweeps_count_on_a_shared_bar(tmp_path, capsys):
+    import sweep_tasks
+
+    capsys.readouterr()
+    with prog.Progress(5, True, desc="study", unit="point") as bar:
+        dk.sweep(sweep_tasks.square, {"x": [1.0, 2.0]}, results=tmp_path / "a.csv", workers=1, progress=bar)
+        assert bar.done == 2 and bar.bar is not None  # left open for the next sweep
+        dk.sweep(sweep_tasks.square, {"x": [1.0, 3.0, 4.0]}, results=tmp_path / "a.csv", workers=1, progress=bar)
+    # x = 1 was in the table already: counted at once, not run again
+    assert bar.done == 5 and "5/5" in final_line(capsys.readouterr().err)

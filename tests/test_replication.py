@@ -40,10 +40,16 @@ def test_quick_replication_writes_everything(replicate, tmp_path):
     assert b_max["b_stick"] <= 5.75 <= b_max["b_escape"] + 0.01
 
 
-def test_serial_execution_gives_the_same_result(replicate):
+def test_serial_execution_gives_the_same_result(replicate, capsys):
     tasks = [(1.0, "sweep", {"model": "dipole", "b_over_R": 3.0, "revolutions": 2}),
              (0.5, "outcome", {"speed": 2e-2, "b_over_R": 0.5})]
-    serial = replicate.execute(tasks, workers=1)
+    capsys.readouterr()
+    serial = replicate.execute(tasks, workers=1, progress=True)
+    # one bar over all the jobs of the replication's sweeps, the kind under way in its postfix
+    bar = capsys.readouterr().err.replace("\r", "\n")
+    assert "outcome grid (1 jobs)" in bar and "omega_f(b) sweep (1 jobs)" in bar
+    last = bar.strip().splitlines()[-1]
+    assert last.startswith("replication: 100%") and "2/2" in last
     parallel = replicate.execute(tasks, workers=2)
     direct = replicate.sweep_point("dipole", 3.0, 2)
     for row in serial + parallel:

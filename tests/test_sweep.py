@@ -220,17 +220,49 @@ def test_contacts_are_counted_across_periodic_faces():
     assert sweep_module.observe(["contacts"], None, trajectory) == {"contacts": 1}
 
 
+def test_an_observable_that_cannot_be_measured_keeps_the_others(tmp_path):
+    """A task returns an exception for one observable: that cell is empty, its error is in
+    <name>_error, the point is 'ok' with its other observables, and the summary counts it."""
+    import sweep_tasks
+    out = tmp_path / "p.csv"
+    rows = dk.sweep(sweep_tasks.partly, {"x": [-2.0, -1.0, 0.0, 4.0]}, results=out, workers=1, progress=False)
+    assert [r["status"] for r in rows] == ["failed", "ok", "ok", "ok"]
+    assert [r["y"] for r in rows] == [None, -2.0, 0.0, 8.0]
+    assert [r["spin"] for r in rows] == [None, None, None, 2.0]
+    assert [r["spin_error"] for r in rows] == [None, "ValueError: no spin at x = -1.0",
+                                               "ValueError: no spin at x = 0.0", None]
+    text = sweep_module.summary(rows, out)
+    assert text.splitlines() == [
+        f"4 points, 1 failed, 2 with observables not measured: {out}",
+        "  failed in 1 point; first: ValueError: x = -2.0 is out of range",
+        "  spin not measured in 2 points (2 different messages); see column spin_error; "
+        "first: ValueError: no spin at x = -1.0"]
+    # done points are not rerun: the error is the point's measurement, not a failure
+    sweep_tasks.CALLS.clear()
+    rows = dk.sweep(sweep_tasks.partly, {"x": [-1.0, 0.0, 4.0]}, results=out, workers=1, progress=False)
+    assert sweep_tasks.CALLS == [] and rows[0]["spin_error"] == "ValueError: no spin at x = -1.0"
+    # a numeric <name>_error of a task's own (an uncertainty) is not an error
+    assert sweep_module.observable_errors([{"w": 1.0, "w_error": 0.1}, {"w": None, "w_error": "E: x"}]) == {
+        "w": ["E: x"]}
+    row = sweep_module.run_point(lambda p: {"a": ValueError("x"), "a_error": 1}, {"x": 1})
+    assert row["status"] == "failed" and "returned 'a_error' and an error for 'a'" in row["error"]
+
+
 def test_demkit_sweep_command_runs_a_sweep_file(tmp_path):
-    (tmp_path / "s.toml").write_text('task = "math:hypot"\nworkers = 1\n[[points]]\nx = 1\n')
-    root = str(Path(dk.__file__).resolve().parents[1])  # this checkout's demkit, not an installed one
+    """`demkit sweep`: failed points and observables not measured are recorded, and the terminal says
+    which, how often and why."""
+    (tmp_path / "s.toml").write_text('task = "sweep_tasks:partly"\nworkers = 1\n[grid]\nx = [-2.0, 0.0, 1.0]\n')
+    root = Path(dk.__file__).resolve().parents[1]  # this checkout's demkit, not an installed one
     done = subprocess.run([sys.executable, "-m", "demkit", "sweep", "s.toml", "--workers", "1"],
                           capture_output=True, text=True, cwd=tmp_path, timeout=120,
-                          env=dict(os.environ, PYTHONPATH=root))
+                          env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), str(root / "tests")])))
     assert done.returncode == 0, done.stderr
     rows = read_table(tmp_path / "s.csv")
-    # math.hypot(dict) fails: the failure is in the table, the command reports it
-    assert rows[0]["status"] == "failed" and "TypeError" in rows[0]["error"]
-    assert "1 failed" in done.stdout
+    assert [r["status"] for r in rows] == ["failed", "ok", "ok"] and rows[1]["y"] == 0.0
+    assert done.stdout.splitlines() == [
+        "3 points, 1 failed, 1 with observables not measured: s.csv",
+        "  failed in 1 point; first: ValueError: x = -2.0 is out of range",
+        "  spin not measured in 1 point; see column spin_error; first: ValueError: no spin at x = 0.0"]
 
 
 def test_a_clear_error_without_dask(tmp_path, monkeypatch):
@@ -249,12 +281,13 @@ def test_a_worker_that_dies_is_recorded_as_failed(tmp_path):
 def test_a_scene_file_sweep_runs_each_point_with_its_overrides_and_writes_no_scene_outputs(tmp_path):
     """The paper's collision as a scene file, swept over b/R: a grazing impact sticks, a wide one misses
     (the capture boundary at the paper's speed is b/R = 5.5-5.75, docs/outcome_map.md), and a point
-    with an impossible value is recorded as failed while the others go on."""
+    with an impossible value is recorded as failed while the others go on. final_spin cannot be
+    measured on a miss: its error is recorded and the miss's outcome kept."""
     scene = Path(__file__).resolve().parents[1] / "examples" / "two_magnets" / "collision.toml"
     (tmp_path / "collision.toml").write_text(scene.read_text())
     (tmp_path / "sweep.toml").write_text(textwrap.dedent("""
         scene = "collision.toml"
-        observables = ["outcome", "sim_time"]
+        observables = ["outcome", "final_spin", "sim_time"]
         workers = 1
         [grid]
         "particles.build.b_over_R" = [2.0, 12.0, -1.0]
@@ -265,4 +298,8 @@ def test_a_scene_file_sweep_runs_each_point_with_its_overrides_and_writes_no_sce
     assert by_b[2.0]["outcome"] == "stick" and by_b[12.0]["outcome"] == "miss"
     assert float(by_b[2.0]["sim_time"]) == pytest.approx(30000.0)
     assert by_b[-1.0]["status"] != "ok" and "b_over_R" in by_b[-1.0]["error"]
+    miss = by_b[12.0]
+    assert miss["status"] == "ok" and miss["final_spin"] is None and miss["final_spin_sigma"] is None
+    assert miss["final_spin_error"].startswith("ValueError: ") and float(miss["sim_time"]) == pytest.approx(30000.0)
+    assert "final_spin not measured in" in sweep_module.summary(rows)
     assert not (tmp_path / "output").exists()  # the scene file's [outputs] were not written

@@ -1,4 +1,6 @@
 """VTK output: what VTKWriter writes reads back (meshio, pyvista, ParaView) at the right times."""
+import os
+import re
 import shutil
 import subprocess
 import sys
@@ -162,6 +164,23 @@ def test_bad_folders_and_options(tmp_path):
         dk.VTKWriter(tmp_path / "e", every=1.0, dtype="float16")
 
 
+def test_the_series_ends_with_the_state_the_run_ends_in(tmp_path):
+    """A run that ends between two frames (1.0 with a frame every 0.3): its end state is the last
+    frame, as it is the trajectory's; a run that continues writes on the interval's grid (counted from
+    step 0) and its own end."""
+    sim, writer, traj = run_with_writer(tmp_path, three_spheres(), duration=1.0, every=0.3)
+    entries = read_pvd(writer.pvd)
+    assert [t for t, _ in entries] == pytest.approx([0.0, 0.3, 0.6, 0.9, 1.0], abs=1e-12)
+    assert [t for t, _ in entries] == pytest.approx(traj.time, abs=1e-12)
+    np.testing.assert_array_equal(meshio.read(entries[-1][1]).points, traj.position[-1])
+    sim.run(0.25)  # to t = 1.25: a frame at 1.2 and the end
+    sim.run(0.05)  # to t = 1.3: not a frame of the grid, the end
+    sim.run(0.2)   # to t = 1.5, on the grid: written once
+    sim.close()
+    times = [t for t, _ in read_pvd(writer.pvd)]
+    assert times == pytest.approx([0.0, 0.3, 0.6, 0.9, 1.0, 1.2, 1.25, 1.3, 1.5], abs=1e-12)
+
+
 def test_existing_data_is_never_silently_replaced(tmp_path):
     sim, writer, _ = run_with_writer(tmp_path, three_spheres(), duration=2.0)  # 5 frames
     sim.close()
@@ -319,6 +338,60 @@ def test_writer_stores_the_scene_box_and_image_counts(tmp_path):
         text = writer.pvd.read_text().replace('periodic="1 1 0"', 'periodic="1 1"')
         (tmp_path / "bad.pvd").write_text(text)
         dk.io.pvd.read_box(tmp_path / "bad.pvd")
+
+
+FAKE_PARAVIEW = textwrap.dedent("""
+    # paraview.simple as far as paraview_setup.py uses it: a series of 3 frames, 12 spheres with dipoles
+    from unittest.mock import MagicMock
+
+    def PVDReader(**options):
+        reader = MagicMock()
+        reader.TimestepValues = [0.0, 5.0, 10.0]
+        reader.PointData.keys.return_value = ["id", "radius", "velocity", "dipole"]
+        reader.PointData.__getitem__.return_value.GetRange.return_value = (0.5, 0.5)
+        reader.GetDataInformation.return_value.GetNumberOfPoints.return_value = 12
+        reader.GetDataInformation.return_value.GetBounds.return_value = (0.0, 1.0, 0.0, 2.0, 0.0, 3.0)
+        return reader
+
+    def CreateView(kind):
+        view = MagicMock()
+        view.CameraViewAngle = 30.0
+        return view
+
+    def SaveState(path):
+        open(path, "w").write("<ParaView/>")
+
+    def SaveScreenshot(path, view, **options):
+        open(path, "wb").write(b"picture")
+
+    def __getattr__(name):  # every other function of paraview.simple
+        return MagicMock()
+""")
+
+
+def test_paraview_script_says_what_it_does_as_it_goes(tmp_path):
+    """The set-up script prints a line a step, with the time, instead of working for minutes in silence
+    (run here against a stand-in for paraview.simple: pvpython is rarely installed)."""
+    fake = tmp_path / "fake" / "paraview"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("")
+    (fake / "simple.py").write_text(FAKE_PARAVIEW)
+    pvd = tmp_path / "particles.pvd"
+    pvd.write_text('<VTKFile type="Collection"><Collection/><Box size="1 2 3" periodic="0 0 1"/></VTKFile>')
+    done = subprocess.run([sys.executable, str(dk.io.paraview_script()), str(pvd), "--screenshot",
+                           str(tmp_path / "shot.png")], capture_output=True, text=True, timeout=60,
+                          env=dict(os.environ, PYTHONPATH=str(tmp_path / "fake")))
+    assert done.returncode == 0, done.stderr
+    steps = [line for line in done.stdout.splitlines() if line.startswith("[")]
+    assert all(re.match(r"\[ *\d+\.\d s\] ", line) for line in steps)
+    said = [line.split("] ", 1)[1] for line in steps]
+    expected = ["loading ParaView", f"opening {pvd}", "reading the series' frame list",
+                "3 frames (t = 0 to 10), 12 spheres; fields: id, radius, velocity, dipole", "sphere glyphs",
+                "colouring by speed: its range over the whole run reads all 3 frames", "dipole arrows",
+                "growing trails", "box outline 1 x 2 x 3", "camera: framing the box", "writing the state file",
+                "rendering the last frame (t = 10)", "done"]
+    assert len(said) == len(expected) and all(s.startswith(e) for s, e in zip(said, expected)), said
+    assert (tmp_path / "particles.pvsm").exists() and (tmp_path / "shot.png").exists()
 
 
 @pytest.mark.skipif(shutil.which("pvpython") is None or shutil.which("xvfb-run") is None,

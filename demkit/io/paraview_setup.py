@@ -19,14 +19,28 @@ animation plays (broken where a sphere crosses a periodic side); the ``<name>_tr
 poly-lines (whole paths, coloured by time; hidden at first) when present; the box outline when
 the .pvd holds a ``Box`` element. The saved state has a layout holding the render view and a
 camera that frames the box, or else every position of the run.
+
+It says what it does as it goes, a line a step with the seconds since it started (loading ParaView
+and the steps that read every frame of a long series take a while).
 """
 import argparse
 import math
 import os
 import sys
+import time
 import xml.etree.ElementTree as ET
 
-import paraview.simple as pvs
+START = time.perf_counter()
+
+
+def say(text):
+    """One line of what the script does now, with the seconds since it started (flushed at once)."""
+    print(f"[{time.perf_counter() - START:6.1f} s] {text}", flush=True)
+
+
+if __name__ == "__main__":
+    say("loading ParaView (paraview.simple)...")
+import paraview.simple as pvs  # noqa: E402
 
 ID_COLOURS_UP_TO = 10  # particles; above this the spheres are coloured by speed
 VIEW_SIZE = [1024, 768]
@@ -47,11 +61,14 @@ def read_box(pvd):
 
 def decorate(reader, view, trails_file=None, box=None):
     """Add the demkit glyphs, arrows, trails and box to ``view``; returns the sources made."""
+    say("reading the series' frame list and its first frame...")
     reader.UpdatePipelineInformation()
     times = list(reader.TimestepValues) or [0.0]
     reader.UpdatePipeline(times[0])
     arrays = reader.PointData.keys()
     count = reader.GetDataInformation().GetNumberOfPoints()
+    say(f"{len(times)} frames (t = {times[0]:g} to {times[-1]:g}), {count} spheres; fields: {', '.join(arrays)}")
+    say("sphere glyphs to scale...")
     spheres = pvs.Glyph(registrationName="spheres", Input=reader, GlyphType="Sphere")
     spheres.ScaleArray = ["POINTS", "radius"]
     spheres.ScaleFactor = 2.0
@@ -60,6 +77,7 @@ def decorate(reader, view, trails_file=None, box=None):
     spheres.GlyphType.PhiResolution = 24
     shown = pvs.Show(spheres, view)
     if count > ID_COLOURS_UP_TO and "velocity" in arrays:
+        say(f"colouring by speed: its range over the whole run reads all {len(times)} frames...")
         pvs.ColorBy(shown, ("POINTS", "velocity", "Magnitude"))
         shown.RescaleTransferFunctionToDataRangeOverTime()
         shown.SetScalarBarVisibility(view, True)
@@ -67,6 +85,7 @@ def decorate(reader, view, trails_file=None, box=None):
         pvs.ColorBy(shown, ("POINTS", "id"))
     made = {"spheres": spheres}
     if "dipole" in arrays:
+        say("dipole arrows...")
         arrows = pvs.Glyph(registrationName="dipoles", Input=reader, GlyphType="Arrow")
         arrows.OrientationArray = ["POINTS", "dipole"]
         arrows.ScaleArray = ["POINTS", "radius"]
@@ -77,6 +96,7 @@ def decorate(reader, view, trails_file=None, box=None):
         arrows_shown.ColorArrayName = ["POINTS", ""]
         arrows_shown.DiffuseColor = [0.12, 0.12, 0.12]
         made["dipoles"] = arrows
+    say("growing trails (Temporal Particles To Pathlines)...")
     paths = pvs.TemporalParticlesToPathlines(registrationName="growing trails", Input=reader)
     paths.IdChannelArray = "id"
     paths.MaskPoints = 1
@@ -87,6 +107,7 @@ def decorate(reader, view, trails_file=None, box=None):
     pvs.ColorBy(paths_shown, ("POINTS", "id"))
     made["growing trails"] = paths
     if trails_file and os.path.exists(trails_file):
+        say(f"whole-path trails from {trails_file} (hidden at first)...")
         whole = pvs.XMLPolyDataReader(registrationName="trails", FileName=[trails_file])
         whole_shown = pvs.Show(whole, view)
         pvs.ColorBy(whole_shown, ("POINTS", "time"))
@@ -94,6 +115,7 @@ def decorate(reader, view, trails_file=None, box=None):
         made["trails"] = whole
     if box:
         size = box[0]
+        say(f"box outline {size[0]:g} x {size[1]:g} x {size[2]:g}...")
         outline = pvs.Box(registrationName="box", XLength=size[0], YLength=size[1], ZLength=size[2],
                           Center=[s / 2 for s in size])
         outline_shown = pvs.Show(outline, view)
@@ -101,6 +123,8 @@ def decorate(reader, view, trails_file=None, box=None):
         outline_shown.AmbientColor = outline_shown.DiffuseColor = [0.85, 0.85, 0.85]
         made["box"] = outline
     pvs.Hide(reader, view)
+    say("camera: framing " + ("the box" if box else "every position of the run (first and last frames"
+                              + (", trails)" if "trails" in made else ")")) + "...")
     frame_camera(view, reader, times, made.get("trails"), box)
     return made
 
@@ -156,6 +180,7 @@ def main(argv=None):
     pvd = os.path.abspath(args.pvd)
     if not os.path.exists(pvd):
         parser.error(f"no such file: {pvd}")
+    say(f"opening {pvd}")
     reader = pvs.PVDReader(registrationName=os.path.basename(pvd), FileName=pvd)
     view = pvs.CreateView("RenderView")
     layout = pvs.CreateLayout("demkit")
@@ -166,23 +191,27 @@ def main(argv=None):
     box = read_box(pvd)
     made = decorate(reader, view, pvd[:-4] + "_trails.vtp", box)
     state = os.path.abspath(args.state or pvd[:-4] + ".pvsm")
+    say(f"writing the state file {state}...")
     pvs.SaveState(state)
     print(f"set up {', '.join(made)} for {pvd}")
     print(f"state written to {state}: open it with  paraview --state={state}")
     if args.screenshot:
         times = reader.TimestepValues
-        view.ViewTime = times[-1] if times else 0.0
+        last = times[-1] if times else 0.0
+        view.ViewTime = last
         # the growing trails only grow while the animation plays: show the whole paths instead
         # (unwrapped, so not in a periodic box, where they leave it)
         pvs.Hide(made["growing trails"], view)
         if "trails" in made and not (box and any(box[1])):
             pvs.Show(made["trails"], view)
+        say(f"rendering the last frame (t = {last:g}) to {args.screenshot}...")
         pvs.SaveScreenshot(os.path.abspath(args.screenshot), view, ImageResolution=VIEW_SIZE)
         print(f"picture written to {args.screenshot}")
     # release the render window while the X connection is still open: without this, pvpython
     # under xvfb-run exits with GLXBadContext and status 1 after writing the picture
     pvs.Delete(view)
     pvs.RemoveLayout(layout)
+    say("done")
     return 0
 
 

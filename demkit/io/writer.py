@@ -70,7 +70,9 @@ class VTKWriter:
     folder : output folder (created if needed). Files: ``<name>.pvd``, ``<name>_000000.vtu``, ...,
         ``<name>_trails.vtp``. A non-empty folder is refused unless ``overwrite=True``, which
         deletes only this series' own files, or ``resume=True``.
-    every : time between frames (simulation time units; rounded to whole steps by the simulation).
+    every : time between frames (simulation time units; rounded to whole steps by the simulation,
+        counted from step 0). The state each run ends in is written too, also when it falls
+        between two frames.
     compress : False (default, fastest), True or 'zlib', or 'lzma' (smallest, slowest).
     trails : also write the paths as poly-lines (``<name>_trails.vtp``) when the writer is closed;
         keeps every frame's positions in memory (N*3*8 bytes per frame): use False for large runs.

@@ -168,6 +168,9 @@ def outcome_task(point):
 
 #: kind -> its task; the sweeps run in this order (the longest jobs first)
 TASKS = {"threshold": threshold_task, "sweep": sweep_task, "energy": energy_task, "outcome": outcome_task}
+#: what each kind of job is, for the progress bar
+JOB_NAMES = {"threshold": "capture thresholds", "sweep": "omega_f(b) sweep", "energy": "energy series",
+             "outcome": "outcome grid"}
 #: the order of each kind's result keys (as the tasks return them; the tables store them by column)
 KEY_ORDER = {
     "sweep": ["kind", "model", "b_over_R", "speed", "x0", "outcome", "first_contact", "omega", "sigma",
@@ -253,18 +256,21 @@ def _importable():
     sys.modules[__name__] = module
 
 
-def execute(tasks, workers, scheduler=None, tables=None, resume=False):
+def execute(tasks, workers, scheduler=None, tables=None, resume=False, progress=None):
     """Run the tasks with :func:`demkit.sweep`, one sweep per kind, the most expensive points first;
     returns the results in task order (each a dict as its task returned it, with ``wall_s``).
 
     ``tables``: folder of the sweeps' tables (default: a temporary one); without ``resume`` they are
-    started afresh, so that every result comes from this run.
+    started afresh, so that every result comes from this run. ``progress``: one bar over all the
+    jobs, the kind under way in its postfix (None: on a terminal, as :class:`demkit.progress.Progress`).
     """
     import tempfile
+    from demkit.progress import Progress
     if workers > 1 and scheduler is None:
         _importable()
     results = [None] * len(tasks)
-    with tempfile.TemporaryDirectory() as scratch:
+    with tempfile.TemporaryDirectory() as scratch, \
+            Progress(len(tasks), progress, desc="replication", unit="job") as bar:
         folder = Path(tables) if tables is not None else Path(scratch)
         folder.mkdir(parents=True, exist_ok=True)
         for kind, task in TASKS.items():
@@ -274,8 +280,9 @@ def execute(tasks, workers, scheduler=None, tables=None, resume=False):
             table = folder / f"replication_{kind}.csv"
             if not resume and table.exists():
                 table.unlink()
+            bar.update(bar.done, note=f"{JOB_NAMES[kind]} ({len(order)} jobs)")
             rows = dk.sweep(task, [tasks[k][2] for k in order], results=table, workers=workers,
-                            scheduler=scheduler, progress=False)
+                            scheduler=scheduler, progress=bar)
             for k, row in zip(order, rows):
                 results[k] = _restore(kind, row, tasks[k][2])
     return results
@@ -466,8 +473,13 @@ def main(argv=None):
     output = args.out / "examples" / "two_magnets" / "output"  # not tracked
     start = time.perf_counter()
     _warm_up(args.quick)
-    results = execute(plan(args.quick), workers, args.scheduler, tables=output)
+    # the replication always takes a while: on a terminal its bar shows from the start, not only once
+    # the first (longest) job is done and the automatic bar could judge
+    from demkit.progress import quiet
+    results = execute(plan(args.quick), workers, args.scheduler, tables=output,
+                      progress=sys.stderr is not None and sys.stderr.isatty() and not quiet())
     wall = time.perf_counter() - start
+    print(f"simulations done in {wall:.0f} s; writing the figures and the report (a few seconds)...", flush=True)
     summary = summarise(results, args.quick)
     write_outputs(results, summary, args.out)
     timing = {"workers": workers, "scheduler": args.scheduler, "wall_s": wall,
