@@ -777,6 +777,16 @@ def _fingerprint(source, interactions):
     return h.hexdigest()[:20]
 
 
+def is_cached(plan, templates, function, threads=False):
+    """Is ``function`` of this plan's module (the thread module with ``threads``) in numba's disk
+    cache already (loading it then takes a fraction of a second, compiling it many seconds)?"""
+    interactions = plan.interactions + plan.effects
+    if not all(_importable(fn) for inter in interactions for fn in inter.pair_functions()):
+        return False
+    key = _fingerprint(generate_source(plan, templates, True, threads), interactions)
+    return any((_cache_dir() / "__pycache__").glob(f"demkit_kernel_{key}.{function}-*.nbi"))
+
+
 def build_module(plan, templates, threads=False):
     """Return the compiled kernel module for this plan and these integrator templates (the thread
     module with ``threads``: the same arithmetic, loops on numba's threads)."""

@@ -12,7 +12,8 @@ scheduler time slice, and two threads ran a 4000-sphere gas 8-40x slower than on
 ``parallel=None`` (the default) a run
 
 1. starts on one thread, and meanwhile compiles the thread module in the background (loaded from
-   numba's cache when it was compiled before);
+   numba's cache when it was compiled before) when the run has at least :data:`WORTH_COMPILING`
+   seconds to go, or half a second when the cache has it;
 2. then runs a short probe chunk (about :data:`PROBE_SECONDS` of one-thread time) on all threads
    and keeps whichever ran more steps per second;
 3. checks again after :data:`RECHECK_SECONDS` (doubling up to :data:`RECHECK_MAX` while threads keep
@@ -23,6 +24,8 @@ scheduler time slice, and two threads ran a 4000-sphere gas 8-40x slower than on
 """
 from __future__ import annotations
 
+import atexit
+import sys
 import threading
 import time
 
@@ -55,6 +58,7 @@ class ThreadChoice:
         self.recheck = RECHECK_SECONDS
         self.next_check = None
         self._compiling = None
+        self._cached = None  # is the thread module's loop in numba's disk cache? (asked once)
         self.probing = False  # is the current chunk a probe (or the untimed "warm-up" step)?
         self._warm = False
         self._after_probe = False
@@ -100,7 +104,7 @@ class ThreadChoice:
         now = time.perf_counter()
         serial = self.rates[1]
         if self.thread_loop is None:
-            if serial is not None and self._compiling is None and remaining / serial >= WORTH_COMPILING:
+            if serial is not None and self._compiling is None and remaining / serial >= self._worth():
                 self._start_compiling()
             if self._compiling is not None and not self._compiling.is_alive():
                 self.thread_loop = getattr(self.scene.thread_kernels, self.name)
@@ -152,6 +156,15 @@ class ThreadChoice:
                 self.recheck = min(2.0 * self.recheck, RECHECK_MAX)
             self.next_check = time.perf_counter() + self.recheck
 
+    def _worth(self):
+        """Seconds of run left (at the one-thread rate) that make loading the thread module worth
+        it: WORTH_COMPILING when it must be compiled, 0.5 s when numba's cache has it."""
+        if self._cached is None:
+            from .integrators import TEMPLATES
+            from .kernels import is_cached
+            self._cached = is_cached(self.scene.plan, TEMPLATES, self.name, threads=True)
+        return 0.5 if self._cached else WORTH_COMPILING
+
     def _threaded(self):
         if self.thread_loop is None:
             self.thread_loop = getattr(self.scene.thread_kernels, self.name)
@@ -171,6 +184,7 @@ class ThreadChoice:
 
         self._compiling = threading.Thread(target=work, name=BACKGROUND, daemon=True)
         self._compiling.start()
+        _UNFINISHED.append(self._compiling)
 
     def describe(self):
         """One line for ``demkit info``: how many threads runs of this scene use and why."""
@@ -184,6 +198,23 @@ class ThreadChoice:
     def statistics(self):
         return {"threads": self.threads, "threads_reason": self.reason,
                 "steps_per_second_by_threads": {k: v for k, v in self.rates.items() if v is not None}}
+
+
+#: background compilations, waited for at exit: a process that ends while numba compiles on
+#: another thread can crash in its shutdown (seen: a benchmark child died without a word)
+_UNFINISHED = []
+
+
+@atexit.register
+def _finish_compiling():
+    alive = [t for t in _UNFINISHED if t.is_alive()]
+    if alive:
+        from .progress import quiet
+        if not quiet():
+            print("demkit: finishing the compilation of the thread module (cached for the next runs)...",
+                  file=sys.stderr, flush=True)
+        for t in alive:
+            t.join()
 
 
 def _parallel_min():
