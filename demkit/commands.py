@@ -25,12 +25,7 @@ import numpy as np
 
 from .scenefile import load_scene
 
-#: rough wall time of one pair evaluation in one force evaluation (seconds): measured on the 2-core
-#: project machine with examples/magnetic_cluster/cluster.toml (400 dipoles, all 79,800 pairs,
-#: velocity Verlet, one core): 945 us per step, 11.8 ns per pair
-PAIR_SECONDS = 1.2e-8
-#: and per sphere and force evaluation (integration, neighbour-list checks)
-SPHERE_SECONDS = 5.0e-8
+from .threads import PAIR_SECONDS, SPHERE_SECONDS  # noqa: E402 (the cost model of one force evaluation)
 
 
 #: printed by `demkit run` before running a file without outputs (it still runs: a check of the

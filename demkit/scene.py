@@ -23,6 +23,7 @@ from .box import Box
 from .integrators import TEMPLATES
 from .interactions.base import PairInteraction, check_repeats
 from .interactions.sphere import SphereInteraction
+from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
@@ -60,9 +61,9 @@ class Scene:
     box : :class:`demkit.Box` or None (open space)
     skin : extra reach of the neighbour lists (length); default 0.3 mean diameters. Lists are
         rebuilt when a sphere has moved skin/2.
-    parallel : None (default: a scene of at least 2000 spheres may use threads, and each run
-        measures whether they pay, see :mod:`demkit.threads`), True (always threads) or False
-        (never). Threads follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops
+    parallel : None (default: a scene of at least 2000 spheres whose force evaluation is
+        estimated at 1 ms or more may use threads, and each run measures whether they pay, see
+        :mod:`demkit.threads`), True (always threads) or False (never). Threads follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops
         of such a scene are cut into ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results
         do not depend on how many threads run them, nor on whether threads run them at all.
     sort_every : re-order the spheres by cell every this many steps (at the next list rebuild) for
@@ -106,7 +107,10 @@ class Scene:
         self.reaches = [inter.cutoff(particles) for inter in self.interactions]
         self._check_geometry()
         machine = max(1, int(numba.config.NUMBA_NUM_THREADS))
-        wanted = len(particles) >= PARALLEL_MIN if parallel is None else parallel
+        #: rough serial time of one force evaluation (s), which decides chunks with parallel=None
+        self.force_seconds = estimated_force_seconds(particles, self.reaches, self.skin, box)
+        big = len(particles) >= PARALLEL_MIN and self.force_seconds >= THREADS_FROM_SECONDS
+        wanted = big if parallel is None else parallel
         #: how threads are chosen: None (measured while running), True (always), False (never)
         self.threads_requested = parallel
         #: the pair loops are cut into this many fixed chunks (the machine's thread count when the

@@ -1,7 +1,7 @@
 """How many threads a run uses: measured while it runs, never a slowdown.
 
-A scene that may run on threads (``Scene.parallel``: neighbour lists and at least 2000 spheres,
-or ``parallel=True``) has two compiled modules with the same arithmetic: the serial one
+A scene that may run on threads (``Scene.parallel``: neighbour lists and at least 2000 spheres
+whose force evaluation is estimated at THREADS_FROM_SECONDS or more, or ``parallel=True``) has two compiled modules with the same arithmetic: the serial one
 (``scene.kernels``) and the thread module (``scene.thread_kernels``). Both cut the pair loops into
 the same fixed chunks, summed in the same order, so a run gives the same bits whichever module
 runs each of its compiled chunks (about 0.2 s of wall time each), and switching costs nothing.
@@ -33,6 +33,17 @@ import numba
 
 from .progress import BACKGROUND
 
+#: rough serial cost of one pair and of one sphere in a force evaluation (seconds; measured on the
+#: 2-core project machine with examples/magnetic_cluster/cluster.toml: 400 dipoles, all pairs,
+#: velocity Verlet, one core: 11.8 ns per pair; the per-sphere passes, list checks included)
+PAIR_SECONDS = 1.2e-8
+SPHERE_SECONDS = 5.0e-8
+#: with parallel=None, a scene is cut into chunks for threads when one force evaluation is
+#: estimated to take at least this long (seconds): below it the threads' waits cost what they gain
+#: (measured: a 4000-sphere contact-only gas, 0.13 ms a step, ran 0.66x as fast on two threads on
+#: an idle machine; 8000 dipoles cut at 4 diameters, ~5 ms, 1.9x as fast), and chunks alone cost a
+#: serial run up to 20 % (force buffers summed every step)
+THREADS_FROM_SECONDS = 1.0e-3
 #: length of a probe chunk on threads, in seconds of one-thread time (short: under load a chunk
 #: on threads can run 40x slower than on one)
 PROBE_SECONDS = 0.01
@@ -80,7 +91,11 @@ class ThreadChoice:
             return "numba has one thread (NUMBA_NUM_THREADS=1 or a one-core machine)"
         if not scene.plan.growing:
             return "a small open scene (all pairs, no neighbour lists)"
-        return f"fewer than {_parallel_min()} spheres"
+        from .scene import PARALLEL_MIN
+        if len(scene.particles) < PARALLEL_MIN:
+            return f"fewer than {PARALLEL_MIN} spheres (parallel=True forces threads)"
+        return (f"one force evaluation is estimated at {1e3 * self.scene.force_seconds:.2g} ms, under the "
+                f"{1e3 * THREADS_FROM_SECONDS:.2g} ms where threads start to pay (parallel=True forces them)")
 
     @property
     def kernels(self):
@@ -200,6 +215,29 @@ class ThreadChoice:
                 "steps_per_second_by_threads": {k: v for k, v in self.rates.items() if v is not None}}
 
 
+def estimated_force_seconds(particles, reaches, skin, box):
+    """Rough serial wall time of one force evaluation (seconds): N SPHERE_SECONDS + pairs
+    PAIR_SECONDS, the pairs of each reach from the number density (box volume, else the spheres'
+    bounding box; :func:`demkit.memory.pairs_per_sphere`); all pairs for an infinite reach."""
+    import math
+
+    import numpy as np
+
+    from .memory import pairs_per_sphere
+    n = len(particles)
+    if n < 2:
+        return n * SPHERE_SECONDS
+    radius = float(np.mean(particles.radius))
+    if box is not None and np.all(np.isfinite(box.size)):
+        volume = box.volume
+    else:
+        extent = np.ptp(particles.position, axis=0)
+        volume = float(np.prod(np.maximum(extent, 2.0 * radius)))
+    pairs = sum(n * pairs_per_sphere(n, r + skin if math.isfinite(r) else r, radius, volume)
+                for r in set(reaches))
+    return n * SPHERE_SECONDS + pairs * PAIR_SECONDS
+
+
 #: background compilations, waited for at exit: a process that ends while numba compiles on
 #: another thread can crash in its shutdown (seen: a benchmark child died without a word)
 _UNFINISHED = []
@@ -215,8 +253,3 @@ def _finish_compiling():
                   file=sys.stderr, flush=True)
         for t in alive:
             t.join()
-
-
-def _parallel_min():
-    from .scene import PARALLEL_MIN
-    return PARALLEL_MIN

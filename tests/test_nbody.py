@@ -342,8 +342,9 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
         one_thread, sim = final(True, 1)
         assert sim.statistics["threads"] == 1 and "set_num_threads(1)" in sim.statistics["threads_reason"]
         monkeypatch.setattr(scene_module, "PARALLEL_MIN", 100)  # parallel=None: threads measured
+        monkeypatch.setattr(scene_module, "THREADS_FROM_SECONDS", 0.0)
         monkeypatch.setattr(simulation_module, "CHUNK_SECONDS", 1e-4)  # many chunks
-        monkeypatch.setattr(threads, "WORTH_COMPILING", 0.0)
+        monkeypatch.setattr(threads.ThreadChoice, "_worth", lambda self: 0.0)  # load the thread module at once
         monkeypatch.setattr(threads, "RECHECK_SECONDS", 0.0)  # every chunk a probe: switch all the time
         monkeypatch.setattr(threads, "MARGIN", math.inf)  # threads never kept
         switching, sim = final(None, numba.config.NUMBA_NUM_THREADS)
@@ -361,3 +362,19 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
     finally:
         numba.set_num_threads(before)
     np.testing.assert_array_equal(sim.scene.particles.position, ref_sim.scene.particles.position)
+
+
+def test_only_scenes_with_enough_work_per_step_are_cut_into_chunks_for_threads():
+    """parallel=None: chunks (and threads) only where a force evaluation is estimated at 1 ms or
+    more; the estimate follows the pairs (a longer dipole cutoff, more pairs, more time)."""
+    p, box = gas(n=2000, periodic=True, seed=3, dipoles=True)
+    contacts = dk.Scene(p.copy(), [dk.KelvinVoigt(stiffness=1000.0, damping=1.0)], box=box)
+    dipoles = dk.Scene(p.copy(), [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(1000.0, 1.0)], box=box)
+    assert contacts.force_seconds < 1e-3 < dipoles.force_seconds
+    assert contacts.chunks == 1 and not contacts.parallel
+    assert dipoles.chunks == numba.config.NUMBA_NUM_THREADS and dipoles.parallel == (dipoles.chunks > 1)
+    pairs = dipoles.force_seconds - contacts.force_seconds  # the dipole list's pairs, about 1/2 rho 4/3 pi (4 + skin)^3
+    rho = 2000 / box.volume
+    assert pairs / (2000 * 0.5 * rho * 4 / 3 * math.pi * (4.0 + dipoles.skin) ** 3 * 1.2e-8) == pytest.approx(1, rel=0.05)
+    from demkit.threads import ThreadChoice
+    assert "estimated" in ThreadChoice(contacts, "velocity_verlet").describe()
