@@ -46,7 +46,9 @@ SPHERE_SECONDS = 5.0e-8
 THREADS_FROM_SECONDS = 1.0e-3
 #: length of a probe chunk on threads, in seconds of one-thread time (short: under load a chunk
 #: on threads can run 40x slower than on one)
-PROBE_SECONDS = 0.01
+PROBE_SECONDS = 0.02
+#: ... and at least this many steps (one step can hold a list rebuild and is no rate)
+PROBE_STEPS = 8
 #: first re-check of the choice, seconds of wall time; doubled each time threads lose, up to RECHECK_MAX
 RECHECK_SECONDS = 4.0
 RECHECK_MAX = 64.0
@@ -128,7 +130,7 @@ class ThreadChoice:
         if self.thread_loop is not None and serial is not None and now >= self.next_check and not after_probe:
             self._after_probe = True  # the next chunk runs on the choice made, whatever the clock says
             self.next_check = now + self.recheck
-            probe = max(1, int(serial * PROBE_SECONDS))
+            probe = max(PROBE_STEPS, int(serial * PROBE_SECONDS))
             if self.threads == 1:  # probe the threads briefly
                 numba.set_num_threads(self.max_threads)
                 self.threads = self.max_threads
