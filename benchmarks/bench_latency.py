@@ -10,8 +10,8 @@ Parts (all by default; name some to run only those):
   the N = 8000 dipole reference scene (where two threads gain), and the examples' scenes. Each
   measurement is a fresh process with warm kernel caches (compilation excluded) timing one run of
   about 6 s, as a user runs (the threads' probes included); default and one-thread processes
-  alternate three times and the best of each is kept (this machine's speed drifts by 20 % and
-  more between minutes).
+  alternate three times and the median of each is kept (this machine's speed drifts by 20 % and
+  more between minutes; a ratio of the best runs would be decided by one outlier).
 * ``compile``: time to the first step with empty kernel caches (numba's cache of demkit's own
   modules emptied too), counted as CPU seconds of the process (compilation is single-threaded:
   CPU time is what does not depend on the load), for the examples' scenes; a second start with the
@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -80,8 +81,7 @@ SCENES = {
     """,
     "two_magnets": """
         def make():
-            tm = dk.two_magnets.TwoMagnets()
-            return tm.scene(), dk.EulerCromer(0.01)
+            return dk.two_magnets.TwoMagnets(b_over_R=4.0).scene(), dk.EulerCromer(0.01)
     """,
 }
 
@@ -154,8 +154,9 @@ def part_threads(quick, repeats, seconds, scenes, rounds=3):
             _child(warm, dict(os.environ, NUMBA_NUM_THREADS="1"))
             for load in ("idle", "busy"):
                 row = {"scene": name, "load": load, "default_runs": [], "one_thread_runs": []}
-                for _ in range(rounds):  # interleaved: this machine's speed drifts by 20 % and more
-                    for label, env in (("default", {}), ("one_thread", {"NUMBA_NUM_THREADS": "1"})):
+                for r in range(rounds):  # interleaved, in turns first: this machine's speed drifts by 20 %
+                    order = (("default", {}), ("one_thread", {"NUMBA_NUM_THREADS": "1"}))
+                    for label, env in order if r % 2 == 0 else order[::-1]:
                         env = dict(os.environ, **env)
                         if load == "busy":
                             with Burner():
@@ -165,7 +166,9 @@ def part_threads(quick, repeats, seconds, scenes, rounds=3):
                         row[f"{label}_runs"].append(res["steps_per_s"])
                         if label == "default":
                             row["threads_chosen"], row["reason"] = res["threads"], res["reason"]
-                row["default"], row["one_thread"] = max(row["default_runs"]), max(row["one_thread_runs"])
+                # medians: one run's outliers (+-25 % on this machine) would decide a ratio of bests
+                row["default"] = statistics.median(row["default_runs"])
+                row["one_thread"] = statistics.median(row["one_thread_runs"])
                 row["ratio_default_to_one_thread"] = row["default"] / row["one_thread"]
                 print(json.dumps(row), flush=True)
                 rows.append(row)

@@ -35,3 +35,45 @@ def energy_gradient(scene, kind, i, h):
         x[i, a] += h
         grad[a] = (up - down) / (2 * h)
     return grad
+
+
+# ---- opt-in: which test compiles what (DEMKIT_COMPILE_LOG=path.jsonl), to keep the suite short
+if __import__("os").environ.get("DEMKIT_COMPILE_LOG"):
+    import json
+    import os
+    import threading
+    import time
+
+    from numba.core import event
+
+    class _CompileLog(event.Listener):
+        """Top-level numba compilations (seconds, function, module) per test."""
+
+        def __init__(self):
+            self.depth, self.start, self.test, self.rows = 0, None, None, []
+
+        def on_start(self, ev):
+            self.depth += 1
+            if self.depth == 1:
+                self.start = time.perf_counter(), time.process_time()
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth == 0 and self.start is not None:
+                f = ev.data["dispatcher"].py_func
+                self.rows.append({"test": self.test, "function": f.__name__, "module": f.__module__,
+                                  "cpu": time.process_time() - self.start[1],
+                                  "thread": threading.current_thread().name})
+                self.start = None
+
+    _LOG = _CompileLog()
+    event.register("numba:compile", _LOG)
+
+    @pytest.fixture(autouse=True)
+    def _log_compiles(request):
+        _LOG.test = request.node.nodeid
+        yield
+        with open(os.environ["DEMKIT_COMPILE_LOG"], "a") as fh:
+            for row in _LOG.rows:
+                fh.write(json.dumps(row) + "\n")
+        _LOG.rows.clear()
