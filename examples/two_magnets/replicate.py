@@ -353,7 +353,9 @@ def summarise(results, quick):
         v = np.array([r["speed"] for r in speed_rows])
         bmax = np.array([r["b_max"] for r in speed_rows])
         p, dp, c = fits.fit_power_law(v, bmax)
-        out["b_max_speed_exponent"] = {"p": p, "sigma": dp, "c": c,
+        # sigma comes from polyfit's covariance (LAPACK): its last bits vary between machines'
+        # BLAS kernels, so it is kept to 10 digits (a rerun must leave the tracked file unchanged)
+        out["b_max_speed_exponent"] = {"p": p, "sigma": float(f"{dp:.10g}"), "c": c,
                                        "speed_for_paper_b_max": (PAPER["b_max"] / c) ** (1 / p)}
     out["energy"] = {r["dipoles"]: {k: v for k, v in r.items() if k not in ("series", "zoom", "wall_s")}
                      for r in results if r["kind"] == "energy"}
