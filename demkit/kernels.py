@@ -396,9 +396,9 @@ class _Source:
     def group_forces(self, g, group, name=None):
         name = name or f"group_{g}"
         signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
-        lines = ["", "", "@njit(**INNER)", f"def {name}_forces({signature}):",
-                 f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
         if not group.parallel:
+            lines = ["", "", "@njit(**INNER)", f"def {name}_forces({signature}):",
+                     f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
             lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
             lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
             lines.append("    return power")
