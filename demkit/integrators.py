@@ -48,90 +48,119 @@ def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, recor
 
 def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     half = 0.5 * dt
-    if not forces_ready:
-        forces_of(s, False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
-    for n in range(nsteps):
-        kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, dt)
-        drift(s.position, s.velocity, dt)
-        s.accum[0] += dt * forces_of(s, True)  # noqa: F821
-        kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, 0.0)
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
-        if countdown < 0:
-            return n
+    # one call of forces_of in the source (n = -1: the forces of the start): numba inlines each call
+    # site whole, so a second one would double the time spent compiling the scene's forces
+    n = 0 if forces_ready else -1
+    while n < nsteps:
+        if n >= 0:
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, dt)
+            drift(s.position, s.velocity, dt)
+        power = forces_of(s, n >= 0)  # noqa: F821
+        if n >= 0:
+            s.accum[0] += dt * power
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, 0.0)
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            if countdown < 0:
+                return n
+        n += 1
     return -1
 
 
 def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     w1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
     w0 = 1.0 - 2.0 * w1
-    if not forces_ready:
-        forces_of(s, False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
-    for n in range(nsteps):
-        for k in range(3):
-            h = w0 * dt if k == 1 else w1 * dt
+    # sub-step m of step m // 3; one call of forces_of in the source (see velocity_verlet_template)
+    m = 0 if forces_ready else -1
+    h = 0.0
+    while m < 3 * nsteps:
+        if m >= 0:
+            h = w0 * dt if m % 3 == 1 else w1 * dt
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, h)
             drift(s.position, s.velocity, h)
-            s.accum[0] += h * forces_of(s, False)  # noqa: F821
+        power = forces_of(s, False)  # noqa: F821
+        if m >= 0:
+            s.accum[0] += h * power
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
-        if countdown < 0:
-            return n
+            if m % 3 == 2:
+                n = m // 3
+                countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+                if countdown < 0:
+                    return n
+        m += 1
     return -1
 
 
 def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     countdown = stride - first_step % stride  # steps until the next recorded frame
-    for n in range(nsteps):
+    # one call of forces_of in the source (see velocity_verlet_template): stage k = 0..3 of step n,
+    # k = 4: the forces of the state reached (for writers and diagnostics), then return
+    result = -1
+    n = 0
+    k = 4
+    total = 0.0
+    if nsteps > 0:
+        k = 0
         rk_save(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole)
-        p1 = forces_of(s, False)  # noqa: F821
+    while True:
+        power = forces_of(s, False)  # noqa: F821
+        if k == 4:
+            return result
+        outer = k == 0 or k == 3
+        total += power if outer else 2.0 * power  # Simpson-like quadrature of the power
+        c = 0.5 * dt if k < 2 else (dt if k == 2 else 0.0)
         rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
-                 s.inertia, 1.0 / 6.0, 0.5 * dt)
-        p2 = forces_of(s, False)  # noqa: F821
-        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
-                 s.inertia, 1.0 / 3.0, 0.5 * dt)
-        p3 = forces_of(s, False)  # noqa: F821
-        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
-                 s.inertia, 1.0 / 3.0, dt)
-        p4 = forces_of(s, False)  # noqa: F821
-        rk_stage(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass,
-                 s.inertia, 1.0 / 6.0, 0.0)
-        rk_finish(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, dt)
-        s.accum[0] += dt * (p1 + 2.0 * p2 + 2.0 * p3 + p4) / 6.0  # Simpson-like quadrature of the power
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
-        if countdown < 0:
-            forces_of(s, False)  # noqa: F821 (forces of the state reached, for writers and diagnostics)
-            return n
-    forces_of(s, False)  # noqa: F821
-    return -1
+                 s.inertia, 1.0 / 6.0 if outer else 1.0 / 3.0, c)
+        k += 1
+        if k == 4:
+            rk_finish(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, dt)
+            s.accum[0] += dt * total / 6.0
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            if countdown < 0:
+                result = n
+            else:
+                n += 1
+                if n < nsteps:
+                    k = 0
+                    total = 0.0
+                    rk_save(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole)
 
 
 def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s, record):
-    # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque (kept between chunks)
+    # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque (kept between chunks).
+    # One call of each force function in the source (see velocity_verlet_template); n = -1: the
+    # forces of the start, one evaluation of each
     inner = s.counters[INNER_STEPS]  # noqa: F821
     h = dt / inner
-    if not forces_ready:
-        slow_forces_of(s, s.stage[0], s.stage[1], False)  # noqa: F821
-        fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
-    for n in range(nsteps):
-        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
-                 s.mass, s.inertia, 0.5 * dt, 0.0)
-        for m in range(inner):
-            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
-                     s.mass, s.inertia, 0.5 * h, h)
-            drift(s.position, s.velocity, h)
-            s.accum[0] += h * fast_forces_of(s, s.stage[2], s.stage[3], True)  # noqa: F821
-            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
-                     s.mass, s.inertia, 0.5 * h, 0.0)
-        s.accum[0] += dt * slow_forces_of(s, s.stage[0], s.stage[1], True)  # noqa: F821
-        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
-                 s.mass, s.inertia, 0.5 * dt, 0.0)
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
-        if countdown < 0:
-            total_forces(s.force, s.torque, s.stage)
-            return n
+    n = 0 if forces_ready else -1
+    while n < nsteps:
+        if n >= 0:
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                     s.mass, s.inertia, 0.5 * dt, 0.0)
+        m = 0 if n >= 0 else inner - 1
+        while m < inner:
+            if n >= 0:
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                         s.mass, s.inertia, 0.5 * h, h)
+                drift(s.position, s.velocity, h)
+            power = fast_forces_of(s, s.stage[2], s.stage[3], n >= 0)  # noqa: F821
+            if n >= 0:
+                s.accum[0] += h * power
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                         s.mass, s.inertia, 0.5 * h, 0.0)
+            m += 1
+        power = slow_forces_of(s, s.stage[0], s.stage[1], n >= 0)  # noqa: F821
+        if n >= 0:
+            s.accum[0] += dt * power
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                     s.mass, s.inertia, 0.5 * dt, 0.0)
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            if countdown < 0:
+                total_forces(s.force, s.torque, s.stage)
+                return n
+        n += 1
     # the total force and torque, for writers and diagnostics
     total_forces(s.force, s.torque, s.stage)
     return -1
@@ -139,71 +168,84 @@ def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s,
 
 def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     # s.stage[0], [1]: half-step velocities and spins; s.stage[2, 0, 0]: the dissipated power at the
-    # last force evaluation (the trapezoidal rule sums the dissipated work)
+    # last force evaluation (the trapezoidal rule sums the dissipated work). One call of forces_of
+    # in the source (see velocity_verlet_template); n = -1: the forces of the start
     tiny = 1e-6 * dt  # a crossing is stepped over in a sub-step this long
-    if not forces_ready:
-        s.stage[2, 0, 0] = forces_of(s, False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
-    for n in range(nsteps):
+    n = 0 if forces_ready else -1
+    while n < nsteps:
         left = dt
         events = 0
-        while left > 0.0:
+        while True:
             h = left
-            if events < 8:  # at most 8 contact events per step are located; then plain sub-steps
-                tau = next_contact_event(s, s.force, left)  # noqa: F821
-                if tau < left:
-                    events += 1
-                    h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
-            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, h)
-            drift(s.position, s.velocity, h)
-            # the forces see velocities predicted to the end of the sub-step (second order for
-            # dashpots), then the half-step ones are restored for the closing kick
-            copy_vectors(s.stage[0], s.velocity)
-            copy_vectors(s.stage[1], s.angular_velocity)
-            kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
+            if n >= 0:
+                if events < 8:  # at most 8 contact events per step are located; then plain sub-steps
+                    tau = next_contact_event(s, s.force, left)  # noqa: F821
+                    if tau < left:
+                        events += 1
+                        h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, h)
+                drift(s.position, s.velocity, h)
+                # the forces see velocities predicted to the end of the sub-step (second order for
+                # dashpots), then the half-step ones are restored for the closing kick
+                copy_vectors(s.stage[0], s.velocity)
+                copy_vectors(s.stage[1], s.angular_velocity)
+                kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
             power = forces_of(s, False)  # noqa: F821
+            if n < 0:
+                s.stage[2, 0, 0] = power
+                break
             s.accum[0] += 0.5 * h * (s.stage[2, 0, 0] + power)
             s.stage[2, 0, 0] = power
             copy_vectors(s.velocity, s.stage[0])
             copy_vectors(s.angular_velocity, s.stage[1])
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
             left -= h
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
-        if countdown < 0:
-            return n
+            if not left > 0.0:
+                break
+        if n >= 0:
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            if countdown < 0:
+                return n
+        n += 1
     return -1
 
 
 def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque; [4], [5]: half-step
-    # velocities and spins; [6, 0, 0]: the fast dissipated power at the last evaluation
+    # velocities and spins; [6, 0, 0]: the fast dissipated power at the last evaluation. One call of
+    # each force function in the source (see velocity_verlet_template); n = -1: the forces of the start
     inner = s.counters[INNER_STEPS]  # noqa: F821
     tiny = 1e-6 * dt / inner  # a crossing is stepped over in a sub-step this long
-    if not forces_ready:
-        slow_forces_of(s, s.stage[0], s.stage[1], False)  # noqa: F821
-        s.stage[6, 0, 0] = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
     countdown = stride - first_step % stride  # steps until the next recorded frame
-    for n in range(nsteps):
-        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
-                 s.mass, s.inertia, 0.5 * dt, 0.0)
-        for m in range(inner):
+    n = 0 if forces_ready else -1
+    while n < nsteps:
+        if n >= 0:
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                     s.mass, s.inertia, 0.5 * dt, 0.0)
+        m = 0 if n >= 0 else inner - 1
+        while m < inner:
             left = dt / inner
             events = 0
-            while left > 0.0:
+            while True:
                 h = left
-                if events < 8:
-                    tau = next_contact_event(s, s.stage[2], left)  # noqa: F821
-                    if tau < left:
-                        events += 1
-                        h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
-                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
-                         s.mass, s.inertia, 0.5 * h, h)
-                drift(s.position, s.velocity, h)
-                copy_vectors(s.stage[4], s.velocity)
-                copy_vectors(s.stage[5], s.angular_velocity)
-                kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
-                         s.mass, s.inertia, 0.5 * h, 0.0)
+                if n >= 0:
+                    if events < 8:
+                        tau = next_contact_event(s, s.stage[2], left)  # noqa: F821
+                        if tau < left:
+                            events += 1
+                            h = tau - 0.5 * tiny if tau > tiny else min(tau + 0.5 * tiny, left)
+                    kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                             s.mass, s.inertia, 0.5 * h, h)
+                    drift(s.position, s.velocity, h)
+                    copy_vectors(s.stage[4], s.velocity)
+                    copy_vectors(s.stage[5], s.angular_velocity)
+                    kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
+                             s.mass, s.inertia, 0.5 * h, 0.0)
                 power = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
+                if n < 0:
+                    s.stage[6, 0, 0] = power
+                    break
                 s.accum[0] += 0.5 * h * (s.stage[6, 0, 0] + power)
                 s.stage[6, 0, 0] = power
                 copy_vectors(s.velocity, s.stage[4])
@@ -211,13 +253,19 @@ def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_re
                 kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
                          s.mass, s.inertia, 0.5 * h, 0.0)
                 left -= h
-        s.accum[0] += dt * slow_forces_of(s, s.stage[0], s.stage[1], True)  # noqa: F821
-        kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
-                 s.mass, s.inertia, 0.5 * dt, 0.0)
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
-        if countdown < 0:
-            total_forces(s.force, s.torque, s.stage)
-            return n
+                if not left > 0.0:
+                    break
+            m += 1
+        power = slow_forces_of(s, s.stage[0], s.stage[1], n >= 0)  # noqa: F821
+        if n >= 0:
+            s.accum[0] += dt * power
+            kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
+                     s.mass, s.inertia, 0.5 * dt, 0.0)
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            if countdown < 0:
+                total_forces(s.force, s.torque, s.stage)
+                return n
+        n += 1
     total_forces(s.force, s.torque, s.stage)
     return -1
 
