@@ -709,6 +709,10 @@ class _Source:
                  ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.events import earliest_wall_crossing", ""]
+        if plan.growing:  # scenes with lists: the passes compiled once and called (see demkit.motion)
+            from .motion import CALLED_PASSES
+            lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
+                      + ")"]
         if self.threads:  # the chunk sums on threads, and in scenes with lists every per-step pass
             lines += ["from demkit.motion import sum_chunks_threads as sum_chunks"]
         if self.threads and plan.growing:

@@ -286,15 +286,10 @@ def fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_star
 
 
 @njit(**LOOP_OPTIONS)
-def fill_chunks(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
-                end, partner, lo, hi, image, d2, cells, region, used, threads):
-    """fill_threads (``threads`` and more than one chunk), or the chunks one after the other: the
-    same lists either way (each chunk fills its own region). A scene that never runs on threads
-    never starts the threading layer (GNU OpenMP, once started, makes fork() unsafe)."""
-    if threads and cells.shape[0] > 2:
-        fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
-                     end, partner, lo, hi, image, d2, cells, region, used)
-        return
+def fill_serial(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
+                end, partner, lo, hi, image, d2, cells, region, used):
+    """fill_threads with the chunks one after the other: the same lists (each chunk fills its own
+    region)."""
     for t in range(cells.shape[0] - 1):
         used[t] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts,
                              start, end, partner, lo[t], hi[t], image[t], d2[t], cells[t], cells[t + 1], region[t],
@@ -317,23 +312,35 @@ def split_cells(cell_start, cells):
     cells[chunks] = ncells
 
 
+# A list is built in three parts around its filling, which runs the chunks one after the other
+# (build, fill_serial) or on threads (build_threads, fill_threads): the same lists either way. Kept
+# apart so that a scene that never runs on threads never compiles the threaded builder (4.6 of the
+# 18 CPU s the list builder took to compile when one function held both).
 @njit(cache=True)
 def build(pl, position, tag, box, periodic):
-    """:func:`build_chunks`, the chunks one after the other."""
-    build_chunks(pl, position, tag, box, periodic, False)
+    """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
+    into len(pl.bounds) - 1 chunks filled one after the other, each in its own region of ``partner``
+    (grown, and the regions resized, when one overflows)."""
+    work = start_build(pl, position, tag, box, periodic)
+    fill_serial(*fill_arguments(pl, box, periodic, work))
+    if grown(pl, work):
+        fill_serial(*fill_arguments(pl, box, periodic, work))
+    finish_build(pl, work)
 
 
 @njit(cache=True)
 def build_threads(pl, position, tag, box, periodic):
-    """:func:`build_chunks`, the chunks on threads (the same lists)."""
-    build_chunks(pl, position, tag, box, periodic, True)
+    """:func:`build` with the chunks filled on threads (the same lists)."""
+    work = start_build(pl, position, tag, box, periodic)
+    fill_threads(*fill_arguments(pl, box, periodic, work))
+    if grown(pl, work):
+        fill_threads(*fill_arguments(pl, box, periodic, work))
+    finish_build(pl, work)
 
 
 @njit(cache=True)
-def build_chunks(pl, position, tag, box, periodic, threads):
-    """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
-    into len(pl.bounds) - 1 chunks filled side by side, each in its own region of ``partner``
-    (grown, and the regions resized, when one overflows)."""
+def start_build(pl, position, tag, box, periodic):
+    """Bin the particles into cells and cut the cells into chunks: the working arrays of a build."""
     n = position.shape[0]
     origin = np.empty(3)
     size = np.empty(3)
@@ -368,22 +375,42 @@ def build_chunks(pl, position, tag, box, periodic, threads):
     for t in range(chunks + 1):  # regions in proportion to the particles of each chunk
         region[t] = (pl.partner.shape[0] * (cell_start[cells[t]] if t < chunks else n)) // max(n, 1)
     region[chunks] = pl.partner.shape[0]
-    fill_chunks(ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts,
-                pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used, threads)
+    return ts, xs, members, radius, ncell, cell_start, near, shift, counts, lo, hi, image, d2, cells, region, used
+
+
+@njit(cache=True)
+def fill_arguments(pl, box, periodic, work):
+    """The arguments of fill_serial/fill_threads."""
+    ts, xs, members, radius, ncell, cell_start, near, shift, counts, lo, hi, image, d2, cells, region, used = work
+    return (ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts, pl.start,
+            pl.end, pl.partner, lo, hi, image, d2, cells, region, used)
+
+
+@njit(cache=True)
+def grown(pl, work):
+    """Did a chunk fill its region? Then make room for what each chunk needs, and 1/GROWTH more
+    (``pl.partner`` replaced, the regions resized): the list is to be filled again."""
+    region, used = work[14], work[15]
+    chunks = used.shape[0]
     full = False
     for t in range(chunks):
         full = full or used[t] >= region[t + 1] - region[t]
-    if full:  # room for what each chunk needs, and 1/GROWTH more
+    if full:
         region[0] = 0
         for t in range(chunks):
             region[t + 1] = region[t] + used[t] + used[t] // GROWTH + 16
         pl.partner = np.empty(region[chunks], dtype=np.int32)
-        fill_chunks(ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts,
-                    pl.start, pl.end, pl.partner, lo, hi, image, d2, cells, region, used, threads)
+    return full
+
+
+@njit(cache=True)
+def finish_build(pl, work):
+    """Record the number of entries (rows may leave gaps between the chunks' regions)."""
+    used = work[15]
     total = 0
-    for t in range(chunks):
+    for t in range(used.shape[0]):
         total += used[t]
-    pl.start[n] = total  # the number of entries (rows may leave gaps between the chunks' regions)
+    pl.start[pl.start.shape[0] - 1] = total
 
 
 @njit(**LOOP_OPTIONS)
@@ -476,24 +503,24 @@ def balance(start, end, bounds):
 @njit(cache=True)
 def rebuild(pl, position, tag, box, periodic):
     """Rebuild one list, carrying its per-pair history by tag."""
-    rebuild_chunks(pl, position, tag, box, periodic, False)
+    if pl.history.shape[1] > 0:
+        owners, partners, rows = saved_history(pl, tag)
+        build(pl, position, tag, box, periodic)
+        restore_history(pl, tag, owners, partners, rows)
+    else:
+        build(pl, position, tag, box, periodic)
+    balance(pl.start, pl.end, pl.bounds)
 
 
 @njit(cache=True)
 def rebuild_threads(pl, position, tag, box, periodic):
     """:func:`rebuild` with the list's chunks filled on threads (the same list)."""
-    rebuild_chunks(pl, position, tag, box, periodic, True)
-
-
-@njit(cache=True)
-def rebuild_chunks(pl, position, tag, box, periodic, threads):
-    """Rebuild one list, carrying its per-pair history by tag; ``threads``: chunks on threads."""
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, tag)
-        build_chunks(pl, position, tag, box, periodic, threads)
+        build_threads(pl, position, tag, box, periodic)
         restore_history(pl, tag, owners, partners, rows)
     else:
-        build_chunks(pl, position, tag, box, periodic, threads)
+        build_threads(pl, position, tag, box, periodic)
     balance(pl.start, pl.end, pl.bounds)
 
 
