@@ -573,12 +573,12 @@ class _Source:
                       "    s.counters[WRAP_DUE] = 1"]
         if plan.sorted:
             history = [g for g in plan.lists if plan.groups[g].width]
-            width = min(plan.groups[g].reach for g in plan.lists)
+            shortest = plan.lists[0]  # groups come sorted by reach: the cells of the shortest list
             lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
                       '    """Re-order the particles by cell (memory locality) and rebuild the lists, carrying',
                       '    their history by tag. Only between steps: every per-particle array moves."""']
             lines += [f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)" for g in history]
-            lines += [f"    order = cell_order(s.position, s.box, s.periodic, {width!r} + s.skin)",
+            lines += [f"    order = cell_order(s.position, s.box, s.periodic, s.lists[{shortest}].reach)",
                       "    n = order.shape[0]",
                       "    vectors = np.empty((n, 3))",
                       "    scalars = np.empty(n)",
