@@ -14,11 +14,16 @@ Parts (all by default; name some to run only those):
   more between minutes; a ratio of the best runs would be decided by one outlier).
 * ``compile``: time to the first step with empty kernel caches (numba's cache of demkit's own
   modules emptied too), counted as CPU seconds of the process (compilation is single-threaded:
-  CPU time is what does not depend on the load), for the examples' scenes; a second start with the
-  caches warm; and a scene that differs only in parameter values, particle count or thread count
-  (which must compile nothing).
+  CPU time is what does not depend on the load): the paper's scene (Euler-Cromer and RK4), the
+  600-sphere magnetic gas with Hertz contacts and friction, the magnetic_cluster example, and
+  `demkit accuracy` on a 3-sphere scene file (the whole study, CPU s of the command); the same with
+  demkit's own modules cached (a new scene on a machine that ran demkit before) and fully warm; and
+  a scene differing only in parameter values and particle count (which must compile nothing).
 
-Usage: python benchmarks/bench_latency.py [threads] [compile] [--quick]
+Usage: python benchmarks/bench_latency.py [threads] [compile] [--quick] [--against=<git revision>]
+
+``--against=REV`` runs the compile part of revision REV's code alternating with this one's (before
+and after, side by side on the same machine).
 """
 from __future__ import annotations
 
@@ -83,7 +88,51 @@ SCENES = {
         def make():
             return dk.two_magnets.TwoMagnets(b_over_R=4.0).scene(), dk.EulerCromer(0.01)
     """,
+    "two_magnets_rk4": """
+        def make():
+            return dk.two_magnets.TwoMagnets(b_over_R=4.0).scene(), dk.RK4(0.01)
+    """,
+    "gas600": """
+        def make(n=600, cutoff=4.0, young=2e4, mu=0.5):
+            # the issue's 600-sphere magnetic gas: dipoles cut at 4 diameters, Hertz with friction, periodic
+            R = 0.5
+            box = dk.build.box_for(n, R, 0.2)
+            pos = dk.build.random_packing(n, R, box, seed=1)
+            rng = np.random.default_rng(2)
+            d = rng.normal(size=(n, 3))
+            p = dk.Particles(position=pos, velocity=rng.normal(size=(n, 3)), radius=R, mass=1.0,
+                             dipole=d / np.linalg.norm(d, axis=1)[:, None])
+            law = dk.Hertz(young=young, poisson=0.3, restitution=0.5, friction=dk.Friction(mu))
+            return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=cutoff), law], box=box), dk.VelocityVerlet(1e-3)
+    """,
 }
+# the same scenes with other parameter values and particle counts: must compile nothing once the
+# scene above ran
+VARIANTS = {
+    "two_magnets": """
+        def make():
+            return dk.two_magnets.TwoMagnets(b_over_R=2.5, speed=3e-3).scene(), dk.EulerCromer(0.02)
+    """,
+    "gas600": SCENES["gas600"].replace("def make(n=600, cutoff=4.0, young=2e4, mu=0.5):",
+                                       "def make(n=450, cutoff=3.0, young=5e4, mu=0.3):"),
+}
+# `demkit accuracy` on a 3-sphere scene file, the command's default methods and time steps
+ACCURACY_FILE = """
+[particles]
+position = [[0.0, 0.0, 0.0], [3.0, 0.4, 0.0], [-2.5, 1.5, 0.3]]
+velocity = [[0.05, 0.0, 0.0], [-0.05, 0.0, 0.0], [0.0, -0.04, 0.0]]
+dipole = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+radius = 0.5
+[interactions.dipole]
+prefactor = 0.01
+[interactions.kelvin_voigt]
+stiffness = 1000.0
+damping = 2.0
+[integrator]
+dt = 0.01
+[run]
+duration = 20.0
+"""
 
 THREAD_CHILD = """
 import json, sys, time
@@ -180,41 +229,97 @@ def part_threads(quick, repeats, seconds, scenes, rounds=3):
 COMPILE_CHILD = """
 import json, time
 t0 = time.process_time(); w0 = time.perf_counter()
+from numba.core import event
+compiled = []
+class Count(event.Listener):
+    def on_start(self, ev):
+        pass
+    def on_end(self, ev):
+        if ev.data["dispatcher"].py_func.__module__.startswith("demkit_kernel"):
+            compiled.append(ev.data["dispatcher"].py_func.__name__)
+event.register("numba:compile", Count())
 import numpy as np
 import demkit as dk
 {scene}
 scene, integrator = make()
 sim = dk.Simulation(scene, integrator)
 sim.run(duration=integrator.dt, progress=False)  # the first step
-print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0, "wall_s": time.perf_counter() - w0}}))
+print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0, "wall_s": time.perf_counter() - w0,
+                            "kernel_functions_compiled": len(compiled)}}))
+"""
+
+ACCURACY_CHILD = """
+import json, resource, subprocess, sys, time
+w0 = time.perf_counter()
+done = subprocess.run([sys.executable, "-m", "demkit", "accuracy", {path!r}, "--no-progress", "--plot", {plot!r}],
+                      capture_output=True, text=True)
+if done.returncode:
+    raise SystemExit(done.stderr)
+use = resource.getrusage(resource.RUSAGE_CHILDREN)
+print("RESULT", json.dumps({{"cpu_s": use.ru_utime + use.ru_stime, "wall_s": time.perf_counter() - w0}}))
 """
 
 
-def _empty_caches(cache):
+def _empty_caches(cache, tree=ROOT):
     shutil.rmtree(cache, ignore_errors=True)
-    for folder in (ROOT / "demkit").rglob("__pycache__"):  # numba's cache of demkit's own modules
+    for folder in (Path(tree) / "demkit").rglob("__pycache__"):  # numba's cache of demkit's own modules
         for f in folder.iterdir():
             if f.suffix in (".nbi", ".nbc"):
                 f.unlink()
 
 
-def part_compile(quick, scenes):
+def _export(rev, tmp):
+    """The demkit package of git revision ``rev`` in a folder of its own (for side-by-side runs)."""
+    folder = Path(tmp) / f"demkit-{rev}"
+    folder.mkdir()
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "demkit"], capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=archive.stdout, check=True)
+    return folder
+
+
+def part_compile(quick, scenes, against=None, rounds=2):
+    """Time to the first step, CPU s: ``cold`` (every cache empty), ``new_scene`` (demkit's own
+    modules cached, the scene's kernels not: a new scene on a machine that ran demkit before) and
+    ``warm``; and for the scenes of VARIANTS, the same scene with other values and particle count
+    after it (kernel functions compiled: must be 0). With ``against`` (a git revision) the same runs
+    of that revision's code alternate with this one's, ``rounds`` times; medians are kept."""
     tmp = tempfile.mkdtemp(prefix="demkit-latency-")
     cache = Path(tmp) / "kernels"
-    env = dict(os.environ, DEMKIT_CACHE_DIR=str(cache), DEMKIT_QUIET="1")
-    rows = []
+    trees = [("this", ROOT)] + ([(against, _export(against, tmp))] if against else [])
+    runs = {}
     try:
-        for name in scenes:
-            code = COMPILE_CHILD.format(scene=_scene_source(name, tmp))
-            _empty_caches(cache)
-            cold = _child(code, env)
-            warm = _child(code, env)
-            row = {"scene": name, "cold_cpu_s": cold["cpu_s"], "cold_wall_s": cold["wall_s"],
-                   "warm_cpu_s": warm["cpu_s"], "warm_wall_s": warm["wall_s"]}
-            print(json.dumps(row), flush=True)
-            rows.append(row)
+        accuracy_file = Path(tmp) / "three.toml"
+        accuracy_file.write_text(ACCURACY_FILE)
+        for r in range(rounds if against else 1):
+            for label, tree in trees if r % 2 == 0 else trees[::-1]:
+                env = dict(os.environ, DEMKIT_CACHE_DIR=str(cache), DEMKIT_QUIET="1", PYTHONPATH=str(tree))
+                for name in scenes:
+                    if name == "accuracy3":
+                        code = ACCURACY_CHILD.format(path=str(accuracy_file), plot=str(Path(tmp) / "a.png"))
+                    else:
+                        code = COMPILE_CHILD.format(scene=_scene_source(name, tmp))
+                    _empty_caches(cache, tree)
+                    out = {"cold": _child(code, env)}
+                    if name != "accuracy3":
+                        shutil.rmtree(cache, ignore_errors=True)
+                        out["new_scene"] = _child(code, env)
+                        out["warm"] = _child(code, env)
+                    if name in VARIANTS:
+                        variant = COMPILE_CHILD.format(scene=textwrap.dedent(VARIANTS[name]))
+                        out["variant"] = _child(variant, env)
+                    for mode, res in out.items():
+                        runs.setdefault((label, name, mode), []).append(res)
+                    print(json.dumps({"round": r, "code": label, "scene": name,
+                                      **{m: round(v["cpu_s"], 2) for m, v in out.items()}}), flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    rows = []
+    for (label, name, mode), results in runs.items():
+        row = {"code": label, "scene": name, "mode": mode, "cpu_s": statistics.median(r["cpu_s"] for r in results),
+               "cpu_s_runs": [round(r["cpu_s"], 2) for r in results]}
+        if mode == "variant":
+            row["kernel_functions_compiled"] = max(r["kernel_functions_compiled"] for r in results)
+        rows.append(row)
     return rows
 
 
@@ -229,9 +334,11 @@ def main(argv):
         results["threads"] = {"machine": machine, "rows": part_threads(quick, 1, 3.0 if quick else 6.0, scenes,
                                                                        rounds=1 if quick else 3)}
     if "compile" in parts:
-        scenes = ["two_magnets", "magnetic_cluster"] if quick else ["two_magnets", "magnetic_cluster", "gas4000",
-                                                                    "pour3000"]
-        results["compile"] = {"machine": machine, "rows": part_compile(quick, scenes)}
+        against = next((a.split("=", 1)[1] for a in argv if a.startswith("--against=")), None)
+        scenes = ["two_magnets", "gas600"] if quick else ["two_magnets", "two_magnets_rk4", "gas600",
+                                                          "magnetic_cluster", "accuracy3"]
+        results["compile"] = {"machine": machine, "against": against,
+                              "rows": part_compile(quick, scenes, against=against)}
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps(results, indent=1, default=float) + "\n")
     print(f"written {RESULTS}")

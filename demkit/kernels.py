@@ -528,9 +528,10 @@ class _Source:
                                 speed))
         return out
 
-    def force_calls(self, speed):
+    def force_calls(self, speed, force="force", torque="torque"):
         """Statements adding the forces of the groups (or group parts) of one speed ('fast', 'slow'
-        or None: all) into force/torque and their dissipated power into ``power``."""
+        or None: all) into the arrays named ``force``/``torque`` and their dissipated power into
+        ``power``."""
         plan = self.plan
         split = {g: (name, sub) for g, name, sub, s in self.parts if s == speed}
         lines = []
@@ -543,11 +544,11 @@ class _Source:
                     continue
             if sub.parallel:
                 extra = f", commit_flag, s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power"
-                lines.append("    power += " + self.group_call(g, sub, "forces_chunked", "force, torque, ", extra, name))
+                lines.append("    power += " + self.group_call(g, sub, "forces_chunked", f"{force}, {torque}, ", extra, name))
             else:
-                lines.append("    power += " + self.group_call(g, sub, "forces", "force, torque, ", ", commit_flag", name))
+                lines.append("    power += " + self.group_call(g, sub, "forces", f"{force}, {torque}, ", ", commit_flag", name))
         if plan.effects and speed != "slow":
-            lines.append(f"    power += sphere_forces({_state_fields()}, force, torque, s.sphere_history, commit_flag)")
+            lines.append(f"    power += sphere_forces({_state_fields()}, {force}, {torque}, s.sphere_history, commit_flag)")
         return lines
 
     def scene_functions(self):
@@ -607,10 +608,16 @@ class _Source:
         # pair loop once per literal value and once more for calls from Python (3x the compile time
         # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
         lines += ["    clear(force, torque)", "    power = 0.0", "    commit_flag = commit != False"] + self.force_calls(None)
+        # forces_of: compute_forces' body written out again on s.force/s.torque rather than a call
+        # of it: numba re-reads and copies a function at every level of inlining (the time loops
+        # inline this one), and one level less is ~1 CPU s less for the paper's scene
         lines += ["    return power",
                   "", "", "@njit(**OUTER)", "def forces_of(s, commit):",
-                  '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""',
-                  "    return compute_forces(s, s.force, s.torque, commit, True)"]
+                  '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""']
+        if plan.lists:
+            lines.append("    maintain_lists(s, True != False)")
+        lines += ["    clear(s.force, s.torque)", "    power = 0.0", "    commit_flag = commit != False"]
+        lines += self.force_calls(None, "s.force", "s.torque") + ["    return power"]
         for speed in ("fast", "slow"):  # multiple time stepping: compiled only when called
             lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(s, force, torque, commit):",
                       f'    """The {speed} forces and torques only (see Interaction.slow) into force/torque."""']
