@@ -129,7 +129,7 @@ prefactor = 0.01
 stiffness = 1000.0
 damping = 2.0
 [integrator]
-dt = 0.01
+dt = 0.005
 [run]
 duration = 20.0
 """
@@ -235,7 +235,7 @@ class Count(event.Listener):
     def on_start(self, ev):
         pass
     def on_end(self, ev):
-        if ev.data["dispatcher"].py_func.__module__.startswith("demkit_kernel"):
+        if (ev.data["dispatcher"].py_func.__module__ or "").startswith("demkit_kernel"):
             compiled.append(ev.data["dispatcher"].py_func.__name__)
 event.register("numba:compile", Count())
 import numpy as np

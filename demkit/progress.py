@@ -28,6 +28,7 @@ import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 #: automatic bars appear only for work estimated to take longer than this (wall-clock seconds)
 AUTO_SECONDS = 2.0
@@ -209,8 +210,7 @@ class PlainBar:
 
 
 # ---- the compile notice ------------------------------------------------------------------------
-#: what the notice says the first compile takes (measured on this project's 2-core machines: 4-5 s
-#: for the two-magnet scene and one integrator, plus 6 s once per install for the cell lists)
+#: what the notice says the first compile takes when the scene does not say (see compile_estimate)
 COMPILE_ESTIMATE = "usually 5-30 s"
 #: a compilation is announced once it has taken this long (wall-clock seconds): shorter ones pass
 #: silently (one scene's small diagnostics kernels compile in a fraction of a second)
@@ -236,6 +236,7 @@ class _Notice:
         self.announced = False   # was the first line printed?
         self.cached = True       # are these kernels cached on disk (False: compiled in memory)
         self.timer = None
+        self.estimate = None     # what the outermost scope expects compiling to take (text)
 
 
 _NOTICE = _Notice()
@@ -258,7 +259,7 @@ def _announce():
         if n.announced or n.top_start is None or not n.scopes:  # finished (or left) in time
             return
         n.announced = True
-        when = f"first run only, {COMPILE_ESTIMATE}" if n.cached else \
+        when = f"first run only, {n.estimate or COMPILE_ESTIMATE}" if n.cached else \
             "every run: pair functions defined in __main__ or a notebook are not cached"
     _say(f"demkit: compiling kernels for this scene ({when})...")
 
@@ -306,6 +307,37 @@ def _listener():
     return CompileListener()
 
 
+#: CPU seconds of compiling before the first step, measured with benchmarks/bench_latency.py on this
+#: project's 2-core machines (benchmarks/results/latency.json; a busy or slower machine takes longer):
+#: a scene without neighbour lists and one integrator (the paper's pair: 7-11 s), a scene with lists
+#: (a 600-sphere magnetic gas with Hertz contacts and friction: 15-18 s, in two parts: building the
+#: Scene and the first run), and the cell-list code compiled once per install (about 25 s)
+ESTIMATES = {"small": (5, 15), "lists": (10, 25), "cell_lists": 25}
+
+
+def compile_estimate(plan, phase):
+    """Text of the compile notice for a scene of this plan at ``phase`` ("scene": building it, "run":
+    its first run): the expected seconds, from :data:`ESTIMATES`."""
+    lo, hi = ESTIMATES["lists" if plan.growing else "small"]
+    if phase == "scene" and plan.growing:
+        lo, hi = 2, 8  # the list upkeep, the rest at the first run
+    extra = ""
+    if plan.growing and not cell_lists_cached():
+        lo, hi = lo + ESTIMATES["cell_lists"], hi + ESTIMATES["cell_lists"]
+        extra = ", the cell lists' code included (once per install)"
+    return f"about {lo}-{hi} s on an idle machine{extra}"
+
+
+def cell_lists_cached():
+    """Is demkit's cell-list builder in numba's disk cache (compiled once per install)?"""
+    from . import neighbours
+    try:
+        folder = Path(neighbours.rebuild._cache._cache_path)
+    except AttributeError:
+        return False
+    return any(folder.glob("neighbours.rebuild-*.nbi"))
+
+
 def _say(text):
     stream = sys.stderr
     if stream is not None:
@@ -321,8 +353,9 @@ class compile_notice:
     outermost scope (or :meth:`end`) then prints how long compiling took. Re-entrant; free when
     nothing compiles (numba calls the listener, registered once, only for a real compilation)."""
 
-    def __init__(self):
+    def __init__(self, estimate=None):
         self._open = False
+        self.estimate = estimate  # text for the notice (compile_estimate), else COMPILE_ESTIMATE
 
     def __enter__(self):
         if quiet():
@@ -334,6 +367,8 @@ class compile_notice:
 
                 event.register("numba:compile", _listener())
                 n.listening = True
+            if not n.scopes:
+                n.estimate = self.estimate
             n.scopes += 1
         self._open = True
         return self

@@ -27,7 +27,7 @@ from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
-from .progress import compile_notice
+from .progress import compile_estimate, compile_notice
 from .state import DEEP_OVERLAP_FRACTION, STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -129,7 +129,7 @@ class Scene:
         self._synced = None  # digest of the user's arrays when they last matched the kernels' (see push)
         self.stepping = False  # inside a Simulation.run: the arrays are the kernels' (push has nothing to do)
         self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
-        with compile_notice():  # a line on stderr when the kernels are not cached yet
+        with compile_notice(compile_estimate(self.plan, "scene")):  # a line on stderr when not cached yet
             self.state = self._make_state()
             self.kernels = build_module(self.plan, TEMPLATES)
             self.validate()

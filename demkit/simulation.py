@@ -16,7 +16,7 @@ import numba
 import numpy as np
 
 from . import checks, guards
-from .progress import Progress, check_progress, compile_notice
+from .progress import Progress, check_progress, compile_estimate, compile_notice
 from .scene import energy_dict
 from .threads import ThreadChoice
 from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
@@ -212,7 +212,7 @@ class Simulation:
         check_progress(progress)
         nsteps = self._run_length(duration, until)
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
-        with compile_notice() as notice:  # ended after the first chunk: the compilation is done then
+        with compile_notice(compile_estimate(self.scene.plan, "run")) as notice:  # ended after the first chunk
             return self._advance(nsteps, stride, progress, notice)
 
     def _advance(self, nsteps, stride, progress, notice):

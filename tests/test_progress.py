@@ -6,6 +6,7 @@ import subprocess
 import sys
 import textwrap
 import threading
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -151,6 +152,24 @@ def test_compiling_is_announced_before_and_timed_after_and_a_warm_scene_is_silen
     ns2 = plugin(tmp_path, "progress_test_plugin_2")
     dk.Scene(dk.Particles(position=[[0, 0, 0], [3.0, 0.1, 0]], radius=1.0), [ns2["Soft"](strength=1.0)])
     assert capsys.readouterr().err == ""
+
+
+def test_the_compile_notice_expects_what_the_scene_needs(monkeypatch):
+    """Small scenes and scenes with neighbour lists expect different compile times, and the cell
+    lists' code (compiled once per install) is added only while numba's cache lacks it."""
+    small, lists = SimpleNamespace(growing=False), SimpleNamespace(growing=True)
+    dk.Scene(dk.Particles(position=[[0.5, 0.5, 0.5], [2.0, 0.5, 0.5]], radius=0.5),
+             [dk.KelvinVoigt(1.0)], box=dk.Box([4.0, 4.0, 4.0], periodic=True))  # builds lists: cached now
+    assert prog.cell_lists_cached()
+    lo, hi = prog.ESTIMATES["small"]
+    assert prog.compile_estimate(small, "run") == f"about {lo}-{hi} s on an idle machine"
+    lo, hi = prog.ESTIMATES["lists"]
+    assert prog.compile_estimate(lists, "run") == f"about {lo}-{hi} s on an idle machine"
+    monkeypatch.setattr(prog, "cell_lists_cached", lambda: False)
+    extra = prog.ESTIMATES["cell_lists"]
+    assert prog.compile_estimate(lists, "run") == (f"about {lo + extra}-{hi + extra} s on an idle machine, the "
+                                                   f"cell lists' code included (once per install)")
+    assert prog.compile_estimate(small, "run") == prog.compile_estimate(small, "scene")  # no lists to build
 
 
 def test_small_scenes_find_close_pairs_like_the_cell_list(rng):
