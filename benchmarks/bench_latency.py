@@ -172,7 +172,10 @@ def _scene_source(name, tmp):
 
 
 def _child(code, env):
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    # run in the temporary folder: `python -c` puts the working directory first on sys.path, and from
+    # the project's root it would import this tree's demkit whatever PYTHONPATH says
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         cwd=tempfile.gettempdir())
     if out.returncode != 0:
         raise RuntimeError(out.stderr[-2000:])
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")][-1]
