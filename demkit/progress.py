@@ -307,12 +307,12 @@ def _listener():
     return CompileListener()
 
 
-#: CPU seconds of compiling before the first step, measured with benchmarks/bench_latency.py on this
-#: project's 2-core machines (benchmarks/results/latency.json; a busy or slower machine takes longer):
-#: a scene without neighbour lists and one integrator (the paper's pair: 7-11 s), a scene with lists
-#: (a 600-sphere magnetic gas with Hertz contacts and friction: 15-18 s, in two parts: building the
-#: Scene and the first run), and the cell-list code compiled once per install (about 25 s)
-ESTIMATES = {"small": (5, 15), "lists": (10, 25), "cell_lists": 25}
+#: CPU seconds of compiling, measured with benchmarks/bench_latency.py on this project's 2-core
+#: machines (benchmarks/results/latency.json; a busy or slower machine takes longer): a scene without
+#: neighbour lists, one integrator (the paper's pair: 7-11 s); the first run of a scene with lists
+#: (a 600-sphere magnetic gas with Hertz contacts and friction: 13-18 s) and building it (2-8 s);
+#: the cell-list code, compiled once per install when the first scene with lists is built (~15 s)
+ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (2, 8), "cell_lists": 15}
 
 
 def compile_estimate(plan, phase):
@@ -320,11 +320,11 @@ def compile_estimate(plan, phase):
     its first run): the expected seconds, from :data:`ESTIMATES`."""
     lo, hi = ESTIMATES["lists" if plan.growing else "small"]
     if phase == "scene" and plan.growing:
-        lo, hi = 2, 8  # the list upkeep, the rest at the first run
+        lo, hi = ESTIMATES["lists_scene"]  # the list upkeep, the rest at the first run
     extra = ""
     if plan.growing and not cell_lists_cached():
         lo, hi = lo + ESTIMATES["cell_lists"], hi + ESTIMATES["cell_lists"]
-        extra = ", the cell lists' code included (once per install)"
+        extra = "; the cell lists' code compiles once per install"
     return f"about {lo}-{hi} s on an idle machine{extra}"
 
 

@@ -167,8 +167,10 @@ def test_the_compile_notice_expects_what_the_scene_needs(monkeypatch):
     assert prog.compile_estimate(lists, "run") == f"about {lo}-{hi} s on an idle machine"
     monkeypatch.setattr(prog, "cell_lists_cached", lambda: False)
     extra = prog.ESTIMATES["cell_lists"]
-    assert prog.compile_estimate(lists, "run") == (f"about {lo + extra}-{hi + extra} s on an idle machine, the "
-                                                   f"cell lists' code included (once per install)")
+    assert prog.compile_estimate(lists, "run") == (f"about {lo + extra}-{hi + extra} s on an idle machine; the "
+                                                   f"cell lists' code compiles once per install")
+    lo, hi = prog.ESTIMATES["lists_scene"]
+    assert prog.compile_estimate(lists, "scene").startswith(f"about {lo + extra}-{hi + extra} s")
     assert prog.compile_estimate(small, "run") == prog.compile_estimate(small, "scene")  # no lists to build
 
 
