@@ -551,6 +551,17 @@ class _Source:
             lines.append(f"    power += sphere_forces({_state_fields()}, {force}, {torque}, s.sphere_history, commit_flag)")
         return lines
 
+    def forces_body(self, speed, force, torque, strict):
+        """Body of a scene-level force function: lists kept up to date (``strict``: see
+        maintain_lists), the arrays named ``force``/``torque`` cleared, then filled by the groups of
+        ``speed`` (see force_calls); returns the dissipated power."""
+        # commit_flag: a plain bool. Called with the constants True/False, numba would compile every
+        # pair loop once per literal value and once more for calls from Python (3x the compile time
+        # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
+        lines = [f"    maintain_lists(s, {strict} != False)"] if self.plan.lists else []
+        lines += [f"    clear({force}, {torque})", "    power = 0.0", "    commit_flag = commit != False"]
+        return lines + self.force_calls(speed, force, torque) + ["    return power"]
+
     def scene_functions(self):
         plan = self.plan
         lines = self.sphere_functions()
@@ -599,31 +610,19 @@ class _Source:
                     lines.append(f"    restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})")
                 lines.append(f"    balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)")
             lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
-        # forces
+        # forces. forces_of has compute_forces' body written out on s.force/s.torque rather than a
+        # call of it: numba re-reads and copies a function at every level of inlining (the time
+        # loops inline forces_of), and one level less is ~1 CPU s less for the paper's scene
         lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
-        if plan.lists:
-            lines.append("    maintain_lists(s, strict != False)")
-        # commit_flag: a plain bool. Called with the constants True/False, numba would compile every
-        # pair loop once per literal value and once more for calls from Python (3x the compile time
-        # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
-        lines += ["    clear(force, torque)", "    power = 0.0", "    commit_flag = commit != False"] + self.force_calls(None)
-        # forces_of: compute_forces' body written out again on s.force/s.torque rather than a call
-        # of it: numba re-reads and copies a function at every level of inlining (the time loops
-        # inline this one), and one level less is ~1 CPU s less for the paper's scene
-        lines += ["    return power",
-                  "", "", "@njit(**OUTER)", "def forces_of(s, commit):",
+        lines += self.forces_body(None, "force", "torque", "strict")
+        lines += ["", "", "@njit(**OUTER)", "def forces_of(s, commit):",
                   '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the dissipated power."""']
-        if plan.lists:
-            lines.append("    maintain_lists(s, True != False)")
-        lines += ["    clear(s.force, s.torque)", "    power = 0.0", "    commit_flag = commit != False"]
-        lines += self.force_calls(None, "s.force", "s.torque") + ["    return power"]
+        lines += self.forces_body(None, "s.force", "s.torque", "True")
         for speed in ("fast", "slow"):  # multiple time stepping: compiled only when called
             lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(s, force, torque, commit):",
                       f'    """The {speed} forces and torques only (see Interaction.slow) into force/torque."""']
-            if plan.lists:
-                lines.append("    maintain_lists(s, True != False)")
-            lines += ["    clear(force, torque)", "    power = 0.0", "    commit_flag = commit != False"] + self.force_calls(speed) + ["    return power"]
+            lines += self.forces_body(speed, "force", "torque", "True")
         # contact events (VelocityVerlet(resolve_contacts=True)): compiled only when called
         lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
                   '    """Earliest time in (0, horizon] at which a pair of a contact law starts or stops',
