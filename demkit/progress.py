@@ -236,7 +236,7 @@ class _Notice:
         self.announced = False   # was the first line printed?
         self.cached = True       # are these kernels cached on disk (False: compiled in memory)
         self.timer = None
-        self.estimate = None     # what the outermost scope expects compiling to take (text)
+        self.estimate = None     # what the outermost scope expects compiling to take (text, or a function giving it)
 
 
 _NOTICE = _Notice()
@@ -259,7 +259,8 @@ def _announce():
         if n.announced or n.top_start is None or not n.scopes:  # finished (or left) in time
             return
         n.announced = True
-        when = f"first run only, {n.estimate or COMPILE_ESTIMATE}" if n.cached else \
+        estimate = n.estimate() if callable(n.estimate) else n.estimate
+        when = f"first run only, {estimate or COMPILE_ESTIMATE}" if n.cached else \
             "every run: pair functions defined in __main__ or a notebook are not cached"
     _say(f"demkit: compiling kernels for this scene ({when})...")
 
@@ -355,7 +356,7 @@ class compile_notice:
 
     def __init__(self, estimate=None):
         self._open = False
-        self.estimate = estimate  # text for the notice (compile_estimate), else COMPILE_ESTIMATE
+        self.estimate = estimate  # text for the notice, or a function giving it when announced
 
     def __enter__(self):
         if quiet():

@@ -129,7 +129,7 @@ class Scene:
         self._synced = None  # digest of the user's arrays when they last matched the kernels' (see push)
         self.stepping = False  # inside a Simulation.run: the arrays are the kernels' (push has nothing to do)
         self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
-        with compile_notice(compile_estimate(self.plan, "scene")):  # a line on stderr when not cached yet
+        with compile_notice(lambda: compile_estimate(self.plan, "scene")):  # a line on stderr when not cached yet
             self.state = self._make_state()
             self.kernels = build_module(self.plan, TEMPLATES)
             self.validate()

@@ -212,7 +212,7 @@ class Simulation:
         check_progress(progress)
         nsteps = self._run_length(duration, until)
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
-        with compile_notice(compile_estimate(self.scene.plan, "run")) as notice:  # ended after the first chunk
+        with compile_notice(lambda: compile_estimate(self.scene.plan, "run")) as notice:  # ended after the first chunk
             return self._advance(nsteps, stride, progress, notice)
 
     def _advance(self, nsteps, stride, progress, notice):
