@@ -882,7 +882,7 @@ def _run(scene, make, dt, duration, times, record_every, particles=None, fresh=N
     fresh = copy_scene(scene, particles) if fresh is None else fresh
     integrator = _integrator(make, dt)
     try:
-        sim = Simulation(fresh, integrator)
+        sim = Simulation(fresh, integrator, notes=False)  # coarse steps on purpose: the study measures the error
     except ValueError as error:
         return None, math.nan, math.nan, 0, integrator, str(error)
     total = int(round(duration / integrator.dt))
@@ -1417,7 +1417,7 @@ def _work_precision(scene, duration, methods, dts, reference, times, energy_scal
     # untimed warm-up: compile each method's loop and the recording on this scene's kernels
     for label, make, _ in makers:
         try:
-            warm = Simulation(copy_scene(scene), _integrator(make, dts[-1]))
+            warm = Simulation(copy_scene(scene), _integrator(make, dts[-1]), notes=False)
             warm.run(2 * dts[-1], record_every=dts[-1], progress=False)
         except (ValueError, SimulationError):
             pass

@@ -16,6 +16,7 @@ import numba
 import numpy as np
 
 from . import checks, guards
+from .notes import RunNotes, say as say_notes
 from .progress import Progress, check_progress, compile_estimate, compile_notice
 from .scene import energy_dict
 from .threads import ThreadChoice
@@ -127,6 +128,10 @@ class Simulation:
         kinetic, rotational and potential energies at the start) without a source: a guard for
         conservative and dissipative scenes, checked every chunk (about 0.2 s of wall time) and
         at every recorded frame. Leave None for scenes driven from outside.
+    notes : True (default): at the end of a run, say on stderr what a careful user would want to
+        know (overlaps of more than a few percent of the radius, an energy balance drifting by more
+        than 1 %; see :mod:`demkit.notes`); False: keep the notes in ``statistics["notes"]`` only
+        (studies that run a scene at coarse steps on purpose).
 
     Raises ValueError (before anything runs) for a time step too large for any stiff effect of the
     scene (contacts at the speeds present, dipoles at the closest approach, fields, spins), a
@@ -138,7 +143,7 @@ class Simulation:
     (at step boundaries, which changes no result): Ctrl-C then ends a run cleanly (see :meth:`run`).
     """
 
-    def __init__(self, scene, integrator, writers=(), checkpoint=None, max_energy_growth=None):
+    def __init__(self, scene, integrator, writers=(), checkpoint=None, max_energy_growth=None, notes=True):
         from .checkpoint import Checkpoint
         from .integrators import Integrator
         from .scene import Scene
@@ -166,6 +171,10 @@ class Simulation:
         self.step = 0
         self.trajectory = None
         self.statistics = {}
+        if not isinstance(notes, bool):
+            raise TypeError(f"notes must be True or False, got {notes!r}")
+        self.notes = notes
+        self._sample_due = -math.inf  # when demkit.notes may sample the scene next (time.perf_counter)
         self.energy_origin = None  # (total + dissipated, scale) at the start, for max_energy_growth
         self._opened = False
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
@@ -251,6 +260,8 @@ class Simulation:
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
+        notes = RunNotes(scene, self._sample_due)
+        notes.maybe_sample()
         with CatchInterrupt() as interrupt, _Stepping(scene), bar:
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
@@ -275,6 +286,7 @@ class Simulation:
                     chunk_steps = self._next_chunk(chunk, seconds, chunk_steps)
                 notice.end()
                 bar.update(done)
+                notes.maybe_sample()
                 for w, ws in zip(self.writers, writer_steps):
                     if self.step % ws == 0:
                         w.write(self)
@@ -292,6 +304,12 @@ class Simulation:
         if extra_final:
             steps = np.append(steps, nsteps)
         self._keep(record, start_step, steps)
+        notes.maybe_sample()
+        self._sample_due = notes.next_due
+        notes.frames(record[4][:len(steps)])
+        self.statistics.update(notes.figures(), notes=notes.notes(dt))
+        if self.notes:
+            say_notes(self.statistics["notes"])
         self._last_frame = _frame_of(record, len(steps) - 1)
         if self.checkpoint is not None and self.checkpoint.saved_step != self.step:
             self._save_checkpoint()

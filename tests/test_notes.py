@@ -1,0 +1,70 @@
+"""Notes at the end of a run (demkit.notes): overlaps and the energy balance, quiet when all is well."""
+import numpy as np
+import pytest
+
+import demkit as dk
+from demkit import notes
+
+
+def head_on(speed, overlap=0.0, stiffness=100.0, damping=0.0):
+    """Two unit spheres on the x axis, approaching at +-speed, starting ``overlap`` (of R) deep."""
+    gap = 2.0 - overlap
+    p = dk.Particles(position=[[-gap / 2, 0, 0], [gap / 2, 0, 0]], velocity=[[speed, 0, 0], [-speed, 0, 0]],
+                     radius=1.0, mass=1.0)
+    return dk.Scene(p, [dk.KelvinVoigt(stiffness, damping)])
+
+
+def test_a_soft_contact_gets_a_note_with_its_largest_overlap(capsys):
+    # at rest and 10 % deep, an undamped spring oscillates between 10 % and 0: the largest overlap
+    # is the start's (sampled at the start), the typical one (mean over samples) below it
+    sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
+    sim.run(3.0)
+    s = sim.statistics
+    assert s["overlap_largest"] == pytest.approx(0.1, rel=1e-9)
+    assert 0.0 < s["overlap_typical"] <= 0.1 + 1e-12
+    assert len(s["notes"]) == 1 and "up to 10.0% of the smaller radius" in s["notes"][0]
+    assert "demkit note: contacts overlapped by up to 10.0%" in capsys.readouterr().err
+
+
+def test_a_too_long_step_gets_an_energy_note_with_the_drift_of_the_trajectory(capsys):
+    # a damped head-on impact at the longest step the guards accept (a tenth of the contact): the
+    # dissipated energy is booked to first order, the balance ends ~7 % off (3 % at dt / 2, 0.6 % at
+    # dt / 10: first order, measured); the drift is the trajectory's own
+    scene = head_on(1.0, damping=2.0)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(0.02))
+    traj = sim.run(3.0, record_every=0.1)
+    e = traj.energy
+    total = e["kinetic"] + e["rotational"] + e["contact"] + e["magnetic"] + e["dissipated"]
+    scale = np.max(np.abs(e["kinetic"]) + np.abs(e["rotational"]) + np.abs(e["contact"]) + np.abs(e["magnetic"]))
+    drift = np.max(np.abs(total - total[0])) / scale
+    assert drift > notes.ENERGY_DRIFT
+    assert sim.statistics["energy_drift"] == pytest.approx(drift, rel=1e-12)
+    assert any("energy balance" in n and "dt = 0.02" in n for n in sim.statistics["notes"])
+    assert "demkit note: the energy balance" in capsys.readouterr().err
+
+
+def test_a_well_resolved_gentle_impact_is_quiet(capsys, monkeypatch):
+    sim = dk.Simulation(head_on(0.05, damping=2.0), dk.VelocityVerlet(0.002))
+    sim.run(3.0, record_every=0.1)
+    s = sim.statistics
+    assert s["notes"] == [] and capsys.readouterr().err == ""
+    assert s["overlap_largest"] < notes.LARGEST_OVERLAP  # at most 0.05 / sqrt(100 / 0.5) = 0.35 % of R
+    assert s["energy_drift"] < notes.ENERGY_DRIFT
+
+
+def test_demkit_quiet_keeps_stderr_quiet_but_the_notes_are_kept(capsys, monkeypatch):
+    monkeypatch.setenv("DEMKIT_QUIET", "1")
+    sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
+    sim.run(0.5)
+    assert sim.statistics["notes"] and capsys.readouterr().err == ""
+
+
+def test_no_energy_figure_when_a_moving_wall_works_on_the_spheres():
+    p = dk.Particles(position=[[0, 0, 1.0]], velocity=[[0, 0, 0]], radius=1.0, mass=1.0)
+    moving = dk.Scene(p, [dk.KelvinVoigt(100.0), dk.Wall((0, 0, 0), (0, 0, 1), velocity=(1.0, 0, 0))])
+    resting = dk.Scene(p.copy(), [dk.KelvinVoigt(100.0), dk.Wall((0, 0, 0), (0, 0, 1))])
+    assert not notes.RunNotes(moving).balance and notes.RunNotes(resting).balance
+    # a sphere resting on a wall (no overlap) and one 3 % into it
+    assert len(notes.relative_overlaps(resting)) == 0
+    resting.particles.position[0, 2] = 0.97
+    assert notes.relative_overlaps(resting) == pytest.approx([0.03])
