@@ -411,3 +411,91 @@ def test_rings_and_chains_are_told_apart():
     labels, counts = clusters(x, 0.5), contacts(x, 0.5)
     rings, chains = rings_and_chains(labels, counts)
     assert rings == [6] and chains == [4]  # the triangle with a tail is neither, a lone sphere neither
+
+
+RENDER_VISIBILITY = """
+    import json
+    import numpy as np
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+    import demkit as dk
+    from demkit.viz.plan import Plan, Style
+    from demkit.viz.render import BAR_SPACE, TITLE_OVERHANG, FrameDrawer
+
+    def gas_with_a_cluster(L=24.0, n=500, seed=5):
+        # a random walk of 40 touching unit spheres in the middle of a periodic box, 460 lone
+        # spheres all around it (none touching: gaps of at least 0.6)
+        rng = np.random.default_rng(seed)
+        pos = [np.full(3, L / 2)]
+        while len(pos) < 40:
+            step = rng.normal(size=3)
+            x = pos[-1] + 2.0 * step / np.linalg.norm(step)
+            if np.min(np.linalg.norm(np.array(pos[:-1] + [x + 10 * L]) - x, axis=1)) > 2.2 and \\
+                    np.all(np.abs(x - L / 2) < 6):
+                pos.append(x)
+        while len(pos) < n:
+            x = rng.uniform(0, L, 3)
+            d = np.array(pos) - x
+            d -= L * np.round(d / L)
+            if np.min(np.linalg.norm(d, axis=1)) > 2.6:
+                pos.append(x)
+        pos = np.array(pos)[None]
+        return dk.Trajectory(np.zeros(1), pos, np.zeros_like(pos), None, None, {{}}, None, np.ones(n), np.ones(n),
+                             np.full(n, 0.4), np.arange(n), box=dk.Box([L] * 3, periodic=True))
+
+    def seen(drawer, area):
+        # the spheres with at least one pixel in the rendered image within ``area`` (x0, y0, x1, y1),
+        # by actor, from VTK's hardware selection (what the picture shows, occlusion included)
+        selector = vtk.vtkHardwareSelector()
+        selector.SetRenderer(drawer.plotter.renderer)
+        selector.SetArea(*area)
+        selector.SetFieldAssociation(vtk.vtkDataObject.FIELD_ASSOCIATION_CELLS)
+        result = selector.Select()
+        solid, faded = drawer.plan.drawn(0)
+        faded = faded[drawer._clear_of_overlays(drawer.plan.framing.place(drawer.frames.position[0][faded]),
+                                                drawer._radius[faded])]
+        out = {{"spheres": set(), "faded": set()}}
+        for i in range(result.GetNumberOfNodes()):
+            node = result.GetNode(i)
+            prop = node.GetProperties().Get(vtk.vtkSelectionNode.PROP())
+            for name, index in (("spheres", solid), ("faded", faded)):
+                if name in drawer._actors and prop is drawer._actors[name][1]:
+                    cells = vtk_to_numpy(node.GetSelectionList())
+                    out[name] |= set(index[np.unique(cells // drawer.sphere.n_cells)].tolist())
+        return out
+
+    source = gas_with_a_cluster()
+    w, h = 640, 480
+    report = {{}}
+    for isolate in (True, False):
+        plan = Plan(source, Style(frame="cluster", color_by="cluster", window_size=(w, h)), np.array([0]))
+        report["isolated"] = plan.isolate
+        plan.isolate = isolate
+        drawer = FrameDrawer(plan)
+        drawer.draw(0)
+        members = set(np.flatnonzero(plan.framing.members).tolist())
+        visible = seen(drawer, (0, 0, w - 1, h - 1))["spheres"] & members
+        bar_left = int((1 - BAR_SPACE - TITLE_OVERHANG) * w)
+        in_bar = seen(drawer, (bar_left, 0, w - 1, h - 1))
+        in_label = seen(drawer, (0, int(0.93 * h), int(0.15 * w), h - 1))
+        report[str(isolate)] = dict(members=len(members), visible=len(visible) / len(members),
+                                    bar=sum(map(len, in_bar.values())), label=sum(map(len, in_label.values())))
+        drawer.close()
+    print("VISIBLE" + json.dumps(report))
+"""
+
+
+def test_a_cluster_framed_in_3d_is_seen_whole_and_nothing_covers_the_bar_or_the_label():
+    # the issue's 3-D gas: framing the largest cluster put the camera inside the gas, where lone
+    # spheres in front hid it and crossed the colour bar. Counted in the rendered image by VTK's
+    # hardware selection (a sphere counts as seen with one pixel showing).
+    done = run_child(RENDER_VISIBILITY.format())
+    assert done.returncode == 0, done.stdout + done.stderr
+    report = json.loads(next(l for l in done.stdout.splitlines() if l.startswith("VISIBLE"))[7:])
+    isolated, drawn_as_before = report["True"], report["False"]
+    assert report["isolated"] and isolated["members"] == 40
+    assert isolated["visible"] >= 0.9  # 39 of 40 measured: one member behind others of the cluster
+    assert isolated["bar"] == 0 and isolated["label"] == 0
+    # drawn as before (every sphere solid) the same picture hid much of it (0.6 measured) and the
+    # bar and label had spheres behind them: the measure tells the two apart
+    assert drawn_as_before["visible"] < 0.8 and drawn_as_before["bar"] > 0

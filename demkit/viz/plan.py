@@ -411,6 +411,30 @@ class Plan:
         if self.view == "auto":  # a plane view when the framed centres lie in a plane
             flat = int(np.argmin(self.framing.extent))
             self.view = ("yz", "xz", "xy")[flat] if self.framing.extent[flat] <= 0.5 * rmax else "iso"
+        # a cluster framed in 3-D is drawn whole and unobstructed: the other spheres only where they
+        # lie within its framed region, faded (see drawn); in a plane nothing can hide it
+        self.isolate = self.framing.kind == "cluster" and self._in_depth(shown[-1], rmax)
+
+    def _in_depth(self, k, rmax):
+        """Do the spheres drawn in frame k spread along the line of sight (more than a diameter)?"""
+        pos = self.frames.position[k][self.mask(k)]
+        if self.view == "iso":
+            return bool(np.ptp(pos, axis=0).min() > 2 * rmax) if len(pos) else False
+        normal = {"xy": 2, "xz": 1, "yz": 0}[self.view]
+        return bool(np.ptp(pos[:, normal]) > 2 * rmax) if len(pos) else False
+
+    def drawn(self, k):
+        """(solid, faded): indices of the spheres drawn in frame k as usual and of those drawn
+        faded (see-through context). Only a cluster framed in 3-D has faded ones: its own spheres
+        are solid, the others within the framed region faded, the others not drawn."""
+        mask = self.mask(k)
+        if not self.isolate:
+            return np.flatnonzero(mask), np.zeros(0, dtype=np.int64)
+        members = mask & self.framing.members
+        pos = self.framing.place(self.frames.position[k])
+        b = self.framing.bounds
+        near = mask & ~members & np.all((pos >= b[0::2]) & (pos <= b[1::2]), axis=1)
+        return np.flatnonzero(members), np.flatnonzero(near)
 
     def in_view(self, k):
         """Mask of the spheres drawn in frame k that the framing aims at (the default colour range

@@ -12,6 +12,10 @@ from pathlib import Path
 import numpy as np
 
 BAR_SPACE = 0.16  # fraction of the window width kept free for the colour bar
+#: how far the colour bar's title reaches left of BAR_SPACE (fraction of the window width)
+TITLE_OVERHANG = 0.07
+#: opacity of the faded spheres around a cluster framed in 3-D (Plan.drawn)
+FADED_OPACITY = 0.12
 
 
 def load(source):
@@ -80,8 +84,9 @@ class FrameDrawer:
         self.plotter.set_background(style.background)
         self.ink = "black" if pv.Color(style.background).int_rgb[1] > 127 else "white"
         self._actors = {}
+        self._radius = np.broadcast_to(np.asarray(self.frames.radius, dtype=np.float64), (n,))
         outline = plan.framing.outline
-        if outline is not None:
+        if outline is not None and not plan.isolate:  # around a cluster in 3-D, its lines would cross it
             self.plotter.add_mesh(pv.Box(bounds=outline).outline(), color=self.ink, opacity=0.45,
                                   line_width=1, reset_camera=False)
         self._place_camera()
@@ -131,11 +136,10 @@ class FrameDrawer:
     def draw(self, k):
         """Draw frame k and return the image, (height, width, 3) uint8."""
         pv, f, plan = self.pv, self.frames, self.plan
-        index = np.flatnonzero(plan.mask(k))
+        index, faded = plan.drawn(k)
+        faded = faded[self._clear_of_overlays(plan.framing.place(f.position[k][faded]), self._radius[faded])]
         colouring = plan.colouring
-        centres = pv.PolyData(np.ascontiguousarray(plan.framing.place(f.position[k][index]), dtype=np.float64))
-        centres.point_data["radius"] = np.broadcast_to(np.asarray(f.radius, dtype=np.float64), plan.mask(k).shape)[index]
-        centres.point_data["value"] = colouring.values(k)[index]
+        centres = self._centres(k, index)
         spheres = centres.glyph(geom=self.sphere, scale="radius", orient=False, factor=1.0) if len(index) else None
         height = self.style.window_size[1]
         size = max(8, round(14 * height / 720))
@@ -145,6 +149,11 @@ class FrameDrawer:
         self._show("spheres", spheres, scalars="value", cmap=colouring.cmap, clim=colouring.clim,
                    n_colors=colouring.n_colors, annotations=colouring.annotations,
                    show_scalar_bar=colouring.bar, scalar_bar_args=bar, nan_color="grey",
+                   smooth_shading=True)
+        context = self._centres(k, faded).glyph(geom=self.sphere, scale="radius", orient=False, factor=1.0) \
+            if len(faded) else None
+        self._show("faded", context, scalars="value", cmap=colouring.cmap, clim=colouring.clim,
+                   n_colors=colouring.n_colors, show_scalar_bar=False, nan_color="grey", opacity=FADED_OPACITY,
                    smooth_shading=True)
         if plan.dipoles:
             centres.point_data["dipole"] = np.asarray(f.dipole[k][index], dtype=np.float64)
@@ -161,6 +170,45 @@ class FrameDrawer:
         self.plotter.renderer.ResetCameraClippingRange()
         self.plotter.render()
         return self.plotter.screenshot(return_img=True)
+
+    def _clear_of_overlays(self, points, radius):
+        """Mask of the spheres (centres ``points``, radii ``radius``) whose picture lies in front
+        of the camera and clear of the colour bar and the time label."""
+        if len(points) == 0:
+            return np.zeros(0, dtype=bool)
+        camera = self.plotter.camera
+        width, height = self.style.window_size
+        matrix = camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+        m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+        forward = np.asarray(camera.GetDirectionOfProjection())
+        up = np.asarray(camera.GetViewUp(), dtype=float)
+        right = np.cross(forward, up)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+
+        def ndc(p):
+            h = np.c_[p, np.ones(len(p))] @ m.T
+            return h[:, 0] / h[:, 3], h[:, 1] / h[:, 3], h[:, 3]
+
+        x, y, w = ndc(points)
+        rx = np.abs(ndc(points + radius[:, None] * right)[0] - x)
+        ry = np.abs(ndc(points + radius[:, None] * up)[1] - y)
+        keep = w > 0
+        if self.plan.colouring.bar:
+            keep &= x + rx < 2 * (1 - BAR_SPACE - TITLE_OVERHANG) - 1
+        if self.style.label:
+            size = max(8, round(14 * height / 720))  # the label's font size (draw)
+            keep &= ~((x - rx < -1 + 2 * 12 * size / width) & (y + ry > 1 - 2 * 3.2 * size / height))
+        return keep
+
+    def _centres(self, k, index):
+        """Point cloud of the spheres ``index`` of frame k, with their radius and colour value."""
+        f = self.frames
+        centres = self.pv.PolyData(np.ascontiguousarray(self.plan.framing.place(f.position[k][index]),
+                                                        dtype=np.float64))
+        centres.point_data["radius"] = self._radius[index]
+        centres.point_data["value"] = self.plan.colouring.values(k)[index]
+        return centres
 
     def _show(self, name, mesh, **options):
         """Show ``mesh`` as actor ``name``: added on first use, then its data replaced in place
