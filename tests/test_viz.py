@@ -499,3 +499,23 @@ def test_a_cluster_framed_in_3d_is_seen_whole_and_nothing_covers_the_bar_or_the_
     # drawn as before (every sphere solid) the same picture hid much of it (0.6 measured) and the
     # bar and label had spheres behind them: the measure tells the two apart
     assert drawn_as_before["visible"] < 0.8 and drawn_as_before["bar"] > 0
+
+
+def test_default_trails_leave_a_gas_readable():
+    from demkit.viz.plan import TRAIL_RADII, default_trail
+
+    # 50 spheres of radius 0.5 at speed 2 for 100 time units: trails as long as 3 radii take (0.75),
+    # not a quarter of the run (25, 50 diameters); two spheres keep a quarter of the run
+    t = np.arange(101.0)
+    position = np.zeros((101, 50, 3))
+    position[:, :, 0] = 2.0 * t[:, None]
+    velocity = np.zeros_like(position)
+    velocity[..., 0] = 2.0
+    gas = trajectory(position, velocity, radius=0.5)
+    assert default_trail(gas, np.arange(101)) == pytest.approx(TRAIL_RADII * 0.5 / 2.0)
+    no_velocity = trajectory(position, radius=0.5)
+    no_velocity.velocity = None
+    assert default_trail(no_velocity, np.arange(101)) == pytest.approx(0.75)  # from the steps
+    pair = trajectory(position[:, :2], velocity[:, :2], radius=0.5)
+    assert default_trail(pair, np.arange(101)) == pytest.approx(25.0)
+    assert default_trail(gas, np.array([40])) == pytest.approx(0.75)  # a snapshot: frames 0..40

@@ -387,11 +387,17 @@ def test_paraview_script_says_what_it_does_as_it_goes(tmp_path):
     said = [line.split("] ", 1)[1] for line in steps]
     expected = ["loading ParaView", f"opening {pvd}", "reading the series' frame list",
                 "3 frames (t = 0 to 10), 12 spheres; fields: id, radius, velocity, dipole", "sphere glyphs",
-                "colouring by speed: its range over the whole run reads all 3 frames", "dipole arrows",
+                "colouring by speed: the range follows the frame shown", "dipole arrows",
                 "growing trails", "box outline 1 x 2 x 3", "camera: framing the box", "writing the state file",
                 "rendering the last frame (t = 10)", "done"]
     assert len(said) == len(expected) and all(s.startswith(e) for s, e in zip(said, expected)), said
     assert (tmp_path / "particles.pvsm").exists() and (tmp_path / "shot.png").exists()
+    # the colour range over the whole run, on request: it reads every frame first, and says so
+    done = subprocess.run([sys.executable, str(dk.io.paraview_script()), str(pvd), "--colour-range", "run"],
+                          capture_output=True, text=True, timeout=60,
+                          env=dict(os.environ, PYTHONPATH=str(tmp_path / "fake")))
+    assert done.returncode == 0, done.stderr
+    assert "colouring by speed: its range over the whole run reads all 3 frames" in done.stdout
 
 
 @pytest.mark.skipif(shutil.which("pvpython") is None or shutil.which("xvfb-run") is None,

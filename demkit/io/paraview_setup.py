@@ -13,11 +13,14 @@ Python Shell > Run Script: it decorates the selected series. Find this file with
 
 Pipeline: PVD reader -> Glyph (Sphere, scaled by ``radius``: ParaView's sphere glyph has radius
 0.5, so scale factor 2), coloured by ``id`` (up to 10 particles) or by speed (|velocity|, with a
-colour bar); Glyph (Arrow, oriented by ``dipole``, centred on the sphere, 2.7 radii long) when the
-series has dipoles; "Temporal Particles To Pathlines" keyed by ``id`` for trails that grow as the
-animation plays (broken where a sphere crosses a periodic side); the ``<name>_trails.vtp``
-poly-lines (whole paths, coloured by time; hidden at first) when present; the box outline when
-the .pvd holds a ``Box`` element. The saved state has a layout holding the render view and a
+colour bar whose range follows the frame shown; ``--colour-range run``: the range over the whole
+run, which reads every frame); Glyph (Arrow, oriented by ``dipole``, centred on the sphere,
+3.4 radii long and thick enough to see among hundreds of spheres) when the series has dipoles;
+"Temporal Particles To Pathlines" keyed by ``id`` for trails that grow as the animation plays
+(broken where a sphere crosses a periodic side; above 10 spheres only the last
+:data:`TRAIL_FRAMES` frames, so that the spheres stay readable); the ``<name>_trails.vtp``
+poly-lines (whole paths, coloured by time; hidden at first) when present; the box outline when the
+.pvd holds a ``Box`` element. The saved state has a layout holding the render view and a
 camera that frames the box, or else every position of the run.
 
 It says what it does as it goes, a line a step with the seconds since it started (loading ParaView
@@ -43,6 +46,7 @@ if __name__ == "__main__":
 import paraview.simple as pvs  # noqa: E402
 
 ID_COLOURS_UP_TO = 10  # particles; above this the spheres are coloured by speed
+TRAIL_FRAMES = 10  # frames of growing trail kept above ID_COLOURS_UP_TO particles
 VIEW_SIZE = [1024, 768]
 
 
@@ -59,8 +63,9 @@ def read_box(pvd):
     return size, periodic
 
 
-def decorate(reader, view, trails_file=None, box=None):
-    """Add the demkit glyphs, arrows, trails and box to ``view``; returns the sources made."""
+def decorate(reader, view, trails_file=None, box=None, colour_range="frame"):
+    """Add the demkit glyphs, arrows, trails and box to ``view``; returns the sources made.
+    ``colour_range``: 'frame' (the speed colours span the frame shown) or 'run' (the whole run)."""
     say("reading the series' frame list and its first frame...")
     reader.UpdatePipelineInformation()
     times = list(reader.TimestepValues) or [0.0]
@@ -77,9 +82,16 @@ def decorate(reader, view, trails_file=None, box=None):
     spheres.GlyphType.PhiResolution = 24
     shown = pvs.Show(spheres, view)
     if count > ID_COLOURS_UP_TO and "velocity" in arrays:
-        say(f"colouring by speed: its range over the whole run reads all {len(times)} frames...")
         pvs.ColorBy(shown, ("POINTS", "velocity", "Magnitude"))
-        shown.RescaleTransferFunctionToDataRangeOverTime()
+        lut = pvs.GetColorTransferFunction("velocity")
+        if colour_range == "run":
+            say(f"colouring by speed: its range over the whole run reads all {len(times)} frames...")
+            shown.RescaleTransferFunctionToDataRangeOverTime()
+            lut.AutomaticRescaleRangeMode = "Never"
+        else:
+            say("colouring by speed: the range follows the frame shown...")
+            lut.AutomaticRescaleRangeMode = "Clamp and update every timestep"
+            shown.RescaleTransferFunctionToDataRange(False, True)
         shown.SetScalarBarVisibility(view, True)
     else:
         pvs.ColorBy(shown, ("POINTS", "id"))
@@ -89,7 +101,10 @@ def decorate(reader, view, trails_file=None, box=None):
         arrows = pvs.Glyph(registrationName="dipoles", Input=reader, GlyphType="Arrow")
         arrows.OrientationArray = ["POINTS", "dipole"]
         arrows.ScaleArray = ["POINTS", "radius"]
-        arrows.ScaleFactor = 2.7
+        arrows.ScaleFactor = 3.4  # 3.4 radii: 0.7 radius out of the sphere at each end
+        arrows.GlyphType.TipLength = 0.25
+        arrows.GlyphType.TipRadius = 0.15  # of the length: thick enough to read among hundreds
+        arrows.GlyphType.ShaftRadius = 0.07
         arrows.GlyphMode = "All Points"
         arrows.GlyphTransform.Translate = [-0.5, 0.0, 0.0]  # centre the unit arrow on the sphere
         arrows_shown = pvs.Show(arrows, view)
@@ -100,7 +115,7 @@ def decorate(reader, view, trails_file=None, box=None):
     paths = pvs.TemporalParticlesToPathlines(registrationName="growing trails", Input=reader)
     paths.IdChannelArray = "id"
     paths.MaskPoints = 1
-    paths.MaxTrackLength = 100000
+    paths.MaxTrackLength = TRAIL_FRAMES if count > ID_COLOURS_UP_TO else 100000
     # a step longer than half a periodic side is a jump across the box: the track breaks there
     paths.MaxStepDistance = [s / 2 if p else 1e30 for s, p in zip(*box)] if box else [1e30] * 3
     paths_shown = pvs.Show(paths, view)
@@ -176,6 +191,8 @@ def main(argv=None):
     parser.add_argument("--state", help="ParaView state file to write (default: next to the .pvd)")
     parser.add_argument("--screenshot", help="also save a picture of the last frame (renders: needs "
                                              "a display or xvfb-run)")
+    parser.add_argument("--colour-range", choices=("frame", "run"), default="frame",
+                        help="speed colours over the frame shown (default) or the whole run")
     args = parser.parse_args(argv)
     pvd = os.path.abspath(args.pvd)
     if not os.path.exists(pvd):
@@ -189,7 +206,7 @@ def main(argv=None):
     view.ViewSize = VIEW_SIZE
     pvs.GetAnimationScene().PlayMode = "Snap To TimeSteps"  # play the frames as written
     box = read_box(pvd)
-    made = decorate(reader, view, pvd[:-4] + "_trails.vtp", box)
+    made = decorate(reader, view, pvd[:-4] + "_trails.vtp", box, args.colour_range)
     state = os.path.abspath(args.state or pvd[:-4] + ".pvsm")
     say(f"writing the state file {state}...")
     pvs.SaveState(state)

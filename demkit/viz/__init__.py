@@ -57,8 +57,9 @@ DRAWING = """
     subset : the spheres to draw: indices (into the particle axis of the source), a boolean mask
         (N,), a callable(frames, k) returning either for frame k, or 'cluster' (the largest
         cluster of each frame). Framing follows the subset.
-    trail : length of the fading trails in time units (0: none; None: a quarter of the time shown
-        for at most 1000 particles, none above).
+    trail : length of the fading trails in time units (0: none; None: a quarter of the time shown,
+        above 10 spheres at most the time the median sphere takes to move 3 radii, none above
+        1000 spheres).
     view : 'auto' (a plane view when the framed spheres lie in one, else isometric), 'xy', 'xz',
         'yz', 'iso'.
     arrows : draw dipoles as dark arrows through the centres. label : show the time.

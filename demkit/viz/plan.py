@@ -378,13 +378,37 @@ class Style:
         self.sphere_resolution = sphere_resolution
 
 
+#: above this many spheres, default trails are as long as the typical sphere takes to move
+#: TRAIL_RADII radii (a quarter of the time shown packs a box of moving spheres with lines)
+TRAIL_FEW, TRAIL_RADII = 10, 3.0
+
+
 def default_trail(frames, shown):
-    """A quarter of the time from the first frame to the last shown (none above 1000 particles)."""
-    if frames.position.shape[1] > 1000:
+    """A quarter of the time from the first frame to the last shown; above TRAIL_FEW spheres at
+    most the time the median sphere takes to move TRAIL_RADII radii at its mean speed over the
+    frames shown (speeds from the velocities, else from the steps between frames); none above
+    1000 spheres."""
+    n = frames.position.shape[1]
+    if n > 1000:
         return 0.0
-    if len(shown) == 1:
-        return 0.25 * float(frames.time[shown[0]] - frames.time[0])
-    return 0.25 * float(frames.time[shown[-1]] - frames.time[shown[0]])
+    span = float(frames.time[shown[-1]] - frames.time[shown[0] if len(shown) > 1 else 0])
+    quarter = 0.25 * span
+    if n <= TRAIL_FEW or quarter <= 0:
+        return quarter
+    first = shown[0] if len(shown) > 1 else 0
+    velocity = getattr(frames, "velocity", None)
+    if velocity is not None:
+        speed = np.linalg.norm(velocity[first:shown[-1] + 1], axis=2).mean(axis=0)
+    else:
+        d = np.diff(frames.position[first:shown[-1] + 1], axis=0)
+        box = getattr(frames, "box", None)
+        if box is not None:
+            d = box.minimum_image(d)
+        speed = (np.linalg.norm(d, axis=2) / np.diff(frames.time[first:shown[-1] + 1])[:, None]).mean(axis=0)
+    typical = float(np.median(speed)) if len(speed) else 0.0
+    if not np.isfinite(typical) or typical <= 0:
+        return quarter
+    return min(quarter, TRAIL_RADII * float(np.median(frames.radius)) / typical)
 
 
 class Plan:
