@@ -1,15 +1,14 @@
 """Notes at the end of a run: what a careful user would want to know, said plainly; never a stop.
 
-While a run steps, :class:`RunNotes` samples the scene between compiled chunks, at most once per
-``1 / BUDGET`` times the cost of a sample, so that sampling costs about 1 % of the wall time
-(counted over the runs of a Simulation: many short runs share the budget):
+At the end of a run, :class:`RunNotes` reads the frames the run recorded (all of them, or an evenly
+spaced subset of at most :data:`SPHERE_FRAMES` sphere-frames, the last included), so the figures
+depend only on the run, never on the machine's speed:
 
-* **contact overlaps**: delta / R_min of every touching pair of a contact law (R_min the smaller
-  radius) and delta / R of every sphere on a wall. The *largest* is the maximum over all samples,
-  the *typical* the mean over the contacts of a sample, averaged over the samples;
-
-and, from the frames the run recorded (no extra work):
-
+* **contact overlaps**: delta / R_min of every touching pair (R_min the smaller radius) when the
+  scene has a contact law, and delta / R of every sphere on a wall. The *largest* is the maximum over
+  the frames, the *typical* the mean over the contacts of a frame, averaged over the frames with
+  contacts. What happens between two frames is not seen: the largest overlap is a lower bound,
+  as close as the recording is fine;
 * **the energy balance**: E = kinetic + rotational + potential + dissipated, which the equations of
   motion keep constant. Its drift is max |E - E_start| over the frames, as a fraction of the
   energy scale (kinetic + rotational + the sum of |potential energies|, largest frame), the same
@@ -23,87 +22,90 @@ A note is due when the largest overlap exceeds :data:`LARGEST_OVERLAP`, the typi
 """
 from __future__ import annotations
 
-import math
+import functools
 import sys
-import time
 
 import numpy as np
 
-from . import neighbours
 from .interactions.wall import Wall
 from .progress import quiet
+from .viz.analysis import close_pairs
 
-#: a contact overlapping by more than this fraction of the smaller radius, at any sample, gets a note
+#: a contact overlapping by more than this fraction of the smaller radius, in any frame, gets a note
 LARGEST_OVERLAP = 0.05
 #: contacts overlapping on average by more than this fraction of the smaller radius get a note
 TYPICAL_OVERLAP = 0.02
 #: an energy balance drifting by more than this fraction of the energy scale gets a note
 ENERGY_DRIFT = 0.01
-#: sampling may take this fraction of the run's wall time
-BUDGET = 0.01
+#: up to this many spheres, overlaps are found among all pairs (above, with a k-d tree)
+FEW = 64
+#: the overlaps are read from at most this many sphere-frames of a run (about a second of work)
+SPHERE_FRAMES = 2_000_000
 
 
-def relative_overlaps(scene):
-    """delta / R_min of every touching pair of the scene's contact laws and delta / R of every
-    sphere on a wall, now (one array; empty without contacts)."""
-    p = scene.particles
-    parts = [np.zeros(0)]
-    tag = scene.arrays["tag"]
-    for g, group in enumerate(scene.plan.groups):
-        if not any(inter.contact_reach for _, inter in group.members):
-            continue
-        if group.kind == "list":
-            pairs = neighbours.pairs_of(scene._list(g), tag)
-        else:
-            i, j = np.triu_indices(len(p), k=1)
-            pairs = np.stack([i, j], axis=1)
-        if len(pairs) == 0:
-            continue
-        r = np.linalg.norm(scene.separations(pairs), axis=1)
-        ri, rj = p.radius[pairs[:, 0]], p.radius[pairs[:, 1]]
-        overlap = ri + rj - r
-        touching = overlap > 0.0
-        parts.append(overlap[touching] / np.minimum(ri, rj)[touching])
-    for effect in scene.effects:
-        if isinstance(effect, Wall):
-            overlap = p.radius - effect.heights(p.position)
-            touching = overlap > 0.0
-            parts.append(overlap[touching] / p.radius[touching])
-    return np.concatenate(parts)
+def frame_overlaps(position, radius, box, pairs, walls):
+    """delta / R_min of the touching pairs (when ``pairs``: the scene has a contact law) and
+    delta / R of the spheres on the ``walls`` in one frame (one array; empty without contacts)."""
+    parts = [rel[rel > 0.0] for _, rel in _relative(np.asarray(position)[None], radius, box, pairs, walls)]
+    return np.concatenate([np.zeros(0)] + parts)
+
+
+@functools.lru_cache(maxsize=8)
+def _all_pairs(n):
+    """Index arrays i < j of every pair of n spheres (np.triu_indices costs ~70 us a call)."""
+    return np.triu_indices(n, k=1)
+
+
+def _relative(position, radius, box, pairs, walls):
+    """Relative overlaps (positive where touching) of frames (F, N, 3), as (frames, values) items:
+    (slice of every frame, (F, M) array) for the pairs up to FEW spheres and for the walls, and
+    (frame k, (M,) array) for the pairs of each frame above FEW spheres (a k-d tree a frame)."""
+    count, n = position.shape[:2]
+    if pairs and n <= FEW:  # every pair of every frame at once
+        i, j = _all_pairs(n)
+        d = position[:, j] - position[:, i]
+        if box is not None:
+            d = box.minimum_image(d)
+        yield slice(None), (radius[i] + radius[j] - np.linalg.norm(d, axis=2)) / np.minimum(radius[i], radius[j])
+    for wall in walls:
+        yield slice(None), (radius - wall.heights(position)) / radius
+    if pairs and n > FEW:
+        for k in range(count):
+            touching = close_pairs(position[k], radius, box)
+            d = position[k, touching[:, 1]] - position[k, touching[:, 0]]
+            if box is not None:
+                d = box.minimum_image(d)
+            ri, rj = radius[touching[:, 0]], radius[touching[:, 1]]
+            yield k, (ri + rj - np.linalg.norm(d, axis=1)) / np.minimum(ri, rj)
 
 
 class RunNotes:
-    """Samples one run (see the module docstring)."""
+    """The figures and notes of one run, from its recorded frames (see the module docstring)."""
 
-    def __init__(self, scene, next_due=-math.inf):
+    def __init__(self, scene):
         self.scene = scene
-        self.contacts = any(inter.contact_reach for inter in scene.interactions) or any(
-            isinstance(e, Wall) for e in scene.effects)
-        self.balance = not any(isinstance(e, Wall) and np.any(e.velocity != 0.0) for e in scene.effects)
-        self.largest, self.typical, self.samples_with_contacts = 0.0, 0.0, 0
-        self.drift, self.scale = 0.0, 0.0
-        self.cost, self.next_due = 0.0, next_due
+        self.pairs = any(inter.contact_reach for inter in scene.interactions)
+        self.walls = [e for e in scene.effects if isinstance(e, Wall)]
+        self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls)
+        self.largest = self.typical = self.drift = self.scale = 0.0
 
-    def sample(self):
-        """Take a sample now (see :meth:`maybe_sample`)."""
-        began = time.perf_counter()
-        if self.contacts:
-            rel = relative_overlaps(self.scene)
-            if len(rel):
-                self.largest = max(self.largest, float(rel.max()))
-                self.typical += float(rel.mean())
-                self.samples_with_contacts += 1
-        now = time.perf_counter()
-        self.cost = now - began
-        self.next_due = now + self.cost / BUDGET
-
-    def maybe_sample(self):
-        """Sample when the budget allows (at the start, between chunks and at the end of a run)."""
-        if time.perf_counter() >= self.next_due:
-            self.sample()
-
-    def frames(self, energy):
-        """The run's recorded energies: (F, K) rows [kinetic, rotational, potentials..., dissipated]."""
+    def frames(self, position, energy):
+        """Read the run's frames: ``position`` (F, N, 3) as recorded, ``energy`` (F, K) rows
+        [kinetic, rotational, potentials..., dissipated]."""
+        count, n = position.shape[:2]
+        if (self.pairs or self.walls) and count and n:
+            radius = np.asarray(self.scene.particles.radius, dtype=np.float64)
+            taken = max(2, SPHERE_FRAMES // n)
+            if count > taken:
+                position = position[np.unique(np.linspace(0, count - 1, taken).round().astype(np.int64))]
+            total, touching = np.zeros(len(position)), np.zeros(len(position))  # per frame
+            for frames, rel in _relative(position, radius, self.scene.box, self.pairs, self.walls):
+                positive = np.maximum(rel, 0.0)
+                self.largest = max(self.largest, float(positive.max(initial=0.0)))
+                total[frames] += positive.sum(axis=-1)
+                touching[frames] += (rel > 0.0).sum(axis=-1)
+            seen = touching > 0
+            self.typical = float(np.mean(total[seen] / touching[seen])) if seen.any() else 0.0
         if self.balance and len(energy):
             total = energy.sum(axis=1)
             self.drift = float(np.max(np.abs(total - total[0])))
@@ -111,16 +113,17 @@ class RunNotes:
 
     def figures(self):
         """The run's figures: largest and typical relative overlap, energy drift / scale (None: not measured)."""
-        typical = self.typical / self.samples_with_contacts if self.samples_with_contacts else 0.0
+        contacts = self.pairs or bool(self.walls)
         drift = self.drift / self.scale if self.balance and self.scale > 0.0 else None
-        return {"overlap_largest": self.largest if self.contacts else None,
-                "overlap_typical": typical if self.contacts else None, "energy_drift": drift}
+        return {"overlap_largest": self.largest if contacts else None,
+                "overlap_typical": self.typical if contacts else None, "energy_drift": drift}
 
     def notes(self, dt):
         """The notes due for this run (strings; empty when nothing happened)."""
         f = self.figures()
         out = []
-        if self.contacts and (f["overlap_largest"] > LARGEST_OVERLAP or f["overlap_typical"] > TYPICAL_OVERLAP):
+        if f["overlap_largest"] is not None and (f["overlap_largest"] > LARGEST_OVERLAP
+                                                 or f["overlap_typical"] > TYPICAL_OVERLAP):
             out.append(f"contacts overlapped by up to {f['overlap_largest']:.1%} of the smaller radius (typically "
                        f"{f['overlap_typical']:.1%}): the contact law is soft for these forces and speeds, and "
                        f"results that depend on where spheres touch are off by as much; a stiffer law (larger "

@@ -174,7 +174,6 @@ class Simulation:
         if not isinstance(notes, bool):
             raise TypeError(f"notes must be True or False, got {notes!r}")
         self.notes = notes
-        self._sample_due = -math.inf  # when demkit.notes may sample the scene next (time.perf_counter)
         self.energy_origin = None  # (total + dissipated, scale) at the start, for max_energy_growth
         self._opened = False
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
@@ -260,8 +259,7 @@ class Simulation:
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
-        notes = RunNotes(scene, self._sample_due)
-        notes.maybe_sample()
+        notes = RunNotes(scene)
         with CatchInterrupt() as interrupt, _Stepping(scene), bar:
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
@@ -286,7 +284,6 @@ class Simulation:
                     chunk_steps = self._next_chunk(chunk, seconds, chunk_steps)
                 notice.end()
                 bar.update(done)
-                notes.maybe_sample()
                 for w, ws in zip(self.writers, writer_steps):
                     if self.step % ws == 0:
                         w.write(self)
@@ -304,9 +301,7 @@ class Simulation:
         if extra_final:
             steps = np.append(steps, nsteps)
         self._keep(record, start_step, steps)
-        notes.maybe_sample()
-        self._sample_due = notes.next_due
-        notes.frames(record[4][:len(steps)])
+        notes.frames(record[0][:len(steps)], record[4][:len(steps)])
         self.statistics.update(notes.figures(), notes=notes.notes(dt))
         if self.notes:
             say_notes(self.statistics["notes"])
