@@ -1,7 +1,9 @@
 """Notes at the end of a run: what a careful user would want to know, said plainly; never a stop.
 
 At the end of a run, :class:`RunNotes` reads the frames the run recorded (all of them, or an evenly
-spaced subset of at most :data:`SPHERE_FRAMES` sphere-frames, the last included), so the figures
+spaced subset: at most one frame per :data:`STEPS_PER_FRAME` steps of the run and
+:data:`SPHERE_FRAMES` sphere-frames in all, so that reading them costs a few percent of the run at
+most; a run shorter than STEPS_PER_FRAME steps reads none and reports no overlaps). The figures
 depend only on the run, never on the machine's speed:
 
 * **contact overlaps**: delta / R_min of every touching pair (R_min the smaller radius) when the
@@ -41,6 +43,9 @@ ENERGY_DRIFT = 0.01
 FEW = 64
 #: the overlaps are read from at most this many sphere-frames of a run (about a second of work)
 SPHERE_FRAMES = 2_000_000
+#: and from at most one frame per this many steps of the run (a frame's overlaps cost about what
+#: a few steps cost)
+STEPS_PER_FRAME = 200
 
 
 def frame_overlaps(position, radius, box, pairs, walls):
@@ -88,16 +93,18 @@ class RunNotes:
         self.walls = [e for e in scene.effects if isinstance(e, Wall)]
         self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls)
         self.largest = self.typical = self.drift = self.scale = 0.0
+        self.read = 0  # frames whose overlaps were read
 
-    def frames(self, position, energy):
-        """Read the run's frames: ``position`` (F, N, 3) as recorded, ``energy`` (F, K) rows
-        [kinetic, rotational, potentials..., dissipated]."""
+    def frames(self, position, energy, steps):
+        """Read the frames of a run of ``steps`` steps: ``position`` (F, N, 3) as recorded,
+        ``energy`` (F, K) rows [kinetic, rotational, potentials..., dissipated]."""
         count, n = position.shape[:2]
-        if (self.pairs or self.walls) and count and n:
+        taken = min(SPHERE_FRAMES // max(n, 1), steps // STEPS_PER_FRAME)
+        if (self.pairs or self.walls) and count and n and taken > 0:
             radius = np.asarray(self.scene.particles.radius, dtype=np.float64)
-            taken = max(2, SPHERE_FRAMES // n)
             if count > taken:
-                position = position[np.unique(np.linspace(0, count - 1, taken).round().astype(np.int64))]
+                position = position[np.unique(np.linspace(0, count - 1, max(taken, 2)).round().astype(np.int64))]
+            self.read = len(position)
             total, touching = np.zeros(len(position)), np.zeros(len(position))  # per frame
             for frames, rel in _relative(position, radius, self.scene.box, self.pairs, self.walls):
                 positive = np.maximum(rel, 0.0)
@@ -113,7 +120,7 @@ class RunNotes:
 
     def figures(self):
         """The run's figures: largest and typical relative overlap, energy drift / scale (None: not measured)."""
-        contacts = self.pairs or bool(self.walls)
+        contacts = (self.pairs or bool(self.walls)) and self.read > 0
         drift = self.drift / self.scale if self.balance and self.scale > 0.0 else None
         return {"overlap_largest": self.largest if contacts else None,
                 "overlap_typical": self.typical if contacts else None, "energy_drift": drift}

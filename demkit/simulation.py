@@ -301,7 +301,7 @@ class Simulation:
         if extra_final:
             steps = np.append(steps, nsteps)
         self._keep(record, start_step, steps)
-        notes.frames(record[0][:len(steps)], record[4][:len(steps)])
+        notes.frames(record[0][:len(steps)], record[4][:len(steps)], nsteps)
         self.statistics.update(notes.figures(), notes=notes.notes(dt))
         if self.notes:
             say_notes(self.statistics["notes"])

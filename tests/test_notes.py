@@ -44,12 +44,13 @@ def test_a_too_long_step_gets_an_energy_note_with_the_drift_of_the_trajectory(ca
 
 
 def test_a_well_resolved_gentle_impact_is_quiet(capsys, monkeypatch):
-    sim = dk.Simulation(head_on(0.05, damping=2.0), dk.VelocityVerlet(0.002))
-    sim.run(3.0, record_every=0.1)
+    # a slow, long contact (pi / omega = 2.2 time units, frames read every 0.4)
+    sim = dk.Simulation(head_on(0.005, stiffness=1.0, damping=0.2), dk.VelocityVerlet(0.002))
+    sim.run(6.0, record_every=0.1)
     s = sim.statistics
     assert s["notes"] == [] and capsys.readouterr().err == ""
-    # they touched: at most v_rel / omega = 0.1 / sqrt(100 / 0.5) = 0.71 % of R (less with the dashpot)
-    assert 0.0 < s["overlap_largest"] < 0.0071
+    # they touched: at most v_rel / omega = 0.01 / sqrt(1 / 0.5) = 0.71 % of R (less with the dashpot)
+    assert 0.001 < s["overlap_largest"] < 0.0071
     assert s["energy_drift"] < notes.ENERGY_DRIFT
 
 
@@ -58,6 +59,16 @@ def test_demkit_quiet_keeps_stderr_quiet_but_the_notes_are_kept(capsys, monkeypa
     sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
     sim.run(0.5)
     assert sim.statistics["notes"] and capsys.readouterr().err == ""
+
+
+def test_a_run_of_a_few_steps_reads_no_overlaps_and_long_runs_read_a_frame_per_200_steps():
+    sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
+    sim.run(0.002 * (notes.STEPS_PER_FRAME - 1))
+    assert sim.statistics["overlap_largest"] is None and sim.statistics["notes"] == []
+    assert sim.statistics["energy_drift"] is not None  # the balance still (from the energies)
+    run = notes.RunNotes(head_on(0.0, overlap=0.1))
+    run.frames(np.zeros((101, 2, 3)) + [[0, 0, 0], [1.9, 0, 0]], np.ones((101, 5)), 2000)
+    assert run.read == 10 and run.figures()["overlap_largest"] == pytest.approx(0.1)
 
 
 def test_no_energy_figure_when_a_moving_wall_works_on_the_spheres():
