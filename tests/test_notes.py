@@ -18,7 +18,7 @@ def test_a_soft_contact_gets_a_note_with_its_largest_overlap(capsys):
     # at rest and 10 % deep, an undamped spring oscillates between 10 % and 0: the largest overlap
     # is the start's (the first frame), the typical one (mean over the frames) below it
     sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
-    sim.run(3.0, record_every=0.1)
+    sim.run(30.0, record_every=0.1)  # 15000 steps: 15 of the 301 frames read, the first among them
     s = sim.statistics
     assert s["overlap_largest"] == pytest.approx(0.1, rel=1e-9)
     assert 0.0 < s["overlap_typical"] <= 0.1 + 1e-12
@@ -44,30 +44,30 @@ def test_a_too_long_step_gets_an_energy_note_with_the_drift_of_the_trajectory(ca
 
 
 def test_a_well_resolved_gentle_impact_is_quiet(capsys, monkeypatch):
-    # a slow, long contact (pi / omega = 2.2 time units, frames read every 0.4)
+    # a slow, long contact (pi / omega = 2.2 time units), frames read every 2 (one per 1000 steps)
     sim = dk.Simulation(head_on(0.005, stiffness=1.0, damping=0.2), dk.VelocityVerlet(0.002))
-    sim.run(6.0, record_every=0.1)
+    sim.run(24.0, record_every=0.1)
     s = sim.statistics
     assert s["notes"] == [] and capsys.readouterr().err == ""
-    # they touched: at most v_rel / omega = 0.01 / sqrt(1 / 0.5) = 0.71 % of R (less with the dashpot)
-    assert 0.001 < s["overlap_largest"] < 0.0071
+    # at most v_rel / omega = 0.01 / sqrt(1 / 0.5) = 0.71 % of R (less with the dashpot)
+    assert s["overlap_largest"] < 0.0071
     assert s["energy_drift"] < notes.ENERGY_DRIFT
 
 
 def test_demkit_quiet_keeps_stderr_quiet_but_the_notes_are_kept(capsys, monkeypatch):
     monkeypatch.setenv("DEMKIT_QUIET", "1")
     sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
-    sim.run(0.5)
+    sim.run(8.0)  # 4000 steps: 2 frames read, the first 10 % deep
     assert sim.statistics["notes"] and capsys.readouterr().err == ""
 
 
-def test_a_run_of_a_few_steps_reads_no_overlaps_and_long_runs_read_a_frame_per_200_steps():
+def test_a_run_of_a_few_steps_reads_no_overlaps_and_long_runs_read_a_frame_per_1000_steps():
     sim = dk.Simulation(head_on(0.0, overlap=0.1), dk.VelocityVerlet(0.002))
     sim.run(0.002 * (notes.STEPS_PER_FRAME - 1))
     assert sim.statistics["overlap_largest"] is None and sim.statistics["notes"] == []
     assert sim.statistics["energy_drift"] is not None  # the balance still (from the energies)
     run = notes.RunNotes(head_on(0.0, overlap=0.1))
-    run.frames(np.zeros((101, 2, 3)) + [[0, 0, 0], [1.9, 0, 0]], np.ones((101, 5)), 2000)
+    run.frames(np.zeros((101, 2, 3)) + [[0, 0, 0], [1.9, 0, 0]], np.ones((101, 5)), 10000)
     assert run.read == 10 and run.figures()["overlap_largest"] == pytest.approx(0.1)
 
 
