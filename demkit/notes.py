@@ -77,12 +77,9 @@ def _relative(position, radius, box, pairs, walls):
         yield slice(None), (radius - wall.heights(position)) / radius
     if pairs and n > FEW:
         for k in range(count):
-            touching = close_pairs(position[k], radius, box)
-            d = position[k, touching[:, 1]] - position[k, touching[:, 0]]
-            if box is not None:
-                d = box.minimum_image(d)
+            touching, r = close_pairs(position[k], radius, box, distances=True)
             ri, rj = radius[touching[:, 0]], radius[touching[:, 1]]
-            yield k, (ri + rj - np.linalg.norm(d, axis=1)) / np.minimum(ri, rj)
+            yield k, (ri + rj - r) / np.minimum(ri, rj)
 
 
 class RunNotes:

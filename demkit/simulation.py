@@ -259,7 +259,6 @@ class Simulation:
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
-        notes = RunNotes(scene)
         with CatchInterrupt() as interrupt, _Stepping(scene), bar:
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
@@ -301,6 +300,7 @@ class Simulation:
         if extra_final:
             steps = np.append(steps, nsteps)
         self._keep(record, start_step, steps)
+        notes = RunNotes(scene)
         notes.frames(record[0][:len(steps)], record[4][:len(steps)], nsteps)
         self.statistics.update(notes.figures(), notes=notes.notes(dt))
         if self.notes:

@@ -451,14 +451,11 @@ RENDER_VISIBILITY = """
         selector.SetArea(*area)
         selector.SetFieldAssociation(vtk.vtkDataObject.FIELD_ASSOCIATION_CELLS)
         result = selector.Select()
-        solid, faded = drawer.plan.drawn(0)
-        faded = faded[drawer._clear_of_overlays(drawer.plan.framing.place(drawer.frames.position[0][faded]),
-                                                drawer._radius[faded])]
         out = {{"spheres": set(), "faded": set()}}
         for i in range(result.GetNumberOfNodes()):
             node = result.GetNode(i)
             prop = node.GetProperties().Get(vtk.vtkSelectionNode.PROP())
-            for name, index in (("spheres", solid), ("faded", faded)):
+            for name, index in drawer.drawn.items():
                 if name in drawer._actors and prop is drawer._actors[name][1]:
                     cells = vtk_to_numpy(node.GetSelectionList())
                     out[name] |= set(index[np.unique(cells // drawer.sphere.n_cells)].tolist())

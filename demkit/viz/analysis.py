@@ -26,25 +26,29 @@ def _wrapped(position, box):
     return position, size
 
 
-def close_pairs(position, radius, box=None, scale=1.0, extra=0.0):
+def close_pairs(position, radius, box=None, scale=1.0, extra=0.0, distances=False):
     """(P, 2) index pairs i < j whose centre distance is below (r_i + r_j) * scale + extra,
-    using the minimum image along periodic axes of ``box``."""
+    using the minimum image along periodic axes of ``box``; with ``distances``, also their (P,)
+    centre distances."""
     from scipy.spatial import cKDTree
 
     position = np.asarray(position, dtype=np.float64)
     radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (len(position),))
     if len(position) < 2:
-        return np.zeros((0, 2), dtype=np.int64)
+        none = np.zeros((0, 2), dtype=np.int64)
+        return (none, np.zeros(0)) if distances else none
     points, boxsize = _wrapped(position, box)
     tree = cKDTree(points, boxsize=boxsize)
     pairs = tree.query_pairs(2.0 * float(radius.max()) * scale + extra, output_type="ndarray")
     if len(pairs) == 0:
-        return pairs.reshape(0, 2)
+        pairs = pairs.reshape(0, 2)
+        return (pairs, np.zeros(0)) if distances else pairs
     d = points[pairs[:, 1]] - points[pairs[:, 0]]
     if boxsize is not None:
         d = box.minimum_image(d)
-    keep = np.linalg.norm(d, axis=1) < (radius[pairs[:, 0]] + radius[pairs[:, 1]]) * scale + extra
-    return pairs[keep]
+    r = np.linalg.norm(d, axis=1)
+    keep = r < (radius[pairs[:, 0]] + radius[pairs[:, 1]]) * scale + extra
+    return (pairs[keep], r[keep]) if distances else pairs[keep]
 
 
 def clusters(position, radius, box=None, gap=None):

@@ -84,6 +84,7 @@ class FrameDrawer:
         self.plotter.set_background(style.background)
         self.ink = "black" if pv.Color(style.background).int_rgb[1] > 127 else "white"
         self._actors = {}
+        self.drawn = {}  # set by draw
         self._radius = np.broadcast_to(np.asarray(self.frames.radius, dtype=np.float64), (n,))
         outline = plan.framing.outline
         if outline is not None and not plan.isolate:  # around a cluster in 3-D, its lines would cross it
@@ -103,17 +104,9 @@ class FrameDrawer:
             p.camera.focal_point, p.camera.position, p.camera.up = centre, centre + 1.0, (0.0, 0.0, 1.0)
             p.renderer.ResetCamera(*b)  # fits the bounds' enclosing sphere; then fit the points:
             framing = self.plan.framing
-            forward = np.asarray(p.camera.GetDirectionOfProjection())
-            right = np.cross(forward, (0.0, 0.0, 1.0))
-            right /= np.linalg.norm(right)
-            up = np.cross(right, forward)
+            right, up = self._screen_axes()
             pad = framing.reach * np.array([right, -right, up, -up])
-            pts = (framing.points[:, None, :] + pad[None]).reshape(-1, 3)
-            width, height = self.style.window_size
-            matrix = p.camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
-            m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
-            ndc = np.c_[pts, np.ones(len(pts))] @ m.T
-            x, y = ndc[:, 0] / ndc[:, 3], ndc[:, 1] / ndc[:, 3]
+            x, y, _ = self._ndc((framing.points[:, None, :] + pad[None]).reshape(-1, 3))
             # NDC x of the window centre is -reserve; the free part spans 1 - reserve either side
             fit = 0.9 / max(np.abs(x + reserve).max() / (1 - reserve), np.abs(y).max())
             p.camera.Zoom(fit * zoom)
@@ -138,11 +131,12 @@ class FrameDrawer:
         pv, f, plan = self.pv, self.frames, self.plan
         index, faded = plan.drawn(k)
         faded = faded[self._clear_of_overlays(plan.framing.place(f.position[k][faded]), self._radius[faded])]
+        self.drawn = {"spheres": index, "faded": faded}  # the spheres of each actor, in glyph order
         colouring = plan.colouring
         centres = self._centres(k, index)
         spheres = centres.glyph(geom=self.sphere, scale="radius", orient=False, factor=1.0) if len(index) else None
         height = self.style.window_size[1]
-        size = max(8, round(14 * height / 720))
+        size = self._font_size()
         bar = dict(title=colouring.title, vertical=True, position_x=0.85, position_y=0.12, width=0.05,
                    height=0.7, color=self.ink, title_font_size=round(1.4 * size), label_font_size=round(1.2 * size),
                    n_labels=0 if colouring.annotations else colouring.n_labels, fmt="%.3g", fill=False)
@@ -176,30 +170,39 @@ class FrameDrawer:
         of the camera and clear of the colour bar and the time label."""
         if len(points) == 0:
             return np.zeros(0, dtype=bool)
-        camera = self.plotter.camera
         width, height = self.style.window_size
-        matrix = camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
-        m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
-        forward = np.asarray(camera.GetDirectionOfProjection())
-        up = np.asarray(camera.GetViewUp(), dtype=float)
-        right = np.cross(forward, up)
-        right /= np.linalg.norm(right)
-        up = np.cross(right, forward)
-
-        def ndc(p):
-            h = np.c_[p, np.ones(len(p))] @ m.T
-            return h[:, 0] / h[:, 3], h[:, 1] / h[:, 3], h[:, 3]
-
-        x, y, w = ndc(points)
-        rx = np.abs(ndc(points + radius[:, None] * right)[0] - x)
-        ry = np.abs(ndc(points + radius[:, None] * up)[1] - y)
+        right, up = self._screen_axes()
+        x, y, w = self._ndc(points)
+        rx = np.abs(self._ndc(points + radius[:, None] * right)[0] - x)
+        ry = np.abs(self._ndc(points + radius[:, None] * up)[1] - y)
         keep = w > 0
         if self.plan.colouring.bar:
             keep &= x + rx < 2 * (1 - BAR_SPACE - TITLE_OVERHANG) - 1
         if self.style.label:
-            size = max(8, round(14 * height / 720))  # the label's font size (draw)
+            size = self._font_size()
             keep &= ~((x - rx < -1 + 2 * 12 * size / width) & (y + ry > 1 - 2 * 3.2 * size / height))
         return keep
+
+    def _font_size(self):
+        """Font size of the time label and the colour bar's labels (grows with the window)."""
+        return max(8, round(14 * self.style.window_size[1] / 720))
+
+    def _screen_axes(self):
+        """Unit vectors along the picture's right and up directions, in scene coordinates."""
+        camera = self.plotter.camera
+        forward = np.asarray(camera.GetDirectionOfProjection())
+        right = np.cross(forward, np.asarray(camera.GetViewUp(), dtype=float))
+        right /= np.linalg.norm(right)
+        return right, np.cross(right, forward)
+
+    def _ndc(self, points):
+        """Normalised device coordinates x, y (-1..1 across the window) and the homogeneous w
+        (> 0: in front of the camera) of ``points`` (P, 3)."""
+        width, height = self.style.window_size
+        matrix = self.plotter.camera.GetCompositeProjectionTransformMatrix(width / height, -1, 1)
+        m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+        h = np.c_[points, np.ones(len(points))] @ m.T
+        return h[:, 0] / h[:, 3], h[:, 1] / h[:, 3], h[:, 3]
 
     def _centres(self, k, index):
         """Point cloud of the spheres ``index`` of frame k, with their radius and colour value."""
