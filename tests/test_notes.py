@@ -97,3 +97,8 @@ def test_frame_overlaps_are_those_of_every_touching_pair_in_a_periodic_box(rng, 
             if overlap > 0:
                 want.append(overlap / min(radius[i], radius[j]))
     assert len(want) > 5 and got == pytest.approx(np.sort(want), rel=1e-12)
+
+
+def test_notes_must_be_true_or_false():
+    with pytest.raises(TypeError, match="notes must be True or False, got 'quiet'"):
+        dk.Simulation(head_on(0.0), dk.VelocityVerlet(0.002), notes="quiet")
