@@ -14,6 +14,7 @@ from . import two_magnets  # the seed paper's two-body study: its scene, analysi
 from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 from . import accuracy  # adaptive reference solutions and work-precision reports
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
+from . import cost  # what a run will cost in time, estimated before it runs (demkit info)
 from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # TOML scene files
 from .lammps import export_lammps  # a scene as a LAMMPS data file and input deck
 from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep hides the module name)

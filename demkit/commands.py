@@ -11,8 +11,8 @@ the file before it is checked (the value is read as TOML: ``--set integrator.dt=
 
 ``info`` prints the spheres, box, interactions and integrator, the time step against the largest
 safe one (and whether the checks before a run pass), the memory of the arrays, neighbour lists and
-recorded frames, and the cost: steps times a rough cost per pair and step (:data:`PAIR_SECONDS`,
-measured on this project's 2-core machine) or, with ``--measure``, a timing run (at least 50 steps and 0.2 s).
+recorded frames, and the cost: a model of the run's steps and outputs (:mod:`demkit.cost`, measured
+on this project's 2-core machine) or, with ``--measure``, a timing run (at least 50 steps and 0.2 s).
 """
 from __future__ import annotations
 
@@ -25,7 +25,6 @@ import numpy as np
 
 from .scenefile import load_scene
 
-from .threads import PAIR_SECONDS, SPHERE_SECONDS  # noqa: E402 (the cost model of one force evaluation)
 
 
 #: printed by `demkit run` before running a file without outputs (it still runs: a check of the
@@ -125,30 +124,6 @@ def _outputs(loaded, out_dir):
         yield "checkpoint", loaded.output_path(out["checkpoint"]["path"], out_dir)
 
 
-def estimate_pairs(scene):
-    """[(group kind, reach, pairs, history width)]: the pairs each pair loop visits per force
-    evaluation, all pairs or those within reach + skin now (a k-d tree; periodic only when every
-    axis is)."""
-    from scipy.spatial import cKDTree
-    p = scene.particles
-    n = len(p)
-    out = []
-    for group in scene.plan.groups:
-        if group.kind == "all":
-            out.append(("all pairs", math.inf, n * (n - 1) // 2, group.width))
-            continue
-        reach = group.reach + scene.skin
-        box = scene.box
-        if box is not None and box.periodic.all():
-            tree = cKDTree(np.mod(p.position, box.size), boxsize=box.size)
-        else:
-            tree = cKDTree(p.position)
-        # counted, not listed (a set of every pair took ~150 bytes per pair): ordered pairs with i = j
-        within = int(tree.count_neighbors(tree, reach))
-        out.append(("neighbour list", group.reach, (within - n) // 2, group.width))
-    return out
-
-
 def info_command(args):
     from . import guards
     loaded = _load(args)
@@ -182,44 +157,61 @@ def info_command(args):
         print(f"checks        refused: {err}")
     print("              (a time step for a target accuracy: dk.accuracy.suggest_dt, or `demkit accuracy`)")
     # memory
-    from . import memory
-    pairs = estimate_pairs(scene)
+    from . import cost, memory
+    pairs = cost.pair_counts(scene)
     frames = (steps // max(1, round(loaded.record_every / integ.dt)) + 2) if loaded.record_every else 2
     parts = scene.memory_estimate(frames=frames, stages=integ.stage_arrays)
-    listed = [(count / max(n, 1), width) for kind, _, count, width in pairs if kind == "neighbour list"]
+    listed = [(count / max(n, 1), group.width) for group, _, count in pairs if group.kind == "list"]
     parts["lists"] = memory.estimate(n, lists=listed)["lists"]  # the pairs counted now
     parts["total"] = parts["arrays"] + parts["lists"] + parts["record"]
     available, total = memory.machine_memory()
     print(f"memory        ~{memory.describe(parts, frames)}: ~{parts['total'] / memory.GB:.3g} GB in all "
           f"({available / memory.GB:.3g} GB free of {total / memory.GB:.3g} GB; dk.Scene.memory_estimate)")
     # cost
-    total_pairs = sum(count for _, _, count, _ in pairs)
-    for kind, reach, count, width in pairs:
-        where = "" if math.isinf(reach) else f" within {reach:.4g} + skin {scene.skin:.3g}"
-        print(f"pairs         {count:,} ({kind}{where})")
+    for group, reach, count in pairs:
+        kind = "all pairs" if group.kind == "all" else f"neighbour list within {reach:.4g} + skin {scene.skin:.3g}"
+        names = ", ".join(type(inter).__name__ for _, inter in group.members)
+        print(f"pairs         {count:,} ({kind}: {names})")
+    out = loaded.outputs
+    est = cost.estimate(scene, integ, loaded.duration, record_every=loaded.record_every,
+                        vtk_every=(out.get("vtk") or {}).get("every"),
+                        animation_frames=(out.get("animation") or {}).get("max_frames") or 0)
     if args.measure:
         from .simulation import Simulation
-        sim = Simulation(scene, integ)
-        sim.run(duration=5 * integ.dt)  # compiles (or loads the cache) and warms up
+        sim = Simulation(scene, integ, notes=False)
+        sim.run(duration=5 * integ.dt, progress=False)  # compiles (or loads the cache) and warms up
         count = 50
         while True:  # at least 50 steps and 0.2 s of wall time, so that tiny scenes are timed too
             clock = time.perf_counter()
-            sim.run(duration=count * integ.dt)
+            sim.run(duration=count * integ.dt, progress=False)
             seconds = time.perf_counter() - clock
             if seconds >= 0.2 or count >= 10**7:
                 break
             count *= 8
         per_step = seconds / count
-        how = f"measured over {count:,} steps"
+        how = f"measured over {count:,} steps now"
     else:
-        per_step = integ.evaluations_per_step * (total_pairs * PAIR_SECONDS + n * SPHERE_SECONDS)
-        how = (f"rough: {integ.evaluations_per_step} force evaluation(s) per step x ({total_pairs:,} pairs x "
-               f"{PAIR_SECONDS:.0e} s + {n} spheres x {SPHERE_SECONDS:.0e} s); --measure times it")
-    print(f"cost          {per_step * 1e6:.3g} us per step ({how}) -> ~{_duration(per_step * steps)} for the run "
-          f"(one core, compilation not included)")
+        per_step = est.per_step
+        biggest = sorted(est.parts.items(), key=lambda kv: -kv[1])[:3]
+        how = "model: " + ", ".join(f"{name} {_short(seconds)}" for name, seconds in biggest if seconds > 0)
+        if integ.evaluations_per_step > 1:
+            how += f", x {integ.evaluations_per_step} force evaluations"
+        if est.note:
+            how += f"; {est.touching[0]:,} touching now, ~{est.touching[1]:,.0f} on average ({est.note})"
+        how += "; --measure times it"
+    stepping = per_step * steps
+    print(f"cost          {_short(per_step)} per step ({how})")
+    print(f"              -> ~{_duration(stepping + est.outputs)} for the run: stepping {_duration(stepping)}"
+          + (f", outputs {_duration(est.outputs)}" if est.outputs >= 0.05 else "")
+          + " (one thread, compilation not included; dk.cost)")
     from .threads import ThreadChoice
     print(f"threads       {ThreadChoice(scene, integ.template).describe()}")
     return 0
+
+
+def _short(seconds):
+    """A short time: '1.6 ms', '883 us', '0.157 us'."""
+    return f"{seconds * 1e3:.3g} ms" if seconds >= 1e-3 else f"{seconds * 1e6:.3g} us"
 
 
 def _duration(seconds):

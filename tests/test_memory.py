@@ -101,7 +101,7 @@ def test_a_scene_refuses_spheres_whose_arrays_and_lists_would_not_fit(monkeypatc
 def test_the_pairs_estimated_per_sphere_match_the_pairs_counted():
     """The benchmarks' magnetic gas (300 dipoles, phi = 0.2, cutoff 4) and a simple-cubic lattice:
     the neighbour lists' estimate from the density within reach + skin against a k-d tree count."""
-    from demkit.commands import estimate_pairs
+    from demkit.cost import pair_counts
     n, r = 300, 0.5
     box = dk.build.box_for(n, r, volume_fraction=0.2)
     rng = np.random.default_rng(1)
@@ -109,7 +109,7 @@ def test_the_pairs_estimated_per_sphere_match_the_pairs_counted():
                      velocity=dk.build.thermal_velocities(n, kT=1.0, mass=1.0, seed=rng),
                      dipole=2.0 * dk.build.random_directions(n, seed=rng))
     scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(1000.0, 1.5)], box=box)
-    counted = [count for kind, _, count, _ in estimate_pairs(scene)]
+    counted = [count for _, _, count in pair_counts(scene)]
     estimated = (scene.memory_estimate()["lists"] - 2 * 16 * n) / (4 * (1 + memory.LIST_ROOM))
     assert estimated == pytest.approx(sum(counted), rel=0.1)
     # a lattice without a box: the spheres' bounding box, capped by the densest packing

@@ -534,7 +534,8 @@ def test_demkit_run_without_outputs_says_so_and_set_adds_one(tmp_path):
 def test_demkit_info_and_errors(tmp_path):
     done = demkit("info", str(COLLISION), cwd=ROOT)
     assert done.returncode == 0, done.stderr
-    assert "spheres       2" in done.stdout and "largest safe step 0.2227" in done.stdout and "cost" in done.stdout
+    assert "spheres       2" in done.stdout and "largest safe step 0.2227" in done.stdout
+    assert "for the run: stepping" in done.stdout and "touching pairs" in done.stdout
     (tmp_path / "bad.toml").write_text(SMALL.replace("stiffness", "stifness"))
     done = demkit("run", "bad.toml", cwd=tmp_path)
     assert done.returncode == 2 and "Traceback" not in done.stderr

@@ -1,0 +1,196 @@
+"""What a run will cost in time, estimated before it runs (``demkit info``).
+
+    est = cost.estimate(scene, integrator, duration, record_every=..., vtk_every=..., animation_frames=...)
+    est.per_step, est.stepping, est.outputs, est.total      # seconds, one thread, compilation excluded
+    est.parts                                                # {what: seconds per force evaluation}
+
+One force evaluation costs, in serial wall time (the constants measured on this project's 2-core
+machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.json``)::
+
+    N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR or DIPOLE_PAIR)
+      + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law]
+
+a step ``integrator.evaluations_per_step`` of them plus STEP. The listed pairs are counted now
+(a k-d tree within reach + skin). Touching pairs change while a scene runs, and they are the most
+expensive part of a frictional contact: the estimate follows them through the run as
+
+* spheres falling under gravity onto walls land within t_land = sqrt(2 h / g) of the highest
+  (``demkit.guards.fall_heights``) and settle at SETTLED_CONTACTS contacts per sphere (sphere-sphere
+  and sphere-wall, measured in a frictional pour): touching pairs grow linearly from now to that
+  until t_land;
+* magnets (dipoles and a contact law, no gravity) gather into chains and rings, about CHAINED_CONTACTS
+  per sphere, reached half-way through the run;
+* otherwise the pairs touching now.
+
+Outputs: recorded frames (RECORD_FRAME + N RECORD_SPHERE each), VTK frames (VTK_SPHERE per sphere and frame + VTK_FRAME), an animation (ANIMATION_START
++ frames x (ANIMATION_FRAME + N ANIMATION_SPHERE)), the end-of-run notes (:mod:`demkit.notes`: a
+k-d tree per frame read, NOTES_SPHERE per sphere).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: seconds per sphere and force evaluation: the integrator's passes, the list checks
+SPHERE = 1.2e-8
+#: seconds per sphere and wall it does not touch (a distance test)
+WALL = 3.6e-9
+#: seconds per listed pair of a loop of contact laws only (a distance test)
+LISTED_PAIR = 7.2e-9
+#: seconds per listed pair of a loop holding dipoles (a dipole force, within reach + skin; 23 ns
+#: calibrated, 24.8 ns at the start of benchmarks/scenes/gas600.toml)
+DIPOLE_PAIR = 2.4e-8
+#: seconds per pair of the exact (all-pairs) sum of dipoles
+ALL_PAIR = 2.0e-8
+#: seconds per touching pair (or sphere on a wall), by contact law and friction (at rest and shaken:
+#: 13/22/93/73-104 ns on a squeezed lattice; a settled frictional pour measures ~150 ns)
+TOUCHING = {("KelvinVoigt", False): 1.3e-8, ("Hertz", False): 2.2e-8,
+            ("KelvinVoigt", True): 1.2e-7, ("Hertz", True): 1.2e-7}
+#: seconds per step beyond its force evaluations (the step loop, the guards; the paper's two-sphere
+#: scene measures 0.07-0.1 us a step in all)
+STEP = 5.0e-8
+#: seconds per recorded frame, and per sphere in it (the paper's scene: 0.9 us a frame of 2 spheres)
+RECORD_FRAME = 1.0e-6
+RECORD_SPHERE = 5.0e-9
+#: contacts per sphere of a settled pour (sphere-sphere pairs and walls; 2.3 + 0.23 measured with
+#: 3000 spheres in a 20 x 20 box)
+SETTLED_CONTACTS = 2.5
+#: contacts per sphere of magnets gathered into chains and rings
+CHAINED_CONTACTS = 1.0
+#: VTK series: seconds per sphere and frame, and per frame (meshio .vtu, benchmarks/results/vtk.json)
+VTK_SPHERE = 9.0e-7
+VTK_FRAME = 5.0e-4
+#: animation: starting the renderer, and per frame and sphere drawn (measured: 400 spheres 0.29 s a
+#: frame, 3000 spheres 0.55 s)
+ANIMATION_START = 3.0
+ANIMATION_FRAME = 0.25
+ANIMATION_SPHERE = 1.0e-7
+#: end-of-run notes: seconds per sphere of a frame read (a k-d tree; all pairs at once up to
+#: demkit.notes.FEW spheres, negligible)
+NOTES_SPHERE = 2.0e-6
+
+
+@dataclass
+class Estimate:
+    """Seconds of one thread: per step, for the stepping, for the outputs, in all; ``parts``: the
+    seconds per force evaluation of each part; ``touching``: touching pairs now and on average."""
+
+    per_step: float
+    stepping: float
+    outputs: float
+    parts: dict = field(default_factory=dict)
+    touching: tuple = (0, 0.0)
+    note: str = ""
+
+    @property
+    def total(self):
+        return self.stepping + self.outputs
+
+
+def pair_counts(scene):
+    """[(group, reach, pairs)]: the pairs each pair loop of ``scene`` visits per force evaluation,
+    all pairs or those within reach + skin now (a k-d tree; periodic only when every axis is)."""
+    p = scene.particles
+    n = len(p)
+    out = []
+    for group in scene.plan.groups:
+        if group.kind == "all":
+            out.append((group, math.inf, n * (n - 1) // 2))
+            continue
+        tree = _tree(scene)
+        # counted, not listed (a set of every pair took ~150 bytes per pair): ordered pairs with i = j
+        within = int(tree.count_neighbors(tree, group.reach + scene.skin))
+        out.append((group, group.reach, (within - n) // 2))
+    return out
+
+
+def _tree(scene):
+    from scipy.spatial import cKDTree
+    p, box = scene.particles, scene.box
+    if box is not None and box.periodic.all():
+        return cKDTree(np.mod(p.position, box.size), boxsize=box.size)
+    return cKDTree(p.position)
+
+
+def touching_now(scene):
+    """Sphere pairs closer than twice the mean radius, and spheres overlapping a wall, now."""
+    from .interactions.wall import Wall
+    p = scene.particles
+    if len(p) < 2:
+        pairs = 0
+    else:
+        tree = _tree(scene)
+        pairs = (int(tree.count_neighbors(tree, 2.0 * float(np.mean(p.radius)))) - len(p)) // 2
+    walls = sum(int(np.sum(w.heights(p.position) < p.radius)) for w in scene.effects if isinstance(w, Wall))
+    return pairs + walls
+
+
+def _contact_law(scene):
+    laws = [inter for inter in scene.interactions if inter.contact_reach]
+    return laws[0] if laws else None
+
+
+def estimate(scene, integrator, duration, record_every=None, vtk_every=None, animation_frames=0):
+    """The :class:`Estimate` of running ``scene`` with ``integrator`` for ``duration`` (module
+    docstring), recording every ``record_every`` (None: start and end), writing VTK frames every
+    ``vtk_every`` (None: none) and an animation of ``animation_frames`` frames (0: none)."""
+    from . import notes
+    from .guards import fall_heights
+    from .interactions.wall import Wall
+    p = scene.particles
+    n = len(p)
+    steps = max(1, round(duration / integrator.dt))
+    walls = sum(isinstance(e, Wall) for e in scene.effects)
+    parts = {"spheres": n * SPHERE, "walls": n * walls * WALL}
+    for group, reach, count in pair_counts(scene):
+        contact_only = all(inter.contact_reach for _, inter in group.members)
+        if group.kind == "all":
+            key, each = "exact sum", ALL_PAIR
+        elif contact_only:
+            key, each = "listed pairs", LISTED_PAIR
+        else:
+            key, each = "listed dipole pairs", DIPOLE_PAIR
+        parts[key] = parts.get(key, 0.0) + count * each
+    law = _contact_law(scene)
+    now = touching_now(scene) if law is not None else 0
+    mean, note = float(now), ""
+    if law is not None:
+        heights, g, _ = fall_heights(scene)
+        if heights is not None and g > 0.0:
+            land = math.sqrt(2.0 * float(np.max(heights)) / g)
+            settled = max(float(now), SETTLED_CONTACTS * n)
+            mean = _ramp_mean(now, settled, land, duration)
+            note = f"spheres settling under gravity within t = {land:.3g}"
+        elif p.dipole is not None and any(not i.contact_reach for i in scene.interactions):
+            chained = max(float(now), CHAINED_CONTACTS * n)
+            mean = 0.5 * (now + chained)
+            note = "magnets gathering into chains"
+        per_touch = TOUCHING[(type(law).__name__ if type(law).__name__ in ("KelvinVoigt", "Hertz") else "Hertz",
+                              law.friction is not None)]
+        parts["touching pairs"] = mean * per_touch
+    force = sum(parts.values())
+    per_step = integrator.evaluations_per_step * force + STEP
+    stepping = steps * per_step
+    outputs = 0.0
+    if vtk_every:
+        outputs += (duration / vtk_every + 1) * (n * VTK_SPHERE + VTK_FRAME)
+    if animation_frames:
+        outputs += ANIMATION_START + animation_frames * (ANIMATION_FRAME + n * ANIMATION_SPHERE)
+    frames = (duration / record_every + 1) if record_every else 2
+    outputs += frames * (RECORD_FRAME + n * RECORD_SPHERE)
+    if steps >= notes.STEPS_PER_FRAME and n > notes.FEW:
+        read = min(frames, steps / notes.STEPS_PER_FRAME, notes.SPHERE_FRAMES / n)
+        outputs += read * n * NOTES_SPHERE
+    return Estimate(per_step=per_step, stepping=stepping, outputs=outputs, parts=parts, touching=(now, mean),
+                    note=note)
+
+
+def _ramp_mean(start, end, ramp, duration):
+    """Mean over [0, duration] of a value growing linearly from start to end over [0, ramp], then end."""
+    if ramp <= 0.0:
+        return float(end)
+    if duration <= ramp:
+        return start + (end - start) * duration / (2.0 * ramp)
+    return (end * duration - (end - start) * ramp / 2.0) / duration
