@@ -188,8 +188,11 @@ def info_command(args):
             if seconds >= 0.2 or count >= 10**7:
                 break
             count *= 8
-        per_step = seconds / count
+        per_step = seconds / count + est.later
         how = f"measured over {count:,} steps now"
+        if est.later > 0.0:
+            how += (f", + {_short(est.later)} for the ~{est.touching[1] - est.touching[0]:,.0f} more touching pairs "
+                    f"of the model ({est.note})")
     else:
         per_step = est.per_step
         biggest = sorted(est.parts.items(), key=lambda kv: -kv[1])[:3]

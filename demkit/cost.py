@@ -83,6 +83,9 @@ class Estimate:
     parts: dict = field(default_factory=dict)
     touching: tuple = (0, 0.0)
     note: str = ""
+    #: seconds per step the touching pairs add on average beyond those touching now (what a timing
+    #: of the first steps misses)
+    later: float = 0.0
 
     @property
     def total(self):
@@ -155,7 +158,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         parts[key] = parts.get(key, 0.0) + count * each
     law = _contact_law(scene)
     now = touching_now(scene) if law is not None else 0
-    mean, note = float(now), ""
+    mean, note, later = float(now), "", 0.0
     if law is not None:
         heights, g, _ = fall_heights(scene)
         if heights is not None and g > 0.0:
@@ -170,6 +173,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         per_touch = TOUCHING[(type(law).__name__ if type(law).__name__ in ("KelvinVoigt", "Hertz") else "Hertz",
                               law.friction is not None)]
         parts["touching pairs"] = mean * per_touch
+        later = integrator.evaluations_per_step * (mean - now) * per_touch
     force = sum(parts.values())
     per_step = integrator.evaluations_per_step * force + STEP
     stepping = steps * per_step
@@ -184,7 +188,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         read = min(frames, steps / notes.STEPS_PER_FRAME, notes.SPHERE_FRAMES / n)
         outputs += read * n * NOTES_SPHERE
     return Estimate(per_step=per_step, stepping=stepping, outputs=outputs, parts=parts, touching=(now, mean),
-                    note=note)
+                    note=note, later=later)
 
 
 def _ramp_mean(start, end, ramp, duration):

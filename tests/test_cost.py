@@ -61,6 +61,7 @@ def test_a_pour_settles_at_the_contacts_of_a_packing_within_its_fall_time():
     assert long.touching[0] == 0 and long.touching[1] == pytest.approx(settled * 0.75)  # ramp, then settled
     assert "within t = " in long.note
     assert long.parts["touching pairs"] == pytest.approx(0.75 * settled * cost.TOUCHING[("Hertz", True)])
+    assert long.later == pytest.approx(long.parts["touching pairs"])  # none touch now
     short = cost.estimate(scene, dk.VelocityVerlet(1e-3), duration=land / 2)
     assert short.touching[1] == pytest.approx(settled / 4)
 
