@@ -7,7 +7,7 @@ differences between two scenes that differ only in that part:
 
   dilute      4000 spheres, volume fraction 0.02, Kelvin-Voigt, periodic  -> per sphere (+ few listed pairs)
   dense       the same at volume fraction 0.3                             -> per listed pair that does not touch
-  walls       the dilute scene in a box of 5 walls                          -> per sphere and wall
+  walls       the dilute scene (frictional Hertz) in a box of 5 walls       -> per sphere and wall
   touching    a simple cubic lattice, spacing 0.98 d: 3 touching pairs per sphere, for each contact law
   dipole list 4000 dipoles cut at 4 d (+ Kelvin-Voigt), volume fraction 0.2 -> per listed dipole pair
   all pairs   400 and 1000 dipoles in open space (+ Kelvin-Voigt)          -> per pair of the exact sum
@@ -81,12 +81,14 @@ def main():
     out["sphere_seconds"], out["listed_pair_seconds"] = sphere, pair_test
     print(f"per sphere {sphere * 1e9:.1f} ns, per listed pair {pair_test * 1e9:.2f} ns", flush=True)
 
-    # walls: the dilute spheres in a closed, open box (5 walls; nothing touches them)
-    closed, box = gas(n, 0.02, [kv], periodic=False)
+    # walls: the dilute spheres in a closed, open box (5 walls; nothing touches them), frictional
+    # Hertz contacts (the dearest law, whose walls keep history)
+    hertz = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5))
+    closed, box = gas(n, 0.02, [hertz], periodic=False)
     side = box.size[0]
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
              dk.Wall((side, side, 0), (-1, 0, 0)), dk.Wall((side, side, 0), (0, -1, 0))]
-    walled = dk.Scene(closed.particles, [kv, *walls], parallel=False)
+    walled = dk.Scene(closed.particles, [hertz, *walls], parallel=False)
     out["wall_seconds"] = (seconds_per_step(walled) - seconds_per_step(closed)) / (5 * n)
     print(f"per sphere and wall {out['wall_seconds'] * 1e9:.2f} ns", flush=True)
 
@@ -128,6 +130,17 @@ def main():
     out["all_pairs_sphere_seconds"] = (times[400] - p400 * all_pair) / 400
     print(f"per pair of the exact sum {all_pair * 1e9:.1f} ns (+ {out['all_pairs_sphere_seconds'] * 1e9:.0f} ns per sphere)",
           flush=True)
+    # the machine's speed today, to compare calibrations across days (this machine has measured up
+    # to ~1.8x slower on some days than on others): the paper's two-sphere scene (docs/nbody.md:
+    # 24.7 million steps/s when that page was measured) and a plain Python loop
+    paper = seconds_per_step(dk.two_magnets.TwoMagnets(b_over_R=4.0).scene(), dk.EulerCromer(0.01))
+    clock, x = time.perf_counter(), 0.0
+    for i in range(10**7):
+        x += i * 0.5
+    out["machine_speed"] = {"paper_scene_steps_per_second": 1.0 / paper,
+                            "python_loop_1e7_seconds": time.perf_counter() - clock}
+    print(f"machine: the paper's scene {1e-6 / paper:.1f} million steps/s, a Python loop of 1e7 "
+          f"{out['machine_speed']['python_loop_1e7_seconds']:.2f} s", flush=True)
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps(out, indent=1) + "\n")
     print(f"wrote {RESULTS}")
