@@ -15,6 +15,7 @@ from . import build  # starting scenes: random packings, lattices, chains, rings
 from . import accuracy  # adaptive reference solutions and work-precision reports
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
 from . import cost  # what a run will cost in time, estimated before it runs (demkit info)
+from . import measure  # what papers report: pressure tensor, coordination, local fields, magnetisation
 from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # TOML scene files
 from .lammps import export_lammps  # a scene as a LAMMPS data file and input deck
 from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep hides the module name)

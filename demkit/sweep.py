@@ -758,6 +758,39 @@ def _final_spin(loaded, trajectory):
     return {"": omega, "sigma": sigma}
 
 
+_TENSOR = tuple(a + b for a in "xyz" for b in "xyz")
+
+
+@observable("pressure")
+def _pressure(loaded, trajectory):
+    """p = trace(P) / 3 at the end (kinetic + pair virial over the box volume; :mod:`demkit.measure`)."""
+    from . import measure
+    return measure.stress(loaded.scene).pressure
+
+
+@observable("pressure_tensor", columns=_TENSOR)
+def _pressure_tensor(loaded, trajectory):
+    """The pressure tensor P_ab at the end, columns pressure_tensor_xx ... _zz."""
+    from . import measure
+    tensor = measure.stress(loaded.scene).pressure_tensor
+    return {key: float(tensor["xyz".index(key[0]), "xyz".index(key[1])]) for key in _TENSOR}
+
+
+@observable("coordination")
+def _coordination(loaded, trajectory):
+    """Mean contacts per sphere (sphere-sphere) at the end (:func:`demkit.measure.coordination`)."""
+    from . import measure
+    return float(np.mean(measure.coordination(loaded.scene)))
+
+
+@observable("magnetisation", columns=("x", "y", "z"))
+def _magnetisation(loaded, trajectory):
+    """Total moment per box volume at the end, columns magnetisation_x, _y, _z."""
+    from . import measure
+    m = measure.magnetisation(loaded.scene)
+    return {"x": float(m[0]), "y": float(m[1]), "z": float(m[2])}
+
+
 def observe(names, loaded, trajectory):
     """The observables ``names`` of a run as one flat dict; one that raises is there as its exception
     (:func:`run_point` records it in ``<name>_error``) and the others are measured all the same."""

@@ -70,3 +70,15 @@ def test_fields_page_example_runs_as_described():
     assert np.abs(field.field(ns["points"]) - ns["exact"]).max() < 1e-3 * np.abs(ns["exact"]).max()  # 3e-4
     assert np.ptp(e["total"]) < 1e-4 * np.ptp(e["field"])  # 1.2e-5 said on the page
     assert field.inside(traj.position.reshape(-1, 3)).all() and traj.position[-1, 0, 0] > 0.015  # across
+
+
+def test_measurements_page_example_runs_and_its_parts_add_up(capsys):
+    page = Path(__file__).resolve().parents[1] / "docs" / "measurements.md"
+    ns = {}
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    s = ns["s"]
+    assert s.pressure == pytest.approx((np.trace(s.kinetic) + sum(np.trace(w) for w in s.virial.values()))
+                                       / (3 * s.volume))
+    assert set(s.virial) == {"Dipole", "KelvinVoigt"} and ns["z"].shape == (300,)
+    assert "p = " in capsys.readouterr().out

@@ -1,0 +1,186 @@
+"""The quantities papers report, measured on a scene at its current state (nothing is changed).
+
+    s = dk.measure.stress(scene)        # kinetic + pair virial: s.pressure, s.pressure_tensor, s.per_sphere
+    z = dk.measure.coordination(scene)  # contacts per sphere
+    B = dk.measure.local_field(scene)   # the magnetic field at each sphere's centre
+    M = dk.measure.magnetisation(scene) # total moment per volume
+
+**Pressure tensor** (the virial theorem; the convention of LAMMPS' ``compute pressure``)::
+
+    P_ab = (1/V) [ sum_i m_i v_ia v_ib + sum_(i<j) r_ij,a F_ij,b ],    p = (P_xx + P_yy + P_zz) / 3
+
+with r_ij = x_j - x_i (the minimum image in periodic boxes, as the forces use) and F_ij the force
+of the pair on j, summed over every pair interaction of the scene (contact laws with their friction,
+dipoles, plug-ins). Repulsion gives positive pressure; the stress is sigma = -P. Forces that are not
+pair forces (walls, gravity, applied fields) are external and not part of the virial: the
+pressure a walled sample exerts is the walls' force per area. Dipole forces are not central, so P
+need not be symmetric. Each sphere's share (``per_sphere``, pressure x volume, half of each of its
+pairs) adds up to V P. An open scene (no box) has no volume: pass ``volume=``.
+
+**Local field**: B_i = B_applied(x_i) + sum_j A S(r) [3 (m_j.n) n - m_j] / r^3 over the pairs the
+dipole sum reaches (its cutoff, switch S and minimum image), in the units of the dipole's prefactor
+A (tesla in SI), so that the torque on sphere i is m_i x B_i and the magnetic energy
+-1/2 sum_i m_i.(B_i - B_applied) - sum_i m_i.B_applied.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import _fields
+from .interactions.dipole import Dipole, PowerLawDipole, switch
+from .interactions.fields import UniformField
+from .interactions.magnets import MagnetField
+
+
+@dataclass
+class Stress:
+    """Pressure tensor of a scene and its parts (see module docstring); arrays in scene units."""
+
+    volume: float
+    kinetic: np.ndarray       # (3, 3) sum_i m v_a v_b
+    virial: dict              # interaction name -> (3, 3) sum_(i<j) r_a F_b
+    per_sphere: np.ndarray    # (N, 3, 3) each sphere's m v v + half of its pairs' r F (sums to V P)
+
+    @property
+    def pressure_tensor(self):
+        """P (3, 3) = (kinetic + virials) / V."""
+        return (self.kinetic + sum(self.virial.values(), np.zeros((3, 3)))) / self.volume
+
+    @property
+    def pressure(self):
+        """p = trace(P) / 3."""
+        return float(np.trace(self.pressure_tensor)) / 3.0
+
+    @property
+    def stress(self):
+        """The Cauchy stress sigma = -P (tension positive)."""
+        return -self.pressure_tensor
+
+
+def _volume(scene, volume):
+    if volume is not None:
+        volume = float(volume)
+        if not np.isfinite(volume) or volume <= 0.0:
+            raise ValueError(f"volume must be a positive number, got {volume!r}")
+        return volume
+    box = scene.box
+    if box is None or not np.all(np.isfinite(box.size)):
+        raise ValueError("this scene has no box, so no volume to divide by: pass volume=... (the region the "
+                         "spheres fill, in scene length units cubed)")
+    return float(box.volume)
+
+
+def pair_forces(scene):
+    """[(interaction, pairs (P, 2), r_ij (P, 3), F_ij (P, 3))] of every pair interaction of
+    ``scene`` now: the pairs it acts on (within its cutoff; touching, for contact laws), their
+    separations x_j - x_i (minimum image) and the force on j (that on i is -F_ij). Evaluated with the
+    interactions' own force functions, as the compiled loops do; history is read, never written."""
+    p = scene.particles
+    out = []
+    for inter in scene.interactions:
+        if inter.history_size:
+            pairs, history = scene.history(inter)
+        else:
+            pairs, history = scene.candidate_pairs(inter), None
+        d = scene.separations(pairs) if len(pairs) else np.zeros((0, 3))
+        r2 = np.einsum("ij,ij->i", d, d)
+        keep = np.ones(len(pairs), dtype=bool)
+        if inter.cutoff_distance is not None:
+            keep &= r2 < inter.cutoff_distance ** 2
+        if inter.contact_reach:  # contact laws act only on touching pairs
+            reach = p.radius[pairs[:, 0]] + p.radius[pairs[:, 1]]
+            keep &= r2 < reach * reach
+        pairs, d, r2 = pairs[keep], d[keep], r2[keep]
+        if history is not None:
+            history = np.ascontiguousarray(history[keep])
+        force_function = inter.pair_functions()[0]
+        fields, params = _fields(scene, inter.reads), inter.parameter_values()
+        force = np.zeros((len(pairs), 3))
+        for k in range(len(pairs)):
+            args = [int(pairs[k, 0]), int(pairs[k, 1]), d[k, 0], d[k, 1], d[k, 2], r2[k], *fields]
+            if inter.history_size:
+                args += [history, k, 0, False]
+            force[k] = force_function(*args, *params)[:3]
+        out.append((inter, pairs.astype(np.int64), d, force))
+    return out
+
+
+def stress(scene, volume=None):
+    """The pressure tensor of ``scene`` now and its parts (a :class:`Stress`; module docstring).
+    ``volume``: the volume to divide by (default: the box's; required for open scenes)."""
+    volume = _volume(scene, volume)
+    p = scene.particles
+    n = len(p)
+    mass = np.broadcast_to(np.asarray(p.mass, dtype=float), (n,))
+    moving = np.ones(n, dtype=bool) if p.fixed is None else ~np.asarray(p.fixed)
+    v = np.asarray(p.velocity) * moving[:, None]  # fixed spheres do not move
+    per_sphere = (mass[:, None, None] * v[:, :, None] * v[:, None, :]).copy()
+    kinetic = per_sphere.sum(axis=0)
+    virial = {}
+    for inter, pairs, d, force in pair_forces(scene):
+        w = d[:, :, None] * force[:, None, :]
+        name = type(inter).__name__
+        virial[name] = virial.get(name, np.zeros((3, 3))) + w.sum(axis=0)
+        np.add.at(per_sphere, pairs[:, 0], 0.5 * w)
+        np.add.at(per_sphere, pairs[:, 1], 0.5 * w)
+    return Stress(volume=volume, kinetic=kinetic, virial=virial, per_sphere=per_sphere)
+
+
+def coordination(scene, walls=False):
+    """(N,) integer: the contacts each sphere has now under the scene's contact laws (spheres it
+    touches; with ``walls=True`` walls it touches count too). Its mean is the coordination number z."""
+    c = scene.contacts()
+    n = len(scene.particles)
+    spheres = c.wall < 0
+    count = np.bincount(c.pairs[spheres].ravel(), minlength=n)
+    if walls:
+        count += np.bincount(c.pairs[~spheres, 1], minlength=n)
+    return count
+
+
+def local_field(scene, applied=True):
+    """(N, 3): the magnetic field at each sphere's centre from the other spheres' dipoles (and, with
+    ``applied``, the scene's UniformField and MagnetField effects), in the units of the dipole
+    prefactor (module docstring). The torque on sphere i is m_i x B_i."""
+    p = scene.particles
+    if p.dipole is None:
+        raise ValueError("these spheres have no dipole moments, so there is no field to measure")
+    field = np.zeros((len(p), 3))
+    for inter in scene.interactions:
+        if isinstance(inter, PowerLawDipole):
+            raise ValueError("PowerLawDipole is a central force with no torque: it has no field at a sphere "
+                             "(use dk.Dipole)")
+        if not isinstance(inter, Dipole):
+            continue
+        pairs = scene.candidate_pairs(inter)
+        d = scene.separations(pairs)
+        r = np.sqrt(np.einsum("ij,ij->i", d, d))
+        scale = inter.prefactor / r**3
+        if inter.cutoff_distance is not None:
+            scale = np.where(r < inter.cutoff_distance, scale, 0.0)
+            if inter.switch_width is not None:
+                scale = scale * switch(r, inter.cutoff_distance, inter.switch_width)[0]
+        u = d / r[:, None]
+        i, j = pairs[:, 0], pairs[:, 1]
+        mi, mj = p.dipole[i], p.dipole[j]
+        on_i = scale[:, None] * (3.0 * np.einsum("ij,ij->i", mj, u)[:, None] * u - mj)
+        on_j = scale[:, None] * (3.0 * np.einsum("ij,ij->i", mi, u)[:, None] * u - mi)
+        np.add.at(field, i, on_i)
+        np.add.at(field, j, on_j)
+    if applied:
+        for effect in scene.effects:
+            if isinstance(effect, UniformField):
+                field += effect.field
+            elif isinstance(effect, MagnetField):  # magpylib sources, tabulated
+                field += effect.field(p.position)
+    return field
+
+
+def magnetisation(scene, volume=None):
+    """(3,): the total dipole moment per volume, sum_i m_i / V (``volume`` as for :func:`stress`)."""
+    p = scene.particles
+    if p.dipole is None:
+        raise ValueError("these spheres have no dipole moments, so no magnetisation")
+    return np.asarray(p.dipole).sum(axis=0) / _volume(scene, volume)

@@ -1,0 +1,152 @@
+"""Measurements (demkit.measure): the pressure tensor against finite differences of the energy under
+a box strain and the ideal gas law, pair forces against the compiled kernels' forces, the local
+field against the kernels' torques and the field of a dipole, coordination against a brute-force
+count."""
+import numpy as np
+import pytest
+
+import demkit as dk
+from demkit import measure
+
+R = 0.5
+
+
+def squeezed_magnets(n=300, squeeze=0.97, seed=3, velocity=None):
+    """A periodic random packing squeezed so that neighbours overlap, random unit moments; dipoles
+    cut at 3 d and Kelvin-Voigt contacts (the scenes of the N-body tests: nothing new to compile)."""
+    box = dk.build.box_for(n, R, 0.3)
+    pos = dk.build.random_packing(n, R, box, seed=seed) * squeeze
+    small = dk.Box(box.size * squeeze)
+    dipole = dk.build.random_directions(n, seed=seed + 1)
+    p = dk.Particles(position=pos, radius=R, mass=1.0, dipole=dipole, velocity=velocity)
+    return dk.Scene(p, [dk.Dipole(prefactor=0.8, cutoff=3.0), dk.KelvinVoigt(stiffness=500.0, damping=1.0)],
+                    box=small)
+
+
+def potential(scene):
+    e = scene.energy()
+    return {"magnetic": e["magnetic"], "contact": e["contact"]}
+
+
+def strained(scene, axis, eps):
+    """The scene stretched by (1 + eps) along one axis: positions and box alike (affine)."""
+    p = scene.particles
+    scale = np.ones(3)
+    scale[axis] += eps
+    q = dk.Particles(position=p.position * scale, radius=R, mass=1.0, dipole=p.dipole)
+    return dk.Scene(q, list(scene.interactions), box=dk.Box(scene.box.size * scale))
+
+
+def test_the_virial_is_minus_the_energy_derivative_under_a_box_strain():
+    # P_aa = -(1/V) dU/d eps_aa for an affine stretch along a, at rest (no kinetic part); checked
+    # for each interaction's own virial against its own energy. Central differences with eps = 1e-6:
+    # truncation ~eps^2 and round-off ~1e-16 / eps of the energy, so 1e-6 relative is generous.
+    scene = squeezed_magnets()
+    d = scene.separations(scene.candidate_pairs(scene.interactions[0]))
+    r = np.linalg.norm(d, axis=1)
+    # no pair crosses the dipoles' cutoff under the strain (h = 1e-6 moves a pair at r = 3 by 3e-6)
+    assert np.min(np.abs(r - 3.0)) > 1e-5
+    s = measure.stress(scene)
+    volume = np.prod(scene.box.size)
+    assert s.volume == pytest.approx(volume) and np.all(s.kinetic == 0.0)
+    h = 1e-6
+    for axis in range(3):
+        up, down = potential(strained(scene, axis, h)), potential(strained(scene, axis, -h))
+        for kind, name in (("magnetic", "Dipole"), ("contact", "KelvinVoigt")):
+            derivative = (up[kind] - down[kind]) / (2 * h)
+            assert s.virial[name][axis, axis] / volume == pytest.approx(-derivative / volume, rel=1e-6), (axis, kind)
+    # both parts matter here: the contacts push (positive pressure), the dipoles' sign is the packing's
+    assert s.virial["KelvinVoigt"].trace() > 0.0 and abs(s.virial["Dipole"].trace()) > 0.0
+    assert s.per_sphere.sum(axis=0) == pytest.approx(volume * s.pressure_tensor, rel=1e-12, abs=1e-12)
+    assert s.stress == pytest.approx(-s.pressure_tensor)
+
+
+def test_pair_forces_add_up_to_the_kernels_forces_and_the_field_gives_their_torques():
+    scene = squeezed_magnets(n=400, seed=5)
+    force, torque = scene.forces()
+    total = np.zeros_like(force)
+    for inter, pairs, d, f in measure.pair_forces(scene):
+        np.add.at(total, pairs[:, 1], f)
+        np.add.at(total, pairs[:, 0], -f)
+    scale = np.abs(force).max()
+    assert np.abs(total - force).max() < 1e-10 * scale
+    # the torque on each moment is m x B (Kelvin-Voigt without friction exerts none)
+    field = measure.local_field(scene)
+    expected = np.cross(scene.particles.dipole, field)
+    assert np.abs(expected - torque).max() < 1e-10 * np.abs(torque).max()
+
+
+def test_the_field_of_a_dipole_on_its_axis_and_beside_it():
+    # B = A (3 (m.n) n - m) / r^3: 2 A m / r^3 on the axis, -A m / r^3 beside it
+    A, m, r = 0.3, 2.0, 2.5
+    p = dk.Particles(position=[[0, 0, 0], [r, 0, 0], [0, r, 0]], radius=R, mass=1.0,
+                     dipole=[[m, 0, 0], [0, 0, 0], [0, 0, 0]])
+    field = measure.local_field(dk.Scene(p, [dk.Dipole(prefactor=A)]))
+    assert field[1] == pytest.approx([2 * A * m / r**3, 0, 0], abs=1e-15)
+    assert field[2] == pytest.approx([-A * m / r**3, 0, 0], abs=1e-15)
+    with_field = dk.Scene(p.copy(), [dk.Dipole(prefactor=A), dk.UniformField((0.0, 0.0, 0.25))])
+    assert measure.local_field(with_field)[2] == pytest.approx([-A * m / r**3, 0, 0.25], abs=1e-15)
+    assert measure.local_field(with_field, applied=False)[2] == pytest.approx([-A * m / r**3, 0, 0], abs=1e-15)
+
+
+def test_an_ideal_gas_has_pressure_n_kT():
+    # the kinetic part of P for Maxwell-Boltzmann velocities: p = N kT / V up to the sampling error
+    # of sum m v^2 (relative standard deviation sqrt(2 / (3 N)) = 1.3 % for N = 4000): 5 of them
+    n, kT = 4000, 1.3
+    box = dk.build.box_for(n, R, 0.05)
+    p = dk.Particles(position=dk.build.random_packing(n, R, box, seed=1), radius=R, mass=2.0,
+                     velocity=dk.build.thermal_velocities(n, kT=kT, mass=2.0, seed=2))
+    scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1000.0, damping=1.0)], box=box)
+    s = measure.stress(scene)
+    ideal = n * kT / np.prod(box.size)
+    assert s.pressure == pytest.approx(ideal, rel=5 * np.sqrt(2 / (3 * n)))
+    assert s.virial["KelvinVoigt"] == pytest.approx(np.zeros((3, 3)))  # nothing touches
+    off = s.pressure_tensor[~np.eye(3, dtype=bool)]
+    assert np.all(np.abs(off) < 5 * ideal / np.sqrt(n))  # <m vx vy> = 0, sd kT / sqrt(N) per sphere
+
+
+def test_coordination_counts_the_spheres_each_touches():
+    scene = squeezed_magnets(n=300, seed=7)
+    pairs = scene.candidate_pairs(scene.interactions[1])
+    d = scene.separations(pairs)
+    touching = pairs[np.einsum("ij,ij->i", d, d) < (2 * R) ** 2]
+    brute = np.bincount(touching.ravel(), minlength=300)
+    z = measure.coordination(scene)
+    assert z.sum() > 0 and np.array_equal(z, brute)
+
+
+def test_magnetisation_and_bad_requests():
+    p = dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=R, mass=1.0, dipole=[[0, 0, 2.0], [0, 0, 2.0]])
+    open_scene = dk.Scene(p, [dk.Dipole(prefactor=1.0)])
+    assert measure.magnetisation(open_scene, volume=8.0) == pytest.approx([0, 0, 0.5])
+    with pytest.raises(ValueError, match="no box, so no volume"):
+        measure.stress(open_scene)
+    with pytest.raises(ValueError, match="volume must be a positive number"):
+        measure.magnetisation(open_scene, volume=-1.0)
+    plain = dk.Scene(dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=R, mass=1.0),
+                     [dk.KelvinVoigt(stiffness=10.0)])
+    with pytest.raises(ValueError, match="no dipole moments"):
+        measure.local_field(plain)
+    power_law = dk.Scene(p.copy(), [dk.PowerLawDipole(prefactor=1.0)])
+    with pytest.raises(ValueError, match="no torque"):
+        measure.local_field(power_law)
+
+
+def test_sweep_observables_measure_the_scene_at_the_end():
+    import sys
+    from types import SimpleNamespace
+    sweep = sys.modules["demkit.sweep"]  # dk.sweep is the function
+    scene = squeezed_magnets(n=300, seed=7)
+    out = sweep.observe(["pressure", "pressure_tensor", "coordination", "magnetisation"],
+                        SimpleNamespace(scene=scene), None)
+    s = measure.stress(scene)
+    assert out["pressure"] == pytest.approx(s.pressure, rel=1e-12)
+    assert out["pressure_tensor_xy"] == pytest.approx(s.pressure_tensor[0, 1], rel=1e-12)
+    assert out["pressure_tensor_zz"] == pytest.approx(s.pressure_tensor[2, 2], rel=1e-12)
+    assert out["coordination"] == pytest.approx(np.mean(measure.coordination(scene)))
+    m = scene.particles.dipole.sum(axis=0) / np.prod(scene.box.size)
+    assert [out["magnetisation_x"], out["magnetisation_y"], out["magnetisation_z"]] == pytest.approx(m)
+    # an open scene has no volume: the observable records why, the others are measured
+    p = dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=R, mass=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
+    out = sweep.observe(["pressure", "coordination"], SimpleNamespace(scene=dk.Scene(p, [dk.Dipole()])), None)
+    assert isinstance(out["pressure"], ValueError) and out["coordination"] == 0.0
