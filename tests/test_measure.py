@@ -16,7 +16,7 @@ def squeezed_magnets(n=300, squeeze=0.97, seed=3, velocity=None):
     cut at 3 d and Kelvin-Voigt contacts (the scenes of the N-body tests: nothing new to compile)."""
     box = dk.build.box_for(n, R, 0.3)
     pos = dk.build.random_packing(n, R, box, seed=seed) * squeeze
-    small = dk.Box(box.size * squeeze)
+    small = dk.Box(box.size * squeeze, periodic=True)
     dipole = dk.build.random_directions(n, seed=seed + 1)
     p = dk.Particles(position=pos, radius=R, mass=1.0, dipole=dipole, velocity=velocity)
     return dk.Scene(p, [dk.Dipole(prefactor=0.8, cutoff=3.0), dk.KelvinVoigt(stiffness=500.0, damping=1.0)],
@@ -34,7 +34,7 @@ def strained(scene, axis, eps):
     scale = np.ones(3)
     scale[axis] += eps
     q = dk.Particles(position=p.position * scale, radius=R, mass=1.0, dipole=p.dipole)
-    return dk.Scene(q, list(scene.interactions), box=dk.Box(scene.box.size * scale))
+    return dk.Scene(q, list(scene.interactions), box=dk.Box(scene.box.size * scale, periodic=True))
 
 
 def test_the_virial_is_minus_the_energy_derivative_under_a_box_strain():
@@ -65,9 +65,12 @@ def test_pair_forces_add_up_to_the_kernels_forces_and_the_field_gives_their_torq
     scene = squeezed_magnets(n=400, seed=5)
     force, torque = scene.forces()
     total = np.zeros_like(force)
+    x = scene.particles.position
     for inter, pairs, d, f in measure.pair_forces(scene):
         np.add.at(total, pairs[:, 1], f)
         np.add.at(total, pairs[:, 0], -f)
+        # pairs across the periodic faces are there, by their minimum image
+        assert np.any(np.abs(d - (x[pairs[:, 1]] - x[pairs[:, 0]])) > 1.0)
     scale = np.abs(force).max()
     assert np.abs(total - force).max() < 1e-10 * scale
     # the torque on each moment is m x B (Kelvin-Voigt without friction exerts none)
