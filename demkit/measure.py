@@ -4,6 +4,7 @@
     z = dk.measure.coordination(scene)  # contacts per sphere
     B = dk.measure.local_field(scene)   # the magnetic field at each sphere's centre
     M = dk.measure.magnetisation(scene) # total moment per volume
+    c = dk.measure.clusters(scene)      # touching groups: c.labels, c.sizes, c.largest
 
 **Pressure tensor** (the virial theorem; the convention of LAMMPS' ``compute pressure``)::
 
@@ -111,6 +112,12 @@ def stress(scene, volume=None):
     """The pressure tensor of ``scene`` now and its parts (a :class:`Stress`; module docstring).
     ``volume``: the volume to divide by (default: the box's; required for open scenes)."""
     volume = _volume(scene, volume)
+    kinetic, virial, per_sphere = _virials(scene)
+    return Stress(volume=volume, kinetic=kinetic, virial=virial, per_sphere=per_sphere)
+
+
+def _virials(scene):
+    """(sum m v v, {interaction name: sum r F}, per-sphere shares (N, 3, 3)) of ``scene`` now."""
     p = scene.particles
     n = len(p)
     mass = np.broadcast_to(np.asarray(p.mass, dtype=float), (n,))
@@ -125,7 +132,64 @@ def stress(scene, volume=None):
         virial[name] = virial.get(name, np.zeros((3, 3))) + w.sum(axis=0)
         np.add.at(per_sphere, pairs[:, 0], 0.5 * w)
         np.add.at(per_sphere, pairs[:, 1], 0.5 * w)
-    return Stress(volume=volume, kinetic=kinetic, virial=virial, per_sphere=per_sphere)
+    return kinetic, virial, per_sphere
+
+
+def sphere_arrays(scene, names):
+    """{array name: (N, ...) values} of the per-sphere measurements ``names`` (among
+    :data:`SPHERE_MEASURES`) now, as VTK frames carry them: ``pressure`` gives ``pressure_volume``
+    (tr of each sphere's share / 3: pressure x volume, summing to p V), ``coordination`` the
+    contacts of each sphere, ``field`` the ``local_field``."""
+    unknown = [name for name in names if name not in SPHERE_MEASURES]
+    if unknown:
+        raise ValueError(f"unknown per-sphere measurement(s) {unknown}; known: {list(SPHERE_MEASURES)}")
+    out = {}
+    if "pressure" in names:
+        out["pressure_volume"] = np.trace(_virials(scene)[2], axis1=1, axis2=2) / 3.0
+    if "coordination" in names:
+        out["coordination"] = coordination(scene)
+    if "field" in names:
+        out["local_field"] = local_field(scene)
+    return out
+
+
+#: per-sphere measurements a VTK series can carry (VTKWriter(measures=...)) and their arrays
+SPHERE_MEASURES = {"pressure": ("pressure_volume", 1), "coordination": ("coordination", 1),
+                   "field": ("local_field", 3)}
+
+
+@dataclass
+class Clusters:
+    """Clusters of touching spheres (see :func:`clusters`)."""
+
+    labels: np.ndarray   # (N,) cluster of each sphere: 0 the largest, 1 the next, ...
+    sizes: np.ndarray    # (C,) spheres in each cluster, largest first
+
+    @property
+    def count(self):
+        return len(self.sizes)
+
+    @property
+    def largest(self):
+        return int(self.sizes[0]) if len(self.sizes) else 0
+
+    @property
+    def mean_size(self):
+        """Mean size seen by a sphere, sum s^2 / sum s (the weight average of polymer physics)."""
+        return float(np.sum(self.sizes.astype(float) ** 2) / max(np.sum(self.sizes), 1))
+
+
+def clusters(scene, gap=0.0):
+    """The :class:`Clusters` of ``scene`` now: connected groups of spheres whose surfaces are closer
+    than ``gap`` (length; 0: touching, r < R_i + R_j; minimum image in periodic boxes); a lone
+    sphere is a cluster of one."""
+    from .viz.analysis import clusters as cluster_labels
+    gap = float(gap)
+    if not np.isfinite(gap) or gap < 0.0:
+        raise ValueError(f"gap must be a non-negative length, got {gap!r}")
+    p = scene.particles
+    labels = cluster_labels(p.position, p.radius, scene.box, gap=gap)
+    return Clusters(labels=labels, sizes=np.bincount(labels) if len(labels) else np.zeros(0, dtype=np.int64))
 
 
 def coordination(scene, walls=False):

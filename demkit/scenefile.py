@@ -269,7 +269,9 @@ SCHEMA = Table({
             "every": _n("time between frames", default=REQUIRED, check="positive", dim="time"),
             "trails": Key("bool", True, "also write the paths as poly-lines"),
             "compress": Key("bool", False, "zlib-compress the frames"),
-            "contacts": Key("bool", False, "also write the contact network")}, "a VTK series (dk.VTKWriter)"),
+            "contacts": Key("bool", False, "also write the contact network"),
+            "measures": Key("strings", [], "per-sphere measurements in every frame (dk.measure)",
+                            choices=("pressure", "coordination", "field"))}, "a VTK series (dk.VTKWriter)"),
         "animation": Table({
             "path": Key("string", REQUIRED, "a .gif or .mp4 file, made from the VTK series"),
             "max_frames": Key("integer", 200, "at most this many frames", check="at_least_one"),
@@ -950,8 +952,8 @@ class LoadedScene:
             v = out["vtk"]
             with _At(self.source, "outputs", "vtk"):
                 writers.append(VTKWriter(self.output_path(v["folder"], out_dir), every=v["every"], compress=v["compress"],
-                                         trails=v["trails"], contacts=v["contacts"], overwrite=not resume,
-                                         resume=resume))
+                                         trails=v["trails"], contacts=v["contacts"], measures=v["measures"],
+                                         overwrite=not resume, resume=resume))
         with _At(self.source, "run"):
             sim = Simulation(self.scene, self.integrator, writers=writers, checkpoint=checkpoint,
                              max_energy_growth=self.max_energy_growth)
@@ -1258,7 +1260,7 @@ def _savez(trajectory, path):
 _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
           "size": "number or [x, y, z]", "cells": "integer or 3 integers", "flags": "bool or 3 bools",
           "numbers": "number or list (per sphere)", "vectors": "list of [x, y, z]", "bools": "list of bools",
-          "integers": "list of integers", "number_or_auto": 'number or "auto"',
+          "integers": "list of integers", "strings": "list of names", "number_or_auto": 'number or "auto"',
           "bool_or_auto": 'bool or "auto"', "row": "list of numbers", "direction": 'string or [x, y, z]'}
 
 

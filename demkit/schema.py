@@ -10,7 +10,8 @@ plain dict with every default filled in (optional keys without a default are Non
 Value kinds (``Key.kind``): ``number`` (int or float, finite), ``integer``, ``bool``, ``string``,
 ``vector`` (three numbers), ``size`` (one number or three), ``flags`` (a bool or three bools),
 ``numbers`` (a number, or a list of them: one per sphere), ``vectors`` (a list of three-number
-lists), ``bools`` (a list of bools), ``integers`` (a list of integers), ``number_or_auto`` (a
+lists), ``bools`` (a list of bools), ``integers`` (a list of integers), ``strings`` (a list of names
+among ``choices``), ``number_or_auto`` (a
 number or the string "auto"), ``bool_or_auto`` (true, false or "auto"), ``direction`` (three
 numbers, or one of ``choices``), ``row`` (``Key.length`` numbers). Constraints
 (``Key.check``): ``positive``, ``non_negative``, ``at_least_one`` (integers).
@@ -260,6 +261,12 @@ def value(key, raw, where):
         out = [_bool(v, where + (k,)) for k, v in enumerate(_list(raw, where, "a list of true/false, one per sphere"))]
     elif kind == "integers":
         out = [_integer(v, where + (k,)) for k, v in enumerate(_list(raw, where, "a list of whole numbers"))]
+    elif kind == "strings":
+        names = ", ".join(map(repr, key.choices))
+        out = _list(raw, where, f"a list of names among {names}")
+        for k, v in enumerate(out):
+            if not isinstance(v, str) or v not in key.choices:
+                raise SchemaError(where + (k,), f"must be one of {names}, got {quote(v)}")
     else:  # pragma: no cover - a schema bug
         raise AssertionError(f"unknown kind {kind}")
     if key.choices and isinstance(out, str) and out not in key.choices:

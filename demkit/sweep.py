@@ -791,6 +791,15 @@ def _magnetisation(loaded, trajectory):
     return {"x": float(m[0]), "y": float(m[1]), "z": float(m[2])}
 
 
+@observable("clusters", columns=("count", "largest", "mean_size"))
+def _clusters(loaded, trajectory):
+    """Clusters of touching spheres at the end: their number, the largest, the mean size a sphere
+    sees (:func:`demkit.measure.clusters`)."""
+    from . import measure
+    c = measure.clusters(loaded.scene)
+    return {"count": c.count, "largest": c.largest, "mean_size": c.mean_size}
+
+
 def observe(names, loaded, trajectory):
     """The observables ``names`` of a run as one flat dict; one that raises is there as its exception
     (:func:`run_point` records it in ``<name>_error``) and the others are measured all the same."""

@@ -153,3 +153,39 @@ def test_sweep_observables_measure_the_scene_at_the_end():
     p = dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=R, mass=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
     out = sweep.observe(["pressure", "coordination"], SimpleNamespace(scene=dk.Scene(p, [dk.Dipole()])), None)
     assert isinstance(out["pressure"], ValueError) and out["coordination"] == 0.0
+
+
+def test_clusters_of_touching_spheres():
+    # two touching pairs (one across the periodic x faces), a chain of three at gaps of 0.05, a lone sphere
+    box = dk.Box([20.0, 20.0, 20.0], periodic=True)
+    x = [[0.2, 5, 5], [19.3, 5, 5], [5, 5, 5], [5, 5.98, 5], [10, 10, 10], [11.05, 10, 10], [12.1, 10, 10],
+         [15, 15, 15]]
+    scene = dk.Scene(dk.Particles(position=x, radius=R, mass=1.0), [dk.KelvinVoigt(stiffness=10.0)], box=box)
+    touching = measure.clusters(scene)
+    assert touching.sizes.tolist() == [2, 2, 1, 1, 1, 1] and touching.count == 6 and touching.largest == 2
+    assert touching.labels[0] == touching.labels[1] and touching.labels[2] == touching.labels[3]
+    near = measure.clusters(scene, gap=0.06)  # the chain's gaps of 0.05 now connect it
+    assert near.sizes.tolist() == [3, 2, 2, 1]
+    assert near.mean_size == pytest.approx((9 + 4 + 4 + 1) / 8)
+    with pytest.raises(ValueError, match="gap must be a non-negative length"):
+        measure.clusters(scene, gap=-1.0)
+
+
+def test_vtk_frames_carry_the_per_sphere_measurements(tmp_path):
+    scene = squeezed_magnets(n=300, seed=7)
+    writer = dk.VTKWriter(tmp_path / "vtk", every=1e-3, measures=["pressure", "coordination", "field"])
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3), writers=[writer])
+    sim.run(duration=2e-3)
+    from demkit.io.frames import read_frame
+    frames = sorted((tmp_path / "vtk").glob("particles_*.vtu"))
+    assert len(frames) == 3
+    _, data = read_frame(frames[-1])
+    expected = measure.sphere_arrays(sim.scene, ["pressure", "coordination", "field"])
+    order = np.argsort(data["id"])
+    for name in ("pressure_volume", "coordination", "local_field"):
+        assert np.allclose(np.asarray(data[name])[order], expected[name], rtol=1e-12, atol=1e-12), name
+    # the shares add up to p V
+    s = measure.stress(sim.scene)
+    assert expected["pressure_volume"].sum() == pytest.approx(s.pressure * s.volume, rel=1e-10)
+    with pytest.raises(ValueError, match="unknown measures"):
+        dk.VTKWriter(tmp_path / "other", every=1.0, measures=["stress"])

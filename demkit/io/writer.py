@@ -89,10 +89,15 @@ class VTKWriter:
     resume : accept a folder holding this series already, for a run resumed from a checkpoint:
         :meth:`resume` (instead of ``open``) keeps its frames up to the checkpoint's time and
         continues it. ``open`` still refuses to overwrite it.
+    measures : per-sphere measurements to add to every frame (:func:`demkit.measure.sphere_arrays`):
+        ``"pressure"`` (array ``pressure_volume``: each sphere's share of the pressure times the
+        volume), ``"coordination"`` (contacts of each sphere), ``"field"`` (``local_field``, the
+        magnetic field at each centre). Each costs a pass over the pairs from Python per frame
+        (~10 us a pair): meant for frames some hundred steps apart.
     """
 
     def __init__(self, folder, every, compress=False, trails=True, fields=None, dtype="float64",
-                 name="particles", overwrite=False, contacts=False, resume=False):
+                 name="particles", overwrite=False, contacts=False, resume=False, measures=()):
         try:
             every = float(every)
         except (TypeError, ValueError):
@@ -106,6 +111,13 @@ class VTKWriter:
         if fields is not None:
             choose_fields(VECTOR_FIELDS, fields)  # reject unknown names now
         self._requested = fields
+        from ..measure import SPHERE_MEASURES
+        measures = (measures,) if isinstance(measures, str) else tuple(measures or ())
+        unknown = [m for m in measures if m not in SPHERE_MEASURES]
+        if unknown:
+            raise ValueError(f"unknown measures {unknown}; known: {list(SPHERE_MEASURES)}")
+        self.measures = measures
+        self._measured = tuple(SPHERE_MEASURES[m] for m in measures)  # (array name, components)
         self.series = SeriesFolder(folder, name, overwrite, resume=resume)
         self.contact_series = (SeriesFolder(folder, name + "_contacts", overwrite, extension="vtp", resume=resume)
                                if contacts else None)
@@ -135,7 +147,11 @@ class VTKWriter:
             raise ValueError("the simulation must call open() before write()")
         if "force" in self.fields or "torque" in self.fields:
             force, torque = simulation.scene.forces()
-        self.write_state(simulation.time, simulation.scene.particles, force, torque)
+        measured = None
+        if self.measures:
+            from ..measure import sphere_arrays
+            measured = sphere_arrays(simulation.scene, self.measures)
+        self.write_state(simulation.time, simulation.scene.particles, force, torque, measured)
         if self.contact_series is not None:
             contacts = simulation.scene.contacts()
             particles = simulation.scene.particles
@@ -206,14 +222,20 @@ class VTKWriter:
         tolerance = TIME_TOLERANCE * abs(time)
         return not (kept and abs(max(t for t, _ in kept) - time) <= tolerance)
 
-    def write_state(self, time, particles, force=None, torque=None):
+    def write_state(self, time, particles, force=None, torque=None, measured=None):
         """Write ``particles`` at ``time`` as the next frame; ``force``/``torque`` (N,3) are needed
-        only when those fields are written. Returns the .vtu path."""
+        only when those fields are written, ``measured`` (``demkit.measure.sphere_arrays``) only
+        with ``measures``. Returns the .vtu path."""
         if self.fields is None:
             raise ValueError("call begin() (or let a Simulation call open()) before writing")
         if self._closed:
             raise ValueError("this VTKWriter is closed")
         data = self._point_data(particles, {"force": force, "torque": torque})
+        for name, _ in self._measured:
+            if measured is None or name not in measured:
+                raise ValueError(f"{name} must be given to write_state (measured=dk.measure.sphere_arrays(scene, "
+                                 f"{list(self.measures)})): the writer writes it")
+            data[name] = measured[name]
         path = self.series.add_frame(time, lambda p: self._frames.write(p, particles.position, data))
         if self._trails is not None:
             self._trails.add(time, particles.ids, particles.radius, particles.position,
@@ -245,6 +267,7 @@ class VTKWriter:
         # (components, bytes per value) of each array of a .vtu, base64-encoded with an 8-byte header
         arrays = [(3, real), (1, index), (1, index), (1, 8), (1, 8), (1, real), (1, real)]
         arrays += [(3, real)] * len(fields) + [(3, 8)] * (getattr(particles, "image", None) is not None)
+        arrays += [(components, 8) for _, components in self._measured]
         frame = 250 + sum(90 + 4 * math.ceil((8 + n * c * b) / 3) for c, b in arrays)
         files, size = frames, frames * (frame + 80)
         files += not self.series.pvd.exists() and frames > 0
@@ -291,7 +314,7 @@ class VTKWriter:
         if not kept:
             return
         _, data = read_frame(self.series.folder / kept[-1][1])
-        expected = set(CONSTANT_FIELDS) | set(self.fields)
+        expected = set(CONSTANT_FIELDS) | set(self.fields) | {name for name, _ in self._measured}
         expected |= {"image"} if getattr(particles, "image", None) is not None else set()
         if set(data) != expected:
             raise ValueError(
