@@ -8,7 +8,8 @@ cutoff or a handful of spheres). For each group the module holds
   calling only its interactions' pair functions, Newton's third law applied once per pair, minimum
   image only along periodic axes; returns the dissipated power. ``_parallel`` variants split the
   owners into fixed chunks with their own force buffers (results independent of the thread count);
-* ``group_<g>_energies`` and ``group_<g>_pair_energies`` (diagnostics),
+* ``group_<g>_energies``, ``group_<g>_pair_energies`` and ``group_<g>_pair_forces`` (diagnostics,
+  measurements),
 
 and for the scene ``forces_of(s, commit)``, ``energies_of(s, out)``, ``end_step`` (list upkeep,
 wrapping, finiteness, recording) and one ``<name>_steps`` time loop per integrator template (see
@@ -458,6 +459,26 @@ class _Source:
         lines += self.energy_statements(group, lambda k: f"out[q, {k}]") + ["            q += 1"]
         return lines
 
+    def group_pair_forces(self, g, group):
+        """Every entry of group g with its separation and each member's force on j, committing
+        nothing (for measurements: demkit.measure)."""
+        lines = ["", "", "@njit(**INNER)",
+                 f"def group_{g}_pair_forces({ARRAYS}, {LIST_ARRAYS}, owners, partners, out):",
+                 f'    """owners[q], partners[q]: entry q of group {g}; out[q, :3] its separation x_j - x_i,',
+                 '    out[q, 3 + 3 m: 6 + 3 m] the force on j of the group\'s member m."""']
+        lines += self.prelude(group) + ["    q = 0", "    commit = False"]
+        lines += self.rows(group, 4, 0, "n")
+        pad = " " * 12
+        lines += [f"{pad}owners[q] = i", f"{pad}partners[q] = j", f"{pad}out[q, 0] = dx", f"{pad}out[q, 1] = dy",
+                  f"{pad}out[q, 2] = dz"]
+        for m, (k, inter) in enumerate(group.members):
+            outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if inter.torque else [])
+            outs += ["w"] if inter.dissipative else []
+            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force')}"
+            stores = [f"out[q, {3 + 3 * m + a}] = {c}" for a, c in enumerate(("ax", "ay", "az"))]
+            lines += self.guarded(k, inter, [call] + stores, pad)
+        return lines + [f"{pad}q += 1"]
+
     # ---- single-sphere effects ---------------------------------------------------------------
     def effect_call(self, e, effect, offset, kind):
         args = ["i", "x", "y", "z", *effect.reads]
@@ -667,6 +688,10 @@ class _Source:
             if plan.lists:
                 lines.append("    maintain_lists(s, False != False)")
             lines.append("    " + self.group_call(g, group, "pair_energies", "", ", owners, partners, out"))
+            lines += ["", "", "@njit(**OUTER)", f"def pair_forces_{g}(s, owners, partners, out):"]
+            if plan.lists:
+                lines.append("    maintain_lists(s, False != False)")
+            lines.append("    " + self.group_call(g, group, "pair_forces", "", ", owners, partners, out"))
         lines += ["", "", "@njit(**OUTER)", "def prepare(s):",
                   '    """Before stepping: lists up to date, periodic coordinates wrapped into the box."""']
         if plan.lists:
@@ -753,7 +778,7 @@ class _Source:
                   f"UPKEEP = dict(cache={cache})",
                   f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})"]  # time loops let other threads run (threads.py)
         for g, group in enumerate(plan.groups):
-            lines += self.group_forces(g, group) + self.group_energies(g, group)
+            lines += self.group_forces(g, group) + self.group_energies(g, group) + self.group_pair_forces(g, group)
         for g, name, sub, _ in self.parts:
             lines += self.group_forces(g, sub, name)
         lines += self.scene_functions()

@@ -11,9 +11,9 @@
     P_ab = (1/V) [ sum_i m_i v_ia v_ib + sum_(i<j) r_ij,a F_ij,b ],    p = (P_xx + P_yy + P_zz) / 3
 
 with r_ij = x_j - x_i (the minimum image in periodic boxes, as the forces use) and F_ij the force
-of the pair on j, summed over every pair interaction of the scene (contact laws with their friction,
-dipoles, plug-ins). Repulsion gives positive pressure; the stress is sigma = -P. Forces that are not
-pair forces (walls, gravity, applied fields) are external and not part of the virial: the
+of the pair on j (:meth:`demkit.Scene.pair_forces`: the compiled pair loops, committing nothing),
+summed over every pair interaction of the scene (contact laws with their friction, dipoles,
+plug-ins). Repulsion gives positive pressure; the stress is sigma = -P. Forces that are not pair forces (walls, gravity, applied fields) are external and not part of the virial: the
 pressure a walled sample exerts is the walls' force per area. Dipole forces are not central, so P
 need not be symmetric. Each sphere's share (``per_sphere``, pressure x volume, half of each of its
 pairs) adds up to V P. An open scene (no box) has no volume: pass ``volume=``.
@@ -29,7 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import _fields
 from .interactions.dipole import Dipole, PowerLawDipole, switch
 from .interactions.fields import UniformField
 from .interactions.magnets import MagnetField
@@ -73,41 +72,6 @@ def _volume(scene, volume):
     return float(box.volume)
 
 
-def pair_forces(scene):
-    """[(interaction, pairs (P, 2), r_ij (P, 3), F_ij (P, 3))] of every pair interaction of
-    ``scene`` now: the pairs it acts on (within its cutoff; touching, for contact laws), their
-    separations x_j - x_i (minimum image) and the force on j (that on i is -F_ij). Evaluated with the
-    interactions' own force functions, as the compiled loops do; history is read, never written."""
-    p = scene.particles
-    out = []
-    for inter in scene.interactions:
-        if inter.history_size:
-            pairs, history = scene.history(inter)
-        else:
-            pairs, history = scene.candidate_pairs(inter), None
-        d = scene.separations(pairs) if len(pairs) else np.zeros((0, 3))
-        r2 = np.einsum("ij,ij->i", d, d)
-        keep = np.ones(len(pairs), dtype=bool)
-        if inter.cutoff_distance is not None:
-            keep &= r2 < inter.cutoff_distance ** 2
-        if inter.contact_reach:  # contact laws act only on touching pairs
-            reach = p.radius[pairs[:, 0]] + p.radius[pairs[:, 1]]
-            keep &= r2 < reach * reach
-        pairs, d, r2 = pairs[keep], d[keep], r2[keep]
-        if history is not None:
-            history = np.ascontiguousarray(history[keep])
-        force_function = inter.pair_functions()[0]
-        fields, params = _fields(scene, inter.reads), inter.parameter_values()
-        force = np.zeros((len(pairs), 3))
-        for k in range(len(pairs)):
-            args = [int(pairs[k, 0]), int(pairs[k, 1]), d[k, 0], d[k, 1], d[k, 2], r2[k], *fields]
-            if inter.history_size:
-                args += [history, k, 0, False]
-            force[k] = force_function(*args, *params)[:3]
-        out.append((inter, pairs.astype(np.int64), d, force))
-    return out
-
-
 def stress(scene, volume=None):
     """The pressure tensor of ``scene`` now and its parts (a :class:`Stress`; module docstring).
     ``volume``: the volume to divide by (default: the box's; required for open scenes)."""
@@ -126,7 +90,7 @@ def _virials(scene):
     per_sphere = (mass[:, None, None] * v[:, :, None] * v[:, None, :]).copy()
     kinetic = per_sphere.sum(axis=0)
     virial = {}
-    for inter, pairs, d, force in pair_forces(scene):
+    for inter, pairs, d, force in scene.pair_forces():
         w = d[:, :, None] * force[:, None, :]
         name = type(inter).__name__
         virial[name] = virial.get(name, np.zeros((3, 3))) + w.sum(axis=0)

@@ -509,6 +509,27 @@ class Scene:
         np.add.at(merged, inverse.ravel(), values)
         return unique, merged
 
+    def pair_forces(self):
+        """[(interaction, pairs (P, 2), separations (P, 3), forces (P, 3))] for each pair interaction
+        (``self.interactions`` order): the pairs it exerts a force on now, their separations
+        x_j - x_i (minimum image) and the force on j (that on i is its negative). Computed by the
+        compiled pair loops without committing anything (history included)."""
+        found = {}
+        self.push()
+        tag = self.arrays["tag"]
+        for g, group in enumerate(self.plan.groups):
+            n = len(self.particles)
+            size = n * (n - 1) // 2 if group.kind == "all" else self._list(g).size
+            owners, partners = np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int64)
+            values = np.zeros((size, 3 + 3 * len(group.members)))
+            getattr(self.kernels, f"pair_forces_{g}")(self.state, owners, partners, values)
+            for m, (_, inter) in enumerate(group.members):  # each interaction is in one group
+                force = values[:, 3 + 3 * m: 6 + 3 * m]
+                acts = np.any(force != 0.0, axis=1)
+                pairs = np.stack([tag[owners[acts]], tag[partners[acts]]], axis=1)
+                found[id(inter)] = (pairs, values[acts, :3], force[acts])
+        return [(inter, *found[id(inter)]) for inter in self.interactions]
+
     @property
     def history_values(self):
         """Number of per-pair history values stored (0 when no interaction keeps history)."""

@@ -66,7 +66,7 @@ def test_pair_forces_add_up_to_the_kernels_forces_and_the_field_gives_their_torq
     force, torque = scene.forces()
     total = np.zeros_like(force)
     x = scene.particles.position
-    for inter, pairs, d, f in measure.pair_forces(scene):
+    for inter, pairs, d, f in scene.pair_forces():
         np.add.at(total, pairs[:, 1], f)
         np.add.at(total, pairs[:, 0], -f)
         # pairs across the periodic faces are there, by their minimum image

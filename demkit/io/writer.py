@@ -92,8 +92,8 @@ class VTKWriter:
     measures : per-sphere measurements to add to every frame (:func:`demkit.measure.sphere_arrays`):
         ``"pressure"`` (array ``pressure_volume``: each sphere's share of the pressure times the
         volume), ``"coordination"`` (contacts of each sphere), ``"field"`` (``local_field``, the
-        magnetic field at each centre). Each costs a pass over the pairs from Python per frame
-        (~10 us a pair): meant for frames some hundred steps apart.
+        magnetic field at each centre). ~1 us a pair per frame (0.5 s for 8000 dipoles cut at
+        4 d): meant for frames some hundred steps apart.
     """
 
     def __init__(self, folder, every, compress=False, trails=True, fields=None, dtype="float64",
