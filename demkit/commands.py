@@ -158,7 +158,8 @@ def info_command(args):
     print("              (a time step for a target accuracy: dk.accuracy.suggest_dt, or `demkit accuracy`)")
     # memory
     from . import cost, memory
-    pairs = cost.pair_counts(scene)
+    tree = cost.centres_tree(scene)  # for the pairs counted here and in the cost estimate
+    pairs = cost.pair_counts(scene, tree)
     frames = (steps // max(1, round(loaded.record_every / integ.dt)) + 2) if loaded.record_every else 2
     parts = scene.memory_estimate(frames=frames, stages=integ.stage_arrays)
     listed = [(count / max(n, 1), group.width) for group, _, count in pairs if group.kind == "list"]
@@ -175,7 +176,7 @@ def info_command(args):
     out = loaded.outputs
     est = cost.estimate(scene, integ, loaded.duration, record_every=loaded.record_every,
                         vtk_every=(out.get("vtk") or {}).get("every"),
-                        animation_frames=(out.get("animation") or {}).get("max_frames") or 0)
+                        animation_frames=(out.get("animation") or {}).get("max_frames") or 0, tree=tree)
     if args.measure:
         from .simulation import Simulation
         sim = Simulation(scene, integ, notes=False)

@@ -92,9 +92,10 @@ class Estimate:
         return self.stepping + self.outputs
 
 
-def pair_counts(scene):
+def pair_counts(scene, tree=None):
     """[(group, reach, pairs)]: the pairs each pair loop of ``scene`` visits per force evaluation,
-    all pairs or those within reach + skin now (a k-d tree; periodic only when every axis is)."""
+    all pairs or those within reach + skin now (a k-d tree of the centres, built here unless given:
+    :func:`centres_tree`)."""
     p = scene.particles
     n = len(p)
     out = []
@@ -102,14 +103,15 @@ def pair_counts(scene):
         if group.kind == "all":
             out.append((group, math.inf, n * (n - 1) // 2))
             continue
-        tree = _tree(scene)
+        tree = tree if tree is not None else centres_tree(scene)
         # counted, not listed (a set of every pair took ~150 bytes per pair): ordered pairs with i = j
         within = int(tree.count_neighbors(tree, group.reach + scene.skin))
         out.append((group, group.reach, (within - n) // 2))
     return out
 
 
-def _tree(scene):
+def centres_tree(scene):
+    """A k-d tree of the sphere centres (periodic only when every axis is)."""
     from scipy.spatial import cKDTree
     p, box = scene.particles, scene.box
     if box is not None and box.periodic.all():
@@ -117,14 +119,15 @@ def _tree(scene):
     return cKDTree(p.position)
 
 
-def touching_now(scene):
-    """Sphere pairs closer than twice the mean radius, and spheres overlapping a wall, now."""
+def touching_now(scene, tree=None):
+    """Sphere pairs closer than twice the mean radius, and spheres overlapping a wall, now (``tree``:
+    :func:`centres_tree`, built here unless given)."""
     from .interactions.wall import Wall
     p = scene.particles
     if len(p) < 2:
         pairs = 0
     else:
-        tree = _tree(scene)
+        tree = tree if tree is not None else centres_tree(scene)
         pairs = (int(tree.count_neighbors(tree, 2.0 * float(np.mean(p.radius)))) - len(p)) // 2
     walls = sum(int(np.sum(w.heights(p.position) < p.radius)) for w in scene.effects if isinstance(w, Wall))
     return pairs + walls
@@ -135,10 +138,11 @@ def _contact_law(scene):
     return laws[0] if laws else None
 
 
-def estimate(scene, integrator, duration, record_every=None, vtk_every=None, animation_frames=0):
+def estimate(scene, integrator, duration, record_every=None, vtk_every=None, animation_frames=0, tree=None):
     """The :class:`Estimate` of running ``scene`` with ``integrator`` for ``duration`` (module
     docstring), recording every ``record_every`` (None: start and end), writing VTK frames every
-    ``vtk_every`` (None: none) and an animation of ``animation_frames`` frames (0: none)."""
+    ``vtk_every`` (None: none) and an animation of ``animation_frames`` frames (0: none); ``tree``:
+    :func:`centres_tree`, built here unless given."""
     from . import notes
     from .guards import fall_heights
     from .interactions.wall import Wall
@@ -147,7 +151,8 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
     steps = max(1, round(duration / integrator.dt))
     walls = sum(isinstance(e, Wall) for e in scene.effects)
     parts = {"spheres": n * SPHERE, "walls": n * walls * WALL}
-    for group, reach, count in pair_counts(scene):
+    tree = tree if tree is not None else centres_tree(scene)  # one tree for the listed and touching pairs
+    for group, reach, count in pair_counts(scene, tree):
         contact_only = all(inter.contact_reach for _, inter in group.members)
         if group.kind == "all":
             key, each = "exact sum", ALL_PAIR
@@ -157,7 +162,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
             key, each = "listed dipole pairs", DIPOLE_PAIR
         parts[key] = parts.get(key, 0.0) + count * each
     law = _contact_law(scene)
-    now = touching_now(scene) if law is not None else 0
+    now = touching_now(scene, tree) if law is not None else 0
     mean, note, later = float(now), "", 0.0
     if law is not None:
         heights, g, _ = fall_heights(scene)

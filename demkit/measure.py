@@ -87,7 +87,7 @@ def _virials(scene):
     mass = np.broadcast_to(np.asarray(p.mass, dtype=float), (n,))
     moving = np.ones(n, dtype=bool) if p.fixed is None else ~np.asarray(p.fixed)
     v = np.asarray(p.velocity) * moving[:, None]  # fixed spheres do not move
-    per_sphere = (mass[:, None, None] * v[:, :, None] * v[:, None, :]).copy()
+    per_sphere = mass[:, None, None] * v[:, :, None] * v[:, None, :]
     kinetic = per_sphere.sum(axis=0)
     virial = {}
     for inter, pairs, d, force in scene.pair_forces():

@@ -490,13 +490,9 @@ class Scene:
         energy of each pair under each interaction, in ``self.interactions`` order."""
         chunks = []
         self.push()
+        tag = self.arrays["tag"]
         for g, group in enumerate(self.plan.groups):
-            n = len(self.particles)
-            size = n * (n - 1) // 2 if group.kind == "all" else self._list(g).size
-            owners, partners = np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int64)
-            values = np.zeros((size, len(self.interactions)))
-            getattr(self.kernels, f"pair_energies_{g}")(self.state, owners, partners, values)
-            tag = self.arrays["tag"]
+            owners, partners, values = self._entries(g, group, "pair_energies", len(self.interactions))
             chunks.append((tag[owners], tag[partners], values))
         if not chunks:
             return np.zeros((0, 2), dtype=np.int64), np.zeros((0, len(self.interactions)))
@@ -509,6 +505,16 @@ class Scene:
         np.add.at(merged, inverse.ravel(), values)
         return unique, merged
 
+    def _entries(self, g, group, kernel, columns):
+        """(owners, partners, values (P, columns)): every entry of group g (its list, or all pairs)
+        and what the kernel ``<kernel>_<g>`` writes for each, in the internal order (pushed state)."""
+        n = len(self.particles)
+        size = n * (n - 1) // 2 if group.kind == "all" else self._list(g).size
+        owners, partners = np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int64)
+        values = np.zeros((size, columns))
+        getattr(self.kernels, f"{kernel}_{g}")(self.state, owners, partners, values)
+        return owners, partners, values
+
     def pair_forces(self):
         """[(interaction, pairs (P, 2), separations (P, 3), forces (P, 3))] for each pair interaction
         (``self.interactions`` order): the pairs it exerts a force on now, their separations
@@ -518,11 +524,7 @@ class Scene:
         self.push()
         tag = self.arrays["tag"]
         for g, group in enumerate(self.plan.groups):
-            n = len(self.particles)
-            size = n * (n - 1) // 2 if group.kind == "all" else self._list(g).size
-            owners, partners = np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int64)
-            values = np.zeros((size, 3 + 3 * len(group.members)))
-            getattr(self.kernels, f"pair_forces_{g}")(self.state, owners, partners, values)
+            owners, partners, values = self._entries(g, group, "pair_forces", 3 + 3 * len(group.members))
             for m, (_, inter) in enumerate(group.members):  # each interaction is in one group
                 force = values[:, 3 + 3 * m: 6 + 3 * m]
                 acts = np.any(force != 0.0, axis=1)

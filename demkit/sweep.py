@@ -773,7 +773,7 @@ def _pressure_tensor(loaded, trajectory):
     """The pressure tensor P_ab at the end, columns pressure_tensor_xx ... _zz."""
     from . import measure
     tensor = measure.stress(loaded.scene).pressure_tensor
-    return {key: float(tensor["xyz".index(key[0]), "xyz".index(key[1])]) for key in _TENSOR}
+    return {a + b: float(tensor[i, k]) for i, a in enumerate("xyz") for k, b in enumerate("xyz")}
 
 
 @observable("coordination")
