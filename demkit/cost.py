@@ -175,8 +175,8 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
             chained = max(float(now), CHAINED_CONTACTS * n)
             mean = 0.5 * (now + chained)
             note = "magnets gathering into chains"
-        per_touch = TOUCHING[(type(law).__name__ if type(law).__name__ in ("KelvinVoigt", "Hertz") else "Hertz",
-                              law.friction is not None)]
+        friction = getattr(law, "friction", None) is not None  # plug-in laws: priced as a Hertz law
+        per_touch = TOUCHING.get((type(law).__name__, friction), TOUCHING[("Hertz", friction)])
         parts["touching pairs"] = mean * per_touch
         later = integrator.evaluations_per_step * (mean - now) * per_touch
     force = sum(parts.values())

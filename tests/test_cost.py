@@ -82,3 +82,28 @@ def test_magnets_gather_into_chains_and_lists_count_their_pairs():
     assert pairs == {"Dipole": int(np.sum(d < 3.2)), "KelvinVoigt": int(np.sum(d < 1.2))}
     assert est.parts["listed dipole pairs"] == pytest.approx(pairs["Dipole"] * cost.DIPOLE_PAIR)
     assert est.parts["listed pairs"] == pytest.approx(pairs["KelvinVoigt"] * cost.LISTED_PAIR)
+
+
+def test_a_plug_in_contact_law_is_priced_as_a_hertz_law():
+    from numba import njit
+
+    @njit
+    def soft_force(i, j, dx, dy, dz, r2, stiffness):
+        return 0.0, 0.0, 0.0
+
+    @njit
+    def soft_energy(i, j, dx, dy, dz, r2, stiffness):
+        return 0.0
+
+    class Soft(dk.PairInteraction):  # a contact law of a user's, without the built-in laws' friction
+        contact_reach = True
+        energy_kind = "contact"
+        parameters = ("stiffness",)
+        force_function, energy_function = soft_force, soft_energy
+
+        def __init__(self):
+            self.stiffness = 1.0
+
+    scene = dk.Scene(_two_spheres(-0.01).particles, [Soft()])
+    est = cost.estimate(scene, dk.VelocityVerlet(0.01), duration=1.0)
+    assert est.parts["touching pairs"] == pytest.approx(cost.TOUCHING[("Hertz", False)])
