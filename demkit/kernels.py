@@ -692,13 +692,6 @@ class _Source:
             if plan.lists:
                 lines.append("    maintain_lists(s, False != False)")
             lines.append("    " + self.group_call(g, group, "pair_forces", "", ", owners, partners, out"))
-        lines += ["", "", "@njit(**OUTER)", "def prepare(s):",
-                  '    """Before stepping: lists up to date, periodic coordinates wrapped into the box."""']
-        if plan.lists:
-            lines.append("    maintain_lists(s, False != False)")
-        if any(plan.periodic):
-            lines.append("    wrap(s.position, s.reference, s.image, s.box, s.periodic)")
-        lines.append("    return 0")
         # end of step and recording
         lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                   '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',

@@ -361,7 +361,14 @@ class Scene:
             fixed = p.fixed[tag]
             self.arrays["mass"][:] = np.where(fixed, np.inf, p.mass[tag])
             self.arrays["inertia"][:] = np.where(fixed, np.inf, p.inertia[tag])
-        self.kernels.prepare(self.state)
+        # lists up to date, periodic coordinates wrapped: called from here rather than through a
+        # compiled prepare(s), which would re-optimise the whole list builder it links (~3 CPU s
+        # of every new scene with lists); maintain_lists is compiled for the time loops anyway
+        if self.plan.lists:
+            self.kernels.maintain_lists(self.state, False)
+        if any(self.periodic):
+            a = self.arrays
+            neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
         self.pull()
 
     def pull(self):
