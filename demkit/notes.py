@@ -15,7 +15,8 @@ depend only on the run, never on the machine's speed:
   motion keep constant. Its drift is max |E - E_start| over the frames, as a fraction of the
   energy scale (kinetic + rotational + the sum of |potential energies|, largest frame), the same
   scale as ``Simulation(max_energy_growth=...)``. Not reported when a moving wall works on the
-  spheres (the balance then has a term demkit does not book).
+  spheres or a thermostat exchanges energy with its bath (the balance then has a term demkit does
+  not book).
 
 A note is due when the largest overlap exceeds :data:`LARGEST_OVERLAP`, the typical one
 :data:`TYPICAL_OVERLAP`, or the drift :data:`ENERGY_DRIFT`. The notes go into
@@ -89,7 +90,8 @@ class RunNotes:
         self.scene = scene
         self.pairs = any(inter.contact_reach for inter in scene.interactions)
         self.walls = [e for e in scene.effects if isinstance(e, Wall)]
-        self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls)
+        self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls) and not any(
+            getattr(e, "stochastic", False) for e in scene.effects)  # a thermostat's bath is not booked
         self.largest = self.typical = self.drift = self.scale = 0.0
         self.read = 0  # frames whose overlaps were read
 

@@ -196,6 +196,13 @@ INTERACTIONS = Table({
                      "uniform gravity (dk.Gravity)"),
     "uniform_field": Table({"field": Key("vector", REQUIRED, "B (energy = -m . B)", dim="field")},
                            "a uniform magnetic field (dk.UniformField)"),
+    "langevin": Table({
+        "temperature": _n("k_B T of the bath (energy)", default=REQUIRED, check="non_negative", dim="energy"),
+        "drag": _n("gamma, force per velocity", default=REQUIRED, check="positive", dim="damping"),
+        "rotational_drag": _n("gamma_r, torque per angular velocity (default: (4/3) R^2 gamma, the Stokes ratio)",
+                              check="positive", dim="angular_momentum"),
+        "seed": Key("integer", 0, "seed of the thermostat's random kicks")},
+        "Langevin thermostat: drag and random kicks, velocity Verlet only (dk.Langevin)"),
     "magnet_field": Tables(Table({
         "region": Key("vectors", REQUIRED, "two corners [[x0, y0, z0], [x1, y1, z1]] of the box the spheres stay "
                                            "in (scene lengths); no magnet or wire inside it", dim="length"),
@@ -288,7 +295,7 @@ SCHEMA = Table({
 
 #: order in which the interactions enter the scene (the file's order does not matter)
 INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field",
-                     "magnet_field", "wall")
+                     "magnet_field", "wall", "langevin")
 
 
 # ---- reading --------------------------------------------------------------------------------------
@@ -760,6 +767,8 @@ def _interactions(d, src, scale=None):
                 out.append(I.Gravity(value["acceleration"]))
             elif name == "uniform_field":
                 out.append(I.UniformField(value["field"]))
+            elif name == "langevin":
+                out.append(I.Langevin(**value))
         if name == "magnet_field":
             for k, table in enumerate(value):
                 out.append(_magnet_field(table, ("interactions", "magnet_field", k), src, scale))

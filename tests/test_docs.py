@@ -82,3 +82,15 @@ def test_measurements_page_example_runs_and_its_parts_add_up(capsys):
                                        / (3 * s.volume))
     assert set(s.virial) == {"Dipole", "KelvinVoigt"} and ns["z"].shape == (300,)
     assert "p = " in capsys.readouterr().out
+
+
+def test_thermostat_page_example_runs_as_described(capsys):
+    page = Path(__file__).resolve().parents[1] / "docs" / "thermostat.md"
+    ns = {}
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    xi = ns["xi"]
+    # standard errors: sqrt(var(cos theta) / 20000) = 0.003 and sqrt(2 / 3000) = 0.026; 5 of them
+    assert abs(np.mean(ns["cos_theta"]) - (1 / np.tanh(xi) - 1 / xi)) < 0.015
+    assert abs(ns["T"] - 1.0) < 0.13
+    assert "<cos theta> = 0.5414, Langevin law 0.5373; kT from velocities 1.031" in capsys.readouterr().out

@@ -7,8 +7,9 @@ from .rolling import RollingResistance
 from .sphere import SphereInteraction
 from .fields import Gravity, UniformField
 from .magnets import MagnetField
+from .langevin import Langevin
 from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz",
-           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall"]
+           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin"]
