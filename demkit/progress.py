@@ -313,7 +313,7 @@ def _listener():
 #: neighbour lists, one integrator (the paper's pair: 7-11 s); the first run of a scene with lists
 #: (a 600-sphere magnetic gas with Hertz contacts and friction: 13-18 s) and building it (2-8 s);
 #: the cell-list code, compiled once per install when the first scene with lists is built (~15 s)
-ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (2, 8), "cell_lists": 15}
+ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (0, 2), "cell_lists": 15}
 
 
 def compile_estimate(plan, phase):
@@ -321,7 +321,7 @@ def compile_estimate(plan, phase):
     its first run): the expected seconds, from :data:`ESTIMATES`."""
     lo, hi = ESTIMATES["lists" if plan.growing else "small"]
     if phase == "scene" and plan.growing:
-        lo, hi = ESTIMATES["lists_scene"]  # the list upkeep, the rest at the first run
+        lo, hi = ESTIMATES["lists_scene"]  # the state only: the lists are built (and compiled) at the first run
     extra = ""
     if plan.growing and not cell_lists_cached():
         lo, hi = lo + ESTIMATES["cell_lists"], hi + ESTIMATES["cell_lists"]

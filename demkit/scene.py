@@ -133,10 +133,16 @@ class Scene:
             self.state = self._make_state()
             self.kernels = build_module(self.plan, TEMPLATES)
             self.validate()
-            self.push()
-            if self.plan.sorted:
-                self.kernels.sort_particles(self.state)
-            self.pull()
+        # the lists are built (and a sorted scene sorted by cell) at the first push, by the first
+        # run or diagnostic: their code then compiles with the rest of the scene's, under one
+        # compile notice; periodic coordinates are wrapped now (demkit's own compiled helper)
+        self._first_sort = self.plan.sorted
+        if any(self.periodic):
+            a = self.arrays
+            neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
+            if self.plan.sorted:  # the kernels' arrays are copies, still in the user's order
+                self.particles.position[...] = a["position"]
+                self.particles.image[...] = a["image"]
 
     @property
     def thread_kernels(self):
@@ -369,6 +375,9 @@ class Scene:
         if any(self.periodic):
             a = self.arrays
             neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
+        if self._first_sort:  # sorted scenes: the kernels' order is the cells' from the first push on
+            self.kernels.sort_particles(self.state)
+            self._first_sort = False
         self.pull()
 
     def pull(self):
