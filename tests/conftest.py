@@ -18,6 +18,22 @@ def two_magnets(b_over_r=4.0, v=V_PAPER, x0=150.0, model=dk.Dipole, damping=0.1,
     return dk.Scene(p, [model(prefactor=1 / 3), dk.KelvinVoigt(stiffness=1.0, damping=damping)])
 
 
+def run_example_quick(script, out, timeout=600):
+    """Run ``main(["--quick", "--output", out])`` of the example ``script`` in a child process
+    without DISPLAY (it renders: a broken OpenGL stack could crash the interpreter); returns the
+    finished process and what main returned (its JSON after "RESULT" on stdout)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    code = (f"import json, runpy\nmain = runpy.run_path({str(script)!r})['main']\n"
+            f"print('RESULT' + json.dumps(main(['--quick', '--output', {str(out)!r}])))\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=timeout)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return done, json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT"))[6:])
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

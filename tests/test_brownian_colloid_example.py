@@ -2,29 +2,17 @@
 at xi = 2 for lambda = 1 and 4. It renders, so it runs in a child process without DISPLAY (as the
 other rendering tests do: a broken OpenGL stack could crash the interpreter)."""
 import json
-import os
-import subprocess
-import sys
-import textwrap
 from pathlib import Path
 
 from PIL import Image
 
-SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "brownian_colloid" / "run.py"
+from conftest import run_example_quick
 
-CHILD = """
-    import json, runpy
-    main = runpy.run_path({script!r})["main"]
-    print("RESULT" + json.dumps(main(["--quick", "--output", {out!r}])))
-"""
+SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "brownian_colloid" / "run.py"
 
 
 def test_quick_run_follows_the_langevin_law_at_weak_coupling_and_exceeds_it_when_chained(tmp_path):
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(CHILD.format(script=str(SCRIPT), out=str(tmp_path)))],
-                          capture_output=True, text=True, env=env, timeout=600)
-    assert done.returncode == 0, done.stdout + done.stderr
-    result = json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT"))[6:])
+    done, result = run_example_quick(SCRIPT, tmp_path)
     weak, strong = result["rows"]
     assert (weak["lambda"], strong["lambda"]) == (1.0, 4.0) and weak["xi"] == strong["xi"] == 2.0
     # lambda = 1 at volume fraction 0.03: the moments' mutual field shifts xi by about 8 phi lambda L = 0.13

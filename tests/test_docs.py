@@ -19,6 +19,15 @@ def guide_namespace():
     return ns
 
 
+def page_namespace(name, ns=None):
+    """Run every Python block of docs/<name> in one namespace and return it."""
+    page = GUIDE.parent / name
+    ns = {} if ns is None else ns
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    return ns
+
+
 def test_guide_quick_start_runs(guide_namespace):
     traj = guide_namespace["traj"]
     assert guide_namespace["dk"].two_magnets.outcome(traj) == "stick"
@@ -48,10 +57,7 @@ def test_nbody_page_example_runs_as_described():
 
 
 def test_contacts_page_example_runs_as_described():
-    page = Path(__file__).resolve().parents[1] / "docs" / "contacts.md"
-    ns = {"__name__": "contacts_page"}
-    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
-        exec(compile(block, str(page), "exec"), ns)
+    ns = page_namespace("contacts.md", {"__name__": "contacts_page"})
     traj = ns["traj"]
     assert {"wall", "gravity", "field", "magnetic", "contact"} <= set(traj.energy)
     e = traj.energy
@@ -62,10 +68,7 @@ def test_contacts_page_example_runs_as_described():
 
 def test_fields_page_example_runs_as_described():
     pytest.importorskip("magpylib")
-    page = Path(__file__).resolve().parents[1] / "docs" / "fields.md"
-    ns = {"__name__": "fields_page"}
-    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
-        exec(compile(block, str(page), "exec"), ns)
+    ns = page_namespace("fields.md", {"__name__": "fields_page"})
     field, traj, e = ns["field"], ns["traj"], ns["e"]
     assert np.abs(field.field(ns["points"]) - ns["exact"]).max() < 1e-3 * np.abs(ns["exact"]).max()  # 3e-4
     assert np.ptp(e["total"]) < 1e-4 * np.ptp(e["field"])  # 1.2e-5 said on the page
@@ -73,10 +76,7 @@ def test_fields_page_example_runs_as_described():
 
 
 def test_measurements_page_example_runs_and_its_parts_add_up(capsys):
-    page = Path(__file__).resolve().parents[1] / "docs" / "measurements.md"
-    ns = {}
-    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
-        exec(compile(block, str(page), "exec"), ns)
+    ns = page_namespace("measurements.md")
     s = ns["s"]
     assert s.pressure == pytest.approx((np.trace(s.kinetic) + sum(np.trace(w) for w in s.virial.values()))
                                        / (3 * s.volume))
@@ -85,10 +85,7 @@ def test_measurements_page_example_runs_and_its_parts_add_up(capsys):
 
 
 def test_thermostat_page_example_runs_as_described(capsys):
-    page = Path(__file__).resolve().parents[1] / "docs" / "thermostat.md"
-    ns = {}
-    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
-        exec(compile(block, str(page), "exec"), ns)
+    ns = page_namespace("thermostat.md")
     xi = ns["xi"]
     # standard errors: sqrt(var(cos theta) / 20000) = 0.003 and sqrt(2 / 3000) = 0.026; 5 of them
     assert abs(np.mean(ns["cos_theta"]) - (1 / np.tanh(xi) - 1 / xi)) < 0.015

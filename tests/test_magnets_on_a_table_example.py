@@ -1,36 +1,22 @@
 """The magnets-on-a-table example (examples/magnets_on_a_table/run.py) in its --quick form: 12 NdFeB
 balls dropped on a table, three animation frames. It renders, so it runs in a child process without
 DISPLAY (as the other rendering tests do: a broken OpenGL stack could crash the interpreter)."""
-import json
 import math
-import os
-import subprocess
-import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 import demkit as dk
+from conftest import run_example_quick
 
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "magnets_on_a_table" / "run.py"
 
-CHILD = """
-    import json, runpy
-    main = runpy.run_path({script!r})["main"]
-    result = main(["--quick", "--output", {out!r}])
-    print("RESULT" + json.dumps(result))
-"""
 
 
 def test_quick_run_writes_everything_and_the_balls_settle_into_chains_on_the_table(tmp_path):
     pv = __import__("pytest").importorskip("pyvista")
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(CHILD.format(script=str(SCRIPT), out=str(tmp_path)))],
-                          capture_output=True, text=True, env=env, timeout=300)
-    assert done.returncode == 0, done.stdout + done.stderr
-    result = json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT"))[6:])
+    done, result = run_example_quick(SCRIPT, tmp_path, timeout=300)
     assert "steps/s" in done.stdout and "plain rings" in done.stdout and "sliding" in done.stdout
     n, duration = 12, 0.4
 
