@@ -314,11 +314,11 @@ class Integrator:
 
     def check(self, scene):
         """Raise ValueError if this method cannot integrate ``scene``."""
-        for effect in scene.effects:
-            if getattr(effect, "stochastic", False) and not (type(self) is VelocityVerlet and not self.resolve_contacts):
-                raise ValueError(
-                    f"{effect!r} runs with VelocityVerlet(dt) only (without resolve_contacts): with it the "
-                    f"random kicks keep the bath's temperature exactly for free spheres; {self!r} would not")
+        baths = scene.heat_baths
+        if baths and not (type(self) is VelocityVerlet and not self.resolve_contacts):
+            raise ValueError(
+                f"{baths[0]!r} runs with VelocityVerlet(dt) only (without resolve_contacts): with it the "
+                f"random kicks keep the bath's temperature exactly for free spheres; {self!r} would not")
         if not self.history:
             kept = scene.history_keepers()
             if kept:

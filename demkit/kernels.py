@@ -684,14 +684,11 @@ class _Source:
         if plan.effects:
             lines.append(f"    sphere_energies({spheres}, s.sphere_history, out)")
         for g, group in enumerate(plan.groups):
-            lines += ["", "", "@njit(**OUTER)", f"def pair_energies_{g}(s, owners, partners, out):"]
-            if plan.lists:
-                lines.append("    maintain_lists(s, False != False)")
-            lines.append("    " + self.group_call(g, group, "pair_energies", "", ", owners, partners, out"))
-            lines += ["", "", "@njit(**OUTER)", f"def pair_forces_{g}(s, owners, partners, out):"]
-            if plan.lists:
-                lines.append("    maintain_lists(s, False != False)")
-            lines.append("    " + self.group_call(g, group, "pair_forces", "", ", owners, partners, out"))
+            for kind in ("pair_energies", "pair_forces"):
+                lines += ["", "", "@njit(**OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
+                if plan.lists:
+                    lines.append("    maintain_lists(s, False != False)")
+                lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
         lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                   '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',

@@ -104,9 +104,7 @@ def sphere_arrays(scene, names):
     :data:`SPHERE_MEASURES`) now, as VTK frames carry them: ``pressure`` gives ``pressure_volume``
     (tr of each sphere's share / 3: pressure x volume, summing to p V), ``coordination`` the
     contacts of each sphere, ``field`` the ``local_field``."""
-    unknown = [name for name in names if name not in SPHERE_MEASURES]
-    if unknown:
-        raise ValueError(f"unknown per-sphere measurement(s) {unknown}; known: {list(SPHERE_MEASURES)}")
+    known_sphere_measures(names)
     out = {}
     if "pressure" in names:
         out["pressure_volume"] = np.trace(_virials(scene)[2], axis1=1, axis2=2) / 3.0
@@ -120,6 +118,15 @@ def sphere_arrays(scene, names):
 #: per-sphere measurements a VTK series can carry (VTKWriter(measures=...)) and their arrays
 SPHERE_MEASURES = {"pressure": ("pressure_volume", 1), "coordination": ("coordination", 1),
                    "field": ("local_field", 3)}
+
+
+def known_sphere_measures(names):
+    """``names`` (a name or several) as a tuple, or ValueError naming those not in :data:`SPHERE_MEASURES`."""
+    names = (names,) if isinstance(names, str) else tuple(names or ())
+    unknown = [name for name in names if name not in SPHERE_MEASURES]
+    if unknown:
+        raise ValueError(f"unknown measures {unknown} (per-sphere measurements); known: {list(SPHERE_MEASURES)}")
+    return names
 
 
 @dataclass

@@ -90,8 +90,8 @@ class RunNotes:
         self.scene = scene
         self.pairs = any(inter.contact_reach for inter in scene.interactions)
         self.walls = [e for e in scene.effects if isinstance(e, Wall)]
-        self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls) and not any(
-            getattr(e, "stochastic", False) for e in scene.effects)  # a thermostat's bath is not booked
+        # a moving wall's work and a thermostat's bath are not booked
+        self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls) and not scene.heat_baths
         self.largest = self.typical = self.drift = self.scale = 0.0
         self.read = 0  # frames whose overlaps were read
 

@@ -159,10 +159,9 @@ class Simulation:
             raise TypeError(f"checkpoint must be a demkit.Checkpoint or None, got {checkpoint!r}")
         if max_energy_growth is not None:
             max_energy_growth = checks.positive("max_energy_growth", max_energy_growth)
-            bath = [e for e in scene.effects if getattr(e, "stochastic", False)]
-            if bath:
-                raise ValueError(f"max_energy_growth cannot watch a scene with {bath[0]!r}: its bath gives and takes "
-                                 f"energy, so the total does not keep")
+            if scene.heat_baths:
+                raise ValueError(f"max_energy_growth cannot watch a scene with {scene.heat_baths[0]!r}: its bath gives "
+                                 f"and takes energy, so the total does not keep")
         self.scene = scene
         self.integrator = integrator
         self.writers = list(writers)

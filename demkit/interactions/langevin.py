@@ -114,7 +114,7 @@ class Langevin(SphereInteraction):
     history_size = 2  # per sphere: its step counter and its key
     parameters = ("drag", "rotational_drag", "temperature", "seed", "dt")
     repeat_hint = "give one Langevin thermostat"
-    stochastic = True  # exchanges energy with a bath: no energy balance, VelocityVerlet only
+    stochastic = True  # a heat bath: no energy balance, VelocityVerlet only
     force_function = langevin_force
     energy_function = langevin_energy
 

@@ -37,6 +37,9 @@ class SphereInteraction(Interaction):
     #: a plane contact whose first four parameters are (plane, nx, ny, nz), the wall x.n = plane:
     #: VelocityVerlet(resolve_contacts=True) locates the moments spheres reach and leave it
     plane_contact: bool = False
+    #: exchanges energy with a heat bath (a thermostat): the scene's energy balance does not hold,
+    #: and only the integrators the effect allows run it (see Integrator.check)
+    stochastic: bool = False
 
     def bind(self, interactions):
         """Called by the scene with its pair interactions before anything else (walls find their

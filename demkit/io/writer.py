@@ -111,12 +111,8 @@ class VTKWriter:
         if fields is not None:
             choose_fields(VECTOR_FIELDS, fields)  # reject unknown names now
         self._requested = fields
-        from ..measure import SPHERE_MEASURES
-        measures = (measures,) if isinstance(measures, str) else tuple(measures or ())
-        unknown = [m for m in measures if m not in SPHERE_MEASURES]
-        if unknown:
-            raise ValueError(f"unknown measures {unknown}; known: {list(SPHERE_MEASURES)}")
-        self.measures = measures
+        from ..measure import SPHERE_MEASURES, known_sphere_measures
+        self.measures = measures = known_sphere_measures(measures)
         self._measured = tuple(SPHERE_MEASURES[m] for m in measures)  # (array name, components)
         self.series = SeriesFolder(folder, name, overwrite, resume=resume)
         self.contact_series = (SeriesFolder(folder, name + "_contacts", overwrite, extension="vtp", resume=resume)
