@@ -28,7 +28,7 @@ from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
-from .state import DEEP_OVERLAP_FRACTION, STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
+from .state import DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
 #: same limit stops a run, see demkit.state.DEEP_OVERLAP_FRACTION)
@@ -136,13 +136,9 @@ class Scene:
         # the lists are built (and a sorted scene sorted by cell) at the first push, by the first
         # run or diagnostic: their code then compiles with the rest of the scene's, under one
         # compile notice; periodic coordinates are wrapped now (demkit's own compiled helper)
-        self._first_sort = self.plan.sorted
-        if any(self.periodic):
-            a = self.arrays
-            neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
-            if self.plan.sorted:  # the kernels' arrays are copies, still in the user's order
-                self.particles.position[...] = a["position"]
-                self.particles.image[...] = a["image"]
+        if self._wrap() and self.plan.sorted:  # the kernels' arrays are copies, still in the user's order
+            self.particles.position[...] = self.arrays["position"]
+            self.particles.image[...] = self.arrays["image"]
 
     @property
     def thread_kernels(self):
@@ -372,13 +368,19 @@ class Scene:
         # of every new scene with lists); maintain_lists is compiled for the time loops anyway
         if self.plan.lists:
             self.kernels.maintain_lists(self.state, False)
-        if any(self.periodic):
-            a = self.arrays
-            neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
-        if self._first_sort:  # sorted scenes: the kernels' order is the cells' from the first push on
+        self._wrap()
+        if self.plan.sorted and self.counters[SORTS] == 0:  # the kernels' order is the cells' from the first push on
             self.kernels.sort_particles(self.state)
-            self._first_sort = False
         self.pull()
+
+    def _wrap(self):
+        """Periodic coordinates into the box (images counted, the list reference moved along);
+        returns whether the box has periodic axes."""
+        if not any(self.periodic):
+            return False
+        a = self.arrays
+        neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
+        return True
 
     def pull(self):
         """Copy the kernels' arrays back into the user's particle arrays (no-op unless sorted)."""
@@ -467,6 +469,11 @@ class Scene:
             return
         self.arrays["stage"] = np.zeros((count, n if count else 0, 3))
         self.state = self._state_object()
+
+    @property
+    def heat_baths(self):
+        """The effects that exchange energy with a heat bath (thermostats; SphereInteraction.stochastic)."""
+        return [effect for effect in self.effects if effect.stochastic]
 
     def history_keepers(self):
         """The interactions and effects of the scene that keep per-contact (or per-sphere) history."""
