@@ -84,6 +84,7 @@ class Plan:
     growing: bool  # neighbour lists (mutable state, reference counting on)
     sorted: bool = False  # particles re-sorted by cell now and then (internal order)
     effects: tuple = ()  # single-sphere interactions (walls, gravity, fields)
+    sums: tuple = ()  # long-range sums over all spheres (the reciprocal part of a dipolar Ewald sum)
 
     @property
     def effect_offsets(self):
@@ -189,6 +190,10 @@ class _Source:
             if size:
                 self.table_slot[e] = slot
                 slot += size
+        self.sum_slot = []  # long-range sums: their tables follow the effects'
+        for tuned in plan.sums:
+            self.sum_slot.append(slot)
+            slot += np.size(tuned.table_values())
 
     # ---- pair loops ------------------------------------------------------------------------
     def prelude(self, group):
@@ -577,6 +582,9 @@ class _Source:
                 lines.append("    power += " + self.group_call(g, sub, "forces", f"{force}, {torque}, ", ", commit_flag", name))
         if plan.effects and speed != "slow":
             lines.append(f"    power += sphere_forces({_state_fields()}, {force}, {torque}, s.sphere_history, commit_flag)")
+        if speed != "fast":  # long-range sums are slow forces (dipoles)
+            lines += [f"    reciprocal_sum(s.position, s.dipole, s.box, s.params, {slot}, {force}, {torque}, True)"
+                      for slot in self.sum_slot]
         return lines
 
     def forces_body(self, speed, force, torque, strict):
@@ -683,6 +691,9 @@ class _Source:
             lines.append("    " + self.group_call(g, group, "energies", "", ", out"))
         if plan.effects:
             lines.append(f"    sphere_energies({spheres}, s.sphere_history, out)")
+        for tuned, slot in zip(plan.sums, self.sum_slot):
+            lines.append(f"    out[{2 + self.kinds.index(tuned.energy_kind)}] += reciprocal_sum(s.position, s.dipole, "
+                         f"s.box, s.params, {slot}, s.force, s.torque, False)")
         for g, group in enumerate(plan.groups):
             for kind in ("pair_energies", "pair_forces"):
                 lines += ["", "", "@njit(**OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
@@ -737,6 +748,8 @@ class _Source:
                  ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.events import earliest_wall_crossing", ""]
+        if plan.sums:
+            lines += ["from demkit.interactions.ewald import reciprocal_sum", ""]
         if plan.growing:  # scenes with lists: the passes compiled once and called (see demkit.motion)
             from .motion import CALLED_PASSES
             lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)

@@ -98,6 +98,9 @@ class Scene:
         self.box = box
         for inter in self.interactions + self.effects:
             inter.check(particles)
+        #: the long-range sums tuned to this scene (dipolar Ewald: Dipole(long_range=Ewald(...)))
+        self.long_range = tuple(inter.bind_box(particles, box) for inter in self.interactions
+                                if getattr(inter, "long_range", None) is not None)
         if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions + self.effects):
             particles.require("angular_velocity")
         self.periodic = tuple(bool(f) for f in box.periodic) if box is not None else (False,) * 3
@@ -244,7 +247,7 @@ class Scene:
                                      f"of {n} spheres ({size / 2**30:.1f} GiB) because they have no cutoff: "
                                      f"give them a cutoff_distance")
         return Plan(self.interactions, groups, self.periodic, any(g.kind == "list" for g in groups),
-                    effects=self.effects)
+                    effects=self.effects, sums=self.long_range)
 
     def _make_state(self):
         p, plan = self.particles, self.plan
@@ -268,7 +271,8 @@ class Scene:
         params = [inter.parameter_values() for inter in self.interactions + self.effects]
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
-        tables = [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.effects]  # kernels._Source
+        tables = [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.effects + self.long_range]
+        # (the order kernels._Source gives their slots)
         self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
         # slots of parameters named "dt": the integrator's time step, set by each run
         self.time_step_slots, slot = [], 0

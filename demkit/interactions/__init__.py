@@ -10,6 +10,7 @@ from .magnets import MagnetField
 from .langevin import Langevin
 from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
+from .ewald import Ewald
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz",
-           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin"]
+           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald"]

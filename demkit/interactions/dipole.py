@@ -220,11 +220,16 @@ class Dipole(PairInteraction):
     #: ("prefactor", "switch_on", "inv_switch_width")
     switched_functions = (switched_dipole_force, switched_dipole_energy)
 
-    def __init__(self, prefactor=1e-7, cutoff=None, switch_width=None):
+    def __init__(self, prefactor=1e-7, cutoff=None, switch_width=None, long_range=None):
         name = type(self).__name__
         self.prefactor = positive(f"{name} prefactor", prefactor)
         self.cutoff_distance = None if cutoff is None else positive(f"{name} cutoff", cutoff)
         self.switch_width = None
+        self.long_range = None
+        self.tuned = None
+        if long_range is not None:
+            self._long_range(long_range, switch_width)
+            return
         if switch_width is None:
             return
         if cutoff is None:
@@ -240,6 +245,36 @@ class Dipole(PairInteraction):
         # instance attributes: PairInteraction.pair_functions() looks them up statically
         self.force_function, self.energy_function = self.switched_functions
         self.parameters = ("prefactor", "switch_on", "inv_switch_width")
+
+    def _long_range(self, long_range, switch_width):
+        from .ewald import Ewald
+        name = type(self).__name__
+        if not isinstance(long_range, Ewald):
+            raise ValueError(f"{name} long_range must be a demkit.Ewald (or None), got {long_range!r}")
+        if not self.torque:
+            raise ValueError(f"{name} has no long_range form: the paper's central power law is no dipole field; "
+                             f"use dk.Dipole(long_range=...)")
+        if switch_width is not None:
+            raise ValueError(f"{name} with long_range takes no switch_width: the Ewald real-space pair "
+                             f"already vanishes smoothly at its cutoff (to the requested accuracy)")
+        self.long_range = long_range
+        self.user_cutoff = self.cutoff_distance
+
+    def bind_box(self, particles, box):
+        """With ``long_range``: tune it to these spheres in this box (called by the Scene). The pair
+        functions become the screened real-space pair, the cutoff the real-space cutoff, and
+        :attr:`tuned` (a :class:`demkit.interactions.ewald.TunedEwald`) holds the rest of the sum."""
+        if self.long_range is None:
+            return None
+        from .ewald import ewald_real_energy, ewald_real_force
+        self.check(particles)
+        self.tuned = self.long_range.tune(self.prefactor, particles, box, self.user_cutoff)
+        self.cutoff_distance = self.tuned.cutoff
+        self.alpha = self.tuned.alpha
+        self.force_function, self.energy_function = ewald_real_force, ewald_real_energy
+        self.parameters = ("prefactor", "alpha")
+        self.branch_free = True
+        return self.tuned
 
     def rate_coefficients(self, particles, i, j):
         """(a, b), arrays over the index pairs (i, j): the fastest angular frequency the pair can move
@@ -275,8 +310,11 @@ class Dipole(PairInteraction):
 
     def __repr__(self):
         args = f"prefactor={self.prefactor!r}"
-        if self.cutoff_distance is not None:
-            args += f", cutoff={self.cutoff_distance!r}"
+        cutoff = self.user_cutoff if self.long_range is not None else self.cutoff_distance
+        if cutoff is not None:
+            args += f", cutoff={cutoff!r}"
+        if self.long_range is not None:
+            args += f", long_range={self.long_range!r}"
         if self.switch_width is not None:
             args += f", switch_width={self.switch_width!r}"
         return f"{type(self).__name__}({args})"

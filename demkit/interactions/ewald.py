@@ -1,0 +1,381 @@
+"""Dipolar Ewald sum: every dipole of a periodic box with every other and all their images.
+
+The dipole-dipole energy of a periodic box, U = (A/2) sum_n sum_ij' [m_i.m_j - 3 (m_i.n)(m_j.n)]/r^3
+over the images n (conditionally convergent: its value depends on the shape of the summed region
+and what surrounds it), is split with a Gaussian screening of width 1/alpha into
+
+* a real-space pair sum, short-ranged, on the neighbour lists (d = x_j - x_i, r = |d|):
+
+      U_ij = A [(m_i.m_j) B(r) - (m_i.d)(m_j.d) C(r)]
+      B = [erfc(a r) + (2 a r/sqrt(pi)) exp(-a^2 r^2)] / r^3
+      C = [3 erfc(a r) + (2 a r/sqrt(pi)) (3 + 2 a^2 r^2) exp(-a^2 r^2)] / r^5
+      D = [15 erfc(a r) + (2 a r/sqrt(pi)) (15 + 10 a^2 r^2 + 4 a^4 r^4) exp(-a^2 r^2)] / r^7
+      F_j = A [(m_i.m_j) C d + (m_j.d) C m_i + (m_i.d) C m_j - (m_i.d)(m_j.d) D d]
+      tau_i = A [C (m_j.d)(m_i x d) - B (m_i x m_j)],  tau_j = A [C (m_i.d)(m_j x d) + B (m_i x m_j)]
+
+  (a -> 0 gives the bare dipole pair of :mod:`demkit.interactions.dipole`);
+* a reciprocal-space sum over the wave vectors k = 2 pi (p/Lx, q/Ly, r/Lz) != 0 with |k| <= k_c,
+  S(k) = sum_j (m_j.k) exp(i k.x_j), g(k) = exp(-k^2 / 4 a^2) / k^2, V the box volume:
+
+      U_k   = (2 pi A / V) sum_k g |S|^2
+      F_i   = (4 pi A / V) sum_k g (m_i.k) k Im[S* exp(i k.x_i)]
+      H_i   = -(4 pi A / V) sum_k g k Re[S* exp(i k.x_i)],   tau_i = m_i x H_i
+
+  (computed over half the k-space, k and -k giving equal terms);
+* the self term U_self = -A (2 a^3 / 3 sqrt(pi)) sum_i |m_i|^2 (no force, no torque);
+* the surface term of a large sphere of boxes in vacuum, U_surf = (2 pi A / 3V) |M|^2 with
+  M = sum_i m_i (field -(4 pi A / 3V) M on every dipole, no force); none with metallic
+  ("tin-foil") surroundings, the default, as in ESPResSo and LAMMPS.
+
+Parameters are tuned to a requested relative root-mean-square force error (``accuracy``) from the
+error estimates of Wang and Holm, J. Chem. Phys. 115, 6351 (2001): real space (their eq. 37, M^2 =
+sum_i |m_i|^2, N dipoles, r_c the real-space cutoff)
+
+    dF_r = A M^2 / sqrt(V a^4 r_c^9 N) sqrt(13/6 C_c^2 + 2/15 D_c^2 - 13/15 C_c D_c) exp(-a^2 r_c^2),
+    C_c = 4 (a r_c)^4 + 6 (a r_c)^2 + 3,  D_c = 8 (a r_c)^6 + 20 (a r_c)^4 + 30 (a r_c)^2 + 15,
+
+and reciprocal space (their eq. 46, per axis of length L with k_max = L k_c / 2 pi)
+
+    dF_k = 8 pi A M^2 a / V sqrt(2 pi k_max^3 / (15 N)) exp(-(pi k_max / (a L))^2).
+
+The error is relative to the pull 6 A m^2 / d^4 of two touching spheres (d the mean diameter, m the
+root-mean-square moment) with head-to-tail moments: ``accuracy=1e-6`` asks for an RMS force error
+of a millionth of that pull. Each part gets half the squared error budget; among the cutoffs that
+meet it, the one with the fewest estimated operations per evaluation is kept.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..motion import KERNEL_OPTIONS
+from .base import positive
+
+SURFACES = ("metallic", "vacuum")
+#: operations per (sphere, wave vector) of the reciprocal sum against one real-space pair (measured:
+#: benchmarks/bench_ewald.py), which decides the cutoff the tuning keeps
+RECIPROCAL_COST = 1.0
+#: table of a tuned sum in the scene's params: A, alpha, vacuum (0/1), kx, ky, kz maxima, k_c^2
+TABLE_SIZE = 7
+RECIPROCAL_OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
+
+
+@njit(**KERNEL_OPTIONS)
+def ewald_real_force(i, j, dx, dy, dz, r2, dipole, prefactor, alpha):
+    """Force on j and torques on i and j of the screened real-space pair (module docstring)."""
+    r = math.sqrt(r2)
+    inv_r2 = 1.0 / r2
+    ar = alpha * r
+    a2r2 = ar * ar
+    gauss = 1.1283791670955126 * ar * math.exp(-a2r2)  # (2 a r / sqrt(pi)) exp(-a^2 r^2)
+    erfc = math.erfc(ar)
+    b = prefactor * (erfc + gauss) * inv_r2 / r
+    c = prefactor * (3.0 * erfc + gauss * (3.0 + 2.0 * a2r2)) * inv_r2 * inv_r2 / r
+    d = prefactor * (15.0 * erfc + gauss * (15.0 + a2r2 * (10.0 + 4.0 * a2r2))) * inv_r2 * inv_r2 * inv_r2 / r
+    ax = dipole[i, 0]
+    ay = dipole[i, 1]
+    az = dipole[i, 2]
+    bx = dipole[j, 0]
+    by = dipole[j, 1]
+    bz = dipole[j, 2]
+    ad = ax * dx + ay * dy + az * dz
+    bd = bx * dx + by * dy + bz * dz
+    ab = ax * bx + ay * by + az * bz
+    radial = ab * c - ad * bd * d
+    fx = radial * dx + c * (bd * ax + ad * bx)
+    fy = radial * dy + c * (bd * ay + ad * by)
+    fz = radial * dz + c * (bd * az + ad * bz)
+    cx = ay * bz - az * by
+    cy = az * bx - ax * bz
+    cz = ax * by - ay * bx
+    si = c * bd
+    sj = c * ad
+    tix = si * (ay * dz - az * dy) - b * cx
+    tiy = si * (az * dx - ax * dz) - b * cy
+    tiz = si * (ax * dy - ay * dx) - b * cz
+    tjx = sj * (by * dz - bz * dy) + b * cx
+    tjy = sj * (bz * dx - bx * dz) + b * cy
+    tjz = sj * (bx * dy - by * dx) + b * cz
+    return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz
+
+
+@njit(**KERNEL_OPTIONS)
+def ewald_real_energy(i, j, dx, dy, dz, r2, dipole, prefactor, alpha):
+    """U_ij = A [(m_i.m_j) B(r) - (m_i.d)(m_j.d) C(r)]."""
+    r = math.sqrt(r2)
+    ar = alpha * r
+    a2r2 = ar * ar
+    gauss = 1.1283791670955126 * ar * math.exp(-a2r2)
+    erfc = math.erfc(ar)
+    b = (erfc + gauss) / (r2 * r)
+    c = (3.0 * erfc + gauss * (3.0 + 2.0 * a2r2)) / (r2 * r2 * r)
+    ad = dipole[i, 0] * dx + dipole[i, 1] * dy + dipole[i, 2] * dz
+    bd = dipole[j, 0] * dx + dipole[j, 1] * dy + dipole[j, 2] * dz
+    ab = dipole[i, 0] * dipole[j, 0] + dipole[i, 1] * dipole[j, 1] + dipole[i, 2] * dipole[j, 2]
+    return prefactor * (ab * b - ad * bd * c)
+
+
+@njit(**RECIPROCAL_OPTIONS)
+def _phases(position, box, kmax, axis):
+    """cos and sin of (2 pi m / L) x along one axis for m = 0..kmax: two (kmax + 1, N) arrays."""
+    n = position.shape[0]
+    cos_, sin_ = np.empty((kmax + 1, n)), np.empty((kmax + 1, n))
+    unit = 2.0 * math.pi / box[axis]
+    for j in range(n):
+        c1 = math.cos(unit * position[j, axis])
+        s1 = math.sin(unit * position[j, axis])
+        cos_[0, j] = 1.0
+        sin_[0, j] = 0.0
+        for m in range(1, kmax + 1):
+            cos_[m, j] = cos_[m - 1, j] * c1 - sin_[m - 1, j] * s1
+            sin_[m, j] = sin_[m - 1, j] * c1 + cos_[m - 1, j] * s1
+    return cos_, sin_
+
+
+@njit(**RECIPROCAL_OPTIONS)
+def reciprocal_sum(position, dipole, box, params, start, force, torque, with_forces):
+    """The reciprocal, self and surface terms of the dipolar Ewald sum (module docstring) with the
+    table at params[start:start + TABLE_SIZE]; adds forces and torques when ``with_forces``;
+    returns their energy."""
+    prefactor = params[start]
+    alpha = params[start + 1]
+    vacuum = params[start + 2] != 0.0
+    px, py, pz = int(params[start + 3]), int(params[start + 4]), int(params[start + 5])
+    kcut2 = params[start + 6]
+    n = position.shape[0]
+    volume = box[0] * box[1] * box[2]
+    ux, uy, uz = 2.0 * math.pi / box[0], 2.0 * math.pi / box[1], 2.0 * math.pi / box[2]
+    cx, sx = _phases(position, box, px, 0)
+    cy, sy = _phases(position, box, py, 1)
+    cz, sz = _phases(position, box, pz, 2)
+    re = np.empty(n)
+    im = np.empty(n)
+    mk = np.empty(n)
+    field = np.zeros((n, 3))
+    scale = 4.0 * math.pi * prefactor / volume  # half of k-space: twice (2 pi A / V)
+    quarter = 0.25 / (alpha * alpha)
+    total = 0.0
+    for p in range(px + 1):
+        for q in range(-py, py + 1):
+            for r in range(-pz, pz + 1):
+                if p == 0 and (q < 0 or (q == 0 and r <= 0)):
+                    continue  # -k of a vector counted already (and k = 0)
+                kx, ky, kz = p * ux, q * uy, r * uz
+                k2 = kx * kx + ky * ky + kz * kz
+                if k2 > kcut2:
+                    continue
+                g = math.exp(-k2 * quarter) / k2
+                qq, rr = abs(q), abs(r)
+                sq = 1.0 if q >= 0 else -1.0
+                sr = 1.0 if r >= 0 else -1.0
+                s_re = 0.0
+                s_im = 0.0
+                for j in range(n):  # exp(i k.x_j) from the axis phases, and S(k)
+                    yr, yi = cy[qq, j], sq * sy[qq, j]
+                    zr, zi = cz[rr, j], sr * sz[rr, j]
+                    yzr = yr * zr - yi * zi
+                    yzi = yr * zi + yi * zr
+                    er = cx[p, j] * yzr - sx[p, j] * yzi
+                    ei = cx[p, j] * yzi + sx[p, j] * yzr
+                    m = dipole[j, 0] * kx + dipole[j, 1] * ky + dipole[j, 2] * kz
+                    re[j], im[j], mk[j] = er, ei, m
+                    s_re += m * er
+                    s_im += m * ei
+                total += g * (s_re * s_re + s_im * s_im)
+                if not with_forces:
+                    continue
+                w = 2.0 * scale * g
+                for i in range(n):
+                    f = w * mk[i] * (s_re * im[i] - s_im * re[i])  # Im[S* exp(i k.x_i)]
+                    h = -w * (s_re * re[i] + s_im * im[i])         # Re[S* exp(i k.x_i)]
+                    force[i, 0] += f * kx
+                    force[i, 1] += f * ky
+                    force[i, 2] += f * kz
+                    field[i, 0] += h * kx
+                    field[i, 1] += h * ky
+                    field[i, 2] += h * kz
+    energy = scale * total
+    squares = 0.0
+    mx, my, mz = 0.0, 0.0, 0.0
+    for i in range(n):
+        squares += dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2
+        mx += dipole[i, 0]
+        my += dipole[i, 1]
+        mz += dipole[i, 2]
+    energy -= prefactor * 2.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * squares
+    if vacuum:
+        energy += 2.0 * math.pi * prefactor / (3.0 * volume) * (mx * mx + my * my + mz * mz)
+    if not with_forces:
+        return energy
+    surface = 4.0 * math.pi * prefactor / (3.0 * volume) if vacuum else 0.0
+    for i in range(n):
+        hx = field[i, 0] - surface * mx
+        hy = field[i, 1] - surface * my
+        hz = field[i, 2] - surface * mz
+        torque[i, 0] += dipole[i, 1] * hz - dipole[i, 2] * hy
+        torque[i, 1] += dipole[i, 2] * hx - dipole[i, 0] * hz
+        torque[i, 2] += dipole[i, 0] * hy - dipole[i, 1] * hx
+    return energy
+
+
+# ---- tuning ------------------------------------------------------------------------------------
+def real_space_error(prefactor, squares, n, volume, alpha, cutoff):
+    """Wang-Holm estimate of the real-space RMS force error (module docstring)."""
+    a2 = (alpha * cutoff) ** 2
+    c = 4.0 * a2 * a2 + 6.0 * a2 + 3.0
+    d = 8.0 * a2 ** 3 + 20.0 * a2 * a2 + 30.0 * a2 + 15.0
+    spread = math.sqrt(max(13.0 / 6.0 * c * c + 2.0 / 15.0 * d * d - 13.0 / 15.0 * c * d, 0.0))
+    return prefactor * squares / math.sqrt(volume * alpha ** 4 * cutoff ** 9 * n) * spread * math.exp(-a2)
+
+
+def reciprocal_error(prefactor, squares, n, volume, alpha, kmax, length):
+    """Wang-Holm estimate of the reciprocal-space RMS force error along one axis of this length."""
+    return (8.0 * math.pi * prefactor * squares * alpha / volume * math.sqrt(2.0 * math.pi * kmax ** 3 / (15.0 * n))
+            * math.exp(-(math.pi * kmax / (alpha * length)) ** 2))
+
+
+def _alpha_for(target, prefactor, squares, n, volume, cutoff):
+    """The smallest splitting alpha whose real-space error at this cutoff is at most ``target``."""
+    lo, hi = 1e-3 / cutoff, 1e-3 / cutoff
+    while real_space_error(prefactor, squares, n, volume, hi, cutoff) > target:
+        hi *= 1.5
+        if hi * cutoff > 50.0:
+            return None
+    while lo > 1e-9 and real_space_error(prefactor, squares, n, volume, lo, cutoff) <= target:
+        lo /= 2.0
+    for _ in range(60):  # bisection in log alpha
+        mid = math.sqrt(lo * hi)
+        if real_space_error(prefactor, squares, n, volume, mid, cutoff) > target:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+def _kmax_for(target, prefactor, squares, n, volume, alpha, length):
+    kmax = 1
+    while reciprocal_error(prefactor, squares, n, volume, alpha, kmax, length) > target:
+        kmax += 1
+    return kmax
+
+
+class Ewald:
+    """Settings of a dipolar Ewald sum: ``Dipole(prefactor, long_range=Ewald(...))``.
+
+    accuracy : relative RMS force error the sum is tuned to, 0 < accuracy < 1: the error against
+        the pull 6 A m^2/d^4 of two touching head-to-tail spheres (module docstring).
+    surface : "metallic" (default; tin-foil surroundings, no surface term) or "vacuum" (a large
+        sphere of boxes in vacuum: the surface term (2 pi A / 3V) |M|^2).
+    alpha : the splitting parameter (1/length); None: tuned with the cutoff.
+
+    The real-space cutoff is the Dipole's ``cutoff`` (None: tuned); the box must be periodic along
+    all three axes. The tuned values are in ``scene.long_range`` (see :class:`TunedEwald`).
+    """
+
+    def __init__(self, accuracy=1e-6, surface="metallic", alpha=None):
+        accuracy = positive("Ewald accuracy", accuracy)
+        if not accuracy < 1.0:
+            raise ValueError(f"Ewald accuracy is a relative RMS force error, between 0 and 1, got {accuracy!r}")
+        if surface not in SURFACES:
+            raise ValueError(f"Ewald surface must be one of {SURFACES}, got {surface!r}")
+        self.accuracy = accuracy
+        self.surface = surface
+        self.alpha = None if alpha is None else positive("Ewald alpha", alpha)
+
+    def tune(self, prefactor, particles, box, cutoff=None):
+        """:class:`TunedEwald` for these spheres in this box (ValueError when the box is not
+        periodic along every axis, or no cutoff shorter than half of it reaches the accuracy)."""
+        if box is None or not all(box.periodic):
+            axes = "no box" if box is None else f"periodic={[bool(f) for f in box.periodic]}"
+            raise ValueError(f"an Ewald sum needs a box periodic along x, y and z (got {axes}); a slab "
+                             f"correction for partly periodic boxes is not available yet: use a cut-off Dipole "
+                             f"or an open scene without long_range")
+        n = len(particles)
+        moments = np.einsum("ij,ij->i", particles.dipole, particles.dipole)
+        squares = float(moments.sum())
+        if squares == 0.0:
+            raise ValueError("an Ewald sum needs dipole moments, but every moment is zero")
+        volume = box.volume
+        diameter = 2.0 * float(np.mean(particles.radius))
+        pull = 6.0 * prefactor * squares / n / diameter ** 4
+        target = self.accuracy * pull / math.sqrt(2.0)
+        half = 0.5 * float(np.min(box.size))
+        contact = 2.0 * float(np.max(particles.radius))
+        if cutoff is not None:
+            candidates = [cutoff]
+        else:
+            low = min(contact, 0.999 * half)
+            candidates = list(np.linspace(low, 0.999 * half, 60))
+        best = None
+        density = n / volume
+        for rc in candidates:
+            alpha = self.alpha or _alpha_for(target, prefactor, squares, n, volume, rc)
+            if alpha is None:
+                continue
+            if real_space_error(prefactor, squares, n, volume, alpha, rc) > target * 1.0001:
+                continue
+            kmax = [_kmax_for(target, prefactor, squares, n, volume, alpha, length) for length in box.size]
+            kcut = max(2.0 * math.pi * k / length for k, length in zip(kmax, box.size))
+            # every axis reaches the sphere |k| <= kcut (a longer axis has finer wave numbers)
+            kmax = [max(k, int(math.floor(kcut * length / (2.0 * math.pi) * (1 + 1e-12))))
+                    for k, length in zip(kmax, box.size)]
+            vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3  # half of the k-sphere
+            cost = n * (2.0 * math.pi / 3.0 * density * rc ** 3 + RECIPROCAL_COST * vectors)
+            if best is None or cost < best[0]:
+                best = (cost, rc, alpha, kmax, kcut)
+        if best is None:
+            raise ValueError(f"no real-space cutoff shorter than half the box ({half:.6g}) reaches Ewald accuracy "
+                             f"{self.accuracy:g} with alpha={self.alpha}: ask for a lower accuracy or leave alpha "
+                             f"to the tuning")
+        _, rc, alpha, kmax, kcut = best
+        return TunedEwald(self, prefactor, float(rc), float(alpha), tuple(int(k) for k in kmax), float(kcut),
+                          real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
+                          math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume, alpha, k, length) ** 2
+                                        for k, length in zip(kmax, box.size)) / 3.0) / pull)
+
+    def __repr__(self):
+        extra = "" if self.alpha is None else f", alpha={self.alpha!r}"
+        return f"Ewald(accuracy={self.accuracy!r}, surface={self.surface!r}{extra})"
+
+
+class TunedEwald:
+    """An Ewald sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``kmax`` (largest wave
+    number per axis, in units of 2 pi / L), ``kcut`` (|k| kept), and the estimated relative RMS
+    force errors ``real_error`` and ``reciprocal_error`` (fractions of the touching pull)."""
+
+    energy_kind = "magnetic"
+
+    def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, real_error, reciprocal_error_):
+        self.settings = settings
+        self.prefactor = prefactor
+        self.cutoff = cutoff
+        self.alpha = alpha
+        self.kmax = kmax
+        self.kcut = kcut
+        self.real_error = real_error
+        self.reciprocal_error = reciprocal_error_
+
+    @property
+    def estimated_error(self):
+        """Estimated relative RMS force error of the whole sum."""
+        return math.hypot(self.real_error, self.reciprocal_error)
+
+    @property
+    def wave_vectors(self):
+        """Number of wave vectors summed (half of k-space)."""
+        p, q, r = self.kmax
+        k = np.stack(np.meshgrid(np.arange(0, p + 1), np.arange(-q, q + 1), np.arange(-r, r + 1), indexing="ij"),
+                     axis=-1).reshape(-1, 3)
+        keep = (k[:, 0] > 0) | ((k[:, 0] == 0) & ((k[:, 1] > 0) | ((k[:, 1] == 0) & (k[:, 2] > 0))))
+        return int(keep.sum())  # an upper bound: |k| <= kcut is applied per box shape at run time
+
+    def table_values(self):
+        """The sum's run-time table in the scene's params (see :func:`reciprocal_sum`)."""
+        vacuum = 1.0 if self.settings.surface == "vacuum" else 0.0
+        return np.array([self.prefactor, self.alpha, vacuum, *self.kmax, self.kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
+
+    def __repr__(self):
+        return (f"TunedEwald(cutoff={self.cutoff:.6g}, alpha={self.alpha:.6g}, kmax={self.kmax}, "
+                f"surface={self.settings.surface!r}, estimated_error={self.estimated_error:.3g})")
