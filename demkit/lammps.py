@@ -143,6 +143,9 @@ class _Export:
                 raise ValueError("PowerLawDipole (the paper's central force without torques) has no LAMMPS pair "
                                  "style: only the full Dipole can be exported")
             if kind is Dipole:
+                if inter.long_range is not None:
+                    raise ValueError(f"{inter!r}: the export knows LAMMPS' cut-off dipoles (lj/cut/dipole/cut) only, "
+                                     f"not its ewald/dipole k-space style; export the scene with a cut-off Dipole")
                 if inter.switch_width is not None:
                     raise ValueError(f"{inter!r}: LAMMPS' lj/cut/dipole/cut truncates plainly and lj/sf/dipole/sf "
                                      f"shifts differently; export Dipole without switch_width")

@@ -165,8 +165,16 @@ _CUTOFF = {"cutoff": _n("centre distance beyond which pairs are ignored (none: n
                               dim="length")}
 INTERACTIONS = Table({
     "dipole": Table({"prefactor": _n("A = mu0/4pi in SI; 1/3 with unit moments is the paper's units",
-                                     default=1e-7, check="positive", dim="dipole_prefactor"), **_CUTOFF},
-                    "full dipole-dipole force and torque (dk.Dipole)"),
+                                     default=1e-7, check="positive", dim="dipole_prefactor"), **_CUTOFF,
+                     "ewald": Table({
+                         "accuracy": _n("relative RMS force error the sum is tuned to", default=1e-6,
+                                        check="positive"),
+                         "surface": Key("string", "metallic", "surroundings: metallic or vacuum",
+                                        choices=("metallic", "vacuum")),
+                         "alpha": _n("splitting parameter (none: tuned)", check="positive", dim="inverse_length")},
+                         "every image of a periodic box: a dipolar Ewald sum (dk.Ewald); cutoff is then the "
+                         "real-space cutoff (none: tuned)")},
+                    "full dipole-dipole force and torque (dk.Dipole)", excludes=(("ewald", ("switch_width",)),)),
     "power_law_dipole": Table({"prefactor": _n("A, as for dipole", default=1e-7, check="positive",
                                                dim="dipole_prefactor"), **_CUTOFF},
                               "the paper's central head-to-tail force, no torque (dk.PowerLawDipole)"),
@@ -454,7 +462,7 @@ def si_scales(scales):
     return units, {"length": length, "time": t, "mass": m, "velocity": length / t, "angular_velocity": 1 / t,
                    "acceleration": length / t**2, "stiffness": k, "damping": m / t, "energy": k * length**2,
                    "pressure": k / length, "dipole": mu, "dipole_prefactor": k * length**5 / mu**2,
-                   "field": k * length**2 / mu}
+                   "field": k * length**2 / mu, "inverse_length": 1 / length}
 
 
 def _convert(schema, data, scale):
@@ -758,7 +766,14 @@ def _interactions(d, src, scale=None):
         with _At(src, "interactions", name, keys=value if isinstance(value, dict) else ()):
             if name in ("dipole", "power_law_dipole"):
                 cls = I.Dipole if name == "dipole" else I.PowerLawDipole
-                out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], switch_width=value["switch_width"]))
+                ewald = value.get("ewald")
+                if ewald is not None:
+                    with _At(src, "interactions", name, "ewald", keys=ewald):
+                        long_range = I.Ewald(**ewald)
+                    out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], long_range=long_range))
+                else:
+                    out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"],
+                                   switch_width=value["switch_width"]))
             elif name == "kelvin_voigt":
                 out.append(I.KelvinVoigt(**value, friction=friction, rolling=rolling))
             elif name == "hertz":

@@ -171,3 +171,56 @@ def test_error_estimates_fall_with_their_parameters():
     args = (1.0, 100.0, 100, 1000.0)
     assert real_space_error(*args, 1.0, 3.0) < real_space_error(*args, 1.0, 2.0)
     assert reciprocal_error(*args, 1.0, 8, 10.0) < reciprocal_error(*args, 1.0, 6, 10.0)
+
+
+def test_local_field_gives_the_torques_and_the_energy():
+    # dk.measure.local_field with an Ewald sum: m_i x B_i is the torque the run applies, and the
+    # magnetic energy is -1/2 sum_i m_i.B_i (the self correction included), both to round-off
+    pos, dip = random_gas(n=30, side=6.0, seed=4)
+    scene = ewald_scene(pos, dip, 6.0, accuracy=1e-9, surface="vacuum", radius=0.4)
+    field = dk.measure.local_field(scene)
+    _, torque = scene.forces()
+    np.testing.assert_allclose(np.cross(dip, field), torque, atol=1e-10)
+    energy = -0.5 * np.einsum("ij,ij->", dip, field)
+    assert energy == pytest.approx(scene.energy()["magnetic"], rel=1e-10)
+    with pytest.raises(ValueError, match="long-range"):
+        dk.measure.stress(scene)
+
+
+def test_the_lammps_export_refuses_an_ewald_sum(tmp_path):
+    pos, dip = lattice(3)
+    scene = ewald_scene(pos, dip, 3.0, accuracy=1e-4)
+    with pytest.raises(ValueError, match="ewald/dipole"):
+        dk.export_lammps(scene, dk.VelocityVerlet(1e-3), tmp_path / "deck", duration=1.0)
+
+
+def test_a_scene_file_asks_for_an_ewald_sum(tmp_path):
+    pos, dip = lattice(4, "columns")  # an even side: the columns alternate across the faces
+    text = f"""
+[particles]
+position = {pos.tolist()}
+dipole = {dip.tolist()}
+radius = 0.3
+[box]
+size = 4.0
+periodic = true
+[interactions.dipole]
+prefactor = 1.0
+[interactions.dipole.ewald]
+accuracy = 1e-8
+surface = "vacuum"
+[interactions.kelvin_voigt]
+stiffness = 1e5
+[integrator]
+dt = 0.0005
+[run]
+duration = 0.01
+"""
+    loaded = dk.parse_scene(text)
+    tuned = loaded.scene.long_range[0]
+    assert tuned.settings.surface == "vacuum" and tuned.estimated_error < 1e-8
+    assert loaded.scene.energy()["magnetic"] / len(pos) == pytest.approx(-2.67678868438, abs=5e-8)
+    with pytest.raises(dk.SceneFileError, match="interactions.dipole.ewald.surface"):
+        dk.parse_scene(text.replace('"vacuum"', '"foil"'))
+    with pytest.raises(dk.SceneFileError, match="switch_width: cannot be given together with ewald"):
+        dk.parse_scene(text.replace("prefactor = 1.0", "prefactor = 1.0\ncutoff = 1.4\nswitch_width = 0.2"))

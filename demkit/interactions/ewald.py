@@ -139,6 +139,19 @@ def reciprocal_sum(position, dipole, box, params, start, force, torque, with_for
     """The reciprocal, self and surface terms of the dipolar Ewald sum (module docstring) with the
     table at params[start:start + TABLE_SIZE]; adds forces and torques when ``with_forces``;
     returns their energy."""
+    field = np.zeros((position.shape[0] if with_forces else 0, 3))
+    energy = reciprocal_terms(position, dipole, box, params, start, force, field, with_forces)
+    for i in range(field.shape[0]):
+        torque[i, 0] += dipole[i, 1] * field[i, 2] - dipole[i, 2] * field[i, 1]
+        torque[i, 1] += dipole[i, 2] * field[i, 0] - dipole[i, 0] * field[i, 2]
+        torque[i, 2] += dipole[i, 0] * field[i, 1] - dipole[i, 1] * field[i, 0]
+    return energy
+
+
+@njit(**RECIPROCAL_OPTIONS)
+def reciprocal_terms(position, dipole, box, params, start, force, field, with_forces):
+    """:func:`reciprocal_sum`'s work: its energy, and with ``with_forces`` its forces added to
+    ``force`` and the field of the reciprocal and surface terms (torque m x field) to ``field``."""
     prefactor = params[start]
     alpha = params[start + 1]
     vacuum = params[start + 2] != 0.0
@@ -153,7 +166,6 @@ def reciprocal_sum(position, dipole, box, params, start, force, torque, with_for
     re = np.empty(n)
     im = np.empty(n)
     mk = np.empty(n)
-    field = np.zeros((n, 3))
     scale = 4.0 * math.pi * prefactor / volume  # half of k-space: twice (2 pi A / V)
     quarter = 0.25 / (alpha * alpha)
     total = 0.0
@@ -209,15 +221,45 @@ def reciprocal_sum(position, dipole, box, params, start, force, torque, with_for
         energy += 2.0 * math.pi * prefactor / (3.0 * volume) * (mx * mx + my * my + mz * mz)
     if not with_forces:
         return energy
-    surface = 4.0 * math.pi * prefactor / (3.0 * volume) if vacuum else 0.0
-    for i in range(n):
-        hx = field[i, 0] - surface * mx
-        hy = field[i, 1] - surface * my
-        hz = field[i, 2] - surface * mz
-        torque[i, 0] += dipole[i, 1] * hz - dipole[i, 2] * hy
-        torque[i, 1] += dipole[i, 2] * hx - dipole[i, 0] * hz
-        torque[i, 2] += dipole[i, 0] * hy - dipole[i, 1] * hx
+    if vacuum:
+        surface = 4.0 * math.pi * prefactor / (3.0 * volume)
+        for i in range(n):
+            field[i, 0] -= surface * mx
+            field[i, 1] -= surface * my
+            field[i, 2] -= surface * mz
     return energy
+
+
+def field_of_others(tuned, particles, box):
+    """(N, 3) field at each sphere from all the others and their images: the reciprocal and surface
+    terms plus the self correction (4 a^3 / 3 sqrt(pi)) A m_i, which removes the sphere's own share
+    of the reciprocal sum (the real-space part is the caller's: pairs within the cutoff)."""
+    n = len(particles)
+    field = np.zeros((n, 3))
+    table = tuned.table_values()
+    reciprocal_terms(np.ascontiguousarray(particles.position, dtype=np.float64),
+                     np.ascontiguousarray(particles.dipole, dtype=np.float64), np.asarray(box.size, dtype=np.float64),
+                     table, 0, np.zeros((n, 3)), field, True)
+    return field + tuned.prefactor * 4.0 * tuned.alpha ** 3 / (3.0 * math.sqrt(math.pi)) * particles.dipole
+
+
+def real_space_field(tuned, d, r, mj):
+    """Field at sphere i of its real-space partners j (separations d = x_j - x_i, distances r,
+    moments mj, arrays over the pairs): A [C (m_j.d) d - B m_j], zero beyond the cutoff."""
+    a = tuned.alpha
+    ar = a * r
+    gauss = 2.0 / math.sqrt(math.pi) * ar * np.exp(-ar * ar)
+    erfc = _erfc(ar)
+    b = (erfc + gauss) / r ** 3
+    c = (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / r ** 5
+    inside = r < tuned.cutoff
+    md = np.einsum("ij,ij->i", mj, d)
+    return tuned.prefactor * np.where(inside, 1.0, 0.0)[:, None] * (c[:, None] * md[:, None] * d - b[:, None] * mj)
+
+
+def _erfc(x):
+    from scipy.special import erfc
+    return erfc(x)
 
 
 # ---- tuning ------------------------------------------------------------------------------------
