@@ -7,8 +7,8 @@
 One force evaluation costs, in serial wall time (the constants measured on this project's 2-core
 machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.json``)::
 
-    N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR or DIPOLE_PAIR)
-      + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law]
+    N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR, DIPOLE_PAIR or EWALD_PAIR)
+      + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law] + N wave vectors x RECIPROCAL_VECTOR
 
 a step ``integrator.evaluations_per_step`` of them plus STEP. The listed pairs are counted now
 (a k-d tree within reach + skin). Touching pairs change while a scene runs, and they are the most
@@ -42,6 +42,11 @@ LISTED_PAIR = 7.2e-9
 #: seconds per listed pair of a loop holding dipoles (a dipole force, within reach + skin; 23 ns
 #: calibrated, 24.8 ns at the start of benchmarks/scenes/gas600.toml)
 DIPOLE_PAIR = 2.4e-8
+#: seconds per listed pair of the real-space part of an Ewald sum (erfc and exp: 62-65 ns, N = 500 to
+#: 4000; benchmarks/bench_ewald.py)
+EWALD_PAIR = 6.4e-8
+#: seconds per sphere and wave vector of the reciprocal part of an Ewald sum (5.6-6.1 ns, the same)
+RECIPROCAL_VECTOR = 5.8e-9
 #: seconds per pair of the exact (all-pairs) sum of dipoles
 ALL_PAIR = 2.0e-8
 #: seconds per touching pair (or sphere on a wall), by contact law and friction (at rest and shaken:
@@ -158,9 +163,13 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
             key, each = "exact sum", ALL_PAIR
         elif contact_only:
             key, each = "listed pairs", LISTED_PAIR
+        elif any(getattr(inter, "tuned", None) is not None for _, inter in group.members):
+            key, each = "listed Ewald pairs", EWALD_PAIR
         else:
             key, each = "listed dipole pairs", DIPOLE_PAIR
         parts[key] = parts.get(key, 0.0) + count * each
+    for tuned in scene.long_range:
+        parts["reciprocal sum"] = parts.get("reciprocal sum", 0.0) + n * tuned.wave_vectors * RECIPROCAL_VECTOR
     law = _contact_law(scene)
     now = touching_now(scene, tree) if law is not None else 0
     mean, note, later = float(now), "", 0.0

@@ -85,10 +85,13 @@ class Scene:
         check_repeats(interactions)
         effects = [inter for inter in interactions if isinstance(inter, SphereInteraction)]
         interactions = [inter for inter in interactions if isinstance(inter, PairInteraction)]
-        for effect in effects:
-            effect.bind(interactions)
         if box is not None and not isinstance(box, Box):
             raise TypeError(f"box must be a demkit.Box or None, got {type(box).__name__}")
+        # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
+        interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
+                        for inter in interactions]
+        for effect in effects:
+            effect.bind(interactions)
         if parallel not in (None, True, False):
             raise ValueError(f"parallel must be None (automatic), True or False, got {parallel!r}")
         self.particles = particles
@@ -99,8 +102,7 @@ class Scene:
         for inter in self.interactions + self.effects:
             inter.check(particles)
         #: the long-range sums tuned to this scene (dipolar Ewald: Dipole(long_range=Ewald(...)))
-        self.long_range = tuple(inter.bind_box(particles, box) for inter in self.interactions
-                                if getattr(inter, "long_range", None) is not None)
+        self.long_range = tuple(inter.tuned for inter in self.interactions if getattr(inter, "tuned", None))
         if any(inter.torque or "angular_velocity" in inter.reads for inter in self.interactions + self.effects):
             particles.require("angular_velocity")
         self.periodic = tuple(bool(f) for f in box.periodic) if box is not None else (False,) * 3
@@ -212,7 +214,8 @@ class Scene:
         p = self.particles
         contact = 2.0 * float(np.max(p.radius))
         for inter, reach in zip(self.interactions, self.reaches):
-            if "dipole" in inter.reads and inter.cutoff_distance is not None and reach < contact:
+            if ("dipole" in inter.reads and inter.cutoff_distance is not None and reach < contact
+                    and getattr(inter, "tuned", None) is None):  # an Ewald sum's real space may end short of it
                 raise ValueError(f"{type(inter).__name__} cutoff {reach:.6g} is shorter than the contact reach "
                                  f"{contact:.6g} (twice the largest radius): touching spheres would not interact")
             if self.box is not None:
@@ -567,7 +570,7 @@ class Scene:
     def _group_of(self, interaction):
         for g, group in enumerate(self.plan.groups):
             for k, inter in group.members:
-                if inter is interaction:
+                if inter is interaction or getattr(inter, "original", None) is interaction:  # (a tuned copy)
                     return g, group, k
         raise ValueError(f"{interaction!r} is not an interaction of this scene")
 

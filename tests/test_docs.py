@@ -91,3 +91,12 @@ def test_thermostat_page_example_runs_as_described(capsys):
     assert abs(np.mean(ns["cos_theta"]) - (1 / np.tanh(xi) - 1 / xi)) < 0.015
     assert abs(ns["T"] - 1.0) < 0.13
     assert "<cos theta> = 0.5414, Langevin law 0.5373; kT from velocities 1.031" in capsys.readouterr().out
+
+
+def test_long_range_page_example_runs_as_described(capsys):
+    ns = page_namespace("long_range.md")
+    m = ns["m"]
+    assert ns["full"].energy()["magnetic"] / m**3 == pytest.approx(-2 * np.pi / 3, rel=2e-6)
+    assert abs(ns["cut"].energy()["magnetic"]) < 1e-10
+    out = capsys.readouterr().out
+    assert "Ewald: -2.094394 per dipole" in out and "local field B_z = 4.188788" in out

@@ -224,3 +224,53 @@ duration = 0.01
         dk.parse_scene(text.replace('"vacuum"', '"foil"'))
     with pytest.raises(dk.SceneFileError, match="switch_width: cannot be given together with ewald"):
         dk.parse_scene(text.replace("prefactor = 1.0", "prefactor = 1.0\ncutoff = 1.4\nswitch_width = 0.2"))
+
+
+def test_multiple_time_stepping_puts_the_whole_sum_on_the_slow_step():
+    # MultipleTimeStep with one inner step is velocity Verlet with the forces split in two: equal to
+    # round-off only if the reciprocal sum is among the slow forces and nowhere else
+    pos, dip = random_gas(n=30, side=6.0, seed=9)
+    ends = []
+    for integrator in (dk.VelocityVerlet(1e-3), dk.MultipleTimeStep(1e-3, inner=1)):
+        scene = ewald_scene(pos, 0.3 * dip, 6.0, accuracy=1e-6, radius=0.4,
+                            velocity=np.random.default_rng(3).normal(size=(30, 3)), angular_velocity=np.zeros((30, 3)))
+        dk.Simulation(scene, integrator).run(duration=0.5, progress=False)
+        ends.append((scene.particles.position.copy(), scene.particles.angular_velocity.copy()))
+    np.testing.assert_allclose(ends[0][0], ends[1][0], atol=1e-11)
+    np.testing.assert_allclose(ends[0][1], ends[1][1], atol=1e-10)
+
+
+def test_cost_estimate_and_wave_vectors():
+    # demkit info's estimate names the two parts of the sum; the count of wave vectors is the
+    # brute-force count of the half-space vectors with 0 < |k| <= kcut
+    pos, dip = random_gas(n=40, side=6.0, seed=2)
+    scene = ewald_scene(pos, dip, 6.0, accuracy=1e-6, radius=0.4)
+    tuned = scene.long_range[0]
+    g = np.arange(-20, 21)
+    k = 2 * np.pi / 6.0 * np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    k2 = (k ** 2).sum(1)
+    assert tuned.wave_vectors == np.count_nonzero((k2 > 0) & (k2 <= tuned.kcut ** 2 * (1 + 1e-9))) // 2
+    parts = dk.cost.estimate(scene, dk.VelocityVerlet(1e-3), 1.0).parts
+    assert parts["reciprocal sum"] == pytest.approx(40 * tuned.wave_vectors * dk.cost.RECIPROCAL_VECTOR)
+    assert parts["listed Ewald pairs"] > 0
+
+
+def test_one_dipole_object_in_two_boxes():
+    # the scene tunes a copy: the same Dipole joins scenes of different boxes, each keeps its own sum
+    # (a single dipole in a cube of side L is the aligned lattice: -(2 pi / 3) mu^2 / L^3, metallic)
+    dipole = dk.Dipole(1.0, long_range=dk.Ewald(1e-10))  # (the energy's error is of the force error's order)
+    scenes = []
+    for side in (2.0, 3.0):
+        p = dk.Particles(position=[[0.5, 0.5, 0.5]], radius=0.4, mass=1.0, dipole=[[0.0, 0.0, 1.0]])
+        scenes.append(dk.Scene(p, [dipole, dk.KelvinVoigt(stiffness=1000.0, damping=0.0)],
+                               box=dk.Box(side, periodic=True)))
+    assert dipole.tuned is None and scenes[0].long_range[0] is not scenes[1].long_range[0]
+    for side, scene in zip((2.0, 3.0), scenes):
+        assert scene.energy()["magnetic"] == pytest.approx(-2.0 * math.pi / 3.0 / side ** 3, abs=1e-8)
+        np.testing.assert_allclose(dk.measure.local_field(scene), [[0.0, 0.0, 4.0 * math.pi / 3.0 / side ** 3]],
+                                   atol=1e-8)
+    assert len(scenes[0].candidate_pairs(dipole)) == 0  # the user's object finds its tuned copy
+    with pytest.raises(ValueError, match="wave vectors"):
+        two = dk.Particles(position=[[0.5, 0.5, 0.5], [1.5, 0.5, 0.5]], radius=0.4, mass=1.0,
+                           dipole=[[0, 0, 1.0], [0, 0, 1.0]])
+        dk.Scene(two, [dk.Dipole(1.0, cutoff=0.05, long_range=dk.Ewald(1e-6))], box=dk.Box(3.0, periodic=True))

@@ -260,21 +260,24 @@ class Dipole(PairInteraction):
         self.long_range = long_range
         self.user_cutoff = self.cutoff_distance
 
-    def bind_box(self, particles, box):
-        """With ``long_range``: tune it to these spheres in this box (called by the Scene). The pair
-        functions become the screened real-space pair, the cutoff the real-space cutoff, and
-        :attr:`tuned` (a :class:`demkit.interactions.ewald.TunedEwald`) holds the rest of the sum."""
-        if self.long_range is None:
-            return None
+    def tuned_for(self, particles, box):
+        """With ``long_range``: a copy of this Dipole tuned to these spheres in this box (the Scene
+        holds it in place of this one; ``original`` is this one, which stays untuned and can join
+        other scenes). Its pair functions are the screened real-space pair, its cutoff the
+        real-space cutoff, and :attr:`tuned` (a :class:`demkit.interactions.ewald.TunedEwald`)
+        holds the rest of the sum."""
+        import copy
+
         from .ewald import ewald_real_energy, ewald_real_force
         self.check(particles)
-        self.tuned = self.long_range.tune(self.prefactor, particles, box, self.user_cutoff)
-        self.cutoff_distance = self.tuned.cutoff
-        self.alpha = self.tuned.alpha
-        self.force_function, self.energy_function = ewald_real_force, ewald_real_energy
-        self.parameters = ("prefactor", "alpha")
-        self.branch_free = True
-        return self.tuned
+        bound = copy.copy(self)
+        bound.original = self
+        bound.tuned = self.long_range.tune(self.prefactor, particles, box, self.user_cutoff)
+        bound.cutoff_distance = bound.tuned.cutoff
+        bound.alpha = bound.tuned.alpha
+        bound.force_function, bound.energy_function = ewald_real_force, ewald_real_energy
+        bound.parameters = ("prefactor", "alpha")
+        return bound
 
     def rate_coefficients(self, particles, i, j):
         """(a, b), arrays over the index pairs (i, j): the fastest angular frequency the pair can move

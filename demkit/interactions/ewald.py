@@ -54,9 +54,12 @@ from ..motion import KERNEL_OPTIONS
 from .base import positive
 
 SURFACES = ("metallic", "vacuum")
-#: operations per (sphere, wave vector) of the reciprocal sum against one real-space pair (measured:
-#: benchmarks/bench_ewald.py), which decides the cutoff the tuning keeps
-RECIPROCAL_COST = 1.0
+#: time per (sphere, wave vector) of the reciprocal sum against one real-space pair within the
+#: cutoff, which decides the cutoff the tuning keeps: 6 ns against ~75 ns (erfc and exp, and the
+#: listed pairs within the skin; benchmarks/bench_ewald.py, benchmarks/results/ewald.json)
+RECIPROCAL_COST = 0.08
+#: more wave vectors than this are refused (a cutoff far too short for the accuracy asked)
+MAX_WAVE_VECTORS = 2e6
 #: table of a tuned sum in the scene's params: A, alpha, vacuum (0/1), kx, ky, kz maxima, k_c^2
 TABLE_SIZE = 7
 RECIPROCAL_OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
@@ -372,7 +375,14 @@ class Ewald:
                              f"{self.accuracy:g} with alpha={self.alpha}: ask for a lower accuracy or leave alpha "
                              f"to the tuning")
         _, rc, alpha, kmax, kcut = best
+        vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3
+        if vectors > MAX_WAVE_VECTORS:
+            raise ValueError(f"an Ewald sum with real-space cutoff {rc:.6g} needs about {vectors:.3g} wave vectors "
+                             f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {self.accuracy:g}: each force "
+                             f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
+                             f"tuning, make it longer, or ask for a lower accuracy")
         return TunedEwald(self, prefactor, float(rc), float(alpha), tuple(int(k) for k in kmax), float(kcut),
+                          tuple(float(x) for x in box.size),
                           real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
                           math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume, alpha, k, length) ** 2
                                         for k, length in zip(kmax, box.size)) / 3.0) / pull)
@@ -389,8 +399,9 @@ class TunedEwald:
 
     energy_kind = "magnetic"
 
-    def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, real_error, reciprocal_error_):
+    def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, box_size, real_error, reciprocal_error_):
         self.settings = settings
+        self.box_size = box_size
         self.prefactor = prefactor
         self.cutoff = cutoff
         self.alpha = alpha
@@ -406,12 +417,10 @@ class TunedEwald:
 
     @property
     def wave_vectors(self):
-        """Number of wave vectors summed (half of k-space)."""
-        p, q, r = self.kmax
-        k = np.stack(np.meshgrid(np.arange(0, p + 1), np.arange(-q, q + 1), np.arange(-r, r + 1), indexing="ij"),
-                     axis=-1).reshape(-1, 3)
-        keep = (k[:, 0] > 0) | ((k[:, 0] == 0) & ((k[:, 1] > 0) | ((k[:, 1] == 0) & (k[:, 2] > 0))))
-        return int(keep.sum())  # an upper bound: |k| <= kcut is applied per box shape at run time
+        """Number of wave vectors the reciprocal sum visits (half of those with |k| <= kcut)."""
+        axes = [2.0 * math.pi / length * np.arange(-m, m + 1) for m, length in zip(self.kmax, self.box_size)]
+        k2 = sum(np.meshgrid(*[a * a for a in axes], indexing="ij"))
+        return int((np.count_nonzero(k2 <= self.kcut ** 2 * (1 + 1e-9)) - 1) // 2)
 
     def table_values(self):
         """The sum's run-time table in the scene's params (see :func:`reciprocal_sum`)."""
