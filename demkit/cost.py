@@ -9,6 +9,7 @@ machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.j
 
     N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR, DIPOLE_PAIR or EWALD_PAIR)
       + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law] + N wave vectors x RECIPROCAL_VECTOR
+      + N FMM_SPHERE (a fast multipole sum)
 
 a step ``integrator.evaluations_per_step`` of them plus STEP. The listed pairs are counted now
 (a k-d tree within reach + skin). Touching pairs change while a scene runs, and they are the most
@@ -47,6 +48,9 @@ DIPOLE_PAIR = 2.4e-8
 EWALD_PAIR = 6.4e-8
 #: seconds per sphere and wave vector of the reciprocal part of an Ewald sum (5.6-6.1 ns, the same)
 RECIPROCAL_VECTOR = 5.8e-9
+#: seconds per sphere of a fast multipole sum (FMM3D with gradients and Hessians, eps 1e-6 to 1e-9;
+#: benchmarks/bench_fmm.py)
+FMM_SPHERE = 6.0e-5
 #: seconds per pair of the exact (all-pairs) sum of dipoles
 ALL_PAIR = 2.0e-8
 #: seconds per touching pair (or sphere on a wall), by contact law and friction (at rest and shaken:
@@ -169,7 +173,10 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
             key, each = "listed dipole pairs", DIPOLE_PAIR
         parts[key] = parts.get(key, 0.0) + count * each
     for tuned in scene.long_range:
-        parts["reciprocal sum"] = parts.get("reciprocal sum", 0.0) + n * tuned.wave_vectors * RECIPROCAL_VECTOR
+        if hasattr(tuned, "wave_vectors"):  # an Ewald sum
+            parts["reciprocal sum"] = parts.get("reciprocal sum", 0.0) + n * tuned.wave_vectors * RECIPROCAL_VECTOR
+        else:
+            parts["fast multipole sum"] = parts.get("fast multipole sum", 0.0) + n * FMM_SPHERE
     law = _contact_law(scene)
     now = touching_now(scene, tree) if law is not None else 0
     mean, note, later = float(now), "", 0.0

@@ -84,7 +84,7 @@ class Plan:
     growing: bool  # neighbour lists (mutable state, reference counting on)
     sorted: bool = False  # particles re-sorted by cell now and then (internal order)
     effects: tuple = ()  # single-sphere interactions (walls, gravity, fields)
-    sums: tuple = ()  # long-range sums over all spheres (the reciprocal part of a dipolar Ewald sum)
+    sums: tuple = ()  # long-range sums over all spheres (an Ewald sum's reciprocal part, an FMM sum)
 
     @property
     def effect_offsets(self):
@@ -583,8 +583,8 @@ class _Source:
         if plan.effects and speed != "slow":
             lines.append(f"    power += sphere_forces({_state_fields()}, {force}, {torque}, s.sphere_history, commit_flag)")
         if speed != "fast":  # long-range sums are slow forces (dipoles)
-            lines += [f"    reciprocal_sum(s.position, s.dipole, s.box, s.params, {slot}, {force}, {torque}, True)"
-                      for slot in self.sum_slot]
+            lines += [f"    long_range_{q}(s.position, s.dipole, s.box, s.params, {slot}, {force}, {torque}, True)"
+                      for q, slot in enumerate(self.sum_slot)]
         return lines
 
     def forces_body(self, speed, force, torque, strict):
@@ -691,8 +691,8 @@ class _Source:
             lines.append("    " + self.group_call(g, group, "energies", "", ", out"))
         if plan.effects:
             lines.append(f"    sphere_energies({spheres}, s.sphere_history, out)")
-        for tuned, slot in zip(plan.sums, self.sum_slot):
-            lines.append(f"    out[{2 + self.kinds.index(tuned.energy_kind)}] += reciprocal_sum(s.position, s.dipole, "
+        for q, (tuned, slot) in enumerate(zip(plan.sums, self.sum_slot)):
+            lines.append(f"    out[{2 + self.kinds.index(tuned.energy_kind)}] += long_range_{q}(s.position, s.dipole, "
                          f"s.box, s.params, {slot}, s.force, s.torque, False)")
         for g, group in enumerate(plan.groups):
             for kind in ("pair_energies", "pair_forces"):
@@ -748,8 +748,9 @@ class _Source:
                  ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.events import earliest_wall_crossing", ""]
-        if plan.sums:
-            lines += ["from demkit.interactions.ewald import reciprocal_sum", ""]
+        for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
+            module, name = tuned.kernel
+            lines += [f"from {module} import {name} as long_range_{q}"]
         if plan.growing:  # scenes with lists: the passes compiled once and called (see demkit.motion)
             from .motion import CALLED_PASSES
             lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)

@@ -195,15 +195,19 @@ def local_field(scene, applied=True):
                              "(use dk.Dipole)")
         if not isinstance(inter, Dipole):
             continue
+        if inter.tuned is not None:  # a long-range sum: an Ewald sum's real-space pairs, and the rest
+            if inter.pair_loop:
+                pairs = scene.candidate_pairs(inter)
+                d = scene.separations(pairs)
+                r = np.sqrt(np.einsum("ij,ij->i", d, d))
+                i, j = pairs[:, 0], pairs[:, 1]
+                np.add.at(field, i, ewald.real_space_field(inter.tuned, d, r, p.dipole[j]))
+                np.add.at(field, j, ewald.real_space_field(inter.tuned, -d, r, p.dipole[i]))
+            field += inter.tuned.field(p, scene.box)
+            continue
         pairs = scene.candidate_pairs(inter)
         d = scene.separations(pairs)
         r = np.sqrt(np.einsum("ij,ij->i", d, d))
-        if inter.tuned is not None:  # an Ewald sum: its real-space pairs and the rest of it
-            i, j = pairs[:, 0], pairs[:, 1]
-            np.add.at(field, i, ewald.real_space_field(inter.tuned, d, r, p.dipole[j]))
-            np.add.at(field, j, ewald.real_space_field(inter.tuned, -d, r, p.dipole[i]))
-            field += ewald.field_of_others(inter.tuned, p, scene.box)
-            continue
         scale = inter.prefactor / r**3
         if inter.cutoff_distance is not None:
             scale = np.where(r < inter.cutoff_distance, scale, 0.0)

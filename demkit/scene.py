@@ -109,7 +109,9 @@ class Scene:
         if any(self.periodic):
             particles.require("image")
         self.skin = self._skin(skin)
-        self.reaches = [inter.cutoff(particles) for inter in self.interactions]
+        # (an interaction a long-range sum covers whole has no pair loop, and no reach)
+        self.reaches = [inter.cutoff(particles) if getattr(inter, "pair_loop", True) else 0.0
+                        for inter in self.interactions]
         self._check_geometry()
         machine = max(1, int(numba.config.NUMBA_NUM_THREADS))
         #: rough serial time of one force evaluation (s), which decides chunks with parallel=None
@@ -230,13 +232,13 @@ class Scene:
     def _plan(self):
         """Group the interactions by reach (see the module docstring)."""
         n = len(self.particles)
-        members = list(enumerate(self.interactions))
+        members = [(k, inter) for k, inter in enumerate(self.interactions) if getattr(inter, "pair_loop", True)]
         if n <= ALL_PAIRS_MAX and not any(self.periodic):
             groups = [Group(members, "all", math.inf)] if members else []
         else:
             by_reach = {}
-            for (k, inter), reach in zip(members, self.reaches):
-                by_reach.setdefault(reach, []).append((k, inter))
+            for k, inter in members:
+                by_reach.setdefault(self.reaches[k], []).append((k, inter))
             groups = [Group(m, "all" if math.isinf(r) else "list", r) for r, m in sorted(by_reach.items())]
         chunked = any(g.kind == "list" for g in groups) or self.parallel
         for group in groups:
@@ -560,7 +562,7 @@ class Scene:
                 acts = np.any(force != 0.0, axis=1)
                 pairs = np.stack([tag[owners[acts]], tag[partners[acts]]], axis=1)
                 found[id(inter)] = (pairs, values[acts, :3], force[acts])
-        return [(inter, *found[id(inter)]) for inter in self.interactions]
+        return [(inter, *found[id(inter)]) for inter in self.interactions if id(inter) in found]
 
     @property
     def history_values(self):

@@ -173,8 +173,14 @@ INTERACTIONS = Table({
                                         choices=("metallic", "vacuum")),
                          "alpha": _n("splitting parameter (none: tuned)", check="positive", dim="inverse_length")},
                          "every image of a periodic box: a dipolar Ewald sum (dk.Ewald); cutoff is then the "
-                         "real-space cutoff (none: tuned)")},
-                    "full dipole-dipole force and torque (dk.Dipole)", excludes=(("ewald", ("switch_width",)),)),
+                         "real-space cutoff (none: tuned)"),
+                     "fmm": Table({
+                         "accuracy": _n("FMM3D's precision eps", default=1e-9, check="positive")},
+                         "every pair of a big open cluster by a fast multipole sum (dk.FMM; needs "
+                         "pip install \"demkit[fmm]\")")},
+                    "full dipole-dipole force and torque (dk.Dipole)",
+                    one_of=((("ewald", "fmm"), False),),
+                    excludes=(("ewald", ("switch_width",)), ("fmm", ("cutoff", "switch_width")))),
     "power_law_dipole": Table({"prefactor": _n("A, as for dipole", default=1e-7, check="positive",
                                                dim="dipole_prefactor"), **_CUTOFF},
                               "the paper's central head-to-tail force, no torque (dk.PowerLawDipole)"),
@@ -766,10 +772,10 @@ def _interactions(d, src, scale=None):
         with _At(src, "interactions", name, keys=value if isinstance(value, dict) else ()):
             if name in ("dipole", "power_law_dipole"):
                 cls = I.Dipole if name == "dipole" else I.PowerLawDipole
-                ewald = value.get("ewald")
-                if ewald is not None:
-                    with _At(src, "interactions", name, "ewald", keys=ewald):
-                        long_range = I.Ewald(**ewald)
+                method = "ewald" if value.get("ewald") is not None else "fmm" if value.get("fmm") is not None else None
+                if method is not None:
+                    with _At(src, "interactions", name, method, keys=value[method]):
+                        long_range = (I.Ewald if method == "ewald" else I.FMM)(**value[method])
                     out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], long_range=long_range))
                 else:
                     out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"],

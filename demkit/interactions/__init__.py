@@ -11,6 +11,7 @@ from .langevin import Langevin
 from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 from .ewald import Ewald
+from .fmm import FMM
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz",
-           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald"]
+           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "FMM"]

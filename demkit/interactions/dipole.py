@@ -227,6 +227,8 @@ class Dipole(PairInteraction):
         self.switch_width = None
         self.long_range = None
         self.tuned = None
+        #: False: no pair loop evaluates this interaction (a long-range sum covers every pair)
+        self.pair_loop = True
         if long_range is not None:
             self._long_range(long_range, switch_width)
             return
@@ -248,9 +250,10 @@ class Dipole(PairInteraction):
 
     def _long_range(self, long_range, switch_width):
         from .ewald import Ewald
+        from .fmm import FMM
         name = type(self).__name__
-        if not isinstance(long_range, Ewald):
-            raise ValueError(f"{name} long_range must be a demkit.Ewald (or None), got {long_range!r}")
+        if not isinstance(long_range, (Ewald, FMM)):
+            raise ValueError(f"{name} long_range must be a demkit.Ewald or demkit.FMM (or None), got {long_range!r}")
         if not self.torque:
             raise ValueError(f"{name} has no long_range form: the paper's central power law is no dipole field; "
                              f"use dk.Dipole(long_range=...)")
@@ -267,16 +270,11 @@ class Dipole(PairInteraction):
         real-space cutoff, and :attr:`tuned` (a :class:`demkit.interactions.ewald.TunedEwald`)
         holds the rest of the sum."""
         import copy
-
-        from .ewald import ewald_real_energy, ewald_real_force
         self.check(particles)
         bound = copy.copy(self)
         bound.original = self
         bound.tuned = self.long_range.tune(self.prefactor, particles, box, self.user_cutoff)
-        bound.cutoff_distance = bound.tuned.cutoff
-        bound.alpha = bound.tuned.alpha
-        bound.force_function, bound.energy_function = ewald_real_force, ewald_real_energy
-        bound.parameters = ("prefactor", "alpha")
+        bound.tuned.adapt(bound)
         return bound
 
     def rate_coefficients(self, particles, i, j):

@@ -398,6 +398,8 @@ class TunedEwald:
     force errors ``real_error`` and ``reciprocal_error`` (fractions of the touching pull)."""
 
     energy_kind = "magnetic"
+    #: the compiled function the kernels call once per force evaluation (module, name)
+    kernel = ("demkit.interactions.ewald", "reciprocal_sum")
 
     def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, box_size, real_error, reciprocal_error_):
         self.settings = settings
@@ -409,6 +411,18 @@ class TunedEwald:
         self.kcut = kcut
         self.real_error = real_error
         self.reciprocal_error = reciprocal_error_
+
+    def adapt(self, dipole):
+        """Make the scene's copy of the Dipole the screened real-space pair at the tuned cutoff."""
+        dipole.cutoff_distance = self.cutoff
+        dipole.alpha = self.alpha
+        dipole.force_function, dipole.energy_function = ewald_real_force, ewald_real_energy
+        dipole.parameters = ("prefactor", "alpha")
+
+    def field(self, particles, box):
+        """(N, 3) field at each sphere from everything but its real-space partners (see
+        :func:`field_of_others`)."""
+        return field_of_others(self, particles, box)
 
     @property
     def estimated_error(self):
