@@ -72,7 +72,7 @@ def main(argv=None):
                 row[f"fmm_{eps:g}_force_error"] = float(np.sqrt(np.mean(((f - exact[0]) ** 2).sum(1))) / scale)
         print(json.dumps(row))
         rows.append(row)
-    largest = max(r for r in rows if "exact_seconds" in r)
+    largest = max((r for r in rows if "exact_seconds" in r), key=lambda r: r["n"])
     for r in rows:
         if "exact_seconds" not in r:
             r["exact_seconds_extrapolated"] = largest["exact_seconds"] * (r["n"] / largest["n"]) ** 2

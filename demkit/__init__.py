@@ -6,6 +6,7 @@ from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, Langev
                            PowerLawDipole, RollingResistance, SphereInteraction, UniformField, Wall)
 from .interactions.ewald import Ewald
 from .interactions.fmm import FMM
+from .interactions.p3m import P3M
 from .particles import Particles
 from .scene import Scene
 from .checkpoint import Checkpoint
@@ -27,7 +28,7 @@ __version__ = "0.1.0"
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
            "LargeOutputWarning", "CheckpointWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
-           "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "FMM", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
+           "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

@@ -174,13 +174,24 @@ INTERACTIONS = Table({
                          "alpha": _n("splitting parameter (none: tuned)", check="positive", dim="inverse_length")},
                          "every image of a periodic box: a dipolar Ewald sum (dk.Ewald); cutoff is then the "
                          "real-space cutoff (none: tuned)"),
+                     "p3m": Table({
+                         "accuracy": _n("relative RMS force error the sum is tuned to", default=1e-4,
+                                        check="positive"),
+                         "surface": Key("string", "metallic", "surroundings: metallic or vacuum",
+                                        choices=("metallic", "vacuum")),
+                         "alpha": _n("splitting parameter (none: tuned)", check="positive", dim="inverse_length"),
+                         "order": Key("integer", 6, "B-spline order, 4 to 7"),
+                         "mesh": Key("integer", None, "mesh points per axis (none: tuned)")},
+                         "every image of a big periodic box: a dipolar particle-mesh sum (dk.P3M); cutoff is "
+                         "then the real-space cutoff (none: tuned)"),
                      "fmm": Table({
                          "accuracy": _n("FMM3D's precision eps", default=1e-9, check="positive")},
                          "every pair of a big open cluster by a fast multipole sum (dk.FMM; needs "
                          "pip install \"demkit[fmm]\")")},
                     "full dipole-dipole force and torque (dk.Dipole)",
-                    one_of=((("ewald", "fmm"), False),),
-                    excludes=(("ewald", ("switch_width",)), ("fmm", ("cutoff", "switch_width")))),
+                    one_of=((("ewald", "p3m", "fmm"), False),),
+                    excludes=(("ewald", ("switch_width",)), ("p3m", ("switch_width",)),
+                              ("fmm", ("cutoff", "switch_width")))),
     "power_law_dipole": Table({"prefactor": _n("A, as for dipole", default=1e-7, check="positive",
                                                dim="dipole_prefactor"), **_CUTOFF},
                               "the paper's central head-to-tail force, no torque (dk.PowerLawDipole)"),
@@ -772,10 +783,10 @@ def _interactions(d, src, scale=None):
         with _At(src, "interactions", name, keys=value if isinstance(value, dict) else ()):
             if name in ("dipole", "power_law_dipole"):
                 cls = I.Dipole if name == "dipole" else I.PowerLawDipole
-                method = "ewald" if value.get("ewald") is not None else "fmm" if value.get("fmm") is not None else None
+                method = next((m for m in ("ewald", "p3m", "fmm") if value.get(m) is not None), None)
                 if method is not None:
                     with _At(src, "interactions", name, method, keys=value[method]):
-                        long_range = (I.Ewald if method == "ewald" else I.FMM)(**value[method])
+                        long_range = {"ewald": I.Ewald, "p3m": I.P3M, "fmm": I.FMM}[method](**value[method])
                     out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], long_range=long_range))
                 else:
                     out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"],

@@ -12,6 +12,7 @@ from .wall import Wall
 from .dipole import Dipole, PowerLawDipole
 from .ewald import Ewald
 from .fmm import FMM
+from .p3m import P3M
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz",
-           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "FMM"]
+           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "P3M", "FMM"]

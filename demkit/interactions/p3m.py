@@ -1,0 +1,397 @@
+"""Dipolar particle-mesh Ewald sum (P3M in its smooth-PME form): the reciprocal part of the Ewald sum
+of :mod:`demkit.interactions.ewald` on a mesh with fast Fourier transforms, O(N log N).
+
+The real-space pair, the self and surface terms are the Ewald sum's. The wave-vector sum
+U_k = (2 pi A / V) sum_k g(k) |S(k)|^2 is approximated by interpolating exp(i k.x) with cardinal
+B-splines M_p of order p on a K_x x K_y x K_z mesh (Essmann et al., J. Chem. Phys. 103, 8577 (1995);
+for dipoles, Toukmaji et al., J. Chem. Phys. 113, 10913 (2000)). With u_a = K_a x_a / L_a and
+W_j(g) = prod_a M_p(u_ja - g_a) (periodic in g):
+
+    Q(g)  = sum_j m_j . grad_j W_j(g)                  (the dipoles spread on the mesh)
+    U_k  ~= sum_m C(m) |Q^(m)|^2,   C(m) = (2 pi A / V) g(k_m) |B(m)|^2,  C(0) = 0
+    Phi   = dU/dQ = 2 K^3 IFFT(C Q^)                   (one FFT forward, one back)
+    H_j   = -sum_g Phi(g) grad_j W_j(g),   tau_j = m_j x H_j
+    F_j   = -sum_g Phi(g) (Hess_j W_j(g)) m_j
+
+with |B(m)|^2 = prod_a 1/|sum_{l=0}^{p-2} M_p(l+1) exp(2 pi i m_a l / K_a)|^2. Forces and torques are
+the exact derivatives of this approximate energy (a run conserves it). The splines' derivatives
+come from M_p' (x) = M_{p-1}(x) - M_{p-1}(x-1), the second ones likewise.
+
+Tuning (``accuracy`` as for :class:`demkit.Ewald`: the RMS force error relative to the touching
+pull): for each candidate real-space cutoff, alpha from the Wang-Holm real-space estimate (half
+of the squared error), then the smallest mesh (sizes 2^a 3^b 5^c) whose reciprocal force error,
+*measured* on a sample of up to SAMPLE spheres at random places in the same box with the scene's
+moments against the exact wave-vector sum, scaled by sqrt(N / sample) (errors of random sums add
+in quadrature), meets the other half; the cutoff with the least estimated time is kept.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, objmode
+
+from .ewald import Ewald, _alpha_for, _kmax_for, real_space_error, reciprocal_terms
+
+#: spheres of the sample the mesh error is measured on
+SAMPLE = 200
+#: mesh sizes tried (products of 2, 3 and 5)
+MESH_SIZES = sorted({2 ** a * 3 ** b * 5 ** c for a in range(9) for b in range(4) for c in range(3)
+                     if 4 <= 2 ** a * 3 ** b * 5 ** c <= 256})
+#: estimated seconds: per real-space pair within the cutoff, per sphere and spline point (spread +
+#: gather), per mesh point and log2 of the mesh size (FFT), measured by benchmarks/bench_ewald.py
+PAIR_SECONDS, POINT_SECONDS, FFT_SECONDS = 7.5e-8, 4.0e-9, 2.0e-9
+#: head of a tuned sum's table in the scene's params: A, alpha, vacuum, Kx, Ky, Kz, order; then C
+HEAD = 7
+OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
+
+
+@njit(**OPTIONS)
+def _splines(t, p, table, w, dw, ddw):
+    """w[l] = M_p(t + l), dw[l] = M_p'(t + l), ddw[l] = M_p''(t + l) for l = 0..p-1, 0 <= t < 1;
+    ``table`` (p + 1, p + 1) is scratch: table[n, l] = M_n(t + l)."""
+    table[...] = 0.0
+    table[1, 0] = 1.0  # M_1 = 1 on [0, 1)
+    for n in range(2, p + 1):
+        for l in range(n):
+            x = t + l
+            table[n, l] = (x * table[n - 1, l] + (n - x) * (table[n - 1, l - 1] if l >= 1 else 0.0)) / (n - 1)
+    for l in range(p):
+        w[l] = table[p, l]
+        dw[l] = table[p - 1, l] - (table[p - 1, l - 1] if l >= 1 else 0.0)
+        ddw[l] = (table[p - 2, l] - 2.0 * (table[p - 2, l - 1] if l >= 1 else 0.0)
+                  + (table[p - 2, l - 2] if l >= 2 else 0.0))
+
+
+@njit(**OPTIONS)
+def _weights(position, box, mesh, p):
+    """Base mesh index and spline values, first and second derivatives per sphere and axis."""
+    n = position.shape[0]
+    base = np.empty((n, 3), dtype=np.int64)
+    w = np.empty((n, 3, p))
+    dw = np.empty((n, 3, p))
+    ddw = np.empty((n, 3, p))
+    table = np.empty((p + 1, p + 1))
+    for j in range(n):
+        for a in range(3):
+            s = position[j, a] / box[a]
+            u = (s - math.floor(s)) * mesh[a]
+            b = int(math.floor(u))
+            if b >= mesh[a]:
+                b -= mesh[a]
+            base[j, a] = b
+            _splines(u - b, p, table, w[j, a], dw[j, a], ddw[j, a])
+    return base, w, dw, ddw
+
+
+@njit(**OPTIONS)
+def spread(dipole, box, mesh, p, base, w, dw, grid):
+    """grid(g) = sum_j m_j . grad_j W_j(g) (grid zeroed first)."""
+    grid[...] = 0.0
+    sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
+    for j in range(dipole.shape[0]):
+        mx, my, mz = dipole[j, 0] * sx, dipole[j, 1] * sy, dipole[j, 2] * sz
+        for a in range(p):
+            gx = (base[j, 0] - a) % mesh[0]
+            for b in range(p):
+                gy = (base[j, 1] - b) % mesh[1]
+                for c in range(p):
+                    gz = (base[j, 2] - c) % mesh[2]
+                    grid[gx, gy, gz] += (mx * dw[j, 0, a] * w[j, 1, b] * w[j, 2, c]
+                                         + my * w[j, 0, a] * dw[j, 1, b] * w[j, 2, c]
+                                         + mz * w[j, 0, a] * w[j, 1, b] * dw[j, 2, c])
+
+
+@njit(**OPTIONS)
+def gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field):
+    """Add F_j = -sum Phi Hess(W) m_j to force and H_j = -sum Phi grad(W) to field."""
+    sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
+    for j in range(dipole.shape[0]):
+        hx = hy = hz = 0.0
+        xx = yy = zz = xy = xz = yz = 0.0
+        for a in range(p):
+            gx = (base[j, 0] - a) % mesh[0]
+            for b in range(p):
+                gy = (base[j, 1] - b) % mesh[1]
+                for c in range(p):
+                    gz = (base[j, 2] - c) % mesh[2]
+                    f = phi[gx, gy, gz]
+                    wx, wy, wz = w[j, 0, a], w[j, 1, b], w[j, 2, c]
+                    dx, dy, dz = dw[j, 0, a], dw[j, 1, b], dw[j, 2, c]
+                    hx += f * dx * wy * wz
+                    hy += f * wx * dy * wz
+                    hz += f * wx * wy * dz
+                    xx += f * ddw[j, 0, a] * wy * wz
+                    yy += f * wx * ddw[j, 1, b] * wz
+                    zz += f * wx * wy * ddw[j, 2, c]
+                    xy += f * dx * dy * wz
+                    xz += f * dx * wy * dz
+                    yz += f * wx * dy * dz
+        field[j, 0] -= hx * sx
+        field[j, 1] -= hy * sy
+        field[j, 2] -= hz * sz
+        mx, my, mz = dipole[j, 0], dipole[j, 1], dipole[j, 2]
+        force[j, 0] -= xx * sx * sx * mx + xy * sx * sy * my + xz * sx * sz * mz
+        force[j, 1] -= xy * sx * sy * mx + yy * sy * sy * my + yz * sy * sz * mz
+        force[j, 2] -= xz * sx * sz * mx + yz * sy * sz * my + zz * sz * sz * mz
+
+
+def influence(box, mesh, alpha, p, prefactor):
+    """C(m) on the half mesh of numpy's rfftn (module docstring)."""
+    volume = float(np.prod(box))
+    factors = []
+    for a in range(3):
+        k = mesh[a]
+        m = np.fft.fftfreq(k, 1.0 / k) if a < 2 else np.arange(k // 2 + 1)
+        x = np.arange(p - 1) + 1.0
+        values = np.array([_spline_value(xi, p) for xi in x])
+        denominator = np.abs(np.exp(2j * np.pi * np.outer(m, np.arange(p - 1)) / k) @ values) ** 2
+        with np.errstate(divide="ignore"):
+            factors.append((2 * np.pi * m / box[a], np.where(denominator > 1e-12, 1.0 / denominator, 0.0)))
+    kx, bx = factors[0]
+    ky, by = factors[1]
+    kz, bz = factors[2]
+    k2 = kx[:, None, None] ** 2 + ky[None, :, None] ** 2 + kz[None, None, :] ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = 2.0 * math.pi * prefactor / volume * np.exp(-k2 / (4.0 * alpha * alpha)) / k2
+    c[0, 0, 0] = 0.0
+    return c * bx[:, None, None] * by[None, :, None] * bz[None, None, :]
+
+
+def _spline_value(x, p):
+    """M_p(x) by the recursion (numpy, for the influence function)."""
+    if p == 1:
+        return 1.0 if 0.0 <= x < 1.0 else 0.0
+    return (x * _spline_value(x, p - 1) + (p - x) * _spline_value(x - 1, p - 1)) / (p - 1)
+
+
+def mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces):
+    """Energy of the mesh sum; with ``with_forces`` its forces added to force, its field to field."""
+    import scipy.fft
+    base, w, dw, ddw = _weights(position, box, mesh, p)
+    grid = np.empty(tuple(mesh))
+    spread(dipole, box, mesh, p, base, w, dw, grid)
+    phi = 2.0 * float(np.prod(mesh)) * scipy.fft.irfftn(c * scipy.fft.rfftn(grid), s=tuple(mesh))
+    energy = 0.5 * float(np.vdot(grid, phi))
+    if with_forces:
+        gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field)
+    return energy
+
+
+def evaluate(position, dipole, box, table, force, torque, with_forces):
+    """The mesh, self and surface terms (the kernels' long-range call; see :func:`p3m_sum`)."""
+    prefactor, alpha, vacuum = table[0], table[1], table[2] != 0.0
+    mesh = np.array([int(x) for x in table[3:6]], dtype=np.int64)
+    p = int(table[6])
+    c = table[HEAD:].reshape(mesh[0], mesh[1], mesh[2] // 2 + 1)
+    n = len(position)
+    field = np.zeros((n, 3))
+    energy = mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces)
+    energy -= prefactor * 2.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * float(np.einsum("ij,ij->", dipole, dipole))
+    total = dipole.sum(axis=0)
+    volume = float(np.prod(box))
+    if vacuum:
+        energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(total @ total)
+        field -= 4.0 * math.pi * prefactor / (3.0 * volume) * total
+    if with_forces:
+        torque += np.cross(dipole, field)
+    return energy
+
+
+@njit(cache=True)
+def p3m_sum(position, dipole, box, params, start, force, torque, with_forces):
+    """The mesh part of a P3M sum with its table at params[start:] (scipy's FFT, in object mode)."""
+    with objmode(energy="float64"):
+        energy = evaluate(position, dipole, box, params[start:], force, torque, with_forces)
+    return energy
+
+
+class P3M(Ewald):
+    """Settings of a dipolar particle-mesh sum: ``Dipole(prefactor, long_range=P3M(accuracy=1e-4))``.
+
+    accuracy, surface, alpha : as for :class:`demkit.Ewald` (the same error measure).
+    order : the B-splines' order p (4 to 7; 6 by default); each sphere touches p^3 mesh points.
+    mesh : mesh points per axis (one number or three); None: tuned.
+
+    For big periodic scenes, where the Ewald sum's wave vectors cost most; needs scipy (a required
+    package). The real-space cutoff is the Dipole's ``cutoff`` (None: tuned).
+    """
+
+    def __init__(self, accuracy=1e-4, surface="metallic", alpha=None, order=6, mesh=None):
+        super().__init__(accuracy, surface, alpha)
+        if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 4 <= order <= 7:
+            raise ValueError(f"P3M order must be a whole number from 4 to 7, got {order!r}")
+        self.order = int(order)
+        if mesh is not None:
+            sizes = np.atleast_1d(np.asarray(mesh))
+            if sizes.size == 1:
+                sizes = np.repeat(sizes, 3)
+            if sizes.shape != (3,) or not all(float(s).is_integer() and s >= 2 * order for s in sizes):
+                raise ValueError(f"P3M mesh must be one or three whole numbers of at least twice the order "
+                                 f"({2 * order}), got {mesh!r}")
+            mesh = tuple(int(s) for s in sizes)
+        self.mesh = mesh
+
+    def tune(self, prefactor, particles, box, cutoff=None):
+        """:class:`TunedP3M` for these spheres in this box (module docstring)."""
+        if box is None or not all(box.periodic):
+            axes = "no box" if box is None else f"periodic={[bool(f) for f in box.periodic]}"
+            raise ValueError(f"a P3M sum needs a box periodic along x, y and z (got {axes}); use a cut-off Dipole "
+                             f"or, in open space, long_range=dk.FMM(...)")
+        n = len(particles)
+        moments = np.einsum("ij,ij->i", particles.dipole, particles.dipole)
+        squares = float(moments.sum())
+        if squares == 0.0:
+            raise ValueError("a P3M sum needs dipole moments, but every moment is zero")
+        volume = box.volume
+        diameter = 2.0 * float(np.mean(particles.radius))
+        pull = 6.0 * prefactor * squares / n / diameter ** 4
+        target = self.accuracy * pull / math.sqrt(2.0)
+        half = 0.5 * float(np.min(box.size))
+        if cutoff is not None:
+            candidates = [cutoff]
+        else:
+            low = min(2.0 * float(np.max(particles.radius)), 0.999 * half)
+            candidates = list(np.linspace(low, min(0.999 * half, 5.0 * diameter), 8))
+        sample = _sample(particles, box, prefactor)
+        best = None
+        density = n / volume
+        for rc in sorted(candidates, reverse=True):  # long cutoffs need small meshes: a first cost, quickly
+            alpha = self.alpha or _alpha_for(target, prefactor, squares, n, volume, rc)
+            if alpha is None or real_space_error(prefactor, squares, n, volume, alpha, rc) > target * 1.0001:
+                continue
+            real = n * 2.0 * math.pi / 3.0 * density * rc ** 3 * PAIR_SECONDS + n * self.order ** 3 * POINT_SECONDS
+            budget = math.inf if best is None else best[0] - real
+            if budget <= 0.0:
+                continue
+            found = self._mesh_for(target, prefactor, sample, n, box, alpha, budget)
+            if found is None:
+                continue
+            mesh, error = found
+            cost = real + _fft_seconds(mesh)
+            if best is None or cost < best[0]:
+                best = (cost, rc, alpha, mesh, error)
+        if best is None:
+            raise ValueError(f"no real-space cutoff shorter than half the box ({half:.6g}) and mesh of at most "
+                             f"{MESH_SIZES[-1]} points per axis reach P3M accuracy {self.accuracy:g}: ask for a lower "
+                             f"accuracy, or use long_range=dk.Ewald(...)")
+        _, rc, alpha, mesh, error = best
+        return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, tuple(float(x) for x in box.size),
+                        real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull)
+
+    def _mesh_for(self, target, prefactor, sample, n, box, alpha, budget):
+        """(mesh, its measured RMS mesh force error scaled to n spheres) of the smallest mesh that
+        meets ``target`` and whose FFTs cost less than ``budget`` seconds (bisection: the error
+        falls as the mesh grows), or None."""
+        pos, dip, reference = sample["position"], sample["dipole"], sample["reference"]
+        m = len(pos)
+        size = np.asarray(box.size, dtype=np.float64)
+
+        def error_of(mesh):
+            c = influence(size, mesh, alpha, self.order, prefactor)
+            force = np.zeros((m, 3))
+            mesh_terms(pos, dip, size, np.array(mesh), self.order, c, force, np.zeros((m, 3)), True)
+            return math.sqrt(np.mean(((force - exact) ** 2).sum(1))) * math.sqrt(n / m)
+
+        exact = reference(alpha, target)
+        if self.mesh is not None:
+            return self.mesh, error_of(self.mesh)
+        sizes = [tuple(int(next(s for s in MESH_SIZES if s >= k * length / size.max())) for length in size)
+                 for k in MESH_SIZES if k >= 2 * self.order]
+        sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget]
+        lo, hi, found = 0, len(sizes) - 1, None
+        while lo <= hi:
+            mid = (lo + hi) // 2
+            error = error_of(sizes[mid])
+            if error <= target:
+                found, hi = (sizes[mid], error), mid - 1
+            else:
+                lo = mid + 1
+        return found
+
+    def __repr__(self):
+        extra = "" if self.alpha is None else f", alpha={self.alpha!r}"
+        extra += "" if self.mesh is None else f", mesh={self.mesh!r}"
+        return f"P3M(accuracy={self.accuracy!r}, surface={self.surface!r}, order={self.order}{extra})"
+
+
+def _fft_seconds(mesh):
+    points = float(np.prod(mesh))
+    return points * math.log2(points) * FFT_SECONDS
+
+
+def _sample(particles, box, prefactor):
+    """Up to SAMPLE spheres at random places in the box with moments drawn from the scene's, and
+    the exact wave-vector forces on them for a given alpha (the reference of the mesh's error)."""
+    rng = np.random.default_rng(12345)
+    n = len(particles)
+    m = min(n, SAMPLE)
+    size = np.asarray(box.size, dtype=np.float64)
+    pos = rng.uniform(0.0, 1.0, (m, 3)) * size
+    dip = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
+    squares = float(np.einsum("ij,ij->", dip, dip))
+
+    def reference(alpha, target):
+        # wave vectors enough for an error 100 times below the target's share of the sample
+        fine = 0.01 * target * math.sqrt(m / n)
+        kmax = [_kmax_for(fine, prefactor, squares, m, box.volume, alpha, length) for length in size]
+        kcut = max(2.0 * math.pi * k / length for k, length in zip(kmax, size))
+        kmax = [max(k, int(math.floor(kcut * length / (2.0 * math.pi)))) for k, length in zip(kmax, size)]
+        table = np.array([prefactor, alpha, 0.0, *kmax, kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
+        force = np.zeros((m, 3))
+        reciprocal_terms(pos, dip, size, table, 0, force, np.zeros((m, 3)), True)
+        return force
+
+    return dict(position=pos, dipole=dip, reference=reference)
+
+
+class TunedP3M:
+    """A P3M sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``mesh``, ``order``, and the
+    estimated relative RMS force errors ``real_error`` and ``mesh_error`` (measured on a sample)."""
+
+    energy_kind = "magnetic"
+    kernel = ("demkit.interactions.p3m", "p3m_sum")
+
+    def __init__(self, settings, prefactor, cutoff, alpha, mesh, box_size, real_error, mesh_error):
+        self.settings = settings
+        self.prefactor = prefactor
+        self.cutoff = cutoff
+        self.alpha = alpha
+        self.mesh = mesh
+        self.order = settings.order
+        self.box_size = box_size
+        self.real_error = real_error
+        self.mesh_error = mesh_error
+
+    @property
+    def estimated_error(self):
+        return math.hypot(self.real_error, self.mesh_error)
+
+    def adapt(self, dipole):
+        from .ewald import ewald_real_energy, ewald_real_force
+        dipole.cutoff_distance = self.cutoff
+        dipole.alpha = self.alpha
+        dipole.force_function, dipole.energy_function = ewald_real_force, ewald_real_energy
+        dipole.parameters = ("prefactor", "alpha")
+
+    def field(self, particles, box):
+        """(N, 3) field at each sphere from the mesh, surface and self terms (the real-space pairs
+        are the caller's)."""
+        n = len(particles)
+        field = np.zeros((n, 3))
+        size = np.asarray(box.size, dtype=np.float64)
+        mesh_terms(np.ascontiguousarray(particles.position, dtype=np.float64),
+                   np.ascontiguousarray(particles.dipole, dtype=np.float64), size, np.array(self.mesh), self.order,
+                   influence(size, self.mesh, self.alpha, self.order, self.prefactor), np.zeros((n, 3)), field, True)
+        if self.settings.surface == "vacuum":
+            field -= 4.0 * math.pi * self.prefactor / (3.0 * float(np.prod(size))) * particles.dipole.sum(axis=0)
+        return field + self.prefactor * 4.0 * self.alpha ** 3 / (3.0 * math.sqrt(math.pi)) * particles.dipole
+
+    def table_values(self):
+        vacuum = 1.0 if self.settings.surface == "vacuum" else 0.0
+        c = influence(np.asarray(self.box_size), self.mesh, self.alpha, self.order, self.prefactor)
+        return np.concatenate([[self.prefactor, self.alpha, vacuum, *self.mesh, self.order], c.ravel()])
+
+    def __repr__(self):
+        return (f"TunedP3M(cutoff={self.cutoff:.6g}, alpha={self.alpha:.6g}, mesh={self.mesh}, order={self.order}, "
+                f"surface={self.settings.surface!r}, estimated_error={self.estimated_error:.3g})")

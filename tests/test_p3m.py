@@ -1,0 +1,121 @@
+"""Dipolar particle-mesh sums (dk.Dipole(long_range=dk.P3M(...))) against the Ewald sum of
+test_ewald.py (itself checked against lattice sums and the direct sum over images), against
+energy derivatives, and in a run. Every scene shares one kernel module (periodic box, P3M dipole,
+elastic contacts)."""
+import math
+
+import numpy as np
+import pytest
+
+import demkit as dk
+from test_ewald import lattice, random_gas
+
+
+def scene_of(pos, dip, side, long_range, radius=0.4, **kw):
+    p = dk.Particles(position=pos, radius=radius, mass=1.0, dipole=dip, **kw)
+    return dk.Scene(p, [dk.Dipole(prefactor=1.0, long_range=long_range), dk.KelvinVoigt(stiffness=1000.0, damping=0.0)],
+                    box=dk.Box(side, periodic=True))
+
+
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-5])
+def test_forces_and_torques_reach_the_accuracy_asked(accuracy):
+    # 200 random dipoles: RMS force error against an Ewald sum converged to 1e-12, relative to the
+    # touching pull; the mesh error is measured on a sample while tuning, so within a factor 3
+    pos, dip = random_gas(n=200, side=9.0, seed=3)
+    f0, t0 = scene_of(pos, dip, 9.0, dk.Ewald(1e-12)).forces()
+    scene = scene_of(pos, dip, 9.0, dk.P3M(accuracy))
+    f, t = scene.forces()
+    pull = 6.0 * np.mean((dip ** 2).sum(1)) / 0.8 ** 4
+    error = np.sqrt(np.mean(((f - f0) ** 2).sum(1))) / pull
+    assert accuracy / 100 < error < 3 * accuracy
+    assert np.sqrt(np.mean(((t - t0) ** 2).sum(1))) / pull < 3 * accuracy
+    tuned = scene.long_range[0]
+    assert tuned.estimated_error == pytest.approx(error, rel=1.0)  # the tuning's own estimate
+
+
+@pytest.mark.parametrize("pattern, surface, truth", [("aligned", "metallic", -2 * math.pi / 3), ("aligned", "vacuum", 0.0),
+                                                     ("columns", "vacuum", -2.67678868438)])
+def test_lattice_sums(pattern, surface, truth):
+    pos, dip = lattice(4, pattern)
+    scene = scene_of(pos, dip, 4.0, dk.P3M(1e-7, surface=surface), radius=0.3)
+    assert scene.energy()["magnetic"] / len(pos) == pytest.approx(truth, abs=1e-5)
+
+
+def test_force_and_torque_are_minus_the_energy_gradients():
+    # the mesh forces are the exact derivatives of the mesh energy: central differences, h = 1e-5
+    pos, dip = random_gas(n=40, side=6.0, seed=6)
+    scene = scene_of(pos, dip, 6.0, dk.P3M(1e-4))
+    force, torque = scene.forces()
+    x, m = scene.particles.position, scene.particles.dipole
+    h = 1e-5
+    for i in (0, 13, 31):
+        grad, field = np.zeros(3), np.zeros(3)
+        for a in range(3):
+            for arr, out in ((x, grad), (m, field)):
+                arr[i, a] += h
+                up = scene.energy()["magnetic"]
+                arr[i, a] -= 2 * h
+                down = scene.energy()["magnetic"]
+                arr[i, a] += h
+                out[a] = (up - down) / (2 * h)
+        np.testing.assert_allclose(force[i], -grad, atol=2e-7)
+        np.testing.assert_allclose(torque[i], np.cross(m[i], -field), atol=2e-7)
+
+
+def test_a_run_conserves_energy_to_the_integrators_order():
+    # as for the Ewald sum: halving dt divides the total energy's swings by 4
+    swings = []
+    for dt in (1e-3, 5e-4):
+        pos, dip = random_gas(n=40, side=6.0, seed=11)
+        scene = scene_of(pos, 0.3 * dip, 6.0, dk.P3M(1e-5),
+                         velocity=np.random.default_rng(2).normal(size=(40, 3)), angular_velocity=np.zeros((40, 3)))
+        energy = dk.Simulation(scene, dk.VelocityVerlet(dt)).run(duration=1.0, record_every=0.05, progress=False).energy
+        swings.append(np.ptp(energy["total"]))
+    assert 3.5 < swings[0] / swings[1] < 4.5
+
+
+def test_local_field_and_scene_file():
+    pos, dip = random_gas(n=30, side=6.0, seed=4)
+    scene = scene_of(pos, dip, 6.0, dk.P3M(1e-6, surface="vacuum"))
+    field = dk.measure.local_field(scene)
+    np.testing.assert_allclose(np.cross(dip, field), scene.forces()[1], atol=1e-10)
+    assert -0.5 * np.einsum("ij,ij->", dip, field) == pytest.approx(scene.energy()["magnetic"], rel=1e-9)
+    text = f"""
+[particles]
+position = {pos.tolist()}
+dipole = {dip.tolist()}
+radius = 0.4
+[box]
+size = 6.0
+periodic = true
+[interactions.dipole]
+prefactor = 1.0
+[interactions.dipole.p3m]
+accuracy = 1e-6
+surface = "vacuum"
+order = 5
+[interactions.kelvin_voigt]
+stiffness = 1e5
+[integrator]
+dt = 0.0005
+[run]
+duration = 0.01
+"""
+    loaded = dk.parse_scene(text).scene
+    assert loaded.long_range[0].order == 5
+    assert loaded.energy()["magnetic"] == pytest.approx(scene.energy()["magnetic"], abs=1e-4)
+
+
+def test_bad_input_is_refused():
+    pos, dip = lattice(3)
+    p = dk.Particles(position=pos, radius=0.3, mass=1.0, dipole=dip)
+    with pytest.raises(ValueError, match="periodic along x, y and z"):
+        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M())], box=dk.Box(3.0, periodic=(True, False, True)))
+    for order in (3, 8, 4.5, True):
+        with pytest.raises(ValueError, match="order"):
+            dk.P3M(order=order)
+    for mesh in (5, (16, 16), 12.5):
+        with pytest.raises(ValueError, match="mesh"):
+            dk.P3M(mesh=mesh)
+    with pytest.raises(ValueError, match="accuracy"):
+        dk.P3M(accuracy=2.0)
