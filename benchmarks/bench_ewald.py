@@ -9,6 +9,8 @@ moments of magnitude 1, prefactor A = 1 (so the touching pull is 6), one thread.
   its compiled function) and the rest (real-space pairs, lists, the passes); the cost per sphere
   and wave vector of the reciprocal sum and per listed pair of the real-space sum, the two
   constants of demkit's tuning (RECIPROCAL_COST) and of ``demkit info`` (cost.RECIPROCAL_VECTOR).
+* ``methods``: Ewald against P3M at N = 1000 ... 8000, accuracy 1e-4 and 1e-6: one evaluation, the
+  time the Scene takes to tune, the measured force error (up to N = 4000).
 * ``accuracy``: N = 1000, accuracy 1e-2 ... 1e-9: the measured RMS force error against accuracy
   1e-12 (relative to the touching pull, as ``accuracy`` is), against the estimate, and the time of
   one evaluation; and cut-off dipoles (r_c = 2 ... 6, at most half the box) against the same
@@ -85,6 +87,31 @@ def part_costs(sizes):
     return rows
 
 
+def part_methods(sizes, accuracies):
+    """Ewald against P3M: one evaluation (best of 5) at each size and accuracy, the tuned
+    parameters, the time Scene() takes to tune, and each method's error against Ewald at 1e-10
+    (up to N = 4000; beyond, the reference costs too much)."""
+    rows = []
+    for n in sizes:
+        pos, dip, box = gas(n)
+        reference = None
+        if n <= 4000:
+            reference = scene_of(pos, dip, box, dk.Dipole(1.0, long_range=dk.Ewald(1e-10))).forces()[0]
+        for accuracy in accuracies:
+            for method in (dk.Ewald, dk.P3M):
+                t = time.perf_counter()
+                scene = scene_of(pos, dip, box, dk.Dipole(1.0, long_range=method(accuracy)))
+                tuning = time.perf_counter() - t
+                seconds = best_time(scene.forces)
+                row = dict(n=n, method=method.__name__, accuracy=accuracy, seconds=seconds, tuning_seconds=tuning,
+                           tuned=repr(scene.long_range[0]))
+                if reference is not None:
+                    row["force_error"] = rms(scene.forces()[0], reference) / 6.0
+                print(json.dumps(row))
+                rows.append(row)
+    return rows
+
+
 def rms(a, b):
     return float(np.sqrt(np.mean(((a - b) ** 2).sum(1))))
 
@@ -146,6 +173,7 @@ def main(argv=None):
     result = dict(machine=dict(platform=platform.platform(), processor=platform.processor(),
                                date=time.strftime("%Y-%m-%d %H:%M")),
                   costs=part_costs(sizes),
+                  methods=part_methods((1000, 2000, 4000, 8000) if not opts.quick else (1000,), (1e-4, 1e-6)),
                   accuracy=part_accuracy(1000, accuracies, (2.0, 3.0, 4.0, 5.0, 6.0)))
     (HERE / "results" / "ewald.json").write_text(json.dumps(result, indent=1) + "\n")
     plot(result["accuracy"], HERE / "results" / "ewald.png")

@@ -19,10 +19,11 @@ come from M_p' (x) = M_{p-1}(x) - M_{p-1}(x-1), the second ones likewise.
 
 Tuning (``accuracy`` as for :class:`demkit.Ewald`: the RMS force error relative to the touching
 pull): for each candidate real-space cutoff, alpha from the Wang-Holm real-space estimate (half
-of the squared error), then the smallest mesh (sizes 2^a 3^b 5^c) whose reciprocal force error,
-*measured* on a sample of up to SAMPLE spheres at random places in the same box with the scene's
-moments against the exact wave-vector sum, scaled by sqrt(N / sample) (errors of random sums add
-in quadrature), meets the other half; the cutoff with the least estimated time is kept.
+of the squared error budget), then the smallest mesh (sizes 2^a 3^b 5^c) for which the whole sum's
+force error, *measured* on a sample of up to SAMPLE spheres at random places in the same box with
+the scene's moments against an Ewald sum converged ten times further, scaled by sqrt(N / sample)
+(errors of random sums add in quadrature), meets the accuracy; the cutoff with the least estimated
+time is kept.
 """
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ MESH_SIZES = sorted({2 ** a * 3 ** b * 5 ** c for a in range(9) for b in range(4
                      if 4 <= 2 ** a * 3 ** b * 5 ** c <= 256})
 #: estimated seconds: per real-space pair within the cutoff, per sphere and spline point (spread +
 #: gather), per mesh point and log2 of the mesh size (FFT), measured by benchmarks/bench_ewald.py
-PAIR_SECONDS, POINT_SECONDS, FFT_SECONDS = 7.5e-8, 4.0e-9, 2.0e-9
+PAIR_SECONDS, POINT_SECONDS, FFT_SECONDS = 7.5e-8, 7.0e-9, 2.0e-9
 #: head of a tuned sum's table in the scene's params: A, alpha, vacuum, Kx, Ky, Kz, order; then C
 HEAD = 7
 OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
@@ -89,44 +90,55 @@ def spread(dipole, box, mesh, p, base, w, dw, grid):
     """grid(g) = sum_j m_j . grad_j W_j(g) (grid zeroed first)."""
     grid[...] = 0.0
     sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
+    iz = np.empty(p, dtype=np.int64)
     for j in range(dipole.shape[0]):
         mx, my, mz = dipole[j, 0] * sx, dipole[j, 1] * sy, dipole[j, 2] * sz
+        for c in range(p):
+            iz[c] = (base[j, 2] - c) % mesh[2]
         for a in range(p):
             gx = (base[j, 0] - a) % mesh[0]
+            xa, xd = w[j, 0, a], mx * dw[j, 0, a]
             for b in range(p):
                 gy = (base[j, 1] - b) % mesh[1]
+                u = xd * w[j, 1, b] + xa * my * dw[j, 1, b]   # times M(z)
+                v = xa * w[j, 1, b] * mz                      # times M'(z)
                 for c in range(p):
-                    gz = (base[j, 2] - c) % mesh[2]
-                    grid[gx, gy, gz] += (mx * dw[j, 0, a] * w[j, 1, b] * w[j, 2, c]
-                                         + my * w[j, 0, a] * dw[j, 1, b] * w[j, 2, c]
-                                         + mz * w[j, 0, a] * w[j, 1, b] * dw[j, 2, c])
+                    grid[gx, gy, iz[c]] += u * w[j, 2, c] + v * dw[j, 2, c]
 
 
 @njit(**OPTIONS)
 def gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field):
     """Add F_j = -sum Phi Hess(W) m_j to force and H_j = -sum Phi grad(W) to field."""
     sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
+    iz = np.empty(p, dtype=np.int64)
     for j in range(dipole.shape[0]):
+        for c in range(p):
+            iz[c] = (base[j, 2] - c) % mesh[2]
         hx = hy = hz = 0.0
         xx = yy = zz = xy = xz = yz = 0.0
         for a in range(p):
             gx = (base[j, 0] - a) % mesh[0]
+            wx, dx, ddx = w[j, 0, a], dw[j, 0, a], ddw[j, 0, a]
             for b in range(p):
                 gy = (base[j, 1] - b) % mesh[1]
+                s0 = 0.0  # sum over z of phi M, phi M', phi M''
+                s1 = 0.0
+                s2 = 0.0
                 for c in range(p):
-                    gz = (base[j, 2] - c) % mesh[2]
-                    f = phi[gx, gy, gz]
-                    wx, wy, wz = w[j, 0, a], w[j, 1, b], w[j, 2, c]
-                    dx, dy, dz = dw[j, 0, a], dw[j, 1, b], dw[j, 2, c]
-                    hx += f * dx * wy * wz
-                    hy += f * wx * dy * wz
-                    hz += f * wx * wy * dz
-                    xx += f * ddw[j, 0, a] * wy * wz
-                    yy += f * wx * ddw[j, 1, b] * wz
-                    zz += f * wx * wy * ddw[j, 2, c]
-                    xy += f * dx * dy * wz
-                    xz += f * dx * wy * dz
-                    yz += f * wx * dy * dz
+                    f = phi[gx, gy, iz[c]]
+                    s0 += f * w[j, 2, c]
+                    s1 += f * dw[j, 2, c]
+                    s2 += f * ddw[j, 2, c]
+                wy, dy, ddy = w[j, 1, b], dw[j, 1, b], ddw[j, 1, b]
+                hx += dx * wy * s0
+                hy += wx * dy * s0
+                hz += wx * wy * s1
+                xx += ddx * wy * s0
+                yy += wx * ddy * s0
+                zz += wx * wy * s2
+                xy += dx * dy * s0
+                xz += dx * wy * s1
+                yz += wx * dy * s1
         field[j, 0] -= hx * sx
         field[j, 1] -= hy * sy
         field[j, 2] -= hz * sz
@@ -252,8 +264,8 @@ class P3M(Ewald):
             candidates = [cutoff]
         else:
             low = min(2.0 * float(np.max(particles.radius)), 0.999 * half)
-            candidates = list(np.linspace(low, min(0.999 * half, 5.0 * diameter), 8))
-        sample = _sample(particles, box, prefactor)
+            candidates = list(np.linspace(low, 0.999 * half, 8))
+        sample = _Sample(particles, box, prefactor, self.accuracy * pull)
         best = None
         density = n / volume
         for rc in sorted(candidates, reverse=True):  # long cutoffs need small meshes: a first cost, quickly
@@ -264,7 +276,7 @@ class P3M(Ewald):
             budget = math.inf if best is None else best[0] - real
             if budget <= 0.0:
                 continue
-            found = self._mesh_for(target, prefactor, sample, n, box, alpha, budget)
+            found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, box, budget)
             if found is None:
                 continue
             mesh, error = found
@@ -279,30 +291,21 @@ class P3M(Ewald):
         return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, tuple(float(x) for x in box.size),
                         real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull)
 
-    def _mesh_for(self, target, prefactor, sample, n, box, alpha, budget):
-        """(mesh, its measured RMS mesh force error scaled to n spheres) of the smallest mesh that
-        meets ``target`` and whose FFTs cost less than ``budget`` seconds (bisection: the error
-        falls as the mesh grows), or None."""
-        pos, dip, reference = sample["position"], sample["dipole"], sample["reference"]
-        m = len(pos)
-        size = np.asarray(box.size, dtype=np.float64)
-
-        def error_of(mesh):
-            c = influence(size, mesh, alpha, self.order, prefactor)
-            force = np.zeros((m, 3))
-            mesh_terms(pos, dip, size, np.array(mesh), self.order, c, force, np.zeros((m, 3)), True)
-            return math.sqrt(np.mean(((force - exact) ** 2).sum(1))) * math.sqrt(n / m)
-
-        exact = reference(alpha, target)
+    def _mesh_for(self, target, sample, alpha, cutoff, box, budget):
+        """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
+        error is at most ``target`` and whose FFTs cost less than ``budget`` seconds (bisection: the
+        error falls as the mesh grows), or None."""
+        real = sample.real_forces(alpha, cutoff)
         if self.mesh is not None:
-            return self.mesh, error_of(self.mesh)
+            return self.mesh, sample.error(real, alpha, self.mesh, self.order)
+        size = sample.size
         sizes = [tuple(int(next(s for s in MESH_SIZES if s >= k * length / size.max())) for length in size)
                  for k in MESH_SIZES if k >= 2 * self.order]
         sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget]
         lo, hi, found = 0, len(sizes) - 1, None
         while lo <= hi:
             mid = (lo + hi) // 2
-            error = error_of(sizes[mid])
+            error = sample.error(real, alpha, sizes[mid], self.order)
             if error <= target:
                 found, hi = (sizes[mid], error), mid - 1
             else:
@@ -320,39 +323,71 @@ def _fft_seconds(mesh):
     return points * math.log2(points) * FFT_SECONDS
 
 
-def _sample(particles, box, prefactor):
-    """Up to SAMPLE spheres at random places in the box with moments drawn from the scene's, and
-    the exact wave-vector forces on them for a given alpha (the reference of the mesh's error)."""
-    rng = np.random.default_rng(12345)
-    n = len(particles)
-    m = min(n, SAMPLE)
-    size = np.asarray(box.size, dtype=np.float64)
-    pos = rng.uniform(0.0, 1.0, (m, 3)) * size
-    dip = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
-    squares = float(np.einsum("ij,ij->", dip, dip))
+class _Sample:
+    """Up to SAMPLE spheres at random places in the scene's box with moments drawn from the scene's,
+    and the exact Ewald forces on them (a real-space and a wave-vector sum converged ten times
+    below the target): the reference a candidate's total error is measured against."""
 
-    def reference(alpha, target):
-        # wave vectors enough for an error 100 times below the target's share of the sample
-        fine = 0.01 * target * math.sqrt(m / n)
+    def __init__(self, particles, box, prefactor, target):
+        rng = np.random.default_rng(12345)
+        n = len(particles)
+        self.m = m = min(n, SAMPLE)
+        self.scale = math.sqrt(n / m)  # errors of random sums grow as the square root of the count
+        self.size = size = np.asarray(box.size, dtype=np.float64)
+        self.position = rng.uniform(0.0, 1.0, (m, 3)) * size
+        self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
+        self.prefactor = prefactor
+        squares = float(np.einsum("ij,ij->", self.dipole, self.dipole))
+        fine = 0.1 * target / self.scale
+        cutoff = 0.999 * 0.5 * float(size.min())
+        alpha = _alpha_for(fine, prefactor, squares, m, box.volume, cutoff)
         kmax = [_kmax_for(fine, prefactor, squares, m, box.volume, alpha, length) for length in size]
         kcut = max(2.0 * math.pi * k / length for k, length in zip(kmax, size))
         kmax = [max(k, int(math.floor(kcut * length / (2.0 * math.pi)))) for k, length in zip(kmax, size)]
         table = np.array([prefactor, alpha, 0.0, *kmax, kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
         force = np.zeros((m, 3))
-        reciprocal_terms(pos, dip, size, table, 0, force, np.zeros((m, 3)), True)
-        return force
+        reciprocal_terms(self.position, self.dipole, size, table, 0, force, np.zeros((m, 3)), True)
+        self.exact = force + self.real_forces(alpha, cutoff)
 
-    return dict(position=pos, dipole=dip, reference=reference)
+    def real_forces(self, alpha, cutoff):
+        """(m, 3) forces of the screened real-space pairs within ``cutoff`` (minimum image)."""
+        from scipy.special import erfc
+        x, mu = self.position, self.dipole
+        d = x[None, :, :] - x[:, None, :]  # d[i, j] = x_j - x_i
+        d -= self.size * np.round(d / self.size)
+        r2 = np.einsum("ijk,ijk->ij", d, d)
+        np.fill_diagonal(r2, np.inf)
+        inside = r2 < cutoff * cutoff
+        r = np.sqrt(np.where(inside, r2, 1.0))
+        ar = alpha * r
+        gauss = 2.0 / math.sqrt(math.pi) * ar * np.exp(-ar * ar)
+        c = np.where(inside, (3.0 * erfc(ar) + gauss * (3.0 + 2.0 * ar * ar)) / r ** 5, 0.0)
+        dd = np.where(inside, (15.0 * erfc(ar) + gauss * (15.0 + ar * ar * (10.0 + 4.0 * ar * ar))) / r ** 7, 0.0)
+        ab = mu @ mu.T
+        ad = np.einsum("ik,ijk->ij", mu, d)   # m_i . d
+        bd = np.einsum("jk,ijk->ij", mu, d)   # m_j . d
+        on_j = self.prefactor * ((ab * c - ad * bd * dd)[:, :, None] * d + c[:, :, None]
+                                 * (bd[:, :, None] * mu[:, None, :] + ad[:, :, None] * mu[None, :, :]))
+        return -on_j.sum(axis=1)  # the force on i of each pair (i, j) is minus that on j
+
+    def error(self, real, alpha, mesh, order):
+        """Measured RMS force error of a candidate (its real-space forces ``real`` and this mesh),
+        scaled to the scene's count."""
+        c = influence(self.size, mesh, alpha, order, self.prefactor)
+        force = real.copy()
+        mesh_terms(self.position, self.dipole, self.size, np.array(mesh), order, c, force, np.zeros((self.m, 3)), True)
+        return math.sqrt(np.mean(((force - self.exact) ** 2).sum(1))) * self.scale
 
 
 class TunedP3M:
-    """A P3M sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``mesh``, ``order``, and the
-    estimated relative RMS force errors ``real_error`` and ``mesh_error`` (measured on a sample)."""
+    """A P3M sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``mesh``, ``order``; the
+    relative RMS force errors ``real_error`` (the Wang-Holm estimate of the real-space part) and
+    ``estimated_error`` (of the whole sum, measured on a sample while tuning)."""
 
     energy_kind = "magnetic"
     kernel = ("demkit.interactions.p3m", "p3m_sum")
 
-    def __init__(self, settings, prefactor, cutoff, alpha, mesh, box_size, real_error, mesh_error):
+    def __init__(self, settings, prefactor, cutoff, alpha, mesh, box_size, real_error, measured_error):
         self.settings = settings
         self.prefactor = prefactor
         self.cutoff = cutoff
@@ -361,11 +396,11 @@ class TunedP3M:
         self.order = settings.order
         self.box_size = box_size
         self.real_error = real_error
-        self.mesh_error = mesh_error
+        self.measured_error = measured_error
 
     @property
     def estimated_error(self):
-        return math.hypot(self.real_error, self.mesh_error)
+        return self.measured_error
 
     def adapt(self, dipole):
         from .ewald import ewald_real_energy, ewald_real_force
