@@ -138,6 +138,8 @@ def info_command(args):
     print(f"box           {scene.box!r}" if scene.box is not None else "box           none (open space)")
     for inter in scene.interactions + scene.effects:
         print(f"interaction   {inter!r}")
+    for tuned in scene.long_range:
+        print(f"long range    {tuned!r}")
     if loaded.units is not None:
         u = loaded.units
         print(f"units         the paper's: length {u.length:.4g} m, time {u.time:.4g} s, mass {u.mass:.4g} kg")

@@ -9,7 +9,7 @@ machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.j
 
     N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR, DIPOLE_PAIR or EWALD_PAIR)
       + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law] + N wave vectors x RECIPROCAL_VECTOR
-      + N FMM_SPHERE (a fast multipole sum)
+      + MESH_CALL + N p^3 MESH_POINT + FFTs (a P3M mesh) + N FMM_SPHERE (a fast multipole sum)
 
 a step ``integrator.evaluations_per_step`` of them plus STEP. The listed pairs are counted now
 (a k-d tree within reach + skin). Touching pairs change while a scene runs, and they are the most
@@ -48,6 +48,12 @@ DIPOLE_PAIR = 2.4e-8
 EWALD_PAIR = 6.4e-8
 #: seconds per sphere and wave vector of the reciprocal part of an Ewald sum (5.6-6.1 ns, the same)
 RECIPROCAL_VECTOR = 5.8e-9
+#: seconds per sphere and B-spline point of a P3M mesh sum (spreading and gathering; the FFTs as
+#: demkit.interactions.p3m.FFT_SECONDS per mesh point and log2 of the mesh size)
+MESH_POINT = 7.0e-9
+#: seconds of a P3M mesh sum's fixed work per evaluation (numba's object mode, scipy's FFT set-up,
+#: numpy temporaries: measured 1 ms with 100 spheres on a 25^3 mesh, where the model above says 0.6 ms)
+MESH_CALL = 1.0e-3
 #: seconds per sphere of a fast multipole sum (FMM3D with gradients and Hessians, eps 1e-6 to 1e-9;
 #: benchmarks/bench_fmm.py)
 FMM_SPHERE = 6.0e-5
@@ -173,10 +179,8 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
             key, each = "listed dipole pairs", DIPOLE_PAIR
         parts[key] = parts.get(key, 0.0) + count * each
     for tuned in scene.long_range:
-        if hasattr(tuned, "wave_vectors"):  # an Ewald sum
-            parts["reciprocal sum"] = parts.get("reciprocal sum", 0.0) + n * tuned.wave_vectors * RECIPROCAL_VECTOR
-        else:
-            parts["fast multipole sum"] = parts.get("fast multipole sum", 0.0) + n * FMM_SPHERE
+        name, seconds = _long_range_seconds(tuned, n)
+        parts[name] = parts.get(name, 0.0) + seconds
     law = _contact_law(scene)
     now = touching_now(scene, tree) if law is not None else 0
     mean, note, later = float(now), "", 0.0
@@ -210,6 +214,17 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         outputs += read * n * NOTES_SPHERE
     return Estimate(per_step=per_step, stepping=stepping, outputs=outputs, parts=parts, touching=(now, mean),
                     note=note, later=later)
+
+
+def _long_range_seconds(tuned, n):
+    """(part name, seconds of one evaluation) of a long-range sum (scene.long_range) over n spheres."""
+    from .interactions.ewald import TunedEwald
+    from .interactions.p3m import TunedP3M, _fft_seconds
+    if isinstance(tuned, TunedEwald):
+        return "reciprocal sum", n * tuned.wave_vectors * RECIPROCAL_VECTOR
+    if isinstance(tuned, TunedP3M):
+        return "mesh sum", MESH_CALL + n * tuned.order ** 3 * MESH_POINT + _fft_seconds(tuned.mesh)
+    return "fast multipole sum", n * FMM_SPHERE
 
 
 def _ramp_mean(start, end, ramp, duration):

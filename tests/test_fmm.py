@@ -114,7 +114,7 @@ duration = 0.01
     scene = dk.parse_scene(text).scene
     exact = scene_of(pos, 0.3 * dip, None)
     assert scene.energy()["magnetic"] == pytest.approx(exact.energy()["magnetic"], rel=1e-9)
-    with pytest.raises(dk.SceneFileError, match="give only one of ewald, fmm"):
+    with pytest.raises(dk.SceneFileError, match="give only one of ewald, p3m, fmm"):
         dk.parse_scene(text + "[interactions.dipole.ewald]\naccuracy = 1e-6\n")
     with pytest.raises(dk.SceneFileError, match="cutoff: cannot be given together with fmm"):
         dk.parse_scene(text.replace("prefactor = 1.0", "prefactor = 1.0\ncutoff = 3.0"))
