@@ -9,7 +9,7 @@ machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.j
 
     N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR, DIPOLE_PAIR or EWALD_PAIR)
       + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law] + N wave vectors x RECIPROCAL_VECTOR
-      + MESH_CALL + N p^3 MESH_POINT + FFTs (a P3M mesh) + N FMM_SPHERE (a fast multipole sum)
+      + MESH_CALL + N p^3 MESH_POINT + FFTs (a P3M mesh) + N (FMM_SPHERE + (digits of eps - 3) FMM_SPHERE_PER_DIGIT) (a fast multipole sum)
 
 a step ``integrator.evaluations_per_step`` of them plus STEP. The listed pairs are counted now
 (a k-d tree within reach + skin). Touching pairs change while a scene runs, and they are the most
@@ -54,9 +54,10 @@ MESH_POINT = 7.0e-9
 #: seconds of a P3M mesh sum's fixed work per evaluation (numba's object mode, scipy's FFT set-up,
 #: numpy temporaries: measured 1 ms with 100 spheres on a 25^3 mesh, where the model above says 0.6 ms)
 MESH_CALL = 1.0e-3
-#: seconds per sphere of a fast multipole sum (FMM3D with gradients and Hessians, eps 1e-6 to 1e-9;
+#: seconds per sphere of a fast multipole sum at eps 1e-3, and more per further digit of eps (FMM3D
+#: with gradients and Hessians, N >= 1e4: 3.4e-5, 9.5e-5 and 1.8e-4 s at 1e-3, 1e-6, 1e-9;
 #: benchmarks/bench_fmm.py)
-FMM_SPHERE = 6.0e-5
+FMM_SPHERE, FMM_SPHERE_PER_DIGIT = 3.4e-5, 2.4e-5
 #: seconds per pair of the exact (all-pairs) sum of dipoles
 ALL_PAIR = 2.0e-8
 #: seconds per touching pair (or sphere on a wall), by contact law and friction (at rest and shaken:
@@ -224,7 +225,8 @@ def _long_range_seconds(tuned, n):
         return "reciprocal sum", n * tuned.wave_vectors * RECIPROCAL_VECTOR
     if isinstance(tuned, TunedP3M):
         return "mesh sum", MESH_CALL + n * tuned.order ** 3 * MESH_POINT + _fft_seconds(tuned.mesh)
-    return "fast multipole sum", n * FMM_SPHERE
+    digits = max(-math.log10(tuned.settings.accuracy), 1.0)
+    return "fast multipole sum", n * (FMM_SPHERE + FMM_SPHERE_PER_DIGIT * (digits - 3.0))
 
 
 def _ramp_mean(start, end, ramp, duration):

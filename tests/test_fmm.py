@@ -75,7 +75,7 @@ def test_local_field_gives_the_torques_and_the_energy():
     np.testing.assert_allclose(np.cross(dip, field), torque, atol=1e-9)
     assert -0.5 * np.einsum("ij,ij->", dip, field) == pytest.approx(scene.energy()["magnetic"], rel=1e-10)
     parts = dk.cost.estimate(scene, dk.VelocityVerlet(1e-3), 1.0).parts
-    assert parts["fast multipole sum"] == pytest.approx(120 * dk.cost.FMM_SPHERE)
+    assert parts["fast multipole sum"] == pytest.approx(120 * (dk.cost.FMM_SPHERE + 9 * dk.cost.FMM_SPHERE_PER_DIGIT))
 
 
 def test_bad_input_is_refused(monkeypatch):
