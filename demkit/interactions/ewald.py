@@ -306,6 +306,21 @@ def _kmax_for(target, prefactor, squares, n, volume, alpha, length):
     return kmax
 
 
+def scales(what, prefactor, particles, box, otherwise):
+    """(N, sum |m|^2, V, the touching pull 6 A m_rms^2 / d^4, half the shortest side) of a scene a
+    periodic sum is tuned to; ValueError unless the box is periodic along every axis (``otherwise``
+    says what to do) and some moment is not zero."""
+    if box is None or not all(box.periodic):
+        axes = "no box" if box is None else f"periodic={[bool(f) for f in box.periodic]}"
+        raise ValueError(f"{what} needs a box periodic along x, y and z (got {axes}); {otherwise}")
+    n = len(particles)
+    squares = float(np.einsum("ij,ij->", particles.dipole, particles.dipole))
+    if squares == 0.0:
+        raise ValueError(f"{what} needs dipole moments, but every moment is zero")
+    diameter = 2.0 * float(np.mean(particles.radius))
+    return n, squares, box.volume, 6.0 * prefactor * squares / n / diameter ** 4, 0.5 * float(np.min(box.size))
+
+
 class Ewald:
     """Settings of a dipolar Ewald sum: ``Dipole(prefactor, long_range=Ewald(...))``.
 
@@ -332,21 +347,10 @@ class Ewald:
     def tune(self, prefactor, particles, box, cutoff=None):
         """:class:`TunedEwald` for these spheres in this box (ValueError when the box is not
         periodic along every axis, or no cutoff shorter than half of it reaches the accuracy)."""
-        if box is None or not all(box.periodic):
-            axes = "no box" if box is None else f"periodic={[bool(f) for f in box.periodic]}"
-            raise ValueError(f"an Ewald sum needs a box periodic along x, y and z (got {axes}); a slab "
-                             f"correction for partly periodic boxes is not available yet: use a cut-off Dipole "
-                             f"or an open scene without long_range")
-        n = len(particles)
-        moments = np.einsum("ij,ij->i", particles.dipole, particles.dipole)
-        squares = float(moments.sum())
-        if squares == 0.0:
-            raise ValueError("an Ewald sum needs dipole moments, but every moment is zero")
-        volume = box.volume
-        diameter = 2.0 * float(np.mean(particles.radius))
-        pull = 6.0 * prefactor * squares / n / diameter ** 4
+        n, squares, volume, pull, half = scales("an Ewald sum", prefactor, particles, box,
+                                                "a slab correction for partly periodic boxes is not available "
+                                                "yet: use a cut-off Dipole or an open scene without long_range")
         target = self.accuracy * pull / math.sqrt(2.0)
-        half = 0.5 * float(np.min(box.size))
         contact = 2.0 * float(np.max(particles.radius))
         if cutoff is not None:
             candidates = [cutoff]

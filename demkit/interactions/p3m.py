@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import njit, objmode
 
-from .ewald import Ewald, _alpha_for, _kmax_for, real_space_error, reciprocal_terms
+from .ewald import Ewald, _alpha_for, _kmax_for, real_space_error, reciprocal_terms, scales
 
 #: spheres of the sample the mesh error is measured on
 SAMPLE = 200
@@ -246,20 +246,9 @@ class P3M(Ewald):
 
     def tune(self, prefactor, particles, box, cutoff=None):
         """:class:`TunedP3M` for these spheres in this box (module docstring)."""
-        if box is None or not all(box.periodic):
-            axes = "no box" if box is None else f"periodic={[bool(f) for f in box.periodic]}"
-            raise ValueError(f"a P3M sum needs a box periodic along x, y and z (got {axes}); use a cut-off Dipole "
-                             f"or, in open space, long_range=dk.FMM(...)")
-        n = len(particles)
-        moments = np.einsum("ij,ij->i", particles.dipole, particles.dipole)
-        squares = float(moments.sum())
-        if squares == 0.0:
-            raise ValueError("a P3M sum needs dipole moments, but every moment is zero")
-        volume = box.volume
-        diameter = 2.0 * float(np.mean(particles.radius))
-        pull = 6.0 * prefactor * squares / n / diameter ** 4
+        n, squares, volume, pull, half = scales("a P3M sum", prefactor, particles, box,
+                                                "use a cut-off Dipole or, in open space, long_range=dk.FMM(...)")
         target = self.accuracy * pull / math.sqrt(2.0)
-        half = 0.5 * float(np.min(box.size))
         if cutoff is not None:
             candidates = [cutoff]
         else:
