@@ -11,6 +11,8 @@ moments of magnitude 1, prefactor A = 1 (so the touching pull is 6), one thread.
   constants of demkit's tuning (RECIPROCAL_COST) and of ``demkit info`` (cost.RECIPROCAL_VECTOR).
 * ``methods``: Ewald against P3M at N = 1000 ... 8000, accuracy 1e-4 and 1e-6: one evaluation, the
   time the Scene takes to tune, the measured force error (up to N = 4000).
+* ``energy``: 10^5 velocity-Verlet steps of a dilute periodic dipolar gas (64 spheres) with Ewald
+  and with P3M at 1e-6: the total energy's drift and swings against the magnetic energy's swings.
 * ``accuracy``: N = 1000, accuracy 1e-2 ... 1e-9: the measured RMS force error against accuracy
   1e-12 (relative to the touching pull, as ``accuracy`` is), against the estimate, and the time of
   one evaluation; and cut-off dipoles (r_c = 2 ... 6, at most half the box) against the same
@@ -112,6 +114,35 @@ def part_methods(sizes, accuracies):
     return rows
 
 
+def part_energy(steps, method):
+    """Energy conservation over ``steps`` velocity-Verlet steps of a dilute periodic dipolar gas
+    (64 spheres at volume fraction 0.05, moments 0.5, kT = 1, elastic contacts that hardly ever
+    touch), the long-range sum at accuracy 1e-6: the total energy's drift and swings against the
+    magnetic energy's swings."""
+    n, phi = 64, 0.05
+    side = (n * np.pi / 6.0 / phi) ** (1.0 / 3.0)
+    box = dk.Box(side, periodic=True)
+    pos = dk.build.random_packing(n, 0.5, box, seed=3)
+    rng = np.random.default_rng(4)
+    dip = rng.normal(size=(n, 3))
+    dip = 0.5 * dip / np.linalg.norm(dip, axis=1)[:, None]
+    p = dk.Particles(position=pos, radius=0.5, mass=1.0, dipole=dip, velocity=rng.normal(size=(n, 3)),
+                     angular_velocity=rng.normal(size=(n, 3)))
+    scene = dk.Scene(p, [dk.Dipole(1.0, long_range=method(1e-6)), dk.KelvinVoigt(stiffness=1e4, damping=0.0)],
+                     box=box)
+    dt = 1e-3
+    t = time.perf_counter()
+    energy = dk.Simulation(scene, dk.VelocityVerlet(dt)).run(duration=steps * dt, record_every=steps * dt / 200,
+                                                              progress=False).energy
+    total, magnetic = energy["total"], energy["magnetic"]
+    row = dict(method=method.__name__, steps=steps, n=n, seconds=time.perf_counter() - t,
+               total_drift=float(total[-1] - total[0]), total_swing=float(np.ptp(total)),
+               magnetic_swing=float(np.ptp(magnetic)), kinetic_mean=float(np.mean(energy["kinetic"])),
+               contact_swing=float(np.ptp(energy["contact"])))
+    print(json.dumps(row))
+    return row
+
+
 def rms(a, b):
     return float(np.sqrt(np.mean(((a - b) ** 2).sum(1))))
 
@@ -173,6 +204,7 @@ def main(argv=None):
     result = dict(machine=dict(platform=platform.platform(), processor=platform.processor(),
                                date=time.strftime("%Y-%m-%d %H:%M")),
                   costs=part_costs(sizes),
+                  energy=[part_energy(2000 if opts.quick else 100000, m) for m in (dk.Ewald, dk.P3M)],
                   methods=part_methods((1000, 2000, 4000, 8000) if not opts.quick else (1000,), (1e-4, 1e-6)),
                   accuracy=part_accuracy(1000, accuracies, (2.0, 3.0, 4.0, 5.0, 6.0)))
     (HERE / "results" / "ewald.json").write_text(json.dumps(result, indent=1) + "\n")
