@@ -195,27 +195,25 @@ def local_field(scene, applied=True):
                              "(use dk.Dipole)")
         if not isinstance(inter, Dipole):
             continue
-        if inter.tuned is not None:  # a long-range sum: an Ewald sum's real-space pairs, and the rest
-            if inter.pair_loop:
-                pairs = scene.candidate_pairs(inter)
-                d = scene.separations(pairs)
-                r = np.sqrt(np.einsum("ij,ij->i", d, d))
-                i, j = pairs[:, 0], pairs[:, 1]
-                np.add.at(field, i, ewald.real_space_field(inter.tuned, d, r, p.dipole[j]))
-                np.add.at(field, j, ewald.real_space_field(inter.tuned, -d, r, p.dipole[i]))
+        if inter.tuned is not None:  # a long-range sum: whatever its pair loop leaves to it
             field += inter.tuned.field(p, scene.box)
+        if not inter.pair_loop:
             continue
         pairs = scene.candidate_pairs(inter)
         d = scene.separations(pairs)
         r = np.sqrt(np.einsum("ij,ij->i", d, d))
+        i, j = pairs[:, 0], pairs[:, 1]
+        mi, mj = p.dipole[i], p.dipole[j]
+        if inter.tuned is not None:  # the screened real-space pairs of an Ewald-split sum
+            np.add.at(field, i, ewald.real_space_field(inter.tuned, d, r, mj))
+            np.add.at(field, j, ewald.real_space_field(inter.tuned, -d, r, mi))
+            continue
         scale = inter.prefactor / r**3
         if inter.cutoff_distance is not None:
             scale = np.where(r < inter.cutoff_distance, scale, 0.0)
             if inter.switch_width is not None:
                 scale = scale * switch(r, inter.cutoff_distance, inter.switch_width)[0]
         u = d / r[:, None]
-        i, j = pairs[:, 0], pairs[:, 1]
-        mi, mj = p.dipole[i], p.dipole[j]
         on_i = scale[:, None] * (3.0 * np.einsum("ij,ij->i", mj, u)[:, None] * u - mj)
         on_j = scale[:, None] * (3.0 * np.einsum("ij,ij->i", mi, u)[:, None] * u - mi)
         np.add.at(field, i, on_i)

@@ -253,22 +253,24 @@ class Dipole(PairInteraction):
         from .fmm import FMM
         name = type(self).__name__
         if not isinstance(long_range, (Ewald, FMM)):
-            raise ValueError(f"{name} long_range must be a demkit.Ewald or demkit.FMM (or None), got {long_range!r}")
+            raise ValueError(f"{name} long_range must be a demkit.Ewald, demkit.P3M or demkit.FMM (or None), got "
+                             f"{long_range!r}")
         if not self.torque:
             raise ValueError(f"{name} has no long_range form: the paper's central power law is no dipole field; "
                              f"use dk.Dipole(long_range=...)")
         if switch_width is not None:
-            raise ValueError(f"{name} with long_range takes no switch_width: the Ewald real-space pair "
-                             f"already vanishes smoothly at its cutoff (to the requested accuracy)")
+            raise ValueError(f"{name} with long_range takes no switch_width: the sum covers every pair (an "
+                             f"Ewald-split sum's real-space pair vanishes smoothly at its cutoff, to the requested "
+                             f"accuracy)")
         self.long_range = long_range
         self.user_cutoff = self.cutoff_distance
 
     def tuned_for(self, particles, box):
         """With ``long_range``: a copy of this Dipole tuned to these spheres in this box (the Scene
         holds it in place of this one; ``original`` is this one, which stays untuned and can join
-        other scenes). Its pair functions are the screened real-space pair, its cutoff the
-        real-space cutoff, and :attr:`tuned` (a :class:`demkit.interactions.ewald.TunedEwald`)
-        holds the rest of the sum."""
+        other scenes). :attr:`tuned` (a ``TunedEwald``, ``TunedP3M`` or ``TunedFMM``) holds the
+        sum and adapts the copy: an Ewald-split sum makes it the screened real-space pair at its
+        cutoff, a fast multipole sum leaves it no pair loop."""
         import copy
         self.check(particles)
         bound = copy.copy(self)

@@ -235,34 +235,61 @@ def reciprocal_terms(position, dipole, box, params, start, force, field, with_fo
 
 def field_of_others(tuned, particles, box):
     """(N, 3) field at each sphere from all the others and their images: the reciprocal and surface
-    terms plus the self correction (4 a^3 / 3 sqrt(pi)) A m_i, which removes the sphere's own share
-    of the reciprocal sum (the real-space part is the caller's: pairs within the cutoff)."""
+    terms plus the self correction (the real-space part is the caller's: pairs within the cutoff)."""
     n = len(particles)
     field = np.zeros((n, 3))
-    table = tuned.table_values()
     reciprocal_terms(np.ascontiguousarray(particles.position, dtype=np.float64),
                      np.ascontiguousarray(particles.dipole, dtype=np.float64), np.asarray(box.size, dtype=np.float64),
-                     table, 0, np.zeros((n, 3)), field, True)
-    return field + tuned.prefactor * 4.0 * tuned.alpha ** 3 / (3.0 * math.sqrt(math.pi)) * particles.dipole
+                     tuned.table_values(), 0, np.zeros((n, 3)), field, True)
+    return field + self_field(tuned.prefactor, tuned.alpha, particles.dipole)
+
+
+def self_field(prefactor, alpha, dipole):
+    """(4 a^3 / 3 sqrt(pi)) A m_i: what removes each sphere's own share of the wave-vector (or mesh)
+    sum from the field it feels (parallel to m_i: no torque)."""
+    return prefactor * 4.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * np.asarray(dipole)
+
+
+def screening(alpha, r):
+    """B(r), C(r), D(r) of the real-space pair (module docstring), numpy arrays over r."""
+    from scipy.special import erfc
+    ar = alpha * r
+    a2r2 = ar * ar
+    gauss = 2.0 / math.sqrt(math.pi) * ar * np.exp(-a2r2)
+    e = erfc(ar)
+    return ((e + gauss) / r ** 3, (3.0 * e + gauss * (3.0 + 2.0 * a2r2)) / r ** 5,
+            (15.0 * e + gauss * (15.0 + a2r2 * (10.0 + 4.0 * a2r2))) / r ** 7)
 
 
 def real_space_field(tuned, d, r, mj):
     """Field at sphere i of its real-space partners j (separations d = x_j - x_i, distances r,
     moments mj, arrays over the pairs): A [C (m_j.d) d - B m_j], zero beyond the cutoff."""
-    a = tuned.alpha
-    ar = a * r
-    gauss = 2.0 / math.sqrt(math.pi) * ar * np.exp(-ar * ar)
-    erfc = _erfc(ar)
-    b = (erfc + gauss) / r ** 3
-    c = (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / r ** 5
+    b, c, _ = screening(tuned.alpha, r)
     inside = r < tuned.cutoff
     md = np.einsum("ij,ij->i", mj, d)
     return tuned.prefactor * np.where(inside, 1.0, 0.0)[:, None] * (c[:, None] * md[:, None] * d - b[:, None] * mj)
 
 
-def _erfc(x):
-    from scipy.special import erfc
-    return erfc(x)
+def screened_pair(dipole, cutoff, alpha):
+    """Make a (tuned copy of a) Dipole the screened real-space pair of an Ewald-split sum."""
+    dipole.cutoff_distance = cutoff
+    dipole.alpha = alpha
+    dipole.force_function, dipole.energy_function = ewald_real_force, ewald_real_energy
+    dipole.parameters = ("prefactor", "alpha")
+
+
+def wave_vector_limits(target, prefactor, squares, n, volume, alpha, size):
+    """(k_max per axis, k_c) for a reciprocal error of at most ``target`` along every axis: each
+    axis reaches the sphere |k| <= k_c (a longer axis has finer wave numbers)."""
+    kmax = [_kmax_for(target, prefactor, squares, n, volume, alpha, length) for length in size]
+    kcut = max(2.0 * math.pi * k / length for k, length in zip(kmax, size))
+    return (tuple(max(k, int(math.floor(kcut * length / (2.0 * math.pi) * (1 + 1e-12))))
+                  for k, length in zip(kmax, size)), float(kcut))
+
+
+def reciprocal_table(prefactor, alpha, vacuum, kmax, kcut):
+    """The run-time table of :func:`reciprocal_sum` (its params[start:start + TABLE_SIZE])."""
+    return np.array([prefactor, alpha, 1.0 if vacuum else 0.0, *kmax, kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
 
 
 # ---- tuning ------------------------------------------------------------------------------------
@@ -365,11 +392,7 @@ class Ewald:
                 continue
             if real_space_error(prefactor, squares, n, volume, alpha, rc) > target * 1.0001:
                 continue
-            kmax = [_kmax_for(target, prefactor, squares, n, volume, alpha, length) for length in box.size]
-            kcut = max(2.0 * math.pi * k / length for k, length in zip(kmax, box.size))
-            # every axis reaches the sphere |k| <= kcut (a longer axis has finer wave numbers)
-            kmax = [max(k, int(math.floor(kcut * length / (2.0 * math.pi) * (1 + 1e-12))))
-                    for k, length in zip(kmax, box.size)]
+            kmax, kcut = wave_vector_limits(target, prefactor, squares, n, volume, alpha, box.size)
             vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3  # half of the k-sphere
             cost = n * (2.0 * math.pi / 3.0 * density * rc ** 3 + RECIPROCAL_COST * vectors)
             if best is None or cost < best[0]:
@@ -385,7 +408,7 @@ class Ewald:
                              f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {self.accuracy:g}: each force "
                              f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
                              f"tuning, make it longer, or ask for a lower accuracy")
-        return TunedEwald(self, prefactor, float(rc), float(alpha), tuple(int(k) for k in kmax), float(kcut),
+        return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut,
                           tuple(float(x) for x in box.size),
                           real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
                           math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume, alpha, k, length) ** 2
@@ -418,10 +441,7 @@ class TunedEwald:
 
     def adapt(self, dipole):
         """Make the scene's copy of the Dipole the screened real-space pair at the tuned cutoff."""
-        dipole.cutoff_distance = self.cutoff
-        dipole.alpha = self.alpha
-        dipole.force_function, dipole.energy_function = ewald_real_force, ewald_real_energy
-        dipole.parameters = ("prefactor", "alpha")
+        screened_pair(dipole, self.cutoff, self.alpha)
 
     def field(self, particles, box):
         """(N, 3) field at each sphere from everything but its real-space partners (see
@@ -442,8 +462,7 @@ class TunedEwald:
 
     def table_values(self):
         """The sum's run-time table in the scene's params (see :func:`reciprocal_sum`)."""
-        vacuum = 1.0 if self.settings.surface == "vacuum" else 0.0
-        return np.array([self.prefactor, self.alpha, vacuum, *self.kmax, self.kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
+        return reciprocal_table(self.prefactor, self.alpha, self.settings.surface == "vacuum", self.kmax, self.kcut)
 
     def __repr__(self):
         return (f"TunedEwald(cutoff={self.cutoff:.6g}, alpha={self.alpha:.6g}, kmax={self.kmax}, "

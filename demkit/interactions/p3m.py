@@ -32,7 +32,8 @@ import math
 import numpy as np
 from numba import njit, objmode
 
-from .ewald import Ewald, _alpha_for, _kmax_for, real_space_error, reciprocal_terms, scales
+from .ewald import (Ewald, _alpha_for, real_space_error, reciprocal_table, reciprocal_terms, scales, screened_pair,
+                    screening, self_field, wave_vector_limits)
 
 #: spheres of the sample the mesh error is measured on
 SAMPLE = 200
@@ -190,14 +191,14 @@ def mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces):
     return energy
 
 
-def evaluate(position, dipole, box, table, force, torque, with_forces):
-    """The mesh, self and surface terms (the kernels' long-range call; see :func:`p3m_sum`)."""
+def terms(position, dipole, box, table, force, field, with_forces):
+    """Energy of the mesh, self and surface terms with their run-time ``table``; with
+    ``with_forces`` their forces added to ``force`` and the field of the mesh and surface terms to
+    ``field`` (the torque is m x field)."""
     prefactor, alpha, vacuum = table[0], table[1], table[2] != 0.0
     mesh = np.array([int(x) for x in table[3:6]], dtype=np.int64)
     p = int(table[6])
     c = table[HEAD:].reshape(mesh[0], mesh[1], mesh[2] // 2 + 1)
-    n = len(position)
-    field = np.zeros((n, 3))
     energy = mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces)
     energy -= prefactor * 2.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * float(np.einsum("ij,ij->", dipole, dipole))
     total = dipole.sum(axis=0)
@@ -205,6 +206,13 @@ def evaluate(position, dipole, box, table, force, torque, with_forces):
     if vacuum:
         energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(total @ total)
         field -= 4.0 * math.pi * prefactor / (3.0 * volume) * total
+    return energy
+
+
+def evaluate(position, dipole, box, table, force, torque, with_forces):
+    """The mesh, self and surface terms (the kernels' long-range call; see :func:`p3m_sum`)."""
+    field = np.zeros((len(position), 3))
+    energy = terms(position, dipole, box, table, force, field, with_forces)
     if with_forces:
         torque += np.cross(dipole, field)
     return energy
@@ -330,28 +338,22 @@ class _Sample:
         fine = 0.1 * target / self.scale
         cutoff = 0.999 * 0.5 * float(size.min())
         alpha = _alpha_for(fine, prefactor, squares, m, box.volume, cutoff)
-        kmax = [_kmax_for(fine, prefactor, squares, m, box.volume, alpha, length) for length in size]
-        kcut = max(2.0 * math.pi * k / length for k, length in zip(kmax, size))
-        kmax = [max(k, int(math.floor(kcut * length / (2.0 * math.pi)))) for k, length in zip(kmax, size)]
-        table = np.array([prefactor, alpha, 0.0, *kmax, kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
+        kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, box.volume, alpha, size)
         force = np.zeros((m, 3))
-        reciprocal_terms(self.position, self.dipole, size, table, 0, force, np.zeros((m, 3)), True)
+        reciprocal_terms(self.position, self.dipole, size, reciprocal_table(prefactor, alpha, False, kmax, kcut), 0,
+                         force, np.zeros((m, 3)), True)
         self.exact = force + self.real_forces(alpha, cutoff)
 
     def real_forces(self, alpha, cutoff):
         """(m, 3) forces of the screened real-space pairs within ``cutoff`` (minimum image)."""
-        from scipy.special import erfc
         x, mu = self.position, self.dipole
         d = x[None, :, :] - x[:, None, :]  # d[i, j] = x_j - x_i
         d -= self.size * np.round(d / self.size)
         r2 = np.einsum("ijk,ijk->ij", d, d)
         np.fill_diagonal(r2, np.inf)
         inside = r2 < cutoff * cutoff
-        r = np.sqrt(np.where(inside, r2, 1.0))
-        ar = alpha * r
-        gauss = 2.0 / math.sqrt(math.pi) * ar * np.exp(-ar * ar)
-        c = np.where(inside, (3.0 * erfc(ar) + gauss * (3.0 + 2.0 * ar * ar)) / r ** 5, 0.0)
-        dd = np.where(inside, (15.0 * erfc(ar) + gauss * (15.0 + ar * ar * (10.0 + 4.0 * ar * ar))) / r ** 7, 0.0)
+        _, c, dd = screening(alpha, np.sqrt(np.where(inside, r2, 1.0)))
+        c, dd = np.where(inside, c, 0.0), np.where(inside, dd, 0.0)
         ab = mu @ mu.T
         ad = np.einsum("ik,ijk->ij", mu, d)   # m_i . d
         bd = np.einsum("jk,ijk->ij", mu, d)   # m_j . d
@@ -392,24 +394,18 @@ class TunedP3M:
         return self.measured_error
 
     def adapt(self, dipole):
-        from .ewald import ewald_real_energy, ewald_real_force
-        dipole.cutoff_distance = self.cutoff
-        dipole.alpha = self.alpha
-        dipole.force_function, dipole.energy_function = ewald_real_force, ewald_real_energy
-        dipole.parameters = ("prefactor", "alpha")
+        """Make the scene's copy of the Dipole the screened real-space pair at the tuned cutoff."""
+        screened_pair(dipole, self.cutoff, self.alpha)
 
     def field(self, particles, box):
         """(N, 3) field at each sphere from the mesh, surface and self terms (the real-space pairs
         are the caller's)."""
         n = len(particles)
         field = np.zeros((n, 3))
-        size = np.asarray(box.size, dtype=np.float64)
-        mesh_terms(np.ascontiguousarray(particles.position, dtype=np.float64),
-                   np.ascontiguousarray(particles.dipole, dtype=np.float64), size, np.array(self.mesh), self.order,
-                   influence(size, self.mesh, self.alpha, self.order, self.prefactor), np.zeros((n, 3)), field, True)
-        if self.settings.surface == "vacuum":
-            field -= 4.0 * math.pi * self.prefactor / (3.0 * float(np.prod(size))) * particles.dipole.sum(axis=0)
-        return field + self.prefactor * 4.0 * self.alpha ** 3 / (3.0 * math.sqrt(math.pi)) * particles.dipole
+        terms(np.ascontiguousarray(particles.position, dtype=np.float64),
+              np.ascontiguousarray(particles.dipole, dtype=np.float64), np.asarray(box.size, dtype=np.float64),
+              self.table_values(), np.zeros((n, 3)), field, True)
+        return field + self_field(self.prefactor, self.alpha, particles.dipole)
 
     def table_values(self):
         vacuum = 1.0 if self.settings.surface == "vacuum" else 0.0
