@@ -16,6 +16,7 @@ from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
 from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 from . import accuracy  # adaptive reference solutions and work-precision reports
+from .dipole_sums import compare_dipole_sums  # which dipole sum for my scene: error against time
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
 from . import cost  # what a run will cost in time, estimated before it runs (demkit info)
 from . import measure  # what papers report: pressure tensor, coordination, local fields, magnetisation
@@ -30,5 +31,5 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
            "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "guards",
+           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "compare_dipole_sums", "guards",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]
