@@ -93,7 +93,8 @@ class DipoleSums:
                   f"{r.tuning_seconds:.3g}" if r.tuning_seconds else "-"]
                  for r in sorted(self.rows, key=lambda r: r.seconds)]
         widths = [max(len(h), *(len(c[k]) for c in cells)) if cells else len(h) for k, h in enumerate(head)]
-        line = lambda c: "  ".join(x.ljust(w) if k == 0 else x.rjust(w) for k, (x, w) in enumerate(zip(c, widths)))  # noqa: E731
+        def line(c):
+            return "  ".join(x.ljust(w) if k == 0 else x.rjust(w) for k, (x, w) in enumerate(zip(c, widths)))
         out = [line(head), line(["-" * w for w in widths])] + [line(c) for c in cells]
         ref = self.reference
         out += ["", f"{self.n} spheres, {'periodic box' if self.periodic else 'open space'}; errors against "
@@ -188,7 +189,8 @@ def default_candidates(prefactor, particles, box):
     out = []
     for k in CUTOFFS:
         if k * d < half:
-            out += [Dipole(prefactor, cutoff=k * d), Dipole(prefactor, cutoff=k * d, switch_width=SWITCH_FRACTION * k * d)]
+            rc = k * d
+            out += [Dipole(prefactor, cutoff=rc), Dipole(prefactor, cutoff=rc, switch_width=SWITCH_FRACTION * rc)]
     if periodic:
         return out + [Dipole(prefactor, long_range=kind(a)) for kind in (Ewald, P3M) for a in ACCURACIES]
     out.append(Dipole(prefactor))

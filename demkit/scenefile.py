@@ -185,7 +185,9 @@ INTERACTIONS = Table({
                          "every image of a big periodic box: a dipolar particle-mesh sum (dk.P3M); cutoff is "
                          "then the real-space cutoff (none: tuned)"),
                      "fmm": Table({
-                         "accuracy": _n("FMM3D's precision eps", default=1e-9, check="positive")},
+                         "accuracy": _n("FMM3D's precision eps", default=1e-9, check="positive"),
+                         "exact_below": Key("number_or_auto", "auto", 'fewer spheres keep the exact sum: "auto" '
+                                            '(the crossover) or a number (0: always the FMM)')},
                          "every pair of a big open cluster by a fast multipole sum (dk.FMM; needs "
                          "pip install \"demkit[fmm]\")")},
                     "full dipole-dipole force and torque (dk.Dipole)",

@@ -30,7 +30,7 @@ def test_two_dipoles_match_the_exact_pair():
     # its Hessian: xx yy zz xy xz yz): energy, forces and torques of the exact pair to 1e-12 relative
     pos = np.array([[0.0, 0.0, 0.0], [1.3, 0.4, -0.2]])
     dip = np.array([[0.3, -0.5, 0.8], [0.6, 0.7, -0.1]])
-    fmm = scene_of(pos, dip, dk.FMM(1e-14))
+    fmm = scene_of(pos, dip, dk.FMM(1e-14, exact_below=0))
     exact = scene_of(pos, dip, None)
     assert fmm.energy()["magnetic"] == pytest.approx(exact.energy()["magnetic"], rel=1e-12)
     for a, b in zip(fmm.forces(), exact.forces()):
@@ -42,7 +42,7 @@ def test_a_cluster_matches_the_exact_sum_to_the_precision_asked(accuracy):
     # 400 dipoles: RMS force and torque errors against the exact all-pairs sum, relative to the RMS
     # force, below 10 eps (FMM3D's eps bounds the error relative to the sums' size); energy likewise
     pos, dip = cluster(400)
-    fmm = scene_of(pos, dip, dk.FMM(accuracy))
+    fmm = scene_of(pos, dip, dk.FMM(accuracy, exact_below=0))
     exact = scene_of(pos, dip, None)
     (f, t), (f0, t0) = fmm.forces(), exact.forces()
     scale_f = np.sqrt(np.mean((f0 ** 2).sum(1)))
@@ -59,7 +59,7 @@ def test_a_run_with_contacts_follows_the_exact_one():
     # to 1e-8 (eps 1e-12; the two differ by round-off growing over the run)
     pos, dip = cluster(150, seed=3)
     ends = []
-    for long_range in (dk.FMM(1e-12), None):
+    for long_range in (dk.FMM(1e-12, exact_below=0), None):
         scene = scene_of(pos, 0.5 * dip, long_range, velocity=np.zeros((150, 3)), angular_velocity=np.zeros((150, 3)))
         dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(duration=0.2, progress=False)
         ends.append(scene.particles.position.copy())
@@ -69,7 +69,7 @@ def test_a_run_with_contacts_follows_the_exact_one():
 
 def test_local_field_gives_the_torques_and_the_energy():
     pos, dip = cluster(120, seed=5)
-    scene = scene_of(pos, dip, dk.FMM(1e-12))
+    scene = scene_of(pos, dip, dk.FMM(1e-12, exact_below=0))
     field = dk.measure.local_field(scene)
     _, torque = scene.forces()
     np.testing.assert_allclose(np.cross(dip, field), torque, atol=1e-9)
@@ -88,9 +88,32 @@ def test_bad_input_is_refused(monkeypatch):
     for bad in (0.0, 1.0, -1e-3, 1e-16, float("nan")):
         with pytest.raises(ValueError, match="FMM accuracy"):
             dk.FMM(bad)
+    for bad in (-1, 2.5, True, "always", float("nan")):
+        with pytest.raises(ValueError, match="exact_below"):
+            dk.FMM(exact_below=bad)
     monkeypatch.setitem(sys.modules, "fmm3dpy", None)  # as if not installed
     with pytest.raises(ImportError, match=r'pip install "demkit\[fmm\]"'):
-        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.FMM())])
+        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.FMM(exact_below=0))])
+    # below the crossover the exact sum needs no fmm3dpy
+    assert dk.Scene(p, [dk.Dipole(1.0, long_range=dk.FMM())]).long_range == ()
+
+
+def test_below_its_crossover_a_scene_keeps_the_exact_sum_and_says_so(capsys):
+    # the crossover N* = 2 c_FMM / c_pair grows with the digits asked (benchmarks/results/fmm.json
+    # measures ~3500, 1e4 and 1.5e4 at eps 1e-3, 1e-6, 1e-9: the model within 30 %)
+    crossings = [dk.FMM(eps).crossover() for eps in (1e-3, 1e-6, 1e-9)]
+    assert crossings == sorted(crossings) and 2500 < crossings[0] < 4500 and 7000 < crossings[1] < 13000
+    assert 10000 < crossings[2] < 20000
+    pos, dip = cluster(120, seed=5)
+    auto = scene_of(pos, dip, dk.FMM(1e-6))
+    exact = scene_of(pos, dip, None)
+    assert auto.long_range == () and auto.interactions[0].pair_loop
+    assert "exact all-pairs sum of 120 spheres (below the crossover" in auto.interactions[0].long_range_note
+    for a, b in zip(auto.forces(), exact.forces()):
+        np.testing.assert_array_equal(a, b)  # the same loop: the same bits
+    forced = scene_of(pos, dip, dk.FMM(1e-6, exact_below=100))
+    assert forced.long_range and "fast multipole sum of 120 spheres" in forced.interactions[0].long_range_note
+    assert scene_of(pos, dip, dk.FMM(1e-6, exact_below=121)).long_range == ()
 
 
 def test_a_scene_file_asks_for_a_fast_multipole_sum():
@@ -104,6 +127,7 @@ radius = 0.5
 prefactor = 1.0
 [interactions.dipole.fmm]
 accuracy = 1e-10
+exact_below = 0
 [interactions.kelvin_voigt]
 stiffness = 1e4
 [integrator]
@@ -112,6 +136,8 @@ dt = 0.001
 duration = 0.01
 """
     scene = dk.parse_scene(text).scene
+    assert repr(scene.long_range[0]) == "TunedFMM(accuracy=1e-10)"
+    assert dk.parse_scene(text.replace("exact_below = 0", "")).scene.long_range == ()  # 80 < the crossover
     exact = scene_of(pos, 0.3 * dip, None)
     assert scene.energy()["magnetic"] == pytest.approx(exact.energy()["magnetic"], rel=1e-9)
     with pytest.raises(dk.SceneFileError, match="give only one of ewald, p3m, fmm"):

@@ -227,6 +227,8 @@ class Dipole(PairInteraction):
         self.switch_width = None
         self.long_range = None
         self.tuned = None
+        #: what a scene's copy uses for long_range (an FMM below its crossover: the exact sum), or None
+        self.long_range_note = None
         #: False: no pair loop evaluates this interaction (a long-range sum covers every pair)
         self.pair_loop = True
         if long_range is not None:
@@ -270,13 +272,17 @@ class Dipole(PairInteraction):
         holds it in place of this one; ``original`` is this one, which stays untuned and can join
         other scenes). :attr:`tuned` (a ``TunedEwald``, ``TunedP3M`` or ``TunedFMM``) holds the
         sum and adapts the copy: an Ewald-split sum makes it the screened real-space pair at its
-        cutoff, a fast multipole sum leaves it no pair loop."""
+        cutoff, a fast multipole sum leaves it no pair loop (below its crossover it keeps the exact
+        loop and :attr:`tuned` is None; :attr:`long_range_note` says which)."""
         import copy
         self.check(particles)
         bound = copy.copy(self)
         bound.original = self
         bound.tuned = self.long_range.tune(self.prefactor, particles, box, self.user_cutoff)
-        bound.tuned.adapt(bound)
+        if bound.tuned is not None:  # (None: an FMM below its crossover keeps the exact pair loop)
+            bound.tuned.adapt(bound)
+        note = getattr(self.long_range, "note", None)
+        bound.long_range_note = note(len(particles)) if note is not None else None
         return bound
 
     def rate_coefficients(self, particles, i, j):

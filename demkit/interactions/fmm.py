@@ -18,6 +18,14 @@ force error against the exact sum is measured in benchmarks/bench_fmm.py and doc
 The sum runs in Python (FMM3D's compiled library, through numba's object mode) once per force
 evaluation: tens of microseconds of overhead, nothing against a sum over thousands of dipoles.
 
+Below its crossover the exact sum is cheaper: with ``exact_below="auto"`` (the default) a scene of
+fewer than :meth:`FMM.crossover` spheres, N* = 2 c_FMM(eps) / c_pair (the N where N c_FMM equals the
+exact loop's N^2/2 pairs; about 3400, 10 600 and 17 800 spheres at eps 1e-3, 1e-6, 1e-9 with the
+constants of :mod:`demkit.cost`, measured crossovers 3500, 10 000 and 15 000 in
+benchmarks/results/fmm.json), keeps the exact all-pairs sum (exact to round-off, so more accurate
+than asked) and says so (``Dipole.long_range_note``, ``demkit info``); ``exact_below=0`` always uses
+the FMM.
+
 FMM3D is optional: ``pip install "demkit[fmm]"`` (the package ``fmm3dpy``), imported only when a
 scene uses it. Contacts keep their own short neighbour list.
 """
@@ -90,22 +98,45 @@ class FMM:
     """Settings of a fast multipole sum: ``Dipole(prefactor, long_range=FMM(accuracy=1e-9))``.
 
     accuracy : FMM3D's precision eps, 0 < accuracy < 1 (module docstring).
+    exact_below : scenes of fewer spheres keep the exact all-pairs sum; "auto" (default): the
+        crossover :meth:`crossover`; 0: always the FMM.
 
     Open space only (no box, or a box with no periodic axis), the Dipole without a cutoff; needs
-    ``pip install "demkit[fmm]"``.
+    ``pip install "demkit[fmm]"`` when the FMM is used.
     """
 
-    def __init__(self, accuracy=1e-9):
+    def __init__(self, accuracy=1e-9, exact_below="auto"):
         accuracy = positive("FMM accuracy", accuracy)
         if not accuracy < 1.0:
             raise ValueError(f"FMM accuracy is FMM3D's relative precision, between 0 and 1, got {accuracy!r}")
         if accuracy < 1e-14:
             raise ValueError(f"FMM accuracy {accuracy!r} is below what double precision can reach (1e-14)")
+        if exact_below != "auto":
+            if (isinstance(exact_below, (bool, str)) or not isinstance(exact_below, (int, float, np.number))
+                    or not (exact_below >= 0 and float(exact_below).is_integer())):
+                raise ValueError(f"FMM exact_below is a whole number of spheres (0: always the FMM) or \"auto\" "
+                                 f"(the crossover with the exact sum), got {exact_below!r}")
+            exact_below = int(exact_below)
         self.accuracy = accuracy
+        self.exact_below = exact_below
+
+    def crossover(self):
+        """Number of spheres from which the FMM is estimated cheaper than the exact all-pairs sum:
+        2 c_FMM / c_pair with demkit.cost's FMM_SPHERE(_PER_DIGIT) and ALL_PAIR (one core)."""
+        from .. import cost
+        digits = max(-math.log10(self.accuracy), 1.0)
+        per_sphere = cost.FMM_SPHERE + cost.FMM_SPHERE_PER_DIGIT * (digits - 3.0)
+        return int(round(2.0 * per_sphere / cost.ALL_PAIR))
+
+    def uses_exact_sum(self, n):
+        """Does a scene of n spheres keep the exact sum (fewer than ``exact_below`` spheres)?"""
+        threshold = self.crossover() if self.exact_below == "auto" else self.exact_below
+        return n < threshold
 
     def tune(self, prefactor, particles, box, cutoff=None):
-        """:class:`TunedFMM` for these spheres (ValueError in a periodic box or with a cutoff;
-        ImportError without fmm3dpy)."""
+        """:class:`TunedFMM` for these spheres, or None where the exact sum is cheaper
+        (:meth:`uses_exact_sum`); ValueError in a periodic box or with a cutoff, ImportError
+        without fmm3dpy when the FMM is used."""
         if box is not None and any(box.periodic):
             raise ValueError("a fast multipole sum is for open space: this box is periodic along "
                              f"{''.join(a for a, f in zip('xyz', box.periodic) if f)}; use long_range=dk.Ewald(...) "
@@ -113,11 +144,22 @@ class FMM:
         if cutoff is not None:
             raise ValueError(f"a Dipole with long_range=FMM(...) takes no cutoff (the sum covers every pair), "
                              f"got cutoff={cutoff!r}")
+        if self.uses_exact_sum(len(particles)):
+            return None
         fmm3d()
         return TunedFMM(self, prefactor)
 
+    def note(self, n):
+        """What a scene of n spheres uses, in words (``Dipole.long_range_note``)."""
+        if self.uses_exact_sum(n):
+            why = (f"below the crossover of ~{self.crossover()} spheres" if self.exact_below == "auto"
+                   else f"fewer than exact_below={self.exact_below}")
+            return f"{self!r}: the exact all-pairs sum of {n} spheres ({why}; exact to round-off)"
+        return f"{self!r}: a fast multipole sum of {n} spheres"
+
     def __repr__(self):
-        return f"FMM(accuracy={self.accuracy!r})"
+        extra = "" if self.exact_below == "auto" else f", exact_below={self.exact_below!r}"
+        return f"FMM(accuracy={self.accuracy!r}{extra})"
 
 
 class TunedFMM:
