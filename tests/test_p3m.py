@@ -104,6 +104,10 @@ def test_bad_input_is_refused():
             dk.P3M(mesh=mesh)
     with pytest.raises(ValueError, match="accuracy"):
         dk.P3M(accuracy=2.0)
+    # a mesh that does not fit in memory: 4096^3 points x 32 B = 2.2 TB, refused before anything is allocated
+    with pytest.raises(ValueError, match=r"a P3M mesh of \(4096, 4096, 4096\) points needs about 2.2e\+03 GB.*"
+                                         r"more than this machine has available.*smaller mesh"):
+        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M(mesh=4096))], box=dk.Box(3.0, periodic=True))
 
 
 def test_cost_estimate_prices_the_mesh():

@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numba import njit, objmode
 
+from .. import memory
 from .ewald import (Ewald, _alpha_for, real_space_error, reciprocal_table, reciprocal_terms, scales, screened_pair,
                     screening, self_field, wave_vector_limits)
 
@@ -43,6 +44,9 @@ MESH_SIZES = sorted({2 ** a * 3 ** b * 5 ** c for a in range(9) for b in range(4
 #: estimated seconds: per real-space pair within the cutoff, per sphere and spline point (spread +
 #: gather), per mesh point and log2 of the mesh size (FFT), measured by benchmarks/bench_ewald.py
 PAIR_SECONDS, POINT_SECONDS, FFT_SECONDS = 7.5e-8, 7.0e-9, 2.0e-9
+#: bytes per mesh point: the peak of one evaluation (grid, its transform, the potential: 26 measured
+#: with tracemalloc on 32^3 and 64^3 meshes) and the influence table in the scene's params (4)
+MESH_BYTES = 32
 #: head of a tuned sum's table in the scene's params: A, alpha, vacuum, Kx, Ky, Kz, order; then C
 HEAD = 7
 OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
@@ -262,6 +266,9 @@ class P3M(Ewald):
         else:
             low = min(2.0 * float(np.max(particles.radius)), 0.999 * half)
             candidates = list(np.linspace(low, 0.999 * half, 8))
+        if self.mesh is not None:
+            memory.refuse_above(MESH_BYTES * float(np.prod(self.mesh)), f"a P3M mesh of {self.mesh} points needs",
+                                "ask for a smaller mesh (or mesh=None: tuned) or use long_range=dk.Ewald(...)")
         sample = _Sample(particles, box, prefactor, self.accuracy * pull)
         best = None
         density = n / volume
@@ -281,9 +288,12 @@ class P3M(Ewald):
             if best is None or cost < best[0]:
                 best = (cost, rc, alpha, mesh, error)
         if best is None:
+            room = memory.machine_memory()[0]
+            fits = (f" that fits in the {room / memory.GB:.3g} GB of memory available" if room and MESH_BYTES
+                    * MESH_SIZES[-1] ** 3 > room else "")
             raise ValueError(f"no real-space cutoff shorter than half the box ({half:.6g}) and mesh of at most "
-                             f"{MESH_SIZES[-1]} points per axis reach P3M accuracy {self.accuracy:g}: ask for a lower "
-                             f"accuracy, or use long_range=dk.Ewald(...)")
+                             f"{MESH_SIZES[-1]} points per axis{fits} reach P3M accuracy {self.accuracy:g}: ask for a "
+                             f"lower accuracy, or use long_range=dk.Ewald(...)")
         _, rc, alpha, mesh, error = best
         return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, tuple(float(x) for x in box.size),
                         real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull)
@@ -298,7 +308,8 @@ class P3M(Ewald):
         size = sample.size
         sizes = [tuple(int(next(s for s in MESH_SIZES if s >= k * length / size.max())) for length in size)
                  for k in MESH_SIZES if k >= 2 * self.order]
-        sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget]
+        room = memory.machine_memory()[0] or math.inf
+        sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget and MESH_BYTES * np.prod(mesh) < room]
         lo, hi, found = 0, len(sizes) - 1, None
         while lo <= hi:
             mid = (lo + hi) // 2
