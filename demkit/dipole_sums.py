@@ -178,11 +178,11 @@ def _label(dipole, diameter):
     return " ".join(x for x in (_kind(dipole).replace("plain ", ""), _tag(dipole, diameter)) if x)
 
 
-def default_candidates(prefactor, particles, box):
+def default_candidates(prefactor, particles, box, surface="metallic"):
     """The candidates :func:`compare_dipole_sums` tries when given none (``Dipole`` objects):
     periodic box: plain and switched (width a quarter of the cutoff) cutoffs at 2-6 mean diameters
     shorter than half the box, Ewald and P3M at 1e-3 ... 1e-6; open space: the same cutoffs, the
-    exact sum and, if fmm3dpy imports, FMM at eps 1e-3, 1e-6, 1e-9."""
+    exact sum and, if fmm3dpy imports, FMM at eps 1e-3, 1e-6, 1e-9. ``surface``: of Ewald and P3M."""
     d = 2.0 * float(np.mean(particles.radius))
     periodic = box is not None and all(box.periodic)
     half = 0.5 * float(np.min(box.size)) if periodic else math.inf
@@ -192,7 +192,7 @@ def default_candidates(prefactor, particles, box):
             rc = k * d
             out += [Dipole(prefactor, cutoff=rc), Dipole(prefactor, cutoff=rc, switch_width=SWITCH_FRACTION * rc)]
     if periodic:
-        return out + [Dipole(prefactor, long_range=kind(a)) for kind in (Ewald, P3M) for a in ACCURACIES]
+        return out + [Dipole(prefactor, long_range=kind(a, surface)) for kind in (Ewald, P3M) for a in ACCURACIES]
     out.append(Dipole(prefactor))
     try:
         import fmm3dpy  # noqa: F401
@@ -201,7 +201,7 @@ def default_candidates(prefactor, particles, box):
     return out + [Dipole(prefactor, long_range=FMM(a)) for a in FMM_ACCURACIES]
 
 
-def _checked(candidate, prefactor, periodic):
+def _checked(candidate, prefactor, periodic, surface):
     """A candidate as a Dipole: Ewald / P3M / FMM settings get ``Dipole(prefactor, long_range=...)``;
     a Dipole must have this prefactor."""
     if isinstance(candidate, (Ewald, FMM)):  # P3M is a kind of Ewald
@@ -215,6 +215,9 @@ def _checked(candidate, prefactor, periodic):
     if periodic and candidate.long_range is None and candidate.cutoff_distance is None:
         raise ValueError(f"candidate {candidate!r} has no cutoff, which a periodic box cannot hold: give it a "
                          f"cutoff or long_range=dk.Ewald(...) / dk.P3M(...)")
+    if getattr(candidate.long_range, "surface", surface) != surface:
+        raise ValueError(f"candidate {candidate!r} sums in {candidate.long_range.surface!r} surroundings, the "
+                         f"comparison in {surface!r} ones: pass surface={candidate.long_range.surface!r}")
     return candidate
 
 
@@ -236,7 +239,7 @@ def _measure(particles, box, dipole, repeats, parallel):
 
 
 def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, parallel=False,
-                        reference_accuracy=REFERENCE_ACCURACY):
+                        reference_accuracy=REFERENCE_ACCURACY, surface="metallic"):
     """Force and torque errors and time per evaluation of dipole sums on one configuration.
 
     particles : dk.Particles with dipole moments (the current positions and moments are compared).
@@ -247,6 +250,10 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
     repeats : timed force evaluations per candidate, after one untimed (compiling, building lists).
     parallel : passed to ``dk.Scene``: False (default) times one thread; None lets each scene decide.
     reference_accuracy : the accuracy of the periodic reference Ewald sum (open space: the exact sum).
+    surface : what surrounds the periodic sample, "metallic" (default) or "vacuum" (see ``dk.Ewald``), for
+        the reference and the default Ewald and P3M candidates. It decides what a cutoff misses in a
+        polarised sample: metallic, the whole Lorentz field (4 pi/3) M; vacuum (a sphere of boxes), nothing
+        on average, the cavity's field cancelling the sphere's demagnetising field.
 
     Returns a :class:`DipoleSums` report (module docstring). ValueError for particles without
     moments, a partly periodic box, or a candidate that is none of the above.
@@ -264,16 +271,17 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
     if not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats must be a whole number of at least 1, got {repeats!r}")
     if candidates is None:
-        candidates = default_candidates(prefactor, particles, box)
-    candidates = [_checked(c, prefactor, periodic) for c in candidates]
+        candidates = default_candidates(prefactor, particles, box, surface)
+    candidates = [_checked(c, prefactor, periodic, surface) for c in candidates]
     if not candidates:
         raise ValueError("compare_dipole_sums needs at least one candidate")
     d = 2.0 * float(np.mean(particles.radius))
     pull = 6.0 * prefactor * float(np.mean((particles.dipole ** 2).sum(1))) / d ** 4
     load = os.getloadavg()[0]
-    ref = Dipole(prefactor, long_range=Ewald(reference_accuracy)) if periodic else Dipole(prefactor)
+    ref = Dipole(prefactor, long_range=Ewald(reference_accuracy, surface)) if periodic else Dipole(prefactor)
     f_ref, t_ref, seconds, tuning, tuned = _measure(particles, box, ref, 1, parallel)
-    reference = dict(label=_label(ref, d), dipole=repr(ref), seconds=seconds, tuning_seconds=tuning, tuned=tuned)
+    reference = dict(label=_label(ref, d) + (f" ({surface})" if periodic else ""), dipole=repr(ref), seconds=seconds,
+                     tuning_seconds=tuning, tuned=tuned)
     rows = []
     for dipole in candidates:
         force, torque, seconds, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)

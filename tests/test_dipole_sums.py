@@ -38,7 +38,7 @@ def test_ewald_errors_fall_with_the_accuracy_asked_and_stay_within_it(periodic_r
     assert all(e <= a for e, a in zip(errors, ACCURACIES))
     assert all(e > a / 100 for e, a in zip(errors, ACCURACIES))  # errors measured, not a reference compared to itself
     assert row(periodic_report, "P3M 1e-4").force_error <= 1e-4
-    assert periodic_report.reference["label"] == "Ewald 1e-10"
+    assert periodic_report.reference["label"] == "Ewald 1e-10 (metallic)"
     assert periodic_report.pull == pytest.approx(6.0) and periodic_report.diameter == pytest.approx(1.0)
 
 
@@ -121,6 +121,8 @@ def test_bad_input_is_refused_with_a_message():
         dk.compare_dipole_sums(p, box, 1.0, [dk.Dipole(1.0)])
     with pytest.raises(ValueError, match="periodic along x, y and z, or open space"):
         dk.compare_dipole_sums(p, dk.Box(box.size, periodic=(True, True, False)), 1.0)
+    with pytest.raises(ValueError, match="in 'vacuum' surroundings, the comparison in 'metallic' ones"):
+        dk.compare_dipole_sums(p, box, 1.0, [dk.Ewald(1e-3, surface="vacuum")])
     with pytest.raises(ValueError, match="at least one candidate"):
         dk.compare_dipole_sums(p, box, 1.0, [])
     with pytest.raises(ValueError, match="repeats"):
