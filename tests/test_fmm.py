@@ -67,6 +67,21 @@ def test_a_run_with_contacts_follows_the_exact_one():
     assert np.abs(ends[0] - pos).max() > 1e-4  # the dipoles moved the spheres
 
 
+def test_multiple_time_stepping_takes_the_sum_as_a_slow_force():
+    # MultipleTimeStep(dt, inner=1) is velocity Verlet with the kicks split in two: the same path to
+    # round-off. (It passes rows of its stage array to the sum, which once reached FMM3D as the
+    # whole stage array.)
+    pos, dip = cluster(100, seed=4)
+    ends = []
+    for integrator in (dk.VelocityVerlet(1e-3), dk.MultipleTimeStep(1e-3, inner=1)):
+        scene = scene_of(pos, 0.5 * dip, dk.FMM(1e-12, exact_below=0), velocity=np.zeros((100, 3)),
+                         angular_velocity=np.zeros((100, 3)))
+        dk.Simulation(scene, integrator).run(duration=0.05, progress=False)
+        ends.append(scene.particles.position.copy())
+    np.testing.assert_allclose(ends[1], ends[0], atol=1e-12)
+    assert np.abs(ends[0] - pos).max() > 1e-6
+
+
 def test_local_field_gives_the_torques_and_the_energy():
     pos, dip = cluster(120, seed=5)
     scene = scene_of(pos, dip, dk.FMM(1e-12, exact_below=0))

@@ -89,8 +89,15 @@ def fmm_sum(position, dipole, box, params, start, force, torque, with_forces):
     ``with_forces`` forces and torques added; params[start:start + 2] = A, eps."""
     prefactor = params[start]
     eps = params[start + 1]
+    # fresh arrays into object mode: numba boxes a view of an array (multiple time stepping passes
+    # rows of its stage array) as the whole parent array, so Python would see the wrong shape
+    f = np.zeros(force.shape)
+    t = np.zeros(torque.shape)
     with objmode(energy="float64"):
-        energy = evaluate(position, dipole, prefactor, eps, force, torque, with_forces)
+        energy = evaluate(position, dipole, prefactor, eps, f, t, with_forces)
+    if with_forces:
+        force += f
+        torque += t
     return energy
 
 

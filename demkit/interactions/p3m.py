@@ -225,8 +225,15 @@ def evaluate(position, dipole, box, table, force, torque, with_forces):
 @njit(cache=True)
 def p3m_sum(position, dipole, box, params, start, force, torque, with_forces):
     """The mesh part of a P3M sum with its table at params[start:] (scipy's FFT, in object mode)."""
+    # fresh arrays into object mode (a view would be boxed as its parent: see fmm.fmm_sum)
+    f = np.zeros(force.shape)
+    t = np.zeros(torque.shape)
+    table = params[start:].copy()
     with objmode(energy="float64"):
-        energy = evaluate(position, dipole, box, params[start:], force, torque, with_forces)
+        energy = evaluate(position, dipole, box, table, f, t, with_forces)
+    if with_forces:
+        force += f
+        torque += t
     return energy
 
 
