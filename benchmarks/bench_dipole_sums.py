@@ -84,7 +84,7 @@ def main(argv=None):
     reports, result = [], dict(
         machine=dict(platform=platform.platform(), date=time.strftime("%Y-%m-%d %H:%M"), cores=os.cpu_count(),
                      threads=1, load_average_1_5_15_min_at_start=list(load)),
-        n=n, prefactor=PREFACTOR, moment=MOMENT,
+        code=_code(), n=n, prefactor=PREFACTOR, moment=MOMENT,
         polarised=dict(tilt_degrees_rms=TILT_DEGREES, mean_cos_to_z=float(cosines.mean()),
                        magnetisation_per_sphere=float(np.linalg.norm(polar.dipole.mean(0)))),
         fmm=_has_fmm(), scenes={})
@@ -102,6 +102,18 @@ def main(argv=None):
     path.write_text(json.dumps(result, indent=1) + "\n")
     plot(reports, n, path.with_suffix(".png"))
     print("written", path, "and", path.with_suffix(".png"))
+
+
+def _code():
+    """The commit measured and whether demkit/ differs from it (git, if this is a work tree)."""
+    import subprocess
+    def git(*a):
+        return subprocess.run(["git", *a], cwd=HERE, capture_output=True, text=True).stdout.strip()
+    try:
+        return dict(commit=git("rev-parse", "--short", "HEAD"), demkit_edited=bool(git("status", "--short", "demkit")),
+                    demkit=str(Path(dk.__file__).parent))
+    except OSError:
+        return dict(commit=None)
 
 
 def _has_fmm():

@@ -45,8 +45,8 @@ REFERENCE_ACCURACY = 1e-10
 class SumRow:
     """One candidate: ``label``, ``dipole`` (the ``dk.Dipole`` to put in your scene), ``force_error``
     and ``torque_error`` (see the module docstring), ``seconds`` (one force evaluation, least of the
-    repeats), ``tuning_seconds`` (Ewald and P3M: tuning their parameters; else 0), ``tuned`` (what
-    the tuning chose, or "")."""
+    repeats), ``tuning_seconds`` (tuning a long-range sum; 0 without), ``tuned`` (what the tuning
+    chose, or the scene's note on it, or "")."""
 
     label: str
     dipole: Dipole
@@ -172,7 +172,9 @@ def _tag(dipole, diameter):
     return f"{dipole.cutoff_distance / diameter:g} d"
 
 
-def _label(dipole, diameter):
+def _label(dipole, diameter, n=0):
+    if getattr(dipole.long_range, "uses_exact_sum", lambda n: False)(n):
+        return f"{_kind(dipole)} {_tag(dipole, diameter)} (kept the exact sum)"
     if dipole.switch_width is not None:
         return f"switched cutoff {_tag(dipole, diameter)} (width {dipole.switch_width / diameter:g} d)"
     return " ".join(x for x in (_kind(dipole).replace("plain ", ""), _tag(dipole, diameter)) if x)
@@ -182,7 +184,8 @@ def default_candidates(prefactor, particles, box, surface="metallic"):
     """The candidates :func:`compare_dipole_sums` tries when given none (``Dipole`` objects):
     periodic box: plain and switched (width a quarter of the cutoff) cutoffs at 2-6 mean diameters
     shorter than half the box, Ewald and P3M at 1e-3 ... 1e-6; open space: the same cutoffs, the
-    exact sum and, if fmm3dpy imports, FMM at eps 1e-3, 1e-6, 1e-9. ``surface``: of Ewald and P3M."""
+    exact sum and, if fmm3dpy imports, FMM at eps 1e-3, 1e-6, 1e-9 (``exact_below=0``: the FMM itself,
+    even where the exact sum is cheaper). ``surface``: of Ewald and P3M."""
     d = 2.0 * float(np.mean(particles.radius))
     periodic = box is not None and all(box.periodic)
     half = 0.5 * float(np.min(box.size)) if periodic else math.inf
@@ -198,7 +201,7 @@ def default_candidates(prefactor, particles, box, surface="metallic"):
         import fmm3dpy  # noqa: F401
     except ImportError:
         return out
-    return out + [Dipole(prefactor, long_range=FMM(a)) for a in FMM_ACCURACIES]
+    return out + [Dipole(prefactor, long_range=FMM(a, exact_below=0)) for a in FMM_ACCURACIES]
 
 
 def _checked(candidate, prefactor, periodic, surface):
@@ -222,13 +225,16 @@ def _checked(candidate, prefactor, periodic, surface):
 
 
 def _measure(particles, box, dipole, repeats, parallel):
-    """(scene forces, torques, least seconds of one evaluation, tuning seconds, tuned repr)."""
-    tuning, tuned = 0.0, ""
-    if dipole.long_range is not None:
+    """(forces, torques, least seconds of one evaluation, seconds of tuning the long-range sum (0 without),
+    what the scene's tuning chose or its note, "" without)."""
+    tuning = 0.0
+    if dipole.long_range is not None:  # timed apart: Scene() would add compiling on first use
         t = time.perf_counter()
-        tuned = repr(dipole.long_range.tune(dipole.prefactor, particles, box, dipole.user_cutoff))
+        dipole.long_range.tune(dipole.prefactor, particles, box, dipole.user_cutoff)
         tuning = time.perf_counter() - t
     scene = Scene(particles, [dipole], box=box, parallel=parallel)
+    bound = scene.interactions[0]
+    tuned = repr(bound.tuned) if bound.tuned is not None else getattr(bound, "long_range_note", None) or ""
     force, torque = scene.forces()  # compiles (first time) and builds the lists
     best = math.inf
     for _ in range(repeats):
@@ -285,7 +291,7 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
     rows = []
     for dipole in candidates:
         force, torque, seconds, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)
-        rows.append(SumRow(_label(dipole, d), dipole, _rms(force - f_ref) / pull, _rms(torque - t_ref) / (pull * d),
+        rows.append(SumRow(_label(dipole, d, len(particles)), dipole, _rms(force - f_ref) / pull, _rms(torque - t_ref) / (pull * d),
                            seconds, tuning, tuned))
     return DipoleSums(rows, reference, pull, d, len(particles), periodic, repeats,
                       "1 thread" if parallel is False else "threads as each scene chose", (load, os.getloadavg()[0]))
