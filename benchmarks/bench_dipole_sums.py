@@ -110,8 +110,8 @@ def _code():
     def git(*a):
         return subprocess.run(["git", *a], cwd=HERE, capture_output=True, text=True).stdout.strip()
     try:
-        return dict(commit=git("rev-parse", "--short", "HEAD"), demkit_edited=bool(git("status", "--short", "demkit")),
-                    demkit=str(Path(dk.__file__).parent))
+        return dict(commit=git("rev-parse", "--short", "HEAD"), demkit=str(Path(dk.__file__).parent),
+                    demkit_files_differing_from_commit=git("status", "--short", "demkit").splitlines())
     except OSError:
         return dict(commit=None)
 
