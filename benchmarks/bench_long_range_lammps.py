@@ -1,5 +1,6 @@
-"""demkit's P3M against LAMMPS' pppm/dipole on the N = 8000 reference scene, side by side in one
-run: force accuracy and speed. Writes benchmarks/results/long_range_lammps.json.
+"""demkit's Ewald and P3M sums against LAMMPS' ewald/dipole and pppm/dipole on the reference scene:
+accuracy of forces, torques and energy at N = 1000, force accuracy and speed of P3M at N = 8000.
+Writes benchmarks/results/long_range_lammps.json (each part its own keys, the others' kept).
 
 The scene is benchmarks/reference_scene.py's (periodic cube, volume fraction 0.2, moments of 2,
 frictionless Hooke contacts; the `nofric` model of benchmarks/lammps/in.reference with
@@ -14,13 +15,22 @@ deck's 4 d).
 * speed: atom-steps per second of velocity Verlet, dt = 0.001, 200 timed steps after a warm-up,
   demkit on 1 and 2 threads, LAMMPS on 1 and 2 MPI ranks (best of 2).
 
-    python benchmarks/bench_long_range_lammps.py [--quick]
+Part ``accuracy1000`` (key "n1000"): the N = 1000 scene at step 0, demkit's Ewald(1e-9) as the
+truth; demkit's Ewald and P3M at 1e-3, 1e-4 and 1e-5 and LAMMPS' ewald/dipole and pppm/dipole at
+the same absolute accuracy (24 times the number): RMS force error relative to the pull 24, RMS
+torque error relative to pull x d (24 too), dipolar energy per sphere relative to the pair energy
+2 A m^2 / d^3 = 8 (LAMMPS: thermo pe at step 0, no contacts yet), and each code's forces and
+torques against the other's at equal accuracy. Both use tin-foil (metallic) surroundings. Also
+LAMMPS' ewald/dipole at 2.4e-8, a check of the truth by the other code.
+
+    python benchmarks/bench_long_range_lammps.py [--part speed8000|accuracy1000] [--quick]
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -36,7 +46,44 @@ RESULTS = HERE / "results" / "long_range_lammps.json"
 DECK = HERE / "lammps" / "in.reference"
 N = 8000
 ACCURACY = 1e-4
-PULL = 6.0 * 2.0 ** 2  # 6 A m^2 / d^4 with A = 1, m = 2, d = 1
+PULL = 6.0 * 2.0 ** 2  # 6 A m^2 / d^4 with A = 1, m = 2, d = 1; torques relative to PULL x d (24 too)
+PAIR_ENERGY = 2.0 * 2.0 ** 2  # 2 A m^2 / d^3: energies per sphere relative to it
+ACCURACIES_1000 = (1e-3, 1e-4, 1e-5)
+# thermo row at step 0 of the deck's timed run (thermo_modify norm yes: per sphere)
+THERMO = re.compile(r"^\s*Step Temp KinEng PotEng.*\n\s*0\s+\S+\s+\S+\s+(\S+)", re.M)
+LAMMPS_TUNED = re.compile(r"G vector \(1/distance\) = \S+|grid = .*|kxmax kymax kzmax\s+= .*")
+
+
+def rms_error(a, b, scale=PULL):
+    """Root-mean-square length of the rows of a - b, relative to ``scale``."""
+    return float(np.sqrt(np.mean(((a - b) ** 2).sum(1))) / scale)
+
+
+def demkit_start(particles, box, long_range):
+    """demkit's dipole forces, torques and energy per sphere at the start: (force, torque, energy, tuned)."""
+    import demkit as dk
+    scene = dk.Scene(particles, [dk.Dipole(1.0, long_range=long_range)], box=box)
+    force, torque = scene.forces()
+    return force, torque, scene.energy()["magnetic"] / len(particles), repr(scene.long_range[0])
+
+
+def lammps_start(data, kspace, accuracy, folder):
+    """LAMMPS' forces, torques (by id) and potential energy per sphere at step 0 of the deck's
+    ``nofric`` model with ``kspace`` (ewald or pppm) at ``accuracy`` (LAMMPS' relative one), and the
+    parameters it chose: (force, torque, energy, tuned), or None without LAMMPS. No sphere touches
+    another at step 0, so the forces, torques and energy are the dipoles' alone."""
+    from demkit.lammps import read_dump
+    from lammps_run import run_deck
+    dump = Path(folder) / f"start_{kspace}_{accuracy:g}.dump"
+    out = run_deck(DECK, {"data": str(data), "model": "nofric", "nsteps": 1, "kspace": kspace, "acc": accuracy,
+                          "dumpevery": 1, "dump": str(dump)})
+    if out is None:
+        return None
+    first = read_dump(dump)[0]
+    energy = float(THERMO.search(out["log"]).group(1))
+    tuned = "; ".join(dict.fromkeys(LAMMPS_TUNED.findall(out["log"])))  # once (run 0 and the run print it)
+    return first[:, 7:10], first[:, 10:13], energy, tuned
+
 
 CHILD = textwrap.dedent("""
     import json, sys
@@ -69,10 +116,61 @@ def demkit_rate(threads, folder, steps, repeats):
     return json.loads(line[len("RESULT "):])
 
 
+def accuracy1000():
+    """Part accuracy1000: the "n1000" entry of the results (module docstring)."""
+    import demkit as dk
+    from lammps_run import lammps_available
+    from reference_scene import particles_and_box, write_reference_scene
+    n = 1000
+    folder = Path(tempfile.mkdtemp(prefix="demkit-lr1000-"))
+    scene, _, data = write_reference_scene(n, folder)
+    p, box = particles_and_box(scene)
+    force, torque, energy, tuned = demkit_start(p, box, dk.Ewald(1e-9))
+    out = {"date": time.strftime("%Y-%m-%d %H:%M"), "n": n,
+           "truth": {"method": "demkit Ewald(1e-9)", "tuned": tuned, "energy_per_sphere": energy},
+           "units": {"force": "pull 6 A m^2/d^4 = 24", "torque": "pull x d = 24",
+                     "energy": "per sphere, pair energy 2 A m^2/d^3 = 8"}, "rows": []}
+
+    def errors(name, accuracy, result, demkit=None):
+        """A row of errors against the truth (and against demkit's (force, torque) at equal accuracy)."""
+        f, t, e, tuned = result
+        row = {"code": name, "accuracy": accuracy, "force_error": rms_error(f, force),
+               "torque_error": rms_error(t, torque), "energy_error": (e - energy) / PAIR_ENERGY,
+               "energy_per_sphere": e, "tuned": tuned}
+        if demkit is not None:
+            row.update(force_vs_demkit=rms_error(f, demkit[0]), torque_vs_demkit=rms_error(t, demkit[1]))
+        print(json.dumps(row))
+        out["rows"].append(row)
+        return f, t
+
+    for accuracy in ACCURACIES_1000:
+        ours = {"ewald": errors("demkit Ewald", accuracy, demkit_start(p, box, dk.Ewald(accuracy))),
+                "pppm": errors("demkit P3M", accuracy, demkit_start(p, box, dk.P3M(accuracy)))}
+        if lammps_available():
+            for kspace in ("ewald", "pppm"):
+                errors(f"LAMMPS {kspace}/dipole", accuracy, lammps_start(data, kspace, accuracy * PULL, folder),
+                       ours[kspace])
+    if lammps_available():
+        errors("LAMMPS ewald/dipole", 1e-9, lammps_start(data, "ewald", 1e-9 * PULL, folder))
+    return out
+
+
+def write_results(update):
+    """Merge ``update`` into the results file (the other part's keys are kept)."""
+    result = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    result.update(update)
+    RESULTS.write_text(json.dumps(result, indent=1) + "\n")
+    print("written", RESULTS)
+
+
 def main(argv=None):
     args = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    args.add_argument("--part", choices=("speed8000", "accuracy1000"), default="speed8000")
     args.add_argument("--quick", action="store_true")
     opts = args.parse_args(argv)
+    if opts.part == "accuracy1000":
+        write_results({"n1000": accuracy1000()})
+        return
     import demkit as dk
     from lammps_run import lammps_available, run_deck
     from reference_scene import load_reference_scene, particles_and_box, write_reference_scene
@@ -88,13 +186,7 @@ def main(argv=None):
                 "demkit_tuned": repr(ours.long_range[0])}
     lammps_acc = ACCURACY * PULL  # the same absolute force error, relative to LAMMPS' unit force
     if lammps_available():
-        dump = folder / "start.dump"
-        run_deck(DECK, {"data": str(data), "model": "nofric", "nsteps": 1, "kspace": "pppm", "acc": lammps_acc,
-                        "dumpevery": 1, "dump": str(dump)})
-        lines = dump.read_text().splitlines()
-        rows = np.array([[float(x) for x in ln.split()] for ln in lines[9:9 + len(p)]])  # frame 0 (step 0)
-        theirs = rows[np.argsort(rows[:, 0])][:, 7:10]  # fx fy fz by id
-        accuracy["lammps_pppm_dipole"] = float(np.sqrt(np.mean(((theirs - reference) ** 2).sum(1))) / PULL)
+        accuracy["lammps_pppm_dipole"] = rms_error(lammps_start(data, "pppm", lammps_acc, folder)[0], reference)
     print(json.dumps(accuracy))
 
     speed = []
@@ -109,11 +201,9 @@ def main(argv=None):
                       "ratio": None if theirs is None else ours["particle_steps_per_second"] / theirs,
                       "demkit_tuned": ours["tuned"]})
         print(json.dumps(speed[-1]))
-    result = {"machine": {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}, "n": N,
-              "accuracy_requested": ACCURACY, "lammps_accuracy_setting": lammps_acc, "force_error": accuracy,
-              "speed": speed}
-    RESULTS.write_text(json.dumps(result, indent=1) + "\n")
-    print("written", RESULTS)
+    write_results({"machine": {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}, "n": N,
+                   "accuracy_requested": ACCURACY, "lammps_accuracy_setting": lammps_acc, "force_error": accuracy,
+                   "speed": speed})
 
 
 if __name__ == "__main__":
