@@ -45,7 +45,8 @@ REFERENCE_ACCURACY = 1e-10
 class SumRow:
     """One candidate: ``label``, ``dipole`` (the ``dk.Dipole`` to put in your scene), ``force_error``
     and ``torque_error`` (see the module docstring), ``seconds`` (one force evaluation, least of the
-    repeats), ``tuning_seconds`` (tuning a long-range sum; 0 without), ``tuned`` (what the tuning
+    repeats), ``cpu_seconds`` (its CPU time, least of the repeats: what a busy machine
+    disturbs least), ``tuning_seconds`` (tuning a long-range sum; 0 without), ``tuned`` (what the tuning
     chose, or the scene's note on it, or "")."""
 
     label: str
@@ -53,12 +54,14 @@ class SumRow:
     force_error: float
     torque_error: float
     seconds: float
+    cpu_seconds: float = math.nan
     tuning_seconds: float = 0.0
     tuned: str = ""
 
     def as_dict(self):
         return dict(label=self.label, dipole=repr(self.dipole), force_error=self.force_error,
-                    torque_error=self.torque_error, seconds=self.seconds, tuning_seconds=self.tuning_seconds,
+                    torque_error=self.torque_error, seconds=self.seconds, cpu_seconds=self.cpu_seconds,
+                    tuning_seconds=self.tuning_seconds,
                     tuned=self.tuned)
 
 
@@ -80,16 +83,18 @@ class DipoleSums:
     threads: str
     load: tuple = field(default=(math.nan, math.nan))
 
-    def cheapest(self, accuracy):
-        """The fastest :class:`SumRow` whose force error is at most ``accuracy`` (None if none is)."""
-        good = [r for r in self.rows if r.force_error <= accuracy]
+    def cheapest(self, accuracy, torque=None):
+        """The fastest :class:`SumRow` whose force error is at most ``accuracy`` and, if ``torque``
+        is given, whose torque error is at most ``torque`` (None if none is)."""
+        good = [r for r in self.rows if r.force_error <= accuracy and (torque is None or r.torque_error <= torque)]
         return min(good, key=lambda r: r.seconds) if good else None
 
     def table(self):
-        """A plain-text table, fastest first: label, force and torque error, ms per evaluation,
-        tuning seconds; then the reference and the units."""
-        head = ["candidate", "force err", "torque err", "ms/eval", "tuning s"]
+        """A plain-text table, fastest first: label, force and torque error, wall and CPU ms per
+        evaluation, tuning seconds; then the reference and the units."""
+        head = ["candidate", "force err", "torque err", "ms/eval", "cpu ms", "tuning s"]
         cells = [[r.label, f"{r.force_error:.2e}", f"{r.torque_error:.2e}", f"{1e3 * r.seconds:.4g}",
+                  f"{1e3 * r.cpu_seconds:.4g}",
                   f"{r.tuning_seconds:.3g}" if r.tuning_seconds else "-"]
                  for r in sorted(self.rows, key=lambda r: r.seconds)]
         widths = [max(len(h), *(len(c[k]) for c in cells)) if cells else len(h) for k, h in enumerate(head)]
@@ -101,7 +106,8 @@ class DipoleSums:
                     f"{ref['label']} ({1e3 * ref['seconds']:.4g} ms/eval)",
                 f"force err: RMS |F - F_ref| / {self.pull:.4g} (the touching pull 6 A <m^2>/d^4, d = "
                 f"{self.diameter:.4g}); torque err: RMS |T - T_ref| / {self.pull * self.diameter:.4g} (pull x d)",
-                f"ms/eval: least of {self.repeats} force evaluations, lists built, {self.threads}; "
+                f"ms/eval, cpu ms: least wall and CPU time of {self.repeats} force evaluations, lists built, "
+                f"{self.threads}; "
                 f"load average {self.load[0]:.2f} before, {self.load[1]:.2f} after"]
         return "\n".join(out)
 
@@ -225,8 +231,8 @@ def _checked(candidate, prefactor, periodic, surface):
 
 
 def _measure(particles, box, dipole, repeats, parallel):
-    """(forces, torques, least seconds of one evaluation, seconds of tuning the long-range sum (0 without),
-    what the scene's tuning chose or its note, "" without)."""
+    """(forces, torques, least wall and CPU seconds of one evaluation, seconds of tuning the long-range
+    sum (0 without), what the scene's tuning chose or its note, "" without)."""
     tuning = 0.0
     if dipole.long_range is not None:  # timed apart: Scene() would add compiling on first use
         t = time.perf_counter()
@@ -236,12 +242,12 @@ def _measure(particles, box, dipole, repeats, parallel):
     bound = scene.interactions[0]
     tuned = repr(bound.tuned) if bound.tuned is not None else getattr(bound, "long_range_note", None) or ""
     force, torque = scene.forces()  # compiles (first time) and builds the lists
-    best = math.inf
+    best, cpu = math.inf, math.inf
     for _ in range(repeats):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         scene.forces()
-        best = min(best, time.perf_counter() - t)
-    return force, torque, best, tuning, tuned
+        best, cpu = min(best, time.perf_counter() - t), min(cpu, time.process_time() - c)
+    return force, torque, best, cpu, tuning, tuned
 
 
 def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, parallel=False,
@@ -285,14 +291,14 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
     pull = 6.0 * prefactor * float(np.mean((particles.dipole ** 2).sum(1))) / d ** 4
     load = os.getloadavg()[0]
     ref = Dipole(prefactor, long_range=Ewald(reference_accuracy, surface)) if periodic else Dipole(prefactor)
-    f_ref, t_ref, seconds, tuning, tuned = _measure(particles, box, ref, 1, parallel)
+    f_ref, t_ref, seconds, _, tuning, tuned = _measure(particles, box, ref, 1, parallel)
     reference = dict(label=_label(ref, d) + (f" ({surface})" if periodic else ""), dipole=repr(ref), seconds=seconds,
                      tuning_seconds=tuning, tuned=tuned)
     rows = []
     for dipole in candidates:
-        force, torque, seconds, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)
+        force, torque, seconds, cpu, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)
         rows.append(SumRow(_label(dipole, d, len(particles)), dipole, _rms(force - f_ref) / pull, _rms(torque - t_ref) / (pull * d),
-                           seconds, tuning, tuned))
+                           seconds, cpu, tuning, tuned))
     return DipoleSums(rows, reference, pull, d, len(particles), periodic, repeats,
                       "1 thread" if parallel is False else "threads as each scene chose", (load, os.getloadavg()[0]))
 

@@ -53,6 +53,8 @@ def test_a_cutoff_is_worse_than_ewald_and_cheapest_meets_the_target(periodic_rep
     assert best.force_error <= 1e-4
     assert best.seconds == min(r.seconds for r in periodic_report.rows if r.force_error <= 1e-4)
     assert periodic_report.cheapest(1e-12) is None
+    both = periodic_report.cheapest(1e-2, torque=1e-5)
+    assert both.force_error <= 1e-2 and both.torque_error <= 1e-5 and both.label.startswith(("Ewald", "P3M"))
     assert periodic_report.cheapest(1.0).seconds == min(r.seconds for r in periodic_report.rows)
     # the row's Dipole goes straight into a scene
     p, box = gas()
