@@ -297,8 +297,8 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
     rows = []
     for dipole in candidates:
         force, torque, seconds, cpu, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)
-        rows.append(SumRow(_label(dipole, d, len(particles)), dipole, _rms(force - f_ref) / pull, _rms(torque - t_ref) / (pull * d),
-                           seconds, cpu, tuning, tuned))
+        rows.append(SumRow(_label(dipole, d, len(particles)), dipole, _rms(force - f_ref) / pull,
+                           _rms(torque - t_ref) / (pull * d), seconds, cpu, tuning, tuned))
     return DipoleSums(rows, reference, pull, d, len(particles), periodic, repeats,
                       "1 thread" if parallel is False else "threads as each scene chose", (load, os.getloadavg()[0]))
 
