@@ -16,7 +16,7 @@ Writes into DIR (default ``output/`` next to this script) ``magnetisation.png`` 
 ``chains.png`` (the lambda = 4 colloid at xi = 2 at the end of its run, coloured by cluster size)
 and ``magnetisation.json`` (the numbers), and prints a table. The dipole sum is cut at 4 d: the
 far field of a magnetised periodic sample (the Lorentz field, of order 8 phi lambda L(xi) in xi)
-is left out; Ewald sums will add it (see docs/thermostat.md).
+is left out; examples/magnetised_colloid adds it with Ewald sums.
 """
 import argparse
 import json
