@@ -20,7 +20,11 @@ Parts (all by default; name some to run only those):
   demkit's own modules cached (a new scene on a machine that ran demkit before) and fully warm; and
   a scene differing only in parameter values and particle count (which must compile nothing).
 
-Usage: python benchmarks/bench_latency.py [threads] [compile] [--quick] [--against=<git revision>]
+* ``long_range`` (only when named): the same two measurements for long-range dipole sums: the
+  compile part for the N = 1000 reference scene with Ewald(1e-4) and the N = 8000 one with
+  P3M(1e-4) (frictionless Hooke contacts), the threads part for the latter.
+
+Usage: python benchmarks/bench_latency.py [threads] [compile] [long_range] [--quick] [--against=<git revision>]
 
 ``--against=REV`` runs the compile part of revision REV's code alternating with this one's (before
 and after, side by side on the same machine).
@@ -104,6 +108,22 @@ SCENES = {
                              dipole=d / np.linalg.norm(d, axis=1)[:, None])
             law = dk.Hertz(young=young, poisson=0.3, restitution=0.5, friction=dk.Friction(mu))
             return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=cutoff), law], box=box), dk.VelocityVerlet(1e-3)
+    """,
+    "ewald1000": """
+        def make():
+            sys.path.insert(0, {here!r})
+            from reference_scene import load_reference_scene, particles_and_box
+            p, box = particles_and_box(load_reference_scene(1000, {tmp!r}))
+            inters = [dk.Dipole(prefactor=1.0, long_range=dk.Ewald(1e-4)), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
+            return dk.Scene(p, inters, box=box, skin=0.3), dk.VelocityVerlet(1e-3)
+    """,
+    "p3m8000": """
+        def make():
+            sys.path.insert(0, {here!r})
+            from reference_scene import load_reference_scene, particles_and_box
+            p, box = particles_and_box(load_reference_scene(8000, {tmp!r}))
+            inters = [dk.Dipole(prefactor=1.0, long_range=dk.P3M(1e-4)), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
+            return dk.Scene(p, inters, box=box, skin=0.3), dk.VelocityVerlet(1e-3)
     """,
 }
 # the same scenes with other parameter values and particle counts: must compile nothing once the
@@ -342,6 +362,11 @@ def main(argv):
                                                           "magnetic_cluster", "accuracy3"]
         results["compile"] = {"machine": machine, "against": against,
                               "rows": part_compile(quick, scenes, against=against)}
+    if "long_range" in parts:  # the dipole sums of every range: compilation, and threads beside a busy core
+        results["long_range"] = {
+            "machine": machine,
+            "compile": part_compile(quick, ["ewald1000"] if quick else ["ewald1000", "p3m8000"]),
+            "threads": part_threads(quick, 1, 3.0 if quick else 6.0, ["p3m8000"], rounds=1 if quick else 3)}
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps(results, indent=1, default=float) + "\n")
     print(f"written {RESULTS}")
