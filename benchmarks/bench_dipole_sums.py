@@ -130,13 +130,11 @@ def plot(reports, n, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, len(reports), figsize=(5.2 * len(reports), 4.4), sharey=True)
+    fig, axes = plt.subplots(1, len(reports), figsize=(5.2 * len(reports), 4.4))
     titles = dict(reference=f"N = {n}, periodic, random moments", polarised=f"N = {n}, periodic, polarised along z",
                   open=f"N = {n}, open cluster")
     for ax, (name, report) in zip(axes, reports):
         report.plot(None, title=f"{titles[name]}\nagainst {report.reference['label']}", ax=ax)
-        if ax is not axes[0]:
-            ax.set_ylabel("")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

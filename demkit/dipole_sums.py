@@ -129,7 +129,8 @@ class DipoleSums:
 
     def plot(self, path, title=None, ax=None):
         """Log-log force error against ms per evaluation, one line per kind of sum; saved to ``path``
-        (or drawn on a matplotlib ``ax``, then not saved). Errors of 0 are drawn at 1e-16."""
+        (or drawn on a matplotlib ``ax``, then not saved). A candidate without error (the exact sum
+        in open space) is a dotted vertical line at its time."""
         import matplotlib
         if ax is None:
             matplotlib.use("Agg")
@@ -141,9 +142,14 @@ class DipoleSums:
         for r in self.rows:
             kinds.setdefault(_kind(r.dipole), []).append(r)
         for kind, rows in kinds.items():
-            rows.sort(key=lambda r: r.seconds)
+            exact = [r for r in rows if r.force_error == 0.0]  # the reference itself: a time, no error
+            for r in exact:
+                ax.axvline(1e3 * r.seconds, color="grey", ls=":", label=f"{r.label} (the reference)")
+            rows = sorted((r for r in rows if r.force_error > 0.0), key=lambda r: r.seconds)
+            if not rows:
+                continue
             x = [1e3 * r.seconds for r in rows]
-            y = [max(r.force_error, 1e-16) for r in rows]
+            y = [r.force_error for r in rows]
             line, = ax.loglog(x, y, "o-", label=kind)
             for r, xi, yi in zip(rows, x, y):
                 ax.annotate(_tag(r.dipole, self.diameter), (xi, yi), fontsize=6, color=line.get_color(),
