@@ -113,7 +113,7 @@ def _code():
         return subprocess.run(["git", *a], cwd=HERE, capture_output=True, text=True).stdout.strip()
     try:
         return dict(commit=git("rev-parse", "--short", "HEAD"), demkit=str(Path(dk.__file__).parent),
-                    demkit_files_differing_from_commit=git("status", "--short", "demkit").splitlines())
+                    demkit_files_differing_from_commit=git("status", "--short", "--", ":/demkit").splitlines())
     except OSError:
         return dict(commit=None)
 
