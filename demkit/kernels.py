@@ -772,7 +772,8 @@ class _Source:
                     lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
         cache = self.importable
         fast = 'fastmath={"contract", "arcp"}, error_model="numpy"'
-        nrt = "" if plan.growing else ", _nrt=False"
+        # no reference counting in small scenes, unless a long-range sum allocates (its arrays into object mode)
+        nrt = "" if plan.growing or plan.sums else ", _nrt=False"
         if plan.growing:  # big scenes: separate pair-loop functions, no reference counting inside
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop

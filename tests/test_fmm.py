@@ -35,6 +35,11 @@ def test_two_dipoles_match_the_exact_pair():
     assert fmm.energy()["magnetic"] == pytest.approx(exact.energy()["magnetic"], rel=1e-12)
     for a, b in zip(fmm.forces(), exact.forces()):
         np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-13)
+    # the Dipole alone (a small scene compiled without reference counting, but for the sum's arrays)
+    alone = dk.Scene(dk.Particles(position=pos, radius=0.5, mass=1.0, dipole=dip),
+                     [dk.Dipole(1.0, long_range=dk.FMM(1e-14, exact_below=0))])
+    for a, b in zip(alone.forces(), exact.forces()):
+        np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-13)
 
 
 @pytest.mark.parametrize("accuracy", [1e-6, 1e-9])
