@@ -182,6 +182,18 @@ def _spline_value(x, p):
     return (x * _spline_value(x, p - 1) + (p - x) * _spline_value(x - 1, p - 1)) / (p - 1)
 
 
+@njit(**OPTIONS)
+def _dot(a, b):
+    """sum(a * b) over two arrays of one shape, compiled: numpy's dot calls OpenBLAS, whose threads
+    then keep spinning beside the pair loops' threads (the N = 8000 reference scene with P3M ran
+    at 115 ms a step on two threads against 60 ms with OpenBLAS kept to one thread)."""
+    x, y = a.ravel(), b.ravel()
+    total = 0.0
+    for k in range(x.size):
+        total += x[k] * y[k]
+    return total
+
+
 def mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces):
     """Energy of the mesh sum; with ``with_forces`` its forces added to force, its field to field."""
     import scipy.fft
@@ -189,7 +201,7 @@ def mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces):
     grid = np.empty(tuple(mesh))
     spread(dipole, box, mesh, p, base, w, dw, grid)
     phi = 2.0 * float(np.prod(mesh)) * scipy.fft.irfftn(c * scipy.fft.rfftn(grid), s=tuple(mesh))
-    energy = 0.5 * float(np.vdot(grid, phi))
+    energy = 0.5 * _dot(grid, phi)
     if with_forces:
         gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field)
     return energy
@@ -208,7 +220,7 @@ def terms(position, dipole, box, table, force, field, with_forces):
     total = dipole.sum(axis=0)
     volume = float(np.prod(box))
     if vacuum:
-        energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(total @ total)
+        energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(np.sum(total * total))
         field -= 4.0 * math.pi * prefactor / (3.0 * volume) * total
     return energy
 
