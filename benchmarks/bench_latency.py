@@ -111,6 +111,7 @@ SCENES = {
     """,
     "ewald1000": """
         def make():
+            import sys
             sys.path.insert(0, {here!r})
             from reference_scene import load_reference_scene, particles_and_box
             p, box = particles_and_box(load_reference_scene(1000, {tmp!r}))
@@ -119,6 +120,7 @@ SCENES = {
     """,
     "p3m8000": """
         def make():
+            import sys
             sys.path.insert(0, {here!r})
             from reference_scene import load_reference_scene, particles_and_box
             p, box = particles_and_box(load_reference_scene(8000, {tmp!r}))

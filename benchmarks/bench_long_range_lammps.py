@@ -13,7 +13,8 @@ deck's 4 d).
 * accuracy: the forces at the start (no contacts yet) of each against demkit's Ewald sum at 1e-9
   (itself checked against lattice sums and the direct sum over images), RMS relative to the pull;
 * speed: atom-steps per second of velocity Verlet, dt = 0.001, 200 timed steps after a warm-up,
-  demkit on 1 and 2 threads, LAMMPS on 1 and 2 MPI ranks (best of 2).
+  demkit on 1 and 2 threads (its default choice, and on 2 cores also parallel=True), LAMMPS on 1
+  and 2 MPI ranks (best of 2).
 
 Part ``accuracy1000`` (key "n1000"): the N = 1000 scene at step 0, demkit's Ewald(1e-9) as the
 truth; demkit's Ewald and P3M at 1e-3, 1e-4 and 1e-5 and LAMMPS' ewald/dipole and pppm/dipole at
@@ -93,7 +94,7 @@ CHILD = textwrap.dedent("""
     numba.set_num_threads({threads})
     p, box = particles_and_box(load_reference_scene({n}, {folder!r}))
     inters = [dk.Dipole(prefactor=1.0, long_range=dk.P3M({accuracy})), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
-    scene = dk.Scene(p, inters, box=box, skin=0.3)
+    scene = dk.Scene(p, inters, box=box, skin=0.3, parallel={parallel})
     sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
     sim.run(duration=0.01, progress=False)
     best = None
@@ -107,9 +108,9 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def demkit_rate(threads, folder, steps, repeats):
+def demkit_rate(threads, folder, steps, repeats, parallel=None):
     code = CHILD.format(here=str(HERE), threads=threads, n=N, folder=str(folder), accuracy=ACCURACY, steps=steps,
-                        repeats=repeats)
+                        repeats=repeats, parallel=parallel)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(max(2, threads)))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")][-1]
@@ -197,9 +198,14 @@ def main(argv=None):
             theirs = max(run_deck(DECK, {"data": str(data), "model": "nofric", "nsteps": steps, "kspace": "pppm",
                                          "acc": lammps_acc}, ranks=cores)["atom_steps_per_s"] for _ in range(repeats))
         speed.append({"cores": cores, "demkit_particle_steps_per_s": ours["particle_steps_per_second"],
-                      "demkit_threads": ours.get("threads"), "lammps_atom_steps_per_s": theirs,
+                      "demkit_threads": ours.get("threads"), "demkit_threads_reason": ours.get("threads_reason"),
+                      "lammps_atom_steps_per_s": theirs,
                       "ratio": None if theirs is None else ours["particle_steps_per_second"] / theirs,
                       "demkit_tuned": ours["tuned"]})
+        if cores > 1:  # and on threads throughout (parallel=True), as a user may force
+            forced = demkit_rate(cores, folder, steps, repeats, parallel=True)["particle_steps_per_second"]
+            speed[-1].update(demkit_forced_threads_particle_steps_per_s=forced,
+                             ratio_forced_threads=None if theirs is None else forced / theirs)
         print(json.dumps(speed[-1]))
     write_results({"machine": {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}, "n": N,
                    "accuracy_requested": ACCURACY, "lammps_accuracy_setting": lammps_acc, "force_error": accuracy,
