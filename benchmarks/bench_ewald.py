@@ -18,7 +18,7 @@ moments of magnitude 1, prefactor A = 1 (so the touching pull is 6), one thread.
   one evaluation; and cut-off dipoles (r_c = 2 ... 6, at most half the box) against the same
   reference: their error and time. The plot shows error against time for both.
 
-    python benchmarks/bench_ewald.py [--quick]
+    python benchmarks/bench_ewald.py [--quick] [costs] [energy] [methods] [accuracy]
 """
 from __future__ import annotations
 
@@ -198,18 +198,28 @@ def plot(accuracy, path):
 def main(argv=None):
     args = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     args.add_argument("--quick", action="store_true")
+    args.add_argument("parts", nargs="*", choices=("costs", "energy", "methods", "accuracy"),
+                      help="parts to run (default: all); their results replace those in ewald.json")
     opts = args.parse_args(argv)
+    parts = opts.parts or ["costs", "energy", "methods", "accuracy"]
     sizes = (500, 1000) if opts.quick else (500, 1000, 2000, 4000)
     accuracies = (1e-2, 1e-4, 1e-6) if opts.quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
-    result = dict(machine=dict(platform=platform.platform(), processor=platform.processor(),
-                               date=time.strftime("%Y-%m-%d %H:%M")),
-                  costs=part_costs(sizes),
-                  energy=[part_energy(2000 if opts.quick else 100000, m) for m in (dk.Ewald, dk.P3M)],
-                  methods=part_methods((1000, 2000, 4000, 8000) if not opts.quick else (1000,), (1e-4, 1e-6)),
-                  accuracy=part_accuracy(1000, accuracies, (2.0, 3.0, 4.0, 5.0, 6.0)))
-    (HERE / "results" / "ewald.json").write_text(json.dumps(result, indent=1) + "\n")
-    plot(result["accuracy"], HERE / "results" / "ewald.png")
-    print("written", HERE / "results" / "ewald.json")
+    path = HERE / "results" / "ewald.json"
+    result = json.loads(path.read_text()) if path.exists() and opts.parts else {}
+    result["machine"] = dict(platform=platform.platform(), processor=platform.processor(),
+                             date=time.strftime("%Y-%m-%d %H:%M"), parts=parts)
+    if "costs" in parts:
+        result["costs"] = part_costs(sizes)
+    if "energy" in parts:
+        result["energy"] = [part_energy(2000 if opts.quick else 100000, m) for m in (dk.Ewald, dk.P3M)]
+    if "methods" in parts:
+        result["methods"] = part_methods((1000, 2000, 4000, 8000) if not opts.quick else (1000,), (1e-4, 1e-6))
+    if "accuracy" in parts:
+        result["accuracy"] = part_accuracy(1000, accuracies, (2.0, 3.0, 4.0, 5.0, 6.0))
+    path.write_text(json.dumps(result, indent=1) + "\n")
+    if "accuracy" in result:
+        plot(result["accuracy"], HERE / "results" / "ewald.png")
+    print("written", path)
 
 
 if __name__ == "__main__":

@@ -348,6 +348,72 @@ def scales(what, prefactor, particles, box, otherwise):
     return n, squares, box.volume, 6.0 * prefactor * squares / n / diameter ** 4, 0.5 * float(np.min(box.size))
 
 
+#: spheres of the sample a tuned sum's whole error is measured on
+SAMPLE = 200
+#: Ewald tuning: the sample's measured error must be at most MARGIN of the accuracy (a 200-sphere
+#: sample measures the error to ~5 %, and a random sample is not the scene: 0.9 leaves two of
+#: those); when it is not, the target is tightened by TIGHTEN times the excess, up to MEASURED_TRIES times
+MARGIN = 0.9
+MEASURED_TRIES = 4
+TIGHTEN = 0.85
+
+
+class Sample:
+    """Up to SAMPLE spheres at random places in the scene's box with moments drawn from the scene's,
+    and the exact Ewald forces on them (a real-space and a wave-vector sum converged ten times
+    below the target): the reference a tuned sum's whole error is measured against (P3M's mesh,
+    and Ewald's estimates, which assume random moments, in polarised samples). ``ready`` is False
+    when no converged reference can be tuned (accuracies near round-off)."""
+
+    def __init__(self, particles, box, prefactor, target):
+        rng = np.random.default_rng(12345)
+        n = len(particles)
+        self.m = m = min(n, SAMPLE)
+        self.scale = math.sqrt(n / m)  # errors of random sums grow as the square root of the count
+        self.size = size = np.asarray(box.size, dtype=np.float64)
+        self.position = rng.uniform(0.0, 1.0, (m, 3)) * size
+        self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
+        self.prefactor = prefactor
+        squares = float(np.einsum("ij,ij->", self.dipole, self.dipole))
+        fine = 0.1 * target / self.scale
+        cutoff = 0.999 * 0.5 * float(size.min())
+        alpha = _alpha_for(fine, prefactor, squares, m, box.volume, cutoff)
+        self.ready = alpha is not None and squares > 0.0
+        if not self.ready:
+            return
+        kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, box.volume, alpha, size)
+        self.exact = self.reciprocal_forces(alpha, kmax, kcut) + self.real_forces(alpha, cutoff)
+
+    def real_forces(self, alpha, cutoff):
+        """(m, 3) forces of the screened real-space pairs within ``cutoff`` (minimum image)."""
+        x, mu = self.position, self.dipole
+        d = x[None, :, :] - x[:, None, :]  # d[i, j] = x_j - x_i
+        d -= self.size * np.round(d / self.size)
+        r2 = np.einsum("ijk,ijk->ij", d, d)
+        np.fill_diagonal(r2, np.inf)
+        inside = r2 < cutoff * cutoff
+        _, c, dd = screening(alpha, np.sqrt(np.where(inside, r2, 1.0)))
+        c, dd = np.where(inside, c, 0.0), np.where(inside, dd, 0.0)
+        ab = np.einsum("ik,jk->ij", mu, mu)
+        ad = np.einsum("ik,ijk->ij", mu, d)   # m_i . d
+        bd = np.einsum("jk,ijk->ij", mu, d)   # m_j . d
+        on_j = self.prefactor * ((ab * c - ad * bd * dd)[:, :, None] * d + c[:, :, None]
+                                 * (bd[:, :, None] * mu[:, None, :] + ad[:, :, None] * mu[None, :, :]))
+        return -on_j.sum(axis=1)  # the force on i of each pair (i, j) is minus that on j
+
+    def reciprocal_forces(self, alpha, kmax, kcut):
+        """(m, 3) forces of the wave-vector sum with these limits (metallic surroundings)."""
+        force = np.zeros((self.m, 3))
+        reciprocal_terms(self.position, self.dipole, self.size, reciprocal_table(self.prefactor, alpha, False, kmax,
+                                                                                 kcut), 0,
+                         force, np.zeros((self.m, 3)), True)
+        return force
+
+    def error_of(self, force):
+        """RMS error of these (m, 3) sample forces against the exact ones, scaled to the scene's count."""
+        return math.sqrt(np.mean(((force - self.exact) ** 2).sum(1))) * self.scale
+
+
 class Ewald:
     """Settings of a dipolar Ewald sum: ``Dipole(prefactor, long_range=Ewald(...))``.
 
@@ -373,11 +439,42 @@ class Ewald:
 
     def tune(self, prefactor, particles, box, cutoff=None):
         """:class:`TunedEwald` for these spheres in this box (ValueError when the box is not
-        periodic along every axis, or no cutoff shorter than half of it reaches the accuracy)."""
+        periodic along every axis, or no cutoff shorter than half of it reaches the accuracy).
+
+        The Wang-Holm estimates choose the cutoff, alpha and the wave vectors; the whole error is
+        then measured on a :class:`Sample` with the scene's moments, and where it exceeds MARGIN of
+        the accuracy (polarised samples: the estimates assume random moments) the target is
+        tightened by TIGHTEN times the excess and the choice made again, up to MEASURED_TRIES times."""
         n, squares, volume, pull, half = scales("an Ewald sum", prefactor, particles, box,
                                                 "a slab correction for partly periodic boxes is not available "
                                                 "yet: use a cut-off Dipole or an open scene without long_range")
-        target = self.accuracy * pull / math.sqrt(2.0)
+        goal = self.accuracy * pull
+        sample = Sample(particles, box, prefactor, goal)
+        target, measured = goal / math.sqrt(2.0), None
+        for _ in range(MEASURED_TRIES):
+            rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, box, cutoff, n, squares, volume, half)
+            if not sample.ready:
+                break
+            measured = sample.error_of(sample.real_forces(alpha, rc) + sample.reciprocal_forces(alpha, kmax, kcut))
+            if measured <= MARGIN * goal:
+                break
+            target *= TIGHTEN * MARGIN * goal / measured
+        vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3
+        if vectors > MAX_WAVE_VECTORS:
+            raise ValueError(f"an Ewald sum with real-space cutoff {rc:.6g} needs about {vectors:.3g} wave vectors "
+                             f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {self.accuracy:g}: each force "
+                             f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
+                             f"tuning, make it longer, or ask for a lower accuracy")
+        return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut,
+                          tuple(float(x) for x in box.size),
+                          real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
+                          math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume, alpha, k, length) ** 2
+                                        for k, length in zip(kmax, box.size)) / 3.0) / pull,
+                          None if measured is None else measured / pull)
+
+    def _choose(self, target, prefactor, particles, box, cutoff, n, squares, volume, half):
+        """(cutoff, alpha, kmax, kcut) of the least estimated cost whose estimated real-space and
+        per-axis reciprocal errors are at most ``target`` each."""
         contact = 2.0 * float(np.max(particles.radius))
         if cutoff is not None:
             candidates = [cutoff]
@@ -401,18 +498,7 @@ class Ewald:
             raise ValueError(f"no real-space cutoff shorter than half the box ({half:.6g}) reaches Ewald accuracy "
                              f"{self.accuracy:g} with alpha={self.alpha}: ask for a lower accuracy or leave alpha "
                              f"to the tuning")
-        _, rc, alpha, kmax, kcut = best
-        vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3
-        if vectors > MAX_WAVE_VECTORS:
-            raise ValueError(f"an Ewald sum with real-space cutoff {rc:.6g} needs about {vectors:.3g} wave vectors "
-                             f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {self.accuracy:g}: each force "
-                             f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
-                             f"tuning, make it longer, or ask for a lower accuracy")
-        return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut,
-                          tuple(float(x) for x in box.size),
-                          real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
-                          math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume, alpha, k, length) ** 2
-                                        for k, length in zip(kmax, box.size)) / 3.0) / pull)
+        return best[1:]
 
     def __repr__(self):
         extra = "" if self.alpha is None else f", alpha={self.alpha!r}"
@@ -421,15 +507,18 @@ class Ewald:
 
 class TunedEwald:
     """An Ewald sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``kmax`` (largest wave
-    number per axis, in units of 2 pi / L), ``kcut`` (|k| kept), and the estimated relative RMS
-    force errors ``real_error`` and ``reciprocal_error`` (fractions of the touching pull)."""
+    number per axis, in units of 2 pi / L), ``kcut`` (|k| kept), the estimated relative RMS force
+    errors ``real_error`` and ``reciprocal_error`` (fractions of the touching pull), and
+    ``measured_error``, the whole sum's on the tuning's sample (None where none was measured)."""
 
     energy_kind = "magnetic"
     #: the compiled function the kernels call once per force evaluation (module, name)
     kernel = ("demkit.interactions.ewald", "reciprocal_sum")
 
-    def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, box_size, real_error, reciprocal_error_):
+    def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, box_size, real_error, reciprocal_error_,
+                 measured_error=None):
         self.settings = settings
+        self.measured_error = measured_error
         self.box_size = box_size
         self.prefactor = prefactor
         self.cutoff = cutoff
@@ -450,7 +539,10 @@ class TunedEwald:
 
     @property
     def estimated_error(self):
-        """Estimated relative RMS force error of the whole sum."""
+        """Relative RMS force error of the whole sum: measured on the tuning's sample, or (where
+        none could be) the estimates'."""
+        if self.measured_error is not None:
+            return self.measured_error
         return math.hypot(self.real_error, self.reciprocal_error)
 
     @property

@@ -33,11 +33,8 @@ import numpy as np
 from numba import njit, objmode
 
 from .. import memory
-from .ewald import (Ewald, _alpha_for, real_space_error, reciprocal_table, reciprocal_terms, scales, screened_pair,
-                    screening, self_field, wave_vector_limits)
+from .ewald import Ewald, Sample, _alpha_for, real_space_error, scales, screened_pair, self_field
 
-#: spheres of the sample the mesh error is measured on
-SAMPLE = 200
 #: mesh sizes tried (products of 2, 3 and 5)
 MESH_SIZES = sorted({2 ** a * 3 ** b * 5 ** c for a in range(9) for b in range(4) for c in range(3)
                      if 4 <= 2 ** a * 3 ** b * 5 ** c <= 256})
@@ -288,7 +285,7 @@ class P3M(Ewald):
         if self.mesh is not None:
             memory.refuse_above(MESH_BYTES * float(np.prod(self.mesh)), f"a P3M mesh of {self.mesh} points needs",
                                 "ask for a smaller mesh (or mesh=None: tuned) or use long_range=dk.Ewald(...)")
-        sample = _Sample(particles, box, prefactor, self.accuracy * pull)
+        sample = Sample(particles, box, prefactor, self.accuracy * pull)
         best = None
         density = n / volume
         for rc in sorted(candidates, reverse=True):  # long cutoffs need small meshes: a first cost, quickly
@@ -323,7 +320,7 @@ class P3M(Ewald):
         error falls as the mesh grows), or None."""
         real = sample.real_forces(alpha, cutoff)
         if self.mesh is not None:
-            return self.mesh, sample.error(real, alpha, self.mesh, self.order)
+            return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order)
         size = sample.size
         sizes = [tuple(int(next(s for s in MESH_SIZES if s >= k * length / size.max())) for length in size)
                  for k in MESH_SIZES if k >= 2 * self.order]
@@ -332,7 +329,7 @@ class P3M(Ewald):
         lo, hi, found = 0, len(sizes) - 1, None
         while lo <= hi:
             mid = (lo + hi) // 2
-            error = sample.error(real, alpha, sizes[mid], self.order)
+            error = _mesh_error(sample, real, alpha, sizes[mid], self.order)
             if error <= target:
                 found, hi = (sizes[mid], error), mid - 1
             else:
@@ -350,54 +347,14 @@ def _fft_seconds(mesh):
     return points * math.log2(points) * FFT_SECONDS
 
 
-class _Sample:
-    """Up to SAMPLE spheres at random places in the scene's box with moments drawn from the scene's,
-    and the exact Ewald forces on them (a real-space and a wave-vector sum converged ten times
-    below the target): the reference a candidate's total error is measured against."""
-
-    def __init__(self, particles, box, prefactor, target):
-        rng = np.random.default_rng(12345)
-        n = len(particles)
-        self.m = m = min(n, SAMPLE)
-        self.scale = math.sqrt(n / m)  # errors of random sums grow as the square root of the count
-        self.size = size = np.asarray(box.size, dtype=np.float64)
-        self.position = rng.uniform(0.0, 1.0, (m, 3)) * size
-        self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
-        self.prefactor = prefactor
-        squares = float(np.einsum("ij,ij->", self.dipole, self.dipole))
-        fine = 0.1 * target / self.scale
-        cutoff = 0.999 * 0.5 * float(size.min())
-        alpha = _alpha_for(fine, prefactor, squares, m, box.volume, cutoff)
-        kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, box.volume, alpha, size)
-        force = np.zeros((m, 3))
-        reciprocal_terms(self.position, self.dipole, size, reciprocal_table(prefactor, alpha, False, kmax, kcut), 0,
-                         force, np.zeros((m, 3)), True)
-        self.exact = force + self.real_forces(alpha, cutoff)
-
-    def real_forces(self, alpha, cutoff):
-        """(m, 3) forces of the screened real-space pairs within ``cutoff`` (minimum image)."""
-        x, mu = self.position, self.dipole
-        d = x[None, :, :] - x[:, None, :]  # d[i, j] = x_j - x_i
-        d -= self.size * np.round(d / self.size)
-        r2 = np.einsum("ijk,ijk->ij", d, d)
-        np.fill_diagonal(r2, np.inf)
-        inside = r2 < cutoff * cutoff
-        _, c, dd = screening(alpha, np.sqrt(np.where(inside, r2, 1.0)))
-        c, dd = np.where(inside, c, 0.0), np.where(inside, dd, 0.0)
-        ab = mu @ mu.T
-        ad = np.einsum("ik,ijk->ij", mu, d)   # m_i . d
-        bd = np.einsum("jk,ijk->ij", mu, d)   # m_j . d
-        on_j = self.prefactor * ((ab * c - ad * bd * dd)[:, :, None] * d + c[:, :, None]
-                                 * (bd[:, :, None] * mu[:, None, :] + ad[:, :, None] * mu[None, :, :]))
-        return -on_j.sum(axis=1)  # the force on i of each pair (i, j) is minus that on j
-
-    def error(self, real, alpha, mesh, order):
-        """Measured RMS force error of a candidate (its real-space forces ``real`` and this mesh),
-        scaled to the scene's count."""
-        c = influence(self.size, mesh, alpha, order, self.prefactor)
-        force = real.copy()
-        mesh_terms(self.position, self.dipole, self.size, np.array(mesh), order, c, force, np.zeros((self.m, 3)), True)
-        return math.sqrt(np.mean(((force - self.exact) ** 2).sum(1))) * self.scale
+def _mesh_error(sample, real, alpha, mesh, order):
+    """Measured RMS force error of a candidate on an :class:`~demkit.interactions.ewald.Sample`
+    (its real-space forces ``real`` and this mesh), scaled to the scene's count."""
+    c = influence(sample.size, mesh, alpha, order, sample.prefactor)
+    force = real.copy()
+    mesh_terms(sample.position, sample.dipole, sample.size, np.array(mesh), order, c, force, np.zeros((sample.m, 3)),
+               True)
+    return sample.error_of(force)
 
 
 class TunedP3M:
