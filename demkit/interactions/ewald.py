@@ -41,7 +41,9 @@ and reciprocal space (their eq. 46, per axis of length L with k_max = L k_c / 2 
 The error is relative to the pull 6 A m^2 / d^4 of two touching spheres (d the mean diameter, m the
 root-mean-square moment) with head-to-tail moments: ``accuracy=1e-6`` asks for an RMS force error
 of a millionth of that pull. Each part gets half the squared error budget; among the cutoffs that
-meet it, the one with the fewest estimated operations per evaluation is kept.
+meet it, the one with the fewest estimated operations per evaluation is kept. The estimates assume
+random moments: the whole error of the choice is then measured on a :class:`Sample` with the
+scene's moments and the target tightened while it exceeds MARGIN of the accuracy (polarised samples).
 """
 from __future__ import annotations
 
