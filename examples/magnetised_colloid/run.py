@@ -129,7 +129,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    n, settle, samples = (125, 3.0, 4) if args.quick else (216, 20.0, 60)
+    n, settle, samples = (125, 4.0, 12) if args.quick else (216, 20.0, 60)
     xis = [1.0] if args.quick else [0.5, 1.0, 2.0]
     print(f"{n} spheres, volume fraction {PHI}, lambda = {COUPLING:g}, kT = 1; <m_z>/mu after t = {settle:g}, "
           f"{samples} frames")
