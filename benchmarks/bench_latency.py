@@ -46,6 +46,21 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 RESULTS = HERE / "results" / "latency.json"
 
+
+def reference_scene(n, dipole):
+    """Source of make() for benchmarks/reference_scene.py's N = n scene with Dipole(1, <dipole>) and
+    frictionless Hooke contacts ({here}, {tmp} filled in later by _scene_source)."""
+    return f"""
+        def make():
+            import sys
+            sys.path.insert(0, {{here!r}})
+            from reference_scene import load_reference_scene, particles_and_box
+            p, box = particles_and_box(load_reference_scene({n}, {{tmp!r}}))
+            inters = [dk.Dipole(prefactor=1.0, {dipole}), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
+            return dk.Scene(p, inters, box=box, skin=0.3), dk.VelocityVerlet(1e-3)
+    """
+
+
 # the scenes, as Python source run in a child process; each defines make() -> (scene, integrator)
 SCENES = {
     "gas4000": """
@@ -75,14 +90,7 @@ SCENES = {
             scene = dk.Scene(p, [law, dk.Gravity((0, 0, -g)), *walls], skin=0.4)
             return scene, dk.VelocityVerlet(1e-3)
     """,
-    "dipoles8000": """
-        def make():
-            sys.path.insert(0, {here!r})
-            from reference_scene import load_reference_scene, particles_and_box
-            p, box = particles_and_box(load_reference_scene(8000, {tmp!r}))
-            inters = [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
-            return dk.Scene(p, inters, box=box, skin=0.3), dk.VelocityVerlet(1e-3)
-    """,
+    "dipoles8000": reference_scene(8000, "cutoff=4.0"),
     "magnetic_cluster": """
         def make():
             loaded = dk.load_scene({root!r} + "/examples/magnetic_cluster/cluster.toml")
@@ -109,24 +117,8 @@ SCENES = {
             law = dk.Hertz(young=young, poisson=0.3, restitution=0.5, friction=dk.Friction(mu))
             return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=cutoff), law], box=box), dk.VelocityVerlet(1e-3)
     """,
-    "ewald1000": """
-        def make():
-            import sys
-            sys.path.insert(0, {here!r})
-            from reference_scene import load_reference_scene, particles_and_box
-            p, box = particles_and_box(load_reference_scene(1000, {tmp!r}))
-            inters = [dk.Dipole(prefactor=1.0, long_range=dk.Ewald(1e-4)), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
-            return dk.Scene(p, inters, box=box, skin=0.3), dk.VelocityVerlet(1e-3)
-    """,
-    "p3m8000": """
-        def make():
-            import sys
-            sys.path.insert(0, {here!r})
-            from reference_scene import load_reference_scene, particles_and_box
-            p, box = particles_and_box(load_reference_scene(8000, {tmp!r}))
-            inters = [dk.Dipole(prefactor=1.0, long_range=dk.P3M(1e-4)), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
-            return dk.Scene(p, inters, box=box, skin=0.3), dk.VelocityVerlet(1e-3)
-    """,
+    "ewald1000": reference_scene(1000, "long_range=dk.Ewald(1e-4)"),
+    "p3m8000": reference_scene(8000, "long_range=dk.P3M(1e-4)"),
 }
 # the same scenes with other parameter values and particle counts: must compile nothing once the
 # scene above ran

@@ -140,9 +140,10 @@ def info_command(args):
         print(f"interaction   {inter!r}")
     for tuned in scene.long_range:
         print(f"long range    {tuned!r}")
-    for inter in scene.interactions:
-        if getattr(inter, "tuned", 1) is None and inter.long_range_note:
-            print(f"long range    {inter.long_range_note}")
+    for inter in scene.interactions:  # a long-range setting the scene did not need (an FMM below its crossover)
+        note = getattr(inter, "long_range_note", None)
+        if note and inter.tuned is None:
+            print(f"long range    {note}")
     if loaded.units is not None:
         u = loaded.units
         print(f"units         the paper's: length {u.length:.4g} m, time {u.time:.4g} s, mass {u.mass:.4g} kg")

@@ -225,8 +225,14 @@ def _long_range_seconds(tuned, n):
         return "reciprocal sum", n * tuned.wave_vectors * RECIPROCAL_VECTOR
     if isinstance(tuned, TunedP3M):
         return "mesh sum", MESH_CALL + n * tuned.order ** 3 * MESH_POINT + _fft_seconds(tuned.mesh)
-    digits = max(-math.log10(tuned.settings.accuracy), 1.0)
-    return "fast multipole sum", n * (FMM_SPHERE + FMM_SPHERE_PER_DIGIT * (digits - 3.0))
+    return "fast multipole sum", n * fmm_sphere_seconds(tuned.settings.accuracy)
+
+
+def fmm_sphere_seconds(accuracy):
+    """Seconds per sphere of a fast multipole sum at FMM3D precision ``accuracy`` (one core):
+    FMM_SPHERE + FMM_SPHERE_PER_DIGIT per digit of eps beyond the third."""
+    digits = max(-math.log10(accuracy), 1.0)
+    return FMM_SPHERE + FMM_SPHERE_PER_DIGIT * (digits - 3.0)
 
 
 def _ramp_mean(start, end, ramp, duration):

@@ -131,9 +131,7 @@ class FMM:
         """Number of spheres from which the FMM is estimated cheaper than the exact all-pairs sum:
         2 c_FMM / c_pair with demkit.cost's FMM_SPHERE(_PER_DIGIT) and ALL_PAIR (one core)."""
         from .. import cost
-        digits = max(-math.log10(self.accuracy), 1.0)
-        per_sphere = cost.FMM_SPHERE + cost.FMM_SPHERE_PER_DIGIT * (digits - 3.0)
-        return int(round(2.0 * per_sphere / cost.ALL_PAIR))
+        return int(round(2.0 * cost.fmm_sphere_seconds(self.accuracy) / cost.ALL_PAIR))
 
     def uses_exact_sum(self, n):
         """Does a scene of n spheres keep the exact sum (fewer than ``exact_below`` spheres)?"""

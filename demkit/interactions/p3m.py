@@ -286,6 +286,9 @@ class P3M(Ewald):
             memory.refuse_above(MESH_BYTES * float(np.prod(self.mesh)), f"a P3M mesh of {self.mesh} points needs",
                                 "ask for a smaller mesh (or mesh=None: tuned) or use long_range=dk.Ewald(...)")
         sample = Sample(particles, box, prefactor, self.accuracy * pull)
+        if not sample.ready:
+            raise ValueError(f"P3M accuracy {self.accuracy:g} is too close to round-off for its mesh error to be "
+                             f"measured against a converged Ewald sum: ask for a lower accuracy")
         best = None
         density = n / volume
         for rc in sorted(candidates, reverse=True):  # long cutoffs need small meshes: a first cost, quickly
