@@ -3,7 +3,8 @@ from . import units
 from .box import Box
 from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet
 from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, Langevin, MagnetField, PairInteraction,
-                           PowerLawDipole, RollingResistance, SphereInteraction, UniformField, Wall)
+                           PowerLawDipole, RollingResistance, SphereInteraction, TwistingResistance, UniformField,
+                           Wall)
 from .interactions.ewald import Ewald
 from .interactions.fmm import FMM
 from .interactions.p3m import P3M
@@ -28,8 +29,8 @@ __version__ = "0.1.0"
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
            "LargeOutputWarning", "CheckpointWarning", "Dipole",
-           "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz", "PairInteraction",
-           "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
+           "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
+           "PairInteraction", "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "compare_dipole_sums", "guards",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

@@ -8,11 +8,12 @@ returns a :class:`Contacts` table. A contact between spheres i and j has ``pairs
 
     force = F_n n + F_t,   F_n > 0 pushes the two apart (the dashpot can make it negative),
 
-``torque_i`` / ``torque_j`` are the contact's torques (friction at the contact point, rolling
-resistance), ``sliding`` says the friction force is at its Coulomb limit |F_t| = mu |F_n|
+``torque_i`` / ``torque_j`` are the contact's torques (friction at the contact point, rolling and
+twisting resistance), ``sliding`` says the friction force is at its Coulomb limit |F_t| = mu |F_n|
 (frictionless contacts always slide), and ``dissipation`` is the power the contact dissipates at
 this instant: the normal dashpot's (F_n - F_elastic) d(delta)/dt plus eta_t |v_t|^2 while the
-friction spring sticks or -F_t.v_t while it slides (and likewise for rolling resistance).
+friction spring sticks or -F_t.v_t while it slides (and likewise for rolling and twisting
+resistance: eta_tw w_tw^2 or -M w_tw).
 
 :meth:`Contacts.write_vtk` writes the contact network as VTK lines between the centres (a wall
 contact runs from the contact point to the centre): the force chains, coloured by force.
@@ -109,11 +110,14 @@ def _evaluate(law, first, fields, history, params):
     """Call a contact law's (or wall's) force function for each contact; rows (force 3, torque_i 3,
     torque_j 3, power). ``first(k)`` gives the geometric arguments of contact k before the fields."""
     force_function = law.pair_functions()[0]
+    table = law.table_values() if hasattr(law, "table_values") else np.zeros(0)
     rows = np.zeros((len(history), 10))
     for k in range(len(history)):
         args = first(k) + fields
         if law.history_size:
             args += [history, k, 0, False]
+        if table.size:  # a wall of a law with twisting resistance: its table (demkit.interactions.wall)
+            args += [table, 0]
         out = force_function(*args, *params)
         rows[k, :3], rows[k, 9] = out[:3], out[-1]
         if len(out) == 10:  # a pair: torques on i and j

@@ -4,6 +4,7 @@ from .contact import KelvinVoigt
 from .friction import Friction
 from .hertz import Hertz
 from .rolling import RollingResistance
+from .twisting import TwistingResistance
 from .sphere import SphereInteraction
 from .fields import Gravity, UniformField
 from .magnets import MagnetField
@@ -14,5 +15,5 @@ from .ewald import Ewald
 from .fmm import FMM
 from .p3m import P3M
 
-__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "Hertz",
-           "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "P3M", "FMM"]
+__all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance",
+           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "P3M", "FMM"]

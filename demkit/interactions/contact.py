@@ -22,6 +22,10 @@ from ..motion import KERNEL_OPTIONS
 from .base import PairInteraction, flag, non_negative, positive
 from .friction import HISTORY, Friction, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR, RollingResistance
+from .twisting import TWIST_HISTORY, TwistingResistance, twist_energy, twist_release, twisting_on_i
+
+#: kernel parameters of twisting resistance (given values, or -1 for Marshall's), before ``dt``
+TWIST_PARAMETERS = ("k_tw", "eta_tw", "lever_tw")
 
 
 @njit(**KERNEL_OPTIONS)
@@ -102,6 +106,49 @@ def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocit
     return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
 
 
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
+                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
+                                eta_tw, lever_tw, dt):
+    """:func:`kelvin_voigt_friction_force` plus twisting resistance (:mod:`.twisting`; history after
+    the friction and rolling springs; Marshall's coefficient where the given one is -1)."""
+    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = kelvin_voigt_friction_force(
+        i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset, commit, stiffness, damping,
+        no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt)
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        if commit:
+            power += twist_release(history, p, o, dt)
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power
+    r = math.sqrt(r2)
+    nx = dx / r
+    ny = dy / r
+    nz = dz / r
+    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
+             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    fn, _ = kelvin_voigt_normal(reach - r, rate, stiffness, damping, no_tension)
+    w = angular_velocity
+    mx, my, mz, lost = twisting_on_i(nx, ny, nz, w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2], fn,
+                                     math.sqrt(radius[i] * radius[j] / reach * (reach - r)), mu, kt, eta_t, k_tw,
+                                     eta_tw, lever_tw, 1.0 if style >= 2.0 else 0.0, history, p, o, commit, dt)
+    return fx, fy, fz, tix + mx, tiy + my, tiz + mz, tjx - mx, tjy - my, tjz - mz, power + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def kelvin_voigt_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
+                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r,
+                                 k_tw, eta_tw, lever_tw, dt):
+    """Elastic energy of the contact's springs, the twist spring included."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    return kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
+                                        commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr,
+                                        eta_r, dt) + twist_energy(history, p, o)
+
+
 def contact_duration(stiffness, damping, m_eff):
     """Duration of a two-body Kelvin-Voigt contact that ends when the overlap returns to zero."""
     omega0 = math.sqrt(stiffness / m_eff)
@@ -128,6 +175,7 @@ class KelvinVoigt(PairInteraction):
     friction : a :class:`Friction` (Coulomb friction with a linear tangential spring, history per
         contact), or None (frictionless: no history, no torque).
     rolling : a :class:`RollingResistance` (needs friction) or None.
+    twisting : a :class:`TwistingResistance` (needs friction) or None.
     """
 
     reads = ("velocity", "radius")
@@ -139,11 +187,12 @@ class KelvinVoigt(PairInteraction):
     force_function = kelvin_voigt_force
     energy_function = kelvin_voigt_energy
 
-    def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None, rolling=None):
+    def __init__(self, stiffness, damping=0.0, no_tension=False, friction=None, rolling=None, twisting=None):
         self.stiffness = positive("KelvinVoigt stiffness", stiffness)
         self.damping = non_negative("KelvinVoigt damping", damping)
         self.no_tension = flag("KelvinVoigt no_tension", no_tension)
         self.friction, self.rolling = check_tangential("KelvinVoigt", friction, rolling)
+        self.twisting = check_twisting("KelvinVoigt", friction, twisting)
         if friction is not None:
             self.reads = ("velocity", "angular_velocity", "radius")
             self.torque = True
@@ -164,10 +213,13 @@ class KelvinVoigt(PairInteraction):
                 default = self.damping * math.sqrt(self.kr / self.stiffness)
                 self.eta_r = rolling.damping if rolling.damping is not None else default
             self.dt = 0.0
+            if self.twisting is not None:
+                add_twisting(self, kelvin_voigt_twisting_force, kelvin_voigt_twisting_energy)
 
     def __repr__(self):
         return (f"KelvinVoigt(stiffness={self.stiffness!r}, damping={self.damping!r}, "
-                f"no_tension={self.no_tension!r}, friction={self.friction!r}, rolling={self.rolling!r})")
+                f"no_tension={self.no_tension!r}, friction={self.friction!r}, rolling={self.rolling!r}"
+                f"{twisting_repr(self)})")
 
     def cutoff(self, particles):
         return 2.0 * float(np.max(particles.radius))
@@ -196,7 +248,7 @@ class KelvinVoigt(PairInteraction):
             limit = min(limit, 0.1 * contact_duration(self.kr, self.eta_r, 0.4 * m_eff))
             if self.eta_r > 0:
                 limit = min(limit, 0.2 * 0.4 * m_eff / self.eta_r)
-        return limit
+        return min(limit, twisting_time_step(self, particles))
 
     def overlaps(self, particles, i, j, force, energy):
         """(static, stored), arrays over the index pairs (i, j): the overlap F/k that carries
@@ -221,3 +273,49 @@ def check_tangential(law, friction, rolling):
     if rolling is not None and rolling.coefficient == 0.0:
         rolling = None
     return friction, rolling
+
+
+def check_twisting(law, friction, twisting):
+    """The twisting resistance of a contact law, checked; None when it can exert no torque (a zero
+    lever, or Marshall's lever (2/3) mu a with mu = 0)."""
+    if twisting is None:
+        return None
+    if not isinstance(twisting, TwistingResistance):
+        raise TypeError(f"{law} twisting must be a demkit.TwistingResistance or None, got {twisting!r}")
+    if friction is None:
+        raise ValueError(f"{law} twisting resistance needs friction (a contact resists twisting only where it "
+                         f"grips, and Marshall's coefficients come from the friction law): pass "
+                         f"friction=demkit.Friction(...) too")
+    lever = twisting.lever if twisting.lever is not None else friction.coefficient
+    return None if lever == 0.0 else twisting
+
+
+def add_twisting(law, force_function, energy_function):
+    """Give a contact law with friction its twisting spring: history, parameters, functions."""
+    law.history_size += TWIST_HISTORY
+    law.parameters = law.parameters[:-1] + TWIST_PARAMETERS + ("dt",)
+    law.force_function = force_function
+    law.energy_function = energy_function
+    law.k_tw, law.eta_tw, law.lever_tw = law.twisting.fixed
+
+
+def twisting_repr(law):
+    """", twisting=..." for a law's repr when it has twisting resistance (else nothing: the repr of
+    a law without it is what it was before twisting existed)."""
+    return f", twisting={law.twisting!r}" if getattr(law, "twisting", None) is not None else ""
+
+
+def twisting_time_step(law, particles):
+    """A tenth of the period of a given twist spring on the two least inertial spheres, and 0.2
+    I*/eta_tw for a given twist dashpot (math.inf otherwise: Marshall's k_t a^2/2 turns the spheres
+    slower than the tangential spring moves them, by a factor of order sqrt(delta/R))."""
+    if getattr(law, "twisting", None) is None:
+        return math.inf
+    inertia = np.sort(particles.inertia)
+    i_eff = float(inertia[0]) if len(inertia) == 1 else float(inertia[0] * inertia[1] / (inertia[0] + inertia[1]))
+    limit = math.inf
+    if law.k_tw > 0.0:
+        limit = 0.1 * contact_duration(law.k_tw, max(law.eta_tw, 0.0), i_eff)
+    if law.eta_tw > 0.0:
+        limit = min(limit, 0.2 * i_eff / law.eta_tw)
+    return limit

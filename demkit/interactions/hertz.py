@@ -33,9 +33,11 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, number, positive
-from .contact import check_tangential, contact_duration
+from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
+                      twisting_time_step)
 from .friction import HISTORY, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR
+from .twisting import twist_energy, twist_release, twisting_on_i
 
 #: t_c = HERTZ_TIME * delta_max / v for an elastic Hertz impact (2 (2/5) B(2/5, 1/2))
 HERTZ_TIME = 2.9432812
@@ -173,6 +175,53 @@ def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radi
 
 
 @njit(**KERNEL_OPTIONS)
+def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
+                         k_tw, eta_tw, lever_tw, dt):
+    """:func:`hertz_friction_force` plus twisting resistance (:mod:`.twisting`: Marshall's k_t a^2/2,
+    eta_t a^2/2, (2/3) mu a with the contact's own k_t and eta_t where the given value is -1)."""
+    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = hertz_friction_force(
+        i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit, young_eff,
+        shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt)
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        if commit:
+            power += twist_release(history, p, o, dt)
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power
+    r = math.sqrt(r2)
+    nx = dx / r
+    ny = dy / r
+    nz = dz / r
+    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
+             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    radius_eff = radius[i] * radius[j] / reach
+    fn, _, stiffness, eta = hertz_normal(reach - r, rate, radius_eff, 1.0 / (1.0 / mass[i] + 1.0 / mass[j]),
+                                         young_eff, gamma)
+    kt, eta_t, _, _ = tangential_springs(kt_fixed, eta_t_fixed, 0.0, 0.0, 0.0, shear_eff, radius_eff, reach - r,
+                                         stiffness, eta)
+    w = angular_velocity
+    mx, my, mz, lost = twisting_on_i(nx, ny, nz, w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2], fn,
+                                     math.sqrt(radius_eff * (reach - r)), mu, kt, eta_t, k_tw, eta_tw, lever_tw,
+                                     1.0 if style >= 2.0 else 0.0, history, p, o, commit, dt)
+    return fx, fy, fz, tix + mx, tiy + my, tiz + mz, tjx - mx, tjy - my, tjz - mz, power + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def hertz_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
+                          k_tw, eta_tw, lever_tw, dt):
+    """Elastic energy of the Hertz contact and of its springs, the twist spring included."""
+    reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        return 0.0
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    return hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset,
+                                 commit, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r,
+                                 kr_fixed, eta_r_fixed, dt) + twist_energy(history, p, o)
+
+
+@njit(**KERNEL_OPTIONS)
 def tangential_springs(kt_fixed, eta_t_fixed, mu_r, kr_fixed, eta_r_fixed, shear_eff, radius_eff, overlap, stiffness,
                        eta):
     """(k_t, eta_t, k_r, eta_r) of a Hertz contact with contact stiffness S_n and normal damping eta_n:
@@ -195,6 +244,8 @@ class Hertz(PairInteraction):
     restitution : normal restitution coefficient e in (0, 1] (1: elastic).
     friction : a :class:`Friction` (Mindlin spring unless a stiffness is given) or None.
     rolling : a :class:`RollingResistance` (needs friction; default stiffness 2.25 mu_r^2 S_n) or None.
+    twisting : a :class:`TwistingResistance` (needs friction; Marshall's defaults from the Mindlin
+        spring, k_tw = 4 G* a^3) or None.
     """
 
     reads = ("velocity", "radius", "mass")
@@ -206,7 +257,7 @@ class Hertz(PairInteraction):
     force_function = hertz_force
     energy_function = hertz_energy
 
-    def __init__(self, young, poisson, restitution=1.0, friction=None, rolling=None):
+    def __init__(self, young, poisson, restitution=1.0, friction=None, rolling=None, twisting=None):
         self.young = positive("Hertz young (Young's modulus)", young)
         poisson = number("Hertz poisson (Poisson ratio)", poisson)
         if not (-1.0 < poisson < 0.5):
@@ -221,6 +272,7 @@ class Hertz(PairInteraction):
         self.shear_eff = shear / (2.0 * (2.0 - poisson))
         self.gamma = damping_for_restitution(restitution)
         self.friction, self.rolling = check_tangential("Hertz", friction, rolling)
+        self.twisting = check_twisting("Hertz", friction, twisting)
         if friction is not None:
             self.reads = ("velocity", "angular_velocity", "radius", "mass")
             self.torque = True
@@ -238,6 +290,8 @@ class Hertz(PairInteraction):
             self.kr_fixed = rolling.stiffness if rolling is not None and rolling.stiffness is not None else 0.0
             self.eta_r_fixed = rolling.damping if rolling is not None and rolling.damping is not None else -1.0
             self.dt = 0.0
+            if self.twisting is not None:
+                add_twisting(self, hertz_twisting_force, hertz_twisting_energy)
 
     def _pair(self, particles, i, j):
         """sqrt(R*) E* (arrays over the index pairs): F = 4/3 c delta^(3/2), U = 8/15 c delta^(5/2)."""
@@ -260,7 +314,7 @@ class Hertz(PairInteraction):
 
     def __repr__(self):
         return (f"Hertz(young={self.young!r}, poisson={self.poisson!r}, restitution={self.restitution!r}, "
-                f"friction={self.friction!r}, rolling={self.rolling!r})")
+                f"friction={self.friction!r}, rolling={self.rolling!r}{twisting_repr(self)})")
 
     def cutoff(self, particles):
         return 2.0 * float(np.max(particles.radius))
@@ -280,4 +334,4 @@ class Hertz(PairInteraction):
         limit = 0.1 * hertz_impact(self.young_eff, radius_eff, mass_eff, speed)[2] if speed > 0.0 else math.inf
         if self.friction is not None and self.kr_fixed > 0.0:  # a given rolling stiffness (see KelvinVoigt)
             limit = min(limit, 0.1 * contact_duration(self.kr_fixed, 0.0, 0.4 * mass_eff))
-        return limit
+        return min(limit, twisting_time_step(self, particles))

@@ -5,7 +5,11 @@ live. A sphere of radius R at height h = (x - p).n overlaps it by delta = R - h;
 pair contact with the wall as a partner of infinite mass and radius (R* = R, m* = m) whose
 material is rigid (Hertz: E* = E/(1 - nu^2), G* = G/(2 - nu)). The wall may slide in its own plane
 with ``velocity`` (a conveyor or shear plate; its geometry does not change). Friction keeps each
-sphere's tangential spring against the wall in per-sphere history.
+sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
+wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
+with twisting passes its rolling and twisting numbers to the wall functions as a table
+(:meth:`Wall.table_values`, :data:`TWIST_TABLE`): one more scalar each would exceed the number of
+arguments a compiled call can take.
 """
 from __future__ import annotations
 
@@ -17,9 +21,10 @@ from numba import njit
 from ..motion import KERNEL_OPTIONS
 
 from .contact import KelvinVoigt, kelvin_voigt_normal
-from .friction import release, springs_energy, wall_friction
+from .friction import HISTORY, release, springs_energy, wall_friction
 from .hertz import Hertz, hertz_normal, tangential_springs
 from .sphere import SphereInteraction, vector
+from .twisting import twist_energy, twist_release, twisting_on_i
 
 #: a sphere may start overlapping a wall by at most this fraction of its radius
 MAX_INITIAL_OVERLAP = 0.5
@@ -123,6 +128,90 @@ def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, m
     return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
 
 
+@njit(**KERNEL_OPTIONS)
+def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, style, history, p, o, commit, dt):
+    """Twisting torque on sphere i (contact radius a) and dissipated power (the wall, "i" of
+    :func:`.twisting.twisting_on_i`, does not spin)."""
+    mx, my, mz, lost = twisting_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], fn, a, mu, kt, eta_t, k_tw, eta_tw,
+                                     lever_tw, 1.0 if style >= 2.0 else 0.0, history, p, o, commit, dt)
+    return -mx, -my, -mz, lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                     params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
+                                     mu, kt, eta_t, style, dt):
+    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance; params[start:start + 6] holds
+    (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw)."""
+    mu_r = params[start]
+    fx, fy, fz, tx, ty, tz, power = wall_kelvin_voigt_friction_force(
+        i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx, ny, nz, ux, uy, uz,
+        stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, params[start + 1], params[start + 2], dt)
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
+    if overlap <= 0.0:
+        if commit:
+            power += twist_release(history, p, o, dt)
+        return fx, fy, fz, tx, ty, tz, power
+    fn, _ = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
+    mx, my, mz, lost = _wall_twist(nx, ny, nz, angular_velocity, i, math.sqrt(radius[i] * overlap), fn, kt, eta_t,
+                                   mu, params[start + 3], params[start + 4], params[start + 5], style, history, p, o,
+                                   commit, dt)
+    return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                      params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
+                                      mu, kt, eta_t, style, dt):
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
+    if overlap <= 0.0:
+        return 0.0
+    mu_r = params[start]
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    return (0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
+            + twist_energy(history, p, o))
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                              params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
+                              kt_fixed, eta_t_fixed, style, dt):
+    """:func:`wall_hertz_friction_force` with twisting resistance; params[start:start + 6] holds
+    (mu_r, k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw)."""
+    mu_r = params[start]
+    fx, fy, fz, tx, ty, tz, power = wall_hertz_friction_force(
+        i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny, nz, ux, uy,
+        uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, params[start + 1],
+        params[start + 2], dt)
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
+    if overlap <= 0.0:
+        if commit:
+            power += twist_release(history, p, o, dt)
+        return fx, fy, fz, tx, ty, tz, power
+    fn, _, stiffness, eta = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
+    kt, eta_t, _, _ = tangential_springs(kt_fixed, eta_t_fixed, 0.0, 0.0, 0.0, shear_eff, radius[i], overlap,
+                                         stiffness, eta)
+    mx, my, mz, lost = _wall_twist(nx, ny, nz, angular_velocity, i, math.sqrt(radius[i] * overlap), fn, kt, eta_t,
+                                   mu, params[start + 3], params[start + 4], params[start + 5], style, history, p, o,
+                                   commit, dt)
+    return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_hertz_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
+                               params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
+                               kt_fixed, eta_t_fixed, style, dt):
+    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
+    if overlap <= 0.0:
+        return 0.0
+    mu_r = params[start]
+    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
+    return (8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
+            + twist_energy(history, p, o))
+
+
 _GEOMETRY = ("plane", "nx", "ny", "nz", "ux", "uy", "uz")
 _FUNCTIONS = {
     (KelvinVoigt, False): (wall_kelvin_voigt_force, wall_kelvin_voigt_energy),
@@ -130,6 +219,11 @@ _FUNCTIONS = {
     (Hertz, False): (wall_hertz_force, wall_hertz_energy),
     (Hertz, True): (wall_hertz_friction_force, wall_hertz_friction_energy),
 }
+_TWISTING = {KelvinVoigt: (wall_kelvin_voigt_twisting_force, wall_kelvin_voigt_twisting_energy),
+             Hertz: (wall_hertz_twisting_force, wall_hertz_twisting_energy)}
+#: a twisting law's parameters that its walls take from their table instead, in the table's order
+TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"),
+               Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
 
 
 class Wall(SphereInteraction):
@@ -185,12 +279,22 @@ class Wall(SphereInteraction):
         self.torque = friction
         self.history_size = law.history_size
         names = list(law.parameters)
+        self.table = np.zeros(0)
+        if getattr(law, "twisting", None) is not None:
+            self.force_function, self.energy_function = _TWISTING[type(law)]
+            table = TWIST_TABLE[type(law)]
+            self.table = np.array([getattr(law, name) for name in table], dtype=np.float64)
+            names = [name for name in names if name not in table]
         self.parameters = _GEOMETRY + tuple(names)
         for name in names:
             setattr(self, name, getattr(law, name))
         if isinstance(law, Hertz):  # a rigid wall: only the sphere's compliance
             self.young_eff = 2.0 * law.young_eff
             self.shear_eff = 2.0 * law.shear_eff
+
+    def table_values(self):
+        """A twisting law's rolling and twisting numbers (see :data:`TWIST_TABLE`), else empty."""
+        return getattr(self, "table", np.zeros(0))
 
     def heights(self, position):
         """Signed distance of each centre from the plane (positive on the spheres' side)."""
