@@ -85,6 +85,12 @@ class Plan:
     sorted: bool = False  # particles re-sorted by cell now and then (internal order)
     effects: tuple = ()  # single-sphere interactions (walls, gravity, fields)
     sums: tuple = ()  # long-range sums over all spheres (an Ewald sum's reciprocal part, an FMM sum)
+    induction: object = None  # induced moments solved before the slow forces (InducedMoments), or None
+
+    @property
+    def energy_sources(self):
+        """Everything that reports an energy kind: interactions, effects, the induction solve."""
+        return self.interactions + self.effects + ((self.induction,) if self.induction is not None else ())
 
     @property
     def effect_offsets(self):
@@ -170,7 +176,7 @@ class _Source:
     def __init__(self, plan, importable, threads=False):
         self.plan = plan
         self.threads = threads  # the thread module: chunked loops on prange, per-step passes on threads
-        self.kinds = energy_kinds(plan.interactions + plan.effects)
+        self.kinds = energy_kinds(plan.energy_sources)
         self.importable = importable
         self.parts = self.split_groups()
         # parameter slots: each interaction's parameters, each effect's, then one squared cutoff per
@@ -194,6 +200,7 @@ class _Source:
         for tuned in plan.sums:
             self.sum_slot.append(slot)
             slot += np.size(tuned.table_values())
+        self.induction_slot = slot  # the induction table follows the sums' (demkit.interactions.induction)
 
     # ---- pair loops ------------------------------------------------------------------------
     def prelude(self, group):
@@ -595,8 +602,20 @@ class _Source:
         # pair loop once per literal value and once more for calls from Python (3x the compile time
         # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
         lines = [f"    maintain_lists(s, {strict} != False)"] if self.plan.lists else []
+        if self.plan.induction is not None and speed != "fast":  # moments first: slow forces read them
+            lines += [f"    if {self.induce_call()} != 0 and s.status[0] == OK:",
+                      "        s.status[0] = INDUCTION_FAILED"]
         lines += [f"    clear({force}, {torque})", "    power = 0.0", "    commit_flag = commit != False"]
         return lines + self.force_calls(speed, force, torque) + ["    return power"]
+
+    def induce_call(self):
+        """The call solving the induced moments in s.dipole (its pairs: the Dipole's group's list)."""
+        g = self.plan.induction.group
+        if g is None:
+            lists = "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32)"
+        else:
+            lists = f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner"
+        return f"induce(s.position, s.dipole, s.tag, s.box, s.params, {self.induction_slot}, {lists})"
 
     def scene_functions(self):
         plan = self.plan
@@ -694,6 +713,14 @@ class _Source:
         for q, (tuned, slot) in enumerate(zip(plan.sums, self.sum_slot)):
             lines.append(f"    out[{2 + self.kinds.index(tuned.energy_kind)}] += long_range_{q}(s.position, s.dipole, "
                          f"s.box, s.params, {slot}, s.force, s.torque, False)")
+        if plan.induction is not None:
+            lines.append(f"    out[{2 + self.kinds.index(plan.induction.energy_kind)}] += induction_energy(s.dipole, "
+                         f"s.tag, s.params, {self.induction_slot})")
+            lines += ["", "", "@njit(**OUTER)", "def induce_of(s):",
+                      '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
+            if plan.lists:
+                lines.append("    maintain_lists(s, False != False)")
+            lines.append(f"    return {self.induce_call()}")
         for g, group in enumerate(plan.groups):
             for kind in ("pair_energies", "pair_forces"):
                 lines += ["", "", "@njit(**OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
@@ -744,8 +771,10 @@ class _Source:
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
-                 "                          INNER_STEPS, RUN_START)",
+                 "                          INNER_STEPS, RUN_START, INDUCTION_FAILED)",
                  ""]
+        if plan.induction is not None:
+            lines += ["from demkit.interactions.induction import induce, induction_energy", ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.events import earliest_wall_crossing", ""]
         for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
@@ -773,7 +802,7 @@ class _Source:
         cache = self.importable
         fast = 'fastmath={"contract", "arcp"}, error_model="numpy"'
         # no reference counting in small scenes, unless a long-range sum allocates (its arrays into object mode)
-        nrt = "" if plan.growing or plan.sums else ", _nrt=False"
+        nrt = "" if plan.growing or plan.sums or plan.induction is not None else ", _nrt=False"
         if plan.growing:  # big scenes: separate pair-loop functions, no reference counting inside
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop

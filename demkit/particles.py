@@ -83,6 +83,10 @@ class Particles:
     image : (N,3) integers, periodic image counts, or None (created as zeros in a periodic box).
     fixed : (N,) booleans or None: fixed spheres neither move nor turn (they must start at rest;
         they still feel and exert forces: the scene gives them infinite mass and inertia).
+    susceptibility : scalar or (N,) magnetic susceptibility chi = mu_r - 1 >= 0 (dimensionless), or
+        None: spheres with chi > 0 are magnetisable, their moments induced by the field they feel
+        (a scene with a Dipole solves them; see :mod:`demkit.interactions.induction`), the others
+        keep the permanent moments in ``dipole``.
 
     Shapes are strict: every per-sphere vector (position, velocity, dipole, angular_velocity) is
     an (N, 3) array with one row per sphere. A bare 3-vector counts as one row, so it is accepted
@@ -94,7 +98,7 @@ class Particles:
     """
 
     def __init__(self, position, velocity=None, radius=1.0, mass=1.0, inertia_factor=0.4,
-                 dipole=None, angular_velocity=None, ids=None, image=None, fixed=None):
+                 dipole=None, angular_velocity=None, ids=None, image=None, fixed=None, susceptibility=None):
         self.position = _vectors("position", position, None)
         n = self.position.shape[0]
         if n < 1:
@@ -109,6 +113,13 @@ class Particles:
                                  else _vectors("angular_velocity", angular_velocity, n))
         self.image = None if image is None else _images(image, n)
         self.fixed = None if fixed is None else _flags("fixed", fixed, n)
+        self.susceptibility = None
+        if susceptibility is not None:
+            self.susceptibility = _scalars("susceptibility", susceptibility, n, positive=False)
+            if np.any(self.susceptibility < 0.0):
+                k = int(np.argmax(self.susceptibility < 0.0))
+                raise ValueError(f"susceptibility must be >= 0 (chi = mu_r - 1; diamagnetic spheres are not "
+                                 f"modelled); particle {k} has {self.susceptibility[k]}")
         if ids is None:
             self.ids = np.arange(n, dtype=np.int64)
         else:
@@ -121,8 +132,10 @@ class Particles:
         radius = f"{r[0]:.6g}" if np.all(r == r[0]) else f"{r.min():.6g} to {r.max():.6g}"
         present = [name for name in OPTIONAL_FIELDS if getattr(self, name) is not None]
         fixed = int(self.fixed.sum()) if self.fixed is not None else 0
+        soft = int(np.count_nonzero(self.susceptibility)) if self.susceptibility is not None else 0
         return (f"Particles({self.n} sphere{'s' if self.n != 1 else ''}, radius {radius}"
-                + "".join(f", {name}" for name in present) + (f", {fixed} fixed" if fixed else "") + ")")
+                + "".join(f", {name}" for name in present) + (f", {fixed} fixed" if fixed else "")
+                + (f", {soft} magnetisable" if soft else "") + ")")
 
     def __len__(self):
         return self.position.shape[0]

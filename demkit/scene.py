@@ -21,7 +21,10 @@ import numpy as np
 from . import checks, neighbours
 from .box import Box
 from .integrators import TEMPLATES
+from .interactions import induction
 from .interactions.base import PairInteraction, check_repeats
+from .interactions.dipole import Dipole
+from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
 from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
@@ -87,6 +90,7 @@ class Scene:
         interactions = [inter for inter in interactions if isinstance(inter, PairInteraction)]
         if box is not None and not isinstance(box, Box):
             raise TypeError(f"box must be a demkit.Box or None, got {type(box).__name__}")
+        polarisabilities = induction.prepare(particles, interactions, effects)  # None: no magnetisable spheres
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]
@@ -126,9 +130,12 @@ class Scene:
         self.parallel = self.chunks > 1  # may run on threads
         self._thread_kernels = None
         self.plan = self._plan()
+        #: the induced-moment solve (demkit.interactions.induction.InducedMoments), or None
+        self.induction = self._induction(polarisabilities)
+        self.plan.induction = self.induction
         self._sorting(sort_every)
         self._check_memory()
-        self.energy_kinds = energy_kinds(self.interactions + self.effects)
+        self.energy_kinds = energy_kinds(self.plan.energy_sources)
         n = len(particles)
         self.force = np.zeros((n, 3))
         self.torque = np.zeros((n, 3))
@@ -138,6 +145,8 @@ class Scene:
         self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
         with compile_notice(lambda: compile_estimate(self.plan, "scene")):  # a line on stderr when not cached yet
             self.state = self._make_state()
+            if self.induction is not None:
+                self._first_induction()
             self.kernels = build_module(self.plan, TEMPLATES)
             self.validate()
         # the lists are built (and a sorted scene sorted by cell) at the first push, by the first
@@ -171,6 +180,50 @@ class Scene:
         self.sort_every = every
 
     # ---- set-up ----------------------------------------------------------------------------
+    def _induction(self, alpha):
+        """The scene's induced-moment solve over the group that holds its Dipole (None without
+        magnetisable spheres)."""
+        if alpha is None:
+            return None
+        dipole = next(inter for inter in self.interactions if isinstance(inter, Dipole))
+        group = kind = None
+        for g, members in enumerate(self.plan.groups):
+            if any(inter is dipole for _, inter in members.members):
+                group, kind = g, members.kind
+        solver = InducedMoments(dipole, kind, self.box, self.effects, alpha, dipole.induction or Induction())
+        solver.group = group
+        return solver
+
+    def _first_induction(self):
+        """Solve the induced moments of the starting positions (in the user's order, with pairs from
+        a cell list: the kernels' lists are built at the first push); ValueError if it fails."""
+        solver, p = self.induction, self.particles
+        n = len(p)
+        start, end = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        partner = np.zeros(0, dtype=np.int32)
+        if solver.kind == "list":
+            pairs = self.close_pairs(solver.cutoff)
+            pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+            partner = np.ascontiguousarray(pairs[:, 1], dtype=np.int32)
+            start = np.searchsorted(pairs[:, 0], np.arange(n)).astype(np.int64)
+            end = np.searchsorted(pairs[:, 0], np.arange(n), side="right").astype(np.int64)
+        code = solver.solve(p.position, p.dipole, np.arange(n, dtype=np.int64), start, end, partner)
+        if code:
+            raise ValueError(f"at the starting positions {solver.failure(code)}")
+        if self.arrays["dipole"] is not p.dipole:
+            self.arrays["dipole"][...] = p.dipole
+
+    def induce(self):
+        """Solve the induced moments at the current positions (after the user moved spheres; runs and
+        diagnostics do it themselves). ValueError if the solve fails."""
+        if self.induction is None:
+            return
+        self.push()
+        code = self.kernels.induce_of(self.state)
+        self.pull()
+        if code:
+            raise ValueError(self.induction.failure(code))
+
     def memory_estimate(self, frames=0, stages=0):
         """Bytes this scene's arrays, neighbour lists and a record of ``frames`` frames need
         (:func:`demkit.memory.estimate`; the lists' pairs from the spheres' density within the box,
@@ -277,8 +330,11 @@ class Scene:
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
         tables = [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.effects + self.long_range]
+        if self.induction is not None:  # its table last (its first value: the solver's key, see checkpoint)
+            tables.append(self.induction.table_values())
         # (the order kernels._Source gives their slots)
         self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
+        self.induction_slot = len(self.params) - len(tables[-1]) if self.induction is not None else None
         # slots of parameters named "dt": the integrator's time step, set by each run
         self.time_step_slots, slot = [], 0
         for inter in self.interactions + self.effects:
@@ -502,6 +558,7 @@ class Scene:
         """(force, torque), each (N,3), at the current state; changes nothing (history included)."""
         n = len(self.particles)
         force, torque = np.zeros((n, 3)), np.zeros((n, 3))
+        self.induce()
         self.push()
         self.kernels.compute_forces(self.state, force, torque, False, False)
         self.pull()
@@ -511,6 +568,7 @@ class Scene:
         """Energies: kinetic, rotational, one per energy kind (magnetic, contact, ...), total and
         dissipated. total = kinetic + rotational + potentials; total + dissipated is conserved."""
         out = np.zeros(2 + len(self.energy_kinds))
+        self.induce()
         self.push()
         self.kernels.energies_of(self.state, out)
         self.pull()

@@ -20,7 +20,7 @@ from .notes import RunNotes, say as say_notes
 from .progress import Progress, check_progress, compile_estimate, compile_notice
 from .scene import energy_dict
 from .threads import ThreadChoice
-from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
+from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
 CHUNK_SECONDS = 0.2
@@ -596,6 +596,11 @@ class Simulation:
                 f"overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
                 f"docs/stability.md says how to size both. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
+        if code == INDUCTION_FAILED:
+            solver = scene.induction
+            raise SimulationError(
+                f"at step {self.step} (t = {self.time:.6g}) {solver.failure(solver.last_code)}. {kept}.",
+                step=self.step, time=self.time, particle=None, trajectory=self.trajectory)
         arrays = [p.position, p.velocity] + ([p.angular_velocity] if p.angular_velocity is not None else [])
         bad = np.zeros(len(p), dtype=bool)
         for arr in arrays:

@@ -204,6 +204,9 @@ class Dipole(PairInteraction):
         multiplies the pair energy by a smooth switch S(r) on [cutoff - w, cutoff] (S = 1 below,
         0 at the cutoff, continuous first and second derivatives) and derives force and torque
         from it: a genuine, energy-conserving potential, exact below cutoff - w.
+    long_range : None, or a :class:`demkit.Ewald`, :class:`demkit.P3M` or :class:`demkit.FMM` sum.
+    induction : a :class:`demkit.Induction` (the induced-moment solve's tolerance) for scenes with
+        magnetisable spheres (``Particles(susceptibility=...)``); None: the default Induction().
     """
 
     reads = ("dipole",)
@@ -220,9 +223,13 @@ class Dipole(PairInteraction):
     #: ("prefactor", "switch_on", "inv_switch_width")
     switched_functions = (switched_dipole_force, switched_dipole_energy)
 
-    def __init__(self, prefactor=1e-7, cutoff=None, switch_width=None, long_range=None):
+    def __init__(self, prefactor=1e-7, cutoff=None, switch_width=None, long_range=None, induction=None):
+        from .induction import Induction
         name = type(self).__name__
         self.prefactor = positive(f"{name} prefactor", prefactor)
+        if induction is not None and not isinstance(induction, Induction):
+            raise ValueError(f"{name} induction must be a demkit.Induction (or None), got {induction!r}")
+        self.induction = induction
         self.cutoff_distance = None if cutoff is None else positive(f"{name} cutoff", cutoff)
         self.switch_width = None
         self.long_range = None
@@ -326,6 +333,8 @@ class Dipole(PairInteraction):
             args += f", long_range={self.long_range!r}"
         if self.switch_width is not None:
             args += f", switch_width={self.switch_width!r}"
+        if self.induction is not None:
+            args += f", induction={self.induction!r}"
         return f"{type(self).__name__}({args})"
 
 

@@ -1,0 +1,327 @@
+"""Induced dipoles: magnetisable spheres polarised by the applied field and by each other.
+
+A sphere of magnetic susceptibility chi > 0 (``Particles(susceptibility=...)``) carries the moment
+
+    m_i = alpha_i B_i,    alpha_i = beta_i R_i^3 / A,    beta_i = (mu_r - 1)/(mu_r + 2) = chi/(chi + 3)
+
+the point-dipole polarisability of a linear sphere (Clausius-Mossotti; in SI, A = mu0/4pi and
+m = 4 pi R^3 beta H; beta -> 1 for soft iron). B_i is the field at its centre: the applied field
+(:class:`~demkit.UniformField`, :class:`~demkit.MagnetField`) plus the dipole field of every other
+sphere, summed as the scene's :class:`~demkit.Dipole` sums it (all pairs, a cutoff with or without
+switch, Ewald, P3M or FMM). Spheres with chi = 0 keep their permanent moments; a sphere with chi > 0
+has no permanent moment (what its ``dipole`` row holds is only the solve's starting guess).
+
+**The solve**, before every force evaluation: with a = diag(alpha) over the magnetisable spheres,
+T the dipole field operator (B = T m) and m_p the permanent moments,
+
+    (I - a^1/2 T a^1/2) y = a^1/2 (B_0 + T m_p),    m_induced = a^1/2 y,
+
+a symmetric positive-definite system (T is symmetric) solved by conjugate gradients from the
+current moments until |residual| <= tolerance |right-hand side|. Each iteration costs one field
+evaluation of the magnetisable spheres' moments.
+
+**Energy** (linear induction): U = U_dipole + U_field + sum_i |m_i|^2 / (2 alpha_i), the last term
+reported as "induction". U is stationary in the induced moments at the solution, so the forces and
+torques are those of fixed moments (the Dipole's and the fields' own), and for magnetisable spheres
+alone U = -1/2 sum_i m_i.B_0(x_i). The torque on a magnetisable sphere, m_i x B_i = alpha B_i x B_i,
+vanishes (to the tolerance).
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import weakref
+
+import numpy as np
+from numba import njit, objmode
+
+from .base import number
+
+#: the solvers of the live scenes, by the key the kernels find in their params table
+_SOLVERS = weakref.WeakValueDictionary()
+_KEYS = itertools.count(1)
+#: codes the kernels' solve returns (0: converged)
+CONVERGED, NOT_CONVERGED, NOT_POSITIVE = 0, 1, 2
+FIELD_OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
+
+
+def clausius_mossotti(susceptibility):
+    """beta = chi / (chi + 3) = (mu_r - 1)/(mu_r + 2), the reduced polarisability of a linear sphere."""
+    chi = np.asarray(susceptibility, dtype=np.float64)
+    return chi / (chi + 3.0)
+
+
+def polarisability(radius, susceptibility, prefactor):
+    """alpha = beta R^3 / A (moment per field, in the units the Dipole's prefactor A sets)."""
+    return clausius_mossotti(susceptibility) * np.asarray(radius, dtype=np.float64) ** 3 / prefactor
+
+
+class Induction:
+    """Settings of the induced-moment solve: ``Dipole(prefactor, induction=Induction(1e-8))``.
+
+    tolerance : relative residual |r| / |b| at which conjugate gradients stop (0 < tolerance < 1).
+        The moments are then accurate to about tolerance times the condition number (below 10 for
+        touching spheres of beta <= 1).
+    max_iterations : iterations allowed per solve; a solve that needs more stops the run.
+    """
+
+    def __init__(self, tolerance=1e-8, max_iterations=100):
+        tolerance = number("Induction tolerance", tolerance)
+        if not 0.0 < tolerance < 1.0:
+            raise ValueError(f"Induction tolerance must lie between 0 and 1 (a relative residual), got {tolerance!r}")
+        self.tolerance = tolerance
+        iterations = number("Induction max_iterations", max_iterations)
+        if iterations < 1 or iterations != int(iterations):
+            raise ValueError(f"Induction max_iterations must be a whole number >= 1, got {max_iterations!r}")
+        self.max_iterations = int(iterations)
+
+    def __repr__(self):
+        return f"Induction(tolerance={self.tolerance!r}, max_iterations={self.max_iterations!r})"
+
+
+@njit(**FIELD_OPTIONS)
+def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
+               inv_width, alpha, field):
+    """Add to ``field`` the dipole field of each pair's partner: over all pairs i < j
+    (``all_pairs``) or the half list (start, end, partner), minimum image along periodic axes,
+    within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3, C = 3/r^5 (times the switch S(r)
+    when inv_width > 0), or their Ewald-screened forms when alpha > 0 (demkit.interactions.ewald)."""
+    n = position.shape[0]
+    cut2 = cutoff * cutoff
+    for i in range(n):
+        lo = i + 1 if all_pairs else start[i]
+        hi = n if all_pairs else end[i]
+        for q in range(lo, hi):
+            j = q if all_pairs else partner[q]
+            dx = position[j, 0] - position[i, 0]
+            dy = position[j, 1] - position[i, 1]
+            dz = position[j, 2] - position[i, 2]
+            if periodic[0]:
+                dx -= box[0] * round(dx / box[0])
+            if periodic[1]:
+                dy -= box[1] * round(dy / box[1])
+            if periodic[2]:
+                dz -= box[2] * round(dz / box[2])
+            r2 = dx * dx + dy * dy + dz * dz
+            if r2 >= cut2:
+                continue
+            r = math.sqrt(r2)
+            if alpha > 0.0:
+                ar = alpha * r
+                gauss = 1.1283791670955126 * ar * math.exp(-ar * ar)
+                erfc = math.erfc(ar)
+                b = (erfc + gauss) / (r2 * r)
+                c = (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / (r2 * r2 * r)
+            else:
+                b = 1.0 / (r2 * r)
+                c = 3.0 * b / r2
+                if inv_width > 0.0:
+                    x = min(max((r - switch_on) * inv_width, 0.0), 1.0)
+                    s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+                    b *= s
+                    c *= s
+            b *= prefactor
+            c *= prefactor
+            mjd = dipole[j, 0] * dx + dipole[j, 1] * dy + dipole[j, 2] * dz
+            mid = dipole[i, 0] * dx + dipole[i, 1] * dy + dipole[i, 2] * dz
+            field[i, 0] += c * mjd * dx - b * dipole[j, 0]
+            field[i, 1] += c * mjd * dy - b * dipole[j, 1]
+            field[i, 2] += c * mjd * dz - b * dipole[j, 2]
+            field[j, 0] += c * mid * dx - b * dipole[i, 0]
+            field[j, 1] += c * mid * dy - b * dipole[i, 1]
+            field[j, 2] += c * mid * dz - b * dipole[i, 2]
+
+
+@njit(cache=True)
+def induction_energy(dipole, tag, params, slot):
+    """sum_i |m_i|^2 / (2 alpha_i) over the magnetisable spheres (alpha by tag at params[slot + 1:])."""
+    energy = 0.0
+    for i in range(dipole.shape[0]):
+        a = params[slot + 1 + tag[i]]
+        if a > 0.0:
+            energy += (dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2) / (2.0 * a)
+    return energy
+
+
+@njit(cache=True)
+def induce(position, dipole, tag, box, params, slot, start, end, partner):
+    """The kernels' call: solve the induced moments in place in ``dipole`` (object mode, the solver
+    registered under the key params[slot]); returns 0 when converged (module codes otherwise)."""
+    key = params[slot]
+    # fresh arrays into object mode (a view would be boxed as its parent: see fmm.fmm_sum)
+    x = position.copy()
+    m = dipole.copy()
+    with objmode(code="int64"):
+        code = solve_registered(key, x, m, tag, box, start, end, partner)
+    dipole[:, :] = m
+    return code
+
+
+def solve_registered(key, position, dipole, tag, box, start, end, partner):
+    """Run the solver registered under ``key`` (see :meth:`InducedMoments.solve`)."""
+    return _SOLVERS[int(key)].solve(position, dipole, tag, start, end, partner)
+
+
+class _Spheres:
+    """What the long-range sums' field() reads of a Particles: positions, moments, a length."""
+
+    def __init__(self, position, dipole):
+        self.position, self.dipole = position, dipole
+
+    def __len__(self):
+        return len(self.position)
+
+
+class InducedMoments:
+    """A scene's induced-moment solve (module docstring); built by :class:`demkit.Scene`.
+
+    dipole : the scene's Dipole (its tuned copy when it has a long-range sum).
+    kind : "all" (all pairs), "list" (the Dipole's neighbour list) or None (no pair loop: a fast
+        multipole sum covers every pair).
+    effects : the scene's single-sphere effects (UniformField and MagnetField give B_0).
+    alpha : (N,) polarisabilities in the user's order (0: a permanent moment).
+    """
+
+    energy_kind = "induction"
+
+    def __init__(self, dipole, kind, box, effects, alpha, settings):
+        from .fields import UniformField
+        from .magnets import MagnetField
+        self.settings = settings
+        self.prefactor = dipole.prefactor
+        self.kind = kind
+        self.box = box
+        self.periodic = np.array(box.periodic if box is not None else (False,) * 3, dtype=np.bool_)
+        self.box_size = np.asarray(box.size, dtype=np.float64) if box is not None else np.ones(3)
+        self.cutoff = dipole.cutoff_distance if dipole.cutoff_distance is not None else math.inf
+        switched = getattr(dipole, "switch_width", None) is not None
+        self.switch_on = dipole.switch_on if switched else 0.0
+        self.inv_width = dipole.inv_switch_width if switched else 0.0
+        self.tuned = dipole.tuned if dipole.long_range is not None else None
+        self.alpha_screening = getattr(dipole, "alpha", 0.0) if self.tuned is not None else 0.0
+        self.uniform = sum((np.asarray(e.field, dtype=np.float64) for e in effects if isinstance(e, UniformField)),
+                           np.zeros(3))
+        self.magnets = [e for e in effects if isinstance(e, MagnetField)]
+        self.alpha = np.ascontiguousarray(alpha, dtype=np.float64)
+        self.key = next(_KEYS)
+        _SOLVERS[self.key] = self
+        #: solves run, iterations they took in all, the most one took, and the last one's count
+        self.solves = self.iterations = self.most_iterations = self.last_iterations = 0
+        self.last_residual = 0.0
+        self.last_code = CONVERGED
+
+    def table_values(self):
+        """[key, alpha by sphere tag...]: what the kernels read from the scene's params."""
+        return np.concatenate([[float(self.key)], self.alpha])
+
+    @property
+    def mean_iterations(self):
+        """Iterations per solve so far (0 before any)."""
+        return self.iterations / self.solves if self.solves else 0.0
+
+    def applied(self, position):
+        """(N, 3) applied field B_0 at the sphere centres."""
+        b0 = np.tile(self.uniform, (len(position), 1))
+        for magnet in self.magnets:
+            b0 += magnet.field(position)
+        return b0
+
+    def field(self, position, moments, start, end, partner):
+        """(N, 3) field T m at each sphere from the others' ``moments``, summed as the Dipole sums it."""
+        out = np.zeros_like(moments)
+        if self.kind is not None:
+            pair_field(position, moments, self.box_size, self.periodic, start, end, partner, self.kind == "all",
+                       self.prefactor, self.cutoff, self.switch_on, self.inv_width, self.alpha_screening, out)
+        if self.tuned is not None:
+            out += self.tuned.field(_Spheres(position, moments), self.box)
+        return out
+
+    def solve(self, position, dipole, tag, start, end, partner):
+        """Replace the magnetisable spheres' rows of ``dipole`` (internal order; ``tag`` the user
+        index of each row) by their self-consistent moments; returns a module code."""
+        scale = np.sqrt(self.alpha[tag])[:, None]  # a^1/2, zero for permanent moments
+        soft = scale[:, 0] > 0.0
+        source = self.applied(position)
+        if not soft.all():
+            source += self.field(position, np.where(soft[:, None], 0.0, dipole), start, end, partner)
+        b = scale * source
+        y = np.zeros_like(dipole)
+        y[soft] = dipole[soft] / scale[soft]
+        r = b - (y - scale * self.field(position, scale * y, start, end, partner))
+        goal = self.settings.tolerance * math.sqrt(float(np.vdot(b, b)))
+        rr = float(np.vdot(r, r))
+        code, k, p = CONVERGED, 0, r.copy()
+        while math.sqrt(rr) > goal:
+            if k == self.settings.max_iterations:
+                code = NOT_CONVERGED
+                break
+            k += 1
+            ap = p - scale * self.field(position, scale * p, start, end, partner)
+            pap = float(np.vdot(p, ap))
+            if not pap > 0.0:
+                code = NOT_POSITIVE
+                break
+            step = rr / pap
+            y += step * p
+            r -= step * ap
+            rr, old = float(np.vdot(r, r)), rr
+            p = r + (rr / old) * p
+        dipole[soft] = scale[soft] * y[soft]
+        self.solves += 1
+        self.iterations += k
+        self.last_iterations = k
+        self.most_iterations = max(self.most_iterations, k)
+        self.last_residual = math.sqrt(rr) / max(goal / self.settings.tolerance, 1e-300)
+        self.last_code = code
+        return code
+
+    def failure(self, code):
+        """Why a solve returned ``code``, in words."""
+        if code == NOT_POSITIVE:
+            return ("the induction system is not positive definite (point dipoles of these susceptibilities "
+                    "polarise each other without bound: spheres overlapping deeply?)")
+        return (f"the induced moments did not converge in {self.settings.max_iterations} iterations (relative "
+                f"residual {self.last_residual:.3g} against the tolerance {self.settings.tolerance:g}); raise "
+                f"Induction(max_iterations=...) or the tolerance")
+
+    def __repr__(self):
+        return (f"InducedMoments({int(np.count_nonzero(self.alpha))} magnetisable spheres, {self.settings!r}, "
+                f"{self.mean_iterations:.1f} iterations per solve)")
+
+
+def susceptibility_values(particles):
+    """The particles' susceptibilities (N,), or None when none is positive."""
+    chi = getattr(particles, "susceptibility", None)
+    if chi is None or not np.any(chi > 0.0):
+        return None
+    return chi
+
+
+def prepare(particles, interactions, effects):
+    """Check a scene's magnetisable spheres and give them their moments in the applied field alone
+    (m = alpha B_0, the solve's first guess, which long-range sums are tuned with); returns the
+    polarisabilities (N,), or None when no sphere has chi > 0 (the scene then does no induction work)."""
+    from .dipole import Dipole
+    from .fields import UniformField
+    from .magnets import MagnetField
+    chi = particles.susceptibility
+    if chi is None or not np.any(chi > 0.0):
+        return None
+    dipoles = [inter for inter in interactions if isinstance(inter, Dipole)]
+    if not dipoles:
+        raise ValueError("spheres with a susceptibility > 0 need a dk.Dipole among the interactions: its prefactor "
+                         "A = mu0/4pi sets their polarisability alpha = beta R^3 / A, and it couples their moments")
+    dipole = dipoles[0]
+    if not dipole.torque:
+        raise ValueError(f"{dipole!r} is a central power law without a field: magnetisable spheres need dk.Dipole")
+    alpha = polarisability(particles.radius, chi, dipole.prefactor)
+    particles.require("dipole")
+    soft = alpha > 0.0
+    b0 = np.zeros((len(particles), 3))
+    for effect in effects:
+        if isinstance(effect, UniformField):
+            b0 += effect.field
+        elif isinstance(effect, MagnetField):
+            b0 += effect.field(particles.position)
+    particles.dipole[soft] = alpha[soft, None] * b0[soft]
+    return alpha
