@@ -8,6 +8,7 @@ from .interactions import (Dipole, Friction, Gravity, Hertz, KelvinVoigt, Langev
 from .interactions.ewald import Ewald
 from .interactions.fmm import FMM
 from .interactions.p3m import P3M
+from .interactions.induction import Induction
 from .particles import Particles
 from .scene import Scene
 from .checkpoint import Checkpoint
@@ -30,7 +31,7 @@ __version__ = "0.1.0"
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
            "LargeOutputWarning", "CheckpointWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
-           "PairInteraction", "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
+           "PairInteraction", "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "compare_dipole_sums", "guards",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

@@ -14,6 +14,8 @@ from .dipole import Dipole, PowerLawDipole
 from .ewald import Ewald
 from .fmm import FMM
 from .p3m import P3M
+from .induction import Induction
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance",
-           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "P3M", "FMM"]
+           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Langevin", "Ewald", "P3M", "FMM",
+           "Induction"]
