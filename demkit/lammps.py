@@ -16,7 +16,9 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   uses ``dipole_cutoff`` (default: 10 times the diagonal of the spheres' initial extent);
 * ``KelvinVoigt(k, c)``: ``granular hooke k c ... damping velocity`` (force c * rate, not scaled by
   the mass), ``no_tension`` -> ``limit_damping``; ``Friction`` -> ``tangential linear_history k_t
-  eta_t/c mu``; ``RollingResistance`` -> ``rolling sds k_r eta_r mu_r``;
+  eta_t/c mu``; ``RollingResistance`` -> ``rolling sds k_r eta_r mu_r``; ``TwistingResistance()``
+  (Marshall's coefficients) -> ``twisting marshall``, ``TwistingResistance(k_tw, eta_tw, l_tw)`` ->
+  ``twisting sds k_tw eta_tw l_tw`` (only some of the three given: refused);
 * ``Hertz(E, nu, e)`` -> ``hertz/material E alpha nu ... damping tsuji limit_damping``: LAMMPS turns
   its coefficient into the Tsuji constant with a fitted polynomial, so the export writes the
   coefficient whose polynomial value is demkit's gamma sqrt(3/2) (exact to round-off); Mindlin
@@ -103,6 +105,29 @@ def tsuji_coefficient(alpha):
     return best
 
 
+def twisting_words(law):
+    """The ``twisting`` words of a contact law's LAMMPS model (none without twisting resistance)."""
+    t = getattr(law, "twisting", None)
+    if t is None:
+        return []
+    if t.marshall:  # LAMMPS derives k_t a^2/2, eta_t a^2/2, (2/3) mu a from the tangential words, as demkit
+        return ["twisting", "marshall"]
+    if None in (t.stiffness, t.damping, t.lever):
+        raise ValueError(f"{law!r}: LAMMPS' twisting is either marshall (stiffness, damping and lever all from the "
+                         f"friction law) or sds (all three given); give TwistingResistance all three or none")
+    return ["twisting", "sds", g17(t.stiffness), g17(t.damping), g17(t.lever)]
+
+
+def springs(law):
+    """History columns of a contact law that hold spring displacements (friction, rolling, twist)."""
+    columns = [0, 1, 2]
+    if law.rolling is not None:
+        columns += [4, 5, 6]
+    if getattr(law, "twisting", None) is not None:
+        columns.append(8 if law.rolling is not None else 4)
+    return columns
+
+
 class _Export:
     """Collects the deck's lines, the notes and the checks for one scene."""
 
@@ -178,13 +203,13 @@ class _Export:
         scene = self.scene
         stored = False
         if self.contact is not None and self.contact.history_size:
-            stored = bool(np.any(scene.history(self.contact)[1][:, :3] != 0.0))
+            stored = bool(np.any(scene.history(self.contact)[1][:, springs(self.contact)] != 0.0))
         for w in scene.effects:
             if type(w) is Wall and w.history_size:
-                stored |= bool(np.any(scene.sphere_history(w)[:, :3] != 0.0))
+                stored |= bool(np.any(scene.sphere_history(w)[:, springs(w.law)] != 0.0))
         if stored:
-            self.differs("contact history", "the scene holds stretched friction springs, which a LAMMPS data "
-                         "file cannot carry: LAMMPS starts every contact with none")
+            self.differs("contact history", "the scene holds stretched friction, rolling or twist springs, which a "
+                         "LAMMPS data file cannot carry: LAMMPS starts every contact with none")
 
     # ---- deck parts ---------------------------------------------------------------------------
     def granular_model(self, law, wall=False):
@@ -230,6 +255,7 @@ class _Export:
                 raise ValueError(f"{law!r}: LAMMPS' rolling sds has a fixed stiffness and damping; give the Hertz "
                                  f"RollingResistance a stiffness and a damping")
             words += ["rolling", "sds", g17(kr), g17(eta_r), g17(law.mu_r)]
+        words += twisting_words(law)
         words += ["damping", damping]
         if limit:
             words.append("limit_damping")

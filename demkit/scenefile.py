@@ -219,6 +219,15 @@ INTERACTIONS = Table({
         "stiffness": _n("rolling spring (default 2.25 mu_r^2 k)", check="positive", dim="stiffness"),
         "damping": _n("rolling dashpot (default: the normal damping ratio)", check="non_negative", dim="damping")},
         "rolling resistance of the contact law, needs friction (dk.RollingResistance)"),
+    "twisting_resistance": Table({
+        "stiffness": _n("twist spring, torque per radian (default Marshall's k_t a^2/2)", check="positive",
+                        dim="energy"),
+        "damping": _n("twist dashpot, torque per spin rate (default eta_t a^2/2)", check="non_negative",
+                      dim="angular_momentum"),
+        "lever": _n("the largest twisting torque is lever times the normal force (default (2/3) mu a)",
+                    check="non_negative", dim="length")},
+        "twisting resistance of the contact law, needs friction; an empty table: Marshall's coefficients "
+        "(dk.TwistingResistance)"),
     "gravity": Table({"acceleration": Key("vector", REQUIRED, "g, e.g. [0, 0, -9.81]", dim="acceleration")},
                      "uniform gravity (dk.Gravity)"),
     "uniform_field": Table({"field": Key("vector", REQUIRED, "B (energy = -m . B)", dim="field")},
@@ -444,12 +453,13 @@ def _check_rules(data):
         raise SchemaError(("scales",), 'is used only with units = "si"')
     inter = data["interactions"] or {}
     contact = inter.get("kelvin_voigt") or inter.get("hertz")
-    for name in ("friction", "rolling_resistance"):
+    for name in ("friction", "rolling_resistance", "twisting_resistance"):
         if inter.get(name) is not None and contact is None:
             raise SchemaError(("interactions", name), "needs a contact law: [interactions.kelvin_voigt] or "
                                                       "[interactions.hertz]")
-    if inter.get("rolling_resistance") is not None and inter.get("friction") is None:
-        raise SchemaError(("interactions", "rolling_resistance"), "needs [interactions.friction]")
+    for name in ("rolling_resistance", "twisting_resistance"):
+        if inter.get(name) is not None and inter.get("friction") is None:
+            raise SchemaError(("interactions", name), "needs [interactions.friction]")
     if inter.get("wall") and contact is None:
         raise SchemaError(("interactions", "wall", 0), "walls use the scene's contact law: add "
                                                        "[interactions.kelvin_voigt] or [interactions.hertz]")
@@ -480,6 +490,7 @@ def si_scales(scales):
     k = m / t**2
     return units, {"length": length, "time": t, "mass": m, "velocity": length / t, "angular_velocity": 1 / t,
                    "acceleration": length / t**2, "stiffness": k, "damping": m / t, "energy": k * length**2,
+                   "angular_momentum": m * length**2 / t,
                    "pressure": k / length, "dipole": mu, "dipole_prefactor": k * length**5 / mu**2,
                    "field": k * length**2 / mu, "inverse_length": 1 / length}
 
@@ -770,13 +781,16 @@ def _particles(d, box, src, base, scale):
 def _interactions(d, src, scale=None):
     from . import interactions as I
     inter = d["interactions"] or {}
-    friction = rolling = None
+    friction = rolling = twisting = None
     with _At(src, "interactions", "friction", keys=inter.get("friction") or ()):
         if inter.get("friction") is not None:
             friction = I.Friction(**inter["friction"])
     with _At(src, "interactions", "rolling_resistance", keys=inter.get("rolling_resistance") or ()):
         if inter.get("rolling_resistance") is not None:
             rolling = I.RollingResistance(**inter["rolling_resistance"])
+    with _At(src, "interactions", "twisting_resistance", keys=inter.get("twisting_resistance") or ()):
+        if inter.get("twisting_resistance") is not None:
+            twisting = I.TwistingResistance(**inter["twisting_resistance"])
     out = []
     for name in INTERACTION_ORDER:
         value = inter.get(name)
@@ -794,9 +808,9 @@ def _interactions(d, src, scale=None):
                     out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"],
                                    switch_width=value["switch_width"]))
             elif name == "kelvin_voigt":
-                out.append(I.KelvinVoigt(**value, friction=friction, rolling=rolling))
+                out.append(I.KelvinVoigt(**value, friction=friction, rolling=rolling, twisting=twisting))
             elif name == "hertz":
-                out.append(I.Hertz(**value, friction=friction, rolling=rolling))
+                out.append(I.Hertz(**value, friction=friction, rolling=rolling, twisting=twisting))
             elif name == "gravity":
                 out.append(I.Gravity(value["acceleration"]))
             elif name == "uniform_field":
