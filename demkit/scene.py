@@ -207,7 +207,10 @@ class Scene:
             partner = np.ascontiguousarray(pairs[:, 1], dtype=np.int32)
             start = np.searchsorted(pairs[:, 0], np.arange(n)).astype(np.int64)
             end = np.searchsorted(pairs[:, 0], np.arange(n), side="right").astype(np.int64)
-        code = solver.solve(p.position, p.dipole, np.arange(n, dtype=np.int64), start, end, partner)
+        position = p.position.copy()  # wrapped into the box (the kernels wrap theirs later)
+        for axis in np.flatnonzero(self.periodic):
+            position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
+        code = solver.solve(position, p.dipole, np.arange(n, dtype=np.int64), start, end, partner)
         if code:
             raise ValueError(f"at the starting positions {solver.failure(code)}")
         if self.arrays["dipole"] is not p.dipole:

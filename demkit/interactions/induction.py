@@ -83,53 +83,63 @@ class Induction:
 def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
                inv_width, alpha, field):
     """Add to ``field`` the dipole field of each pair's partner: over all pairs i < j
-    (``all_pairs``) or the half list (start, end, partner), minimum image along periodic axes,
-    within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3, C = 3/r^5 (times the switch S(r)
-    when inv_width > 0), or their Ewald-screened forms when alpha > 0 (demkit.interactions.ewald)."""
+    (``all_pairs``) or the half list (start, end, partner), minimum image along periodic axes
+    (positions wrapped into the box), within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3,
+    C = 3/r^5 (times the switch S(r) when inv_width > 0), or their Ewald-screened forms when
+    alpha > 0 (demkit.interactions.ewald)."""
     n = position.shape[0]
     cut2 = cutoff * cutoff
+    lx = box[0] if periodic[0] else math.inf
+    ly = box[1] if periodic[1] else math.inf
+    lz = box[2] if periodic[2] else math.inf
+    hx, hy, hz = 0.5 * lx, 0.5 * ly, 0.5 * lz
     for i in range(n):
         lo = i + 1 if all_pairs else start[i]
         hi = n if all_pairs else end[i]
+        xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
+        ax, ay, az = dipole[i, 0], dipole[i, 1], dipole[i, 2]
+        fx = fy = fz = 0.0
         for q in range(lo, hi):
             j = q if all_pairs else partner[q]
-            dx = position[j, 0] - position[i, 0]
-            dy = position[j, 1] - position[i, 1]
-            dz = position[j, 2] - position[i, 2]
-            if periodic[0]:
-                dx -= box[0] * round(dx / box[0])
-            if periodic[1]:
-                dy -= box[1] * round(dy / box[1])
-            if periodic[2]:
-                dz -= box[2] * round(dz / box[2])
+            dx = position[j, 0] - xi
+            dy = position[j, 1] - yi
+            dz = position[j, 2] - zi
+            dx = dx - lx if dx > hx else (dx + lx if dx < -hx else dx)
+            dy = dy - ly if dy > hy else (dy + ly if dy < -hy else dy)
+            dz = dz - lz if dz > hz else (dz + lz if dz < -hz else dz)
             r2 = dx * dx + dy * dy + dz * dz
             if r2 >= cut2:
                 continue
-            r = math.sqrt(r2)
             if alpha > 0.0:
+                r = math.sqrt(r2)
                 ar = alpha * r
                 gauss = 1.1283791670955126 * ar * math.exp(-ar * ar)
                 erfc = math.erfc(ar)
                 b = (erfc + gauss) / (r2 * r)
                 c = (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / (r2 * r2 * r)
             else:
-                b = 1.0 / (r2 * r)
-                c = 3.0 * b / r2
+                inv_r2 = 1.0 / r2
+                b = inv_r2 * math.sqrt(inv_r2)
+                c = 3.0 * b * inv_r2
                 if inv_width > 0.0:
-                    x = min(max((r - switch_on) * inv_width, 0.0), 1.0)
+                    x = min(max((r2 * math.sqrt(inv_r2) - switch_on) * inv_width, 0.0), 1.0)
                     s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
                     b *= s
                     c *= s
             b *= prefactor
             c *= prefactor
-            mjd = dipole[j, 0] * dx + dipole[j, 1] * dy + dipole[j, 2] * dz
-            mid = dipole[i, 0] * dx + dipole[i, 1] * dy + dipole[i, 2] * dz
-            field[i, 0] += c * mjd * dx - b * dipole[j, 0]
-            field[i, 1] += c * mjd * dy - b * dipole[j, 1]
-            field[i, 2] += c * mjd * dz - b * dipole[j, 2]
-            field[j, 0] += c * mid * dx - b * dipole[i, 0]
-            field[j, 1] += c * mid * dy - b * dipole[i, 1]
-            field[j, 2] += c * mid * dz - b * dipole[i, 2]
+            bx, by, bz = dipole[j, 0], dipole[j, 1], dipole[j, 2]
+            sj = c * (bx * dx + by * dy + bz * dz)
+            si = c * (ax * dx + ay * dy + az * dz)
+            fx += sj * dx - b * bx
+            fy += sj * dy - b * by
+            fz += sj * dz - b * bz
+            field[j, 0] += si * dx - b * ax
+            field[j, 1] += si * dy - b * ay
+            field[j, 2] += si * dz - b * az
+        field[i, 0] += fx
+        field[i, 1] += fy
+        field[i, 2] += fz
 
 
 @njit(cache=True)
