@@ -156,6 +156,9 @@ class _Export:
         if not np.allclose(p.inertia_factor, 0.4, rtol=0, atol=0):
             raise ValueError("Particles inertia_factor must be 2/5 (solid spheres) for LAMMPS: fix nve/sphere "
                              "integrates spins with I = 2/5 m R^2")
+        if scene.induction is not None:
+            raise ValueError("magnetisable spheres (Particles susceptibility > 0) cannot be exported: LAMMPS has no "
+                             "induced dipoles (its dipoles are permanent moments)")
         if not isinstance(self.integrator, VelocityVerlet):
             self.differs(f"integrator {self.integrator!r}", "LAMMPS' fix nve/sphere is velocity Verlet; "
                          "export the scene with dk.VelocityVerlet(dt) to compare runs")

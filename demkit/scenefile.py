@@ -119,6 +119,10 @@ PARTICLES = Table({
     "dipole": Key("vectors", doc="magnetic moments (default: none)", dim="dipole"),
     "angular_velocity": Key("vectors", doc="spins, rad per time (default: none)", dim="angular_velocity"),
     "fixed": Key("bools", doc="spheres held in place (they must start at rest)"),
+    "susceptibility": Key("numbers", doc="magnetic susceptibility chi = mu_r - 1 >= 0, one for all or one per "
+                                         "sphere: spheres with chi > 0 are magnetisable, their moments induced "
+                                         "(needs [interactions.dipole]; also with file and build)",
+                          check="non_negative"),
     "ids": Key("integers", doc="unique ids (default 0 .. N-1)"),
     "file": Key("string", doc="a .csv or .npz file of the spheres, relative to the scene file (see the docs)"),
     "build": Variant("kind", BUILDERS, "a builder: kind = random_packing, lattice, chain, ring or two_magnets"),
@@ -189,7 +193,12 @@ INTERACTIONS = Table({
                          "exact_below": Key("number_or_auto", "auto", 'fewer spheres keep the exact sum: "auto" '
                                             '(the crossover) or a number (0: always the FMM)')},
                          "every pair of a big open cluster by a fast multipole sum (dk.FMM; needs "
-                         "pip install \"demkit[fmm]\")")},
+                         "pip install \"demkit[fmm]\")"),
+                     "induction": Table({
+                         "tolerance": _n("relative residual at which the solve of induced moments stops",
+                                         default=1e-8, check="positive"),
+                         "max_iterations": Key("integer", 100, "iterations allowed per solve")},
+                         "the solve of the magnetisable spheres' moments (dk.Induction; particles.susceptibility)")},
                     "full dipole-dipole force and torque (dk.Dipole)",
                     one_of=((("ewald", "p3m", "fmm"), False),),
                     excludes=(("ewald", ("switch_width",)), ("p3m", ("switch_width",)),
@@ -751,6 +760,9 @@ def _particles(d, box, src, base, scale):
     if p["build"] is not None:
         kw, made = _builder(p["build"], box, src)
         if "particles" in kw:
+            if p["susceptibility"] is not None:
+                raise src.error(("particles", "susceptibility"), "the two_magnets builder makes permanent magnets: "
+                                "no susceptibility")
             return kw["particles"], made
         where = ("particles", "build")
     elif p["file"] is not None:
@@ -774,6 +786,8 @@ def _particles(d, box, src, base, scale):
     for name in ("position", "velocity", "dipole", "angular_velocity"):
         if kw.get(name) is not None and len(kw[name]) == 0:
             raise src.error(where + ((name,) if where == ("particles",) else ()), "needs at least one sphere")
+    if p["susceptibility"] is not None:
+        kw["susceptibility"] = p["susceptibility"]
     with _At(src, *where, keys=[k for k in kw if where == ("particles",) and p.get(k) is not None]):
         return Particles(**kw), made
 
@@ -800,13 +814,16 @@ def _interactions(d, src, scale=None):
             if name in ("dipole", "power_law_dipole"):
                 cls = I.Dipole if name == "dipole" else I.PowerLawDipole
                 method = next((m for m in ("ewald", "p3m", "fmm") if value.get(m) is not None), None)
+                options = {}
                 if method is not None:
                     with _At(src, "interactions", name, method, keys=value[method]):
-                        long_range = {"ewald": I.Ewald, "p3m": I.P3M, "fmm": I.FMM}[method](**value[method])
-                    out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], long_range=long_range))
+                        options["long_range"] = {"ewald": I.Ewald, "p3m": I.P3M, "fmm": I.FMM}[method](**value[method])
                 else:
-                    out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"],
-                                   switch_width=value["switch_width"]))
+                    options["switch_width"] = value["switch_width"]
+                if value.get("induction") is not None:
+                    with _At(src, "interactions", name, "induction", keys=value["induction"]):
+                        options["induction"] = I.Induction(**value["induction"])
+                out.append(cls(prefactor=value["prefactor"], cutoff=value["cutoff"], **options))
             elif name == "kelvin_voigt":
                 out.append(I.KelvinVoigt(**value, friction=friction, rolling=rolling, twisting=twisting))
             elif name == "hertz":

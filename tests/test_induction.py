@@ -261,3 +261,55 @@ def test_a_checkpointed_run_resumes_bit_identical(tmp_path, cluster_scene):
     sim.run(until=2e-3)
     for name in ("position", "velocity", "dipole"):
         assert np.array_equal(getattr(second.particles, name), getattr(whole.particles, name)), name
+
+
+def test_scene_files_make_magnetisable_spheres_and_check_the_keys():
+    text = """
+units = "plain"
+[particles]
+position = [[0, 0, 0], [0, 0, 0.002]]
+radius = 0.001
+mass = 3.3e-5
+susceptibility = 1000
+[interactions.dipole]
+prefactor = 1e-7
+[interactions.dipole.induction]
+tolerance = 1e-12
+[interactions.uniform_field]
+field = [0, 0, 0.02]
+[integrator]
+method = "VelocityVerlet"
+dt = 1e-6
+[run]
+duration = 1e-4
+"""
+    loaded = dk.parse_scene(text)
+    alpha = clausius_mossotti(1000.0) * 1e-9 / 1e-7
+    expected = alpha * 0.02 / (1.0 - 2.0 * 1e-7 * alpha / 0.002**3)
+    np.testing.assert_allclose(loaded.scene.particles.dipole[:, 2], expected, rtol=1e-12)
+    assert loaded.scene.induction.settings.tolerance == 1e-12
+    with pytest.raises(dk.SceneFileError, match="particles.susceptibility: must be zero or positive"):
+        dk.parse_scene(text.replace("susceptibility = 1000", "susceptibility = -1"))
+    with pytest.raises(dk.SceneFileError, match="induction.maxiter: unknown key"):
+        dk.parse_scene(text.replace("tolerance = 1e-12", "maxiter = 3"))
+
+
+def test_docs_page_example_prints_what_it_says():
+    """docs/induced_dipoles.md: its printed numbers, recomputed."""
+    import re
+    from pathlib import Path
+    page = Path(__file__).resolve().parents[1] / "docs" / "induced_dipoles.md"
+    ns = {}
+    for block in re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S):
+        exec(compile(block, str(page), "exec"), ns)
+    p, force = ns["p"], ns["force"]
+    assert p.dipole[0, 2] == pytest.approx(0.0002656, rel=1e-4)
+    assert force[1, 2] == pytest.approx(-0.002645, rel=1e-3)
+    assert force[1, 2] == pytest.approx(-6 * 1e-7 * p.dipole[0, 2] ** 2 / 0.002**4, rel=1e-12)
+    assert ns["scene"].energy()["total"] == pytest.approx(-0.5 * p.dipole[:, 2].sum() * 0.02, rel=1e-12)
+
+
+def test_lammps_export_refuses_magnetisable_spheres(tmp_path):
+    scene, _ = solved([[0, 0, 0], [0, 0, 3 * R]], 100.0)
+    with pytest.raises(ValueError, match="LAMMPS has no induced dipoles"):
+        dk.export_lammps(scene, dk.VelocityVerlet(1e-6), tmp_path)
