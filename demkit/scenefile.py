@@ -196,7 +196,7 @@ INTERACTIONS = Table({
                          "pip install \"demkit[fmm]\")"),
                      "induction": Table({
                          "tolerance": _n("relative residual at which the solve of induced moments stops",
-                                         default=1e-8, check="positive"),
+                                         default=1e-6, check="positive"),
                          "max_iterations": Key("integer", 100, "iterations allowed per solve")},
                          "the solve of the magnetisable spheres' moments (dk.Induction; particles.susceptibility)")},
                     "full dipole-dipole force and torque (dk.Dipole)",

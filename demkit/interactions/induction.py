@@ -57,7 +57,7 @@ def polarisability(radius, susceptibility, prefactor):
 
 
 class Induction:
-    """Settings of the induced-moment solve: ``Dipole(prefactor, induction=Induction(1e-8))``.
+    """Settings of the induced-moment solve: ``Dipole(prefactor, induction=Induction(1e-6))``.
 
     tolerance : relative residual |r| / |b| at which conjugate gradients stop (0 < tolerance < 1).
         The moments are then accurate to about tolerance times the condition number (below 10 for
@@ -65,7 +65,7 @@ class Induction:
     max_iterations : iterations allowed per solve; a solve that needs more stops the run.
     """
 
-    def __init__(self, tolerance=1e-8, max_iterations=100):
+    def __init__(self, tolerance=1e-6, max_iterations=100):
         tolerance = number("Induction tolerance", tolerance)
         if not 0.0 < tolerance < 1.0:
             raise ValueError(f"Induction tolerance must lie between 0 and 1 (a relative residual), got {tolerance!r}")
