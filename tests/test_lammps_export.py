@@ -350,3 +350,72 @@ def test_oblique_walls_agree_to_round_off(tmp_path):
     assert traj.velocity[-1, 0] @ traj.velocity[0, 0] > 1.05 * (traj.velocity[0, 0] @ traj.velocity[0, 0])
     assert traj.velocity[0, 1] @ nb < -0.9 and traj.velocity[-1, 1] @ nb > 0.5  # bounced (e = 0.7)
     assert dx < 1e-12 and dv < 1e-12 and dw == 0.0  # measured 7e-16, 1.2e-14
+
+
+# ---- twisting resistance --------------------------------------------------------------------------
+
+def twisting_pairs(twisting, hertz=False):
+    """Three spheres touching, spinning strongly about their contact normals (the twist springs wind
+    up and slide within the 100 steps), friction with LAMMPS' rules, twisting resistance."""
+    pos = np.array([[0.0, 0.0, 0.0], [0.97, 0.12, 0.05], [0.1, 0.99, 0.0]])
+    p = dk.Particles(position=pos, velocity=[[0.05, 0.0, 0.0], [-0.05, 0.0, 0.0], [0, -0.05, 0]], radius=0.5,
+                     mass=[1.0, 1.2, 0.9], angular_velocity=[[0.5, 0.2, 3.0], [-2.0, 0.3, -4.0], [0, 5, 1]])
+    friction = dk.Friction(0.4, slip_radius="full", sliding="lammps")
+    if hertz:
+        return dk.Scene(p, [dk.Hertz(young=2e4, poisson=0.3, restitution=0.8, friction=friction, twisting=twisting)])
+    return dk.Scene(p, [dk.KelvinVoigt(2000.0, 2.0, friction=friction, twisting=twisting)])
+
+
+def spinning_on_a_wall(twisting):
+    """Two spheres resting on a Kelvin-Voigt wall under gravity, spinning about its normal (no slip at
+    the contact point: the wall's friction lever, R in LAMMPS, R - delta in demkit, plays no part)."""
+    p = dk.Particles(position=[[0, 0, 0.49], [1.5, 0, 0.495]], radius=0.5, mass=1.0,
+                     angular_velocity=[[0, 0, 4.0], [0, 0, -1.0]])
+    law = dk.KelvinVoigt(2000.0, 2.0, friction=dk.Friction(0.4, slip_radius="full", sliding="lammps"),
+                         twisting=twisting)
+    return dk.Scene(p, [law, dk.Wall((0, 0, 0), (0, 0, 1)), dk.Gravity((0, 0, -9.81))])
+
+
+def test_twisting_resistance_maps_to_twisting_marshall_or_sds(tmp_path):
+    deck = dk.export_lammps(twisting_pairs(dk.TwistingResistance()), dk.VelocityVerlet(DT), tmp_path,
+                            duration=0.1).deck.read_text()
+    assert ("pair_coeff  * * hooke 2000 2 tangential linear_history 571.42857142857144 0.53452248382484879 "
+            "0.40000000000000002 twisting marshall damping velocity") in deck
+    deck = dk.export_lammps(twisting_pairs(dk.TwistingResistance(0.5, 0.05, 0.02), hertz=True),
+                            dk.VelocityVerlet(DT), tmp_path, duration=0.1).deck.read_text()
+    assert "tangential mindlin NULL 0.9074852129730302 0.40000000000000002 twisting sds 0.5 0.050000000000000003 " \
+           "0.02 damping tsuji limit_damping" in deck
+    files = dk.export_lammps(spinning_on_a_wall(dk.TwistingResistance()), dk.VelocityVerlet(DT), tmp_path,
+                             duration=0.1, strict=False)
+    assert "twisting marshall damping velocity zplane 0 NULL" in files.deck.read_text()
+    with pytest.raises(ValueError, match="either marshall .* or sds"):
+        dk.export_lammps(twisting_pairs(dk.TwistingResistance(stiffness=0.5)), dk.VelocityVerlet(DT), tmp_path,
+                         duration=0.1)
+    scene = twisting_pairs(dk.TwistingResistance())
+    dk.Simulation(scene, dk.VelocityVerlet(DT)).run(duration=5 * DT)
+    with pytest.raises(ValueError, match="contact history"):  # wound twist springs
+        dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=0.1)
+
+
+@needs_lammps
+@pytest.mark.parametrize("twisting, hertz", [("marshall", False), ("sds", False), ("marshall", True)])
+def test_twisting_resistance_agrees_with_lammps_to_round_off(tmp_path, twisting, hertz):
+    def make():
+        return twisting_pairs(dk.TwistingResistance() if twisting == "marshall" else
+                              dk.TwistingResistance(0.5, 0.05, 0.02), hertz)
+
+    files = dk.export_lammps(make(), dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT)
+    (dx, dv, dw, _), traj = differences(make(), run_lammps(files))
+    untwisted = dk.Simulation(twisting_pairs(None, hertz), dk.VelocityVerlet(DT)).run(STEPS * DT)
+    assert np.abs(traj.angular_velocity[-1] - untwisted.angular_velocity[-1]).max() > 5e-3  # it acted
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12  # measured 9e-17, 3e-16, 2e-15
+
+
+@needs_lammps
+def test_twisting_against_a_wall_agrees_with_lammps_to_round_off(tmp_path):
+    scene = spinning_on_a_wall(dk.TwistingResistance())
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=STEPS * DT, record_every=DT,
+                             strict=False)
+    (dx, dv, dw, _), traj = differences(spinning_on_a_wall(dk.TwistingResistance()), run_lammps(files))
+    assert abs(traj.angular_velocity[-1, 0, 2] - 4.0) > 0.01  # the table slowed the spin
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12  # measured 0, 8e-17, 0
