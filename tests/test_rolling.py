@@ -90,7 +90,7 @@ def test_without_rolling_resistance_the_same_sphere_rolls_down_any_slope():
 
 def test_spin_about_the_normal_is_not_resisted():
     """Rolling resistance sees only rolling (w x n): a sphere spinning about the wall's normal keeps
-    its spin exactly (twisting resistance is not modelled)."""
+    its spin exactly (resisting that is dk.TwistingResistance's job, tests/test_twisting.py)."""
     p, scene = on_floor(kelvin_voigt(0.1), spin=[[0.0, 0.0, 30.0]])
     dk.Simulation(scene, dk.VelocityVerlet(1e-5)).run(0.05)
     assert p.angular_velocity[0, 2] == 30.0

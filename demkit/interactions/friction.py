@@ -1,7 +1,8 @@
 """Coulomb friction with a tangential spring-dashpot, the elastic displacement kept per contact.
 
 A contact law (Kelvin-Voigt, Hertz) calls :func:`pair_friction` (or :func:`wall_friction`) with its
-normal force; the same call adds rolling resistance (:mod:`.rolling`) when the law has it. In the
+normal force; the same call adds rolling resistance (:mod:`.rolling`) when the law has it (twisting
+resistance, :mod:`.twisting`, is added by the law's own twisting kernels after this call). In the
 pair's orientation (n = (x_j - x_i)/r, overlap delta), the slip velocity of j's contact point
 relative to i's is
 

@@ -16,8 +16,8 @@ The limiting torque is mu_r R* |F_n|: a sphere rolling on a plane in gross rolli
 5/7 mu_r g, and one at rest stays on a slope up to tan(theta) = mu_r. This is the elastic-plastic
 spring-dashpot model ("type C") of Ai, Chen, Rotter & Ooi (Powder Technol. 206, 269 (2011)) with
 its default stiffness k_r = 2.25 mu_r^2 k_n (a rolling torque stiffness 2.25 mu_r^2 R*^2 k_n,
-after Iwashita & Oda 1998), written like LAMMPS' ``rolling sds`` (Luding 2008). Twisting resistance
-is not modelled.
+after Iwashita & Oda 1998), written like LAMMPS' ``rolling sds`` (Luding 2008). Spin about the
+normal is resisted by twisting resistance (:mod:`.twisting`), not here.
 """
 from __future__ import annotations
 
