@@ -1,5 +1,6 @@
 """What induced dipoles cost: a step of the reference scene with magnetisable spheres against the
-same step with permanent moments (issue: induced dipoles).
+same step with permanent moments (issue: induced dipoles), with dipoles cut plainly at 4 d (as the
+LAMMPS deck) and switched off over [3 d, 4 d].
 
 The N-body reference scene (benchmarks/reference_scene.py: phi = 0.2, d = 1, dipoles cut at 4 d, dt = 0.001; Kelvin-Voigt
 contacts k = 5000 with dashpot 1.5, stiffer than the deck's 1000, which the guards find too soft for
@@ -31,10 +32,14 @@ from reference_scene import make_reference_scene  # noqa: E402
 RESULTS = Path(__file__).parent / "results" / "induction.json"
 CHI = 1000.0
 DT = 1e-3
+#: the switched variants' switch width: the field then changes smoothly and the solve's linear
+#: predictor works (a plain cutoff makes the field jump as pairs cross it)
+SWITCH = 1.0
 
 
-def scene_of(ref, induced, tolerance):
-    """The reference scene with permanent moments, or with soft spheres of the same lone moment."""
+def scene_of(ref, induced, tolerance, switch_width=None):
+    """The reference scene with permanent moments, or with soft spheres of the same lone moment
+    (dipoles cut at 4 d, plainly or switched off over ``switch_width``)."""
     n = len(ref["x"])
     box = dk.Box([ref["L"]] * 3, periodic=True)
     radius = ref["d"] / 2
@@ -42,11 +47,12 @@ def scene_of(ref, induced, tolerance):
     law = dk.KelvinVoigt(5000.0, 1.5)  # stiffer than the deck's 1000: induced moments align and pull harder
     if not induced:
         p = dk.Particles(ref["x"], dipole=ref["mu"], **common)
-        return dk.Scene(p, [dk.Dipole(1.0, cutoff=4.0), law], box=box)
+        return dk.Scene(p, [dk.Dipole(1.0, cutoff=4.0, switch_width=switch_width), law], box=box)
     alpha = CHI / (CHI + 3.0) * radius**3  # prefactor 1
     p = dk.Particles(ref["x"], susceptibility=np.full(n, CHI), **common)
     field = dk.UniformField((0.0, 0.0, 2.0 / alpha))
-    return dk.Scene(p, [dk.Dipole(1.0, cutoff=4.0, induction=dk.Induction(tolerance)), law, field], box=box)
+    dipole = dk.Dipole(1.0, cutoff=4.0, switch_width=switch_width, induction=dk.Induction(tolerance))
+    return dk.Scene(p, [dipole, law, field], box=box)
 
 
 def time_steps(sim, steps):
@@ -60,6 +66,9 @@ def measure(n, tolerances, blocks, steps):
     sims = {"permanent": dk.Simulation(scene_of(ref, False, None), dk.VelocityVerlet(DT))}
     for tol in tolerances:
         sims[f"induced {tol:g}"] = dk.Simulation(scene_of(ref, True, tol), dk.VelocityVerlet(DT))
+    sims["permanent, switched"] = dk.Simulation(scene_of(ref, False, None, SWITCH), dk.VelocityVerlet(DT))
+    for tol in tolerances:
+        sims[f"induced {tol:g}, switched"] = dk.Simulation(scene_of(ref, True, tol, SWITCH), dk.VelocityVerlet(DT))
     for sim in sims.values():  # compile and settle
         sim.run(20 * DT)
     times = {name: [] for name in sims}
@@ -67,8 +76,8 @@ def measure(n, tolerances, blocks, steps):
         for name, sim in sims.items():
             times[name].append(time_steps(sim, steps))
     out = {"n": n, "steps_per_block": steps, "blocks": blocks}
-    base = float(np.median(times["permanent"]))
     for name, sim in sims.items():
+        base = float(np.median(times["permanent, switched" if "switched" in name else "permanent"]))
         seconds = float(np.median(times[name]))
         row = {"seconds_per_step": seconds, "relative_to_permanent": seconds / base}
         solver = sim.scene.induction

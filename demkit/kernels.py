@@ -103,7 +103,9 @@ class Plan:
 
     @property
     def effect_width(self):
-        return sum(effect.history_size for effect in self.effects)
+        """Per-sphere history values: the effects', then the induction solve's (its last moments)."""
+        own = self.induction.history_size if self.induction is not None else 0
+        return sum(effect.history_size for effect in self.effects) + own
 
     @property
     def lists(self):
@@ -602,20 +604,24 @@ class _Source:
         # pair loop once per literal value and once more for calls from Python (3x the compile time
         # of the largest functions, for no measurable speed: N = 8000 within the +-4 % noise).
         lines = [f"    maintain_lists(s, {strict} != False)"] if self.plan.lists else []
+        lines += ["    commit_flag = commit != False"]
         if self.plan.induction is not None and speed != "fast":  # moments first: slow forces read them
-            lines += [f"    if {self.induce_call()} != 0 and s.status[0] == OK:",
+            lines += [f"    if {self.induce_call('commit_flag')} != 0 and s.status[0] == OK:",
                       "        s.status[0] = INDUCTION_FAILED"]
-        lines += [f"    clear({force}, {torque})", "    power = 0.0", "    commit_flag = commit != False"]
+        lines += [f"    clear({force}, {torque})", "    power = 0.0"]
         return lines + self.force_calls(speed, force, torque) + ["    return power"]
 
-    def induce_call(self):
-        """The call solving the induced moments in s.dipole (its pairs: the Dipole's group's list)."""
+    def induce_call(self, commit):
+        """The call solving the induced moments in s.dipole (its pairs: the Dipole's group's list;
+        its last moments kept in the per-sphere history after the effects', when ``commit``)."""
         g = self.plan.induction.group
         if g is None:
             lists = "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32)"
         else:
             lists = f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner"
-        return f"induce(s.position, s.dipole, s.tag, s.box, s.params, {self.induction_slot}, {lists})"
+        offset = self.plan.effect_width - self.plan.induction.history_size
+        return (f"induce(s.position, s.dipole, s.tag, s.box, s.params, {self.induction_slot}, {lists}, "
+                f"s.sphere_history, {offset}, {commit})")
 
     def scene_functions(self):
         plan = self.plan
@@ -720,7 +726,7 @@ class _Source:
                       '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
             if plan.lists:
                 lines.append("    maintain_lists(s, False != False)")
-            lines.append(f"    return {self.induce_call()}")
+            lines.append(f"    return {self.induce_call('False != False')}")
         for g, group in enumerate(plan.groups):
             for kind in ("pair_energies", "pair_forces"):
                 lines += ["", "", "@njit(**OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
