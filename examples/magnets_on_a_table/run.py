@@ -212,8 +212,8 @@ def main(argv=None):
           f"kinetic + rotational {1e3 * (energy['kinetic'][-1] + energy['rotational'][-1]):.2g} mJ")
     spin = 0.5 * traj.inertia * traj.angular_velocity[-1, :, 2] ** 2  # spin about the vertical, J
     print(f"rotational energy left {1e3 * energy['rotational'][-1]:.2g} mJ, {spin.sum() / energy['rotational'][-1]:.0%} "
-          f"of it spin about the vertical (largest {abs(traj.angular_velocity[-1, :, 2]).max():.3g} rad/s), which "
-          f"nothing slows: demkit has no twisting resistance")
+          f"of it spin about the vertical (largest {abs(traj.angular_velocity[-1, :, 2]).max():.3g} rad/s): this "
+          f"run leaves out twisting resistance (see the README)")
     print(f"library time-step limit at the end {limit:.3g} s (dt {dt:.3g})")
 
     plot_energy(traj, args.output / "energy.png")
