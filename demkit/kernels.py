@@ -616,10 +616,9 @@ class _Source:
         its last moments kept in the per-sphere history after the effects', when ``commit``)."""
         g = self.plan.induction.group
         if g is None:
-            lists = ("np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32), "
-                     "np.zeros(2, dtype=np.int64)")
+            lists = "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32)"
         else:
-            lists = f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.lists[{g}].bounds"
+            lists = f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner"
         offset = self.plan.effect_width - self.plan.induction.history_size
         return (f"induce(s.position, s.dipole, s.tag, s.box, s.params, {self.induction_slot}, {lists}, "
                 f"s.sphere_history, {offset}, {commit})")

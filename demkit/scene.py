@@ -210,8 +210,7 @@ class Scene:
         position = p.position.copy()  # wrapped into the box (the kernels wrap theirs later)
         for axis in np.flatnonzero(self.periodic):
             position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
-        code = solver.solve(position, p.dipole, np.arange(n, dtype=np.int64), start, end, partner,
-                            np.array([0, n], dtype=np.int64))
+        code = solver.solve(position, p.dipole, np.arange(n, dtype=np.int64), start, end, partner)
         if code:
             raise ValueError(f"at the starting positions {solver.failure(code)}")
         if self.arrays["dipole"] is not p.dipole:

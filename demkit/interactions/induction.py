@@ -33,7 +33,7 @@ import math
 import weakref
 
 import numpy as np
-from numba import njit, objmode, prange
+from numba import njit, objmode
 
 from .base import number
 
@@ -81,40 +81,21 @@ class Induction:
         return f"Induction(tolerance={self.tolerance!r}, max_iterations={self.max_iterations!r})"
 
 
-@njit(parallel=True, **FIELD_OPTIONS)
-def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
-               inv_width, alpha, bounds, field):
-    """Add to ``field`` the dipole field of each pair's partner (:func:`pair_field_rows`), the owners
-    cut into the chunks ``bounds`` (the list's, fixed per scene) run on threads, each into its own
-    buffer, added in a fixed order: the same bits on any number of threads."""
-    n = position.shape[0]
-    chunks = bounds.shape[0] - 1
-    parts = np.zeros((chunks, n, 3))
-    for c in prange(chunks):
-        pair_field_rows(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff,
-                        switch_on, inv_width, alpha, bounds[c], bounds[c + 1], parts[c])
-    for c in range(chunks):
-        for i in range(n):
-            field[i, 0] += parts[c, i, 0]
-            field[i, 1] += parts[c, i, 1]
-            field[i, 2] += parts[c, i, 2]
-
-
 @njit(**FIELD_OPTIONS)
-def pair_field_rows(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
-                    inv_width, alpha, first, last, field):
-    """Add to ``field`` the dipole field of each pair's partner, for the owners first..last-1: over
-    all pairs i < j (``all_pairs``) or the half list (start, end, partner), minimum image along
-    periodic axes (positions wrapped into the box), within ``cutoff``: A [C (m_j.d) d - B m_j] with
-    B = 1/r^3, C = 3/r^5 (times the switch S(r) when inv_width > 0), or their Ewald-screened forms
-    when alpha > 0 (demkit.interactions.ewald)."""
+def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
+               inv_width, alpha, field):
+    """Add to ``field`` the dipole field of each pair's partner: over all pairs i < j
+    (``all_pairs``) or the half list (start, end, partner), minimum image along periodic axes
+    (positions wrapped into the box), within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3,
+    C = 3/r^5 (times the switch S(r) when inv_width > 0), or their Ewald-screened forms when
+    alpha > 0 (demkit.interactions.ewald)."""
     n = position.shape[0]
     cut2 = cutoff * cutoff
     lx = box[0] if periodic[0] else math.inf
     ly = box[1] if periodic[1] else math.inf
     lz = box[2] if periodic[2] else math.inf
     hx, hy, hz = 0.5 * lx, 0.5 * ly, 0.5 * lz
-    for i in range(first, last):
+    for i in range(n):
         lo = i + 1 if all_pairs else start[i]
         hi = n if all_pairs else end[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
@@ -175,7 +156,7 @@ def induction_energy(dipole, tag, params, slot):
 
 
 @njit(cache=True)
-def induce(position, dipole, tag, box, params, slot, start, end, partner, bounds, history, offset, commit):
+def induce(position, dipole, tag, box, params, slot, start, end, partner, history, offset, commit):
     """The kernels' call: solve the induced moments in place in ``dipole`` (object mode, the solver
     registered under the key params[slot]); with ``commit``, start from the linear extrapolation of
     the last two solutions, the previous one kept in history[:, offset:offset + 4] (three components
@@ -186,16 +167,16 @@ def induce(position, dipole, tag, box, params, slot, start, end, partner, bounds
     m = dipole.copy()
     last = history[:, offset:offset + HISTORY].copy()
     with objmode(code="int64"):
-        code = solve_registered(key, x, m, tag, start, end, partner, bounds, last if commit else None)
+        code = solve_registered(key, x, m, tag, start, end, partner, last if commit else None)
     dipole[:, :] = m
     if commit:
         history[:, offset:offset + HISTORY] = last
     return code
 
 
-def solve_registered(key, position, dipole, tag, start, end, partner, bounds, last):
+def solve_registered(key, position, dipole, tag, start, end, partner, last):
     """Run the solver registered under ``key`` (see :meth:`InducedMoments.solve`)."""
-    return _SOLVERS[int(key)].solve(position, dipole, tag, start, end, partner, bounds, last)
+    return _SOLVERS[int(key)].solve(position, dipole, tag, start, end, partner, last)
 
 
 class _Spheres:
@@ -263,18 +244,17 @@ class InducedMoments:
             b0 += magnet.field(position)
         return b0
 
-    def field(self, position, moments, start, end, partner, bounds):
-        """(N, 3) field T m at each sphere from the others' ``moments``, summed as the Dipole sums it
-        (its pairs' owners cut into the chunks ``bounds``)."""
+    def field(self, position, moments, start, end, partner):
+        """(N, 3) field T m at each sphere from the others' ``moments``, summed as the Dipole sums it."""
         out = np.zeros_like(moments)
         if self.kind is not None:
             pair_field(position, moments, self.box_size, self.periodic, start, end, partner, self.kind == "all",
-                       self.prefactor, self.cutoff, self.switch_on, self.inv_width, self.alpha_screening, bounds, out)
+                       self.prefactor, self.cutoff, self.switch_on, self.inv_width, self.alpha_screening, out)
         if self.tuned is not None:
             out += self.tuned.field(_Spheres(position, moments), self.box)
         return out
 
-    def solve(self, position, dipole, tag, start, end, partner, bounds, last=None):
+    def solve(self, position, dipole, tag, start, end, partner, last=None):
         """Replace the magnetisable spheres' rows of ``dipole`` (internal order; ``tag`` the user
         index of each row) by their self-consistent moments; returns a module code. ``last`` (N, 4):
         the previous solution and a flag (1: set), updated in place; with it the solve starts from
@@ -289,11 +269,11 @@ class InducedMoments:
             last[:, 3] = 1.0
         source = self.applied(position)
         if not soft.all():
-            source += self.field(position, np.where(soft[:, None], 0.0, dipole), start, end, partner, bounds)
+            source += self.field(position, np.where(soft[:, None], 0.0, dipole), start, end, partner)
         b = scale * source
         y = np.zeros_like(dipole)
         y[soft] = dipole[soft] / scale[soft]
-        r = b - (y - scale * self.field(position, scale * y, start, end, partner, bounds))
+        r = b - (y - scale * self.field(position, scale * y, start, end, partner))
         goal = self.settings.tolerance * math.sqrt(float(np.vdot(b, b)))
         rr = float(np.vdot(r, r))
         self.start_residual = math.sqrt(rr) / max(goal / self.settings.tolerance, 1e-300)
@@ -303,7 +283,7 @@ class InducedMoments:
                 code = NOT_CONVERGED
                 break
             k += 1
-            ap = p - scale * self.field(position, scale * p, start, end, partner, bounds)
+            ap = p - scale * self.field(position, scale * p, start, end, partner)
             pap = float(np.vdot(p, ap))
             if not pap > 0.0:
                 code = NOT_POSITIVE
