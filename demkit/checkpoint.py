@@ -100,6 +100,7 @@ def _interval(name, value):
 def scene_hash(scene, integrator):
     """sha256 of everything constant that the stepping depends on (not the state)."""
     from . import __version__
+    from .interactions import induction
     h = hashlib.sha256()
     p = scene.particles
 
@@ -116,8 +117,8 @@ def scene_hash(scene, integrator):
         add("interaction", type(inter).__module__ + "." + type(inter).__qualname__)
     params = scene.params.copy()
     params[scene.time_step_slots] = 0.0  # set by each run from the integrator
-    if scene.induction_slot is not None:  # the induced-moment solver's key: a number of this process
-        params[scene.induction_slot] = 0.0
+    if scene.induction_slot is not None:  # the induced-moment solver's key (a number of this process), its counts
+        params[scene.induction_slot:scene.induction_slot + induction.STATISTICS] = 0.0
     add("params", params)
     for name in ("radius", "mass", "inertia", "ids"):
         add(name, np.asarray(getattr(p, name)))

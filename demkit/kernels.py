@@ -620,7 +620,7 @@ class _Source:
         else:
             lists = f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner"
         offset = self.plan.effect_width - self.plan.induction.history_size
-        return (f"induce(s.position, s.dipole, s.tag, s.box, s.params, {self.induction_slot}, {lists}, "
+        return (f"induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, {self.induction_slot}, {lists}, "
                 f"s.sphere_history, {offset}, {commit})")
 
     def scene_functions(self):

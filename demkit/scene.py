@@ -210,7 +210,9 @@ class Scene:
         position = p.position.copy()  # wrapped into the box (the kernels wrap theirs later)
         for axis in np.flatnonzero(self.periodic):
             position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
-        code = solver.solve(position, p.dipole, np.arange(n, dtype=np.int64), start, end, partner)
+        code = induction.induce(position, p.dipole, np.arange(n, dtype=np.int64), self.arrays["box"],
+                                self.arrays["periodic"], self.params, self.induction_slot, start, end, partner,
+                                np.zeros((n, 0)), 0, False)
         if code:
             raise ValueError(f"at the starting positions {solver.failure(code)}")
         if self.arrays["dipole"] is not p.dipole:
@@ -338,6 +340,8 @@ class Scene:
         # (the order kernels._Source gives their slots)
         self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
         self.induction_slot = len(self.params) - len(tables[-1]) if self.induction is not None else None
+        if self.induction is not None:
+            self.induction.bind(self.params, self.induction_slot)
         # slots of parameters named "dt": the integrator's time step, set by each run
         self.time_step_slots, slot = [], 0
         for inter in self.interactions + self.effects:

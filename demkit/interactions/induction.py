@@ -144,39 +144,155 @@ def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, 
         field[i, 2] += fz
 
 
+#: the induction table in the scene's params (from ``slot``): the solver's key and its statistics
+#: (zeroed when a checkpoint fingerprints a scene), then settings, the Dipole's sum, B_0, the alphas
+KEY, SOLVES, ITERATIONS, MOST, LAST_ITERATIONS, LAST_CODE, LAST_RESIDUAL, START_RESIDUAL = range(8)
+STATISTICS = 8
+(TOLERANCE, MAX_ITERATIONS, KIND, PREFACTOR, CUTOFF, SWITCH_ON, INV_WIDTH, SCREENING, BX, BY, BZ, LONG_RANGE,
+ MAGNETS) = range(8, 21)
+HEAD = 21
+KINDS = {None: 0.0, "all": 1.0, "list": 2.0}
+
+
 @njit(cache=True)
 def induction_energy(dipole, tag, params, slot):
-    """sum_i |m_i|^2 / (2 alpha_i) over the magnetisable spheres (alpha by tag at params[slot + 1:])."""
+    """sum_i |m_i|^2 / (2 alpha_i) over the magnetisable spheres (alpha by tag in the table)."""
     energy = 0.0
     for i in range(dipole.shape[0]):
-        a = params[slot + 1 + tag[i]]
+        a = params[slot + HEAD + tag[i]]
         if a > 0.0:
             energy += (dipole[i, 0] ** 2 + dipole[i, 1] ** 2 + dipole[i, 2] ** 2) / (2.0 * a)
     return energy
 
 
 @njit(cache=True)
-def induce(position, dipole, tag, box, params, slot, start, end, partner, history, offset, commit):
-    """The kernels' call: solve the induced moments in place in ``dipole`` (object mode, the solver
-    registered under the key params[slot]); with ``commit``, start from the linear extrapolation of
-    the last two solutions, the previous one kept in history[:, offset:offset + 4] (three components
-    and 1 once set). Returns 0 when converged (module codes otherwise)."""
-    key = params[slot]
-    # fresh arrays into object mode (a view would be boxed as its parent: see fmm.fmm_sum)
-    x = position.copy()
-    m = dipole.copy()
-    last = history[:, offset:offset + HISTORY].copy()
-    with objmode(code="int64"):
-        code = solve_registered(key, x, m, tag, start, end, partner, last if commit else None)
-    dipole[:, :] = m
+def field_of(position, moments, box, periodic, params, slot, start, end, partner):
+    """(N, 3) field T m at each sphere from the others' ``moments``, summed as the scene's Dipole
+    sums it: its pair loop (compiled) and its long-range sum (object mode, the registered solver)."""
+    field = np.zeros(moments.shape)
+    kind = params[slot + KIND]
+    if kind > 0.0:
+        pair_field(position, moments, box, periodic, start, end, partner, kind == 1.0, params[slot + PREFACTOR],
+                   params[slot + CUTOFF], params[slot + SWITCH_ON], params[slot + INV_WIDTH],
+                   params[slot + SCREENING], field)
+    if params[slot + LONG_RANGE] != 0.0:
+        key = params[slot + KEY]
+        x = position.copy()  # fresh arrays into object mode (a view would be boxed as its parent)
+        m = moments.copy()
+        extra = np.zeros(moments.shape)
+        with objmode():
+            long_range_field(key, x, m, extra)
+        field += extra
+    return field
+
+
+def long_range_field(key, position, moments, out):
+    """Add the field of the long-range sum of the solver registered under ``key`` to ``out``."""
+    _SOLVERS[int(key)].long_range_field(position, moments, out)
+
+
+def magnet_field(key, position, out):
+    """Add the MagnetFields' field of the solver registered under ``key`` to ``out``."""
+    _SOLVERS[int(key)].magnet_field(position, out)
+
+
+@njit(cache=True)
+def _dot(a, b):
+    total = 0.0
+    for i in range(a.shape[0]):
+        total += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
+    return total
+
+
+@njit(cache=True)
+def induce(position, dipole, tag, box, periodic, params, slot, start, end, partner, history, offset, commit):
+    """Solve the magnetisable spheres' moments in place in ``dipole`` (module docstring; the table
+    at params[slot:]): conjugate gradients from the current moments, or with ``commit`` (a time
+    loop) from the linear extrapolation 2 m - m_previous of the last two solutions, the previous one
+    kept in history[:, offset:offset + 4] (three components, then 1 once set). Returns 0 when
+    converged (the module's codes otherwise); the statistics are counted in the table."""
+    n = dipole.shape[0]
+    scale = np.zeros(n)  # a^1/2, zero for permanent moments
+    any_permanent = False
+    for i in range(n):
+        a = params[slot + HEAD + tag[i]]
+        if a > 0.0:
+            scale[i] = math.sqrt(a)
+        else:
+            any_permanent = True
     if commit:
-        history[:, offset:offset + HISTORY] = last
+        for i in range(n):
+            if scale[i] > 0.0:
+                for c in range(3):
+                    now = dipole[i, c]
+                    if history[i, offset + 3] > 0.0:
+                        dipole[i, c] = 2.0 * now - history[i, offset + c]
+                    history[i, offset + c] = now
+            history[i, offset + 3] = 1.0
+    source = np.empty((n, 3))
+    for i in range(n):
+        source[i, 0] = params[slot + BX]
+        source[i, 1] = params[slot + BY]
+        source[i, 2] = params[slot + BZ]
+    if params[slot + MAGNETS] != 0.0:
+        key = params[slot + KEY]
+        x = position.copy()
+        extra = np.zeros((n, 3))
+        with objmode():
+            magnet_field(key, x, extra)
+        source += extra
+    if any_permanent:
+        permanent = dipole.copy()
+        for i in range(n):
+            if scale[i] > 0.0:
+                permanent[i, :] = 0.0
+        source += field_of(position, permanent, box, periodic, params, slot, start, end, partner)
+    b = np.empty((n, 3))
+    y = np.zeros((n, 3))
+    for i in range(n):
+        for c in range(3):
+            b[i, c] = scale[i] * source[i, c]
+            if scale[i] > 0.0:
+                y[i, c] = dipole[i, c] / scale[i]
+    r = b - y
+    r += scale.reshape(n, 1) * field_of(position, scale.reshape(n, 1) * y, box, periodic, params, slot, start, end,
+                                        partner)
+    norm_b = math.sqrt(_dot(b, b))
+    goal = params[slot + TOLERANCE] * norm_b
+    rr = _dot(r, r)
+    start_residual = math.sqrt(rr) / max(norm_b, 1e-300)
+    code, k = CONVERGED, 0
+    p = r.copy()
+    limit = int(params[slot + MAX_ITERATIONS])
+    while math.sqrt(rr) > goal:
+        if k == limit:
+            code = NOT_CONVERGED
+            break
+        k += 1
+        ap = p - scale.reshape(n, 1) * field_of(position, scale.reshape(n, 1) * p, box, periodic, params, slot,
+                                                  start, end, partner)
+        pap = _dot(p, ap)
+        if not pap > 0.0:
+            code = NOT_POSITIVE
+            break
+        step = rr / pap
+        y += step * p
+        r -= step * ap
+        old = rr
+        rr = _dot(r, r)
+        p = r + (rr / old) * p
+    for i in range(n):
+        if scale[i] > 0.0:
+            for c in range(3):
+                dipole[i, c] = scale[i] * y[i, c]
+    params[slot + SOLVES] += 1.0
+    params[slot + ITERATIONS] += k
+    params[slot + MOST] = max(params[slot + MOST], k)
+    params[slot + LAST_ITERATIONS] = k
+    params[slot + LAST_CODE] = code
+    params[slot + LAST_RESIDUAL] = math.sqrt(rr) / max(norm_b, 1e-300)
+    params[slot + START_RESIDUAL] = start_residual
     return code
-
-
-def solve_registered(key, position, dipole, tag, start, end, partner, last):
-    """Run the solver registered under ``key`` (see :meth:`InducedMoments.solve`)."""
-    return _SOLVERS[int(key)].solve(position, dipole, tag, start, end, partner, last)
 
 
 class _Spheres:
@@ -190,7 +306,10 @@ class _Spheres:
 
 
 class InducedMoments:
-    """A scene's induced-moment solve (module docstring); built by :class:`demkit.Scene`.
+    """A scene's induced-moment solve (module docstring); built by :class:`demkit.Scene`, which puts
+    :meth:`table_values` into its params and calls :meth:`bind`. The compiled :func:`induce` does
+    the work; this object keeps what only Python can evaluate (a long-range sum's field, magpylib
+    fields) and reads the statistics.
 
     dipole : the scene's Dipole (its tuned copy when it has a long-range sum).
     kind : "all" (all pairs), "list" (the Dipole's neighbour list) or None (no pair loop: a fast
@@ -205,102 +324,103 @@ class InducedMoments:
     def __init__(self, dipole, kind, box, effects, alpha, settings):
         from .fields import UniformField
         from .magnets import MagnetField
-        self.settings = settings
+        self._settings = settings
         self.prefactor = dipole.prefactor
         self.kind = kind
         self.box = box
-        self.periodic = np.array(box.periodic if box is not None else (False,) * 3, dtype=np.bool_)
-        self.box_size = np.asarray(box.size, dtype=np.float64) if box is not None else np.ones(3)
         self.cutoff = dipole.cutoff_distance if dipole.cutoff_distance is not None else math.inf
         switched = getattr(dipole, "switch_width", None) is not None
         self.switch_on = dipole.switch_on if switched else 0.0
         self.inv_width = dipole.inv_switch_width if switched else 0.0
         self.tuned = dipole.tuned if dipole.long_range is not None else None
-        self.alpha_screening = getattr(dipole, "alpha", 0.0) if self.tuned is not None else 0.0
+        self.screening = getattr(dipole, "alpha", 0.0) if self.tuned is not None else 0.0
         self.uniform = sum((np.asarray(e.field, dtype=np.float64) for e in effects if isinstance(e, UniformField)),
                            np.zeros(3))
         self.magnets = [e for e in effects if isinstance(e, MagnetField)]
         self.alpha = np.ascontiguousarray(alpha, dtype=np.float64)
         self.key = next(_KEYS)
         _SOLVERS[self.key] = self
-        #: solves run, iterations they took in all, the most one took, and the last one's count
-        self.solves = self.iterations = self.most_iterations = self.last_iterations = 0
-        self.last_residual = 0.0
-        self.last_code = CONVERGED
+        self.params, self.slot = None, None
 
     def table_values(self):
-        """[key, alpha by sphere tag...]: what the kernels read from the scene's params."""
-        return np.concatenate([[float(self.key)], self.alpha])
+        """The table the kernels read (see the module's KEY ... HEAD)."""
+        table = np.zeros(HEAD + len(self.alpha))
+        table[KEY] = self.key
+        table[TOLERANCE] = self._settings.tolerance
+        table[MAX_ITERATIONS] = self._settings.max_iterations
+        table[KIND] = KINDS[self.kind]
+        table[PREFACTOR], table[CUTOFF] = self.prefactor, self.cutoff
+        table[SWITCH_ON], table[INV_WIDTH], table[SCREENING] = self.switch_on, self.inv_width, self.screening
+        table[BX:BZ + 1] = self.uniform
+        table[LONG_RANGE] = 1.0 if self.tuned is not None else 0.0
+        table[MAGNETS] = 1.0 if self.magnets else 0.0
+        table[HEAD:] = self.alpha
+        return table
+
+    def bind(self, params, slot):
+        """Read and write the table at params[slot:] (the scene's)."""
+        self.params, self.slot = params, slot
+
+    def _stat(self, index):
+        return float(self.params[self.slot + index]) if self.params is not None else 0.0
+
+    @property
+    def settings(self):
+        """The :class:`Induction` settings (may be replaced between runs)."""
+        return self._settings
+
+    @settings.setter
+    def settings(self, settings):
+        self._settings = settings
+        if self.params is not None:
+            self.params[self.slot + TOLERANCE] = settings.tolerance
+            self.params[self.slot + MAX_ITERATIONS] = settings.max_iterations
+
+    @property
+    def solves(self):
+        """Solves run so far."""
+        return int(self._stat(SOLVES))
+
+    @property
+    def iterations(self):
+        """Conjugate-gradient iterations of all solves so far."""
+        return int(self._stat(ITERATIONS))
+
+    @property
+    def most_iterations(self):
+        return int(self._stat(MOST))
+
+    @property
+    def last_iterations(self):
+        return int(self._stat(LAST_ITERATIONS))
+
+    @property
+    def last_code(self):
+        return int(self._stat(LAST_CODE))
+
+    @property
+    def last_residual(self):
+        """|residual| / |right-hand side| where the last solve stopped."""
+        return self._stat(LAST_RESIDUAL)
+
+    @property
+    def start_residual(self):
+        """|residual| / |right-hand side| where the last solve started."""
+        return self._stat(START_RESIDUAL)
 
     @property
     def mean_iterations(self):
         """Iterations per solve so far (0 before any)."""
         return self.iterations / self.solves if self.solves else 0.0
 
-    def applied(self, position):
-        """(N, 3) applied field B_0 at the sphere centres."""
-        b0 = np.tile(self.uniform, (len(position), 1))
+    def long_range_field(self, position, moments, out):
+        """Add the long-range sum's field of ``moments`` to ``out`` (object mode)."""
+        out += self.tuned.field(_Spheres(position, moments), self.box)
+
+    def magnet_field(self, position, out):
+        """Add the MagnetFields' field at ``position`` to ``out`` (object mode)."""
         for magnet in self.magnets:
-            b0 += magnet.field(position)
-        return b0
-
-    def field(self, position, moments, start, end, partner):
-        """(N, 3) field T m at each sphere from the others' ``moments``, summed as the Dipole sums it."""
-        out = np.zeros_like(moments)
-        if self.kind is not None:
-            pair_field(position, moments, self.box_size, self.periodic, start, end, partner, self.kind == "all",
-                       self.prefactor, self.cutoff, self.switch_on, self.inv_width, self.alpha_screening, out)
-        if self.tuned is not None:
-            out += self.tuned.field(_Spheres(position, moments), self.box)
-        return out
-
-    def solve(self, position, dipole, tag, start, end, partner, last=None):
-        """Replace the magnetisable spheres' rows of ``dipole`` (internal order; ``tag`` the user
-        index of each row) by their self-consistent moments; returns a module code. ``last`` (N, 4):
-        the previous solution and a flag (1: set), updated in place; with it the solve starts from
-        2 m - m_previous (an O(dt^2) guess in a time loop instead of O(dt))."""
-        scale = np.sqrt(self.alpha[tag])[:, None]  # a^1/2, zero for permanent moments
-        soft = scale[:, 0] > 0.0
-        if last is not None:
-            now = dipole.copy()
-            known = soft & (last[:, 3] > 0.0)
-            dipole[known] = 2.0 * dipole[known] - last[known, :3]
-            last[:, :3] = now
-            last[:, 3] = 1.0
-        source = self.applied(position)
-        if not soft.all():
-            source += self.field(position, np.where(soft[:, None], 0.0, dipole), start, end, partner)
-        b = scale * source
-        y = np.zeros_like(dipole)
-        y[soft] = dipole[soft] / scale[soft]
-        r = b - (y - scale * self.field(position, scale * y, start, end, partner))
-        goal = self.settings.tolerance * math.sqrt(float(np.vdot(b, b)))
-        rr = float(np.vdot(r, r))
-        self.start_residual = math.sqrt(rr) / max(goal / self.settings.tolerance, 1e-300)
-        code, k, p = CONVERGED, 0, r.copy()
-        while math.sqrt(rr) > goal:
-            if k == self.settings.max_iterations:
-                code = NOT_CONVERGED
-                break
-            k += 1
-            ap = p - scale * self.field(position, scale * p, start, end, partner)
-            pap = float(np.vdot(p, ap))
-            if not pap > 0.0:
-                code = NOT_POSITIVE
-                break
-            step = rr / pap
-            y += step * p
-            r -= step * ap
-            rr, old = float(np.vdot(r, r)), rr
-            p = r + (rr / old) * p
-        dipole[soft] = scale[soft] * y[soft]
-        self.solves += 1
-        self.iterations += k
-        self.last_iterations = k
-        self.most_iterations = max(self.most_iterations, k)
-        self.last_residual = math.sqrt(rr) / max(goal / self.settings.tolerance, 1e-300)
-        self.last_code = code
-        return code
+            out += magnet.field(position)
 
     def failure(self, code):
         """Why a solve returned ``code``, in words."""
