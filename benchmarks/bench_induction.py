@@ -55,6 +55,23 @@ def scene_of(ref, induced, tolerance, switch_width=None):
     return dk.Scene(p, [dipole, law, field], box=box)
 
 
+def field_seconds(scene, repeats=20):
+    """(seconds of one field evaluation of the solve, pairs it visits): the compiled field_of on the
+    scene's state (its Dipole's list), median of ``repeats``."""
+    from demkit.interactions.induction import field_of
+    a, solver = scene.arrays, scene.induction
+    lists = scene.state.lists[solver.group]
+    args = (a["position"], a["dipole"], a["box"], a["periodic"], scene.params, scene.induction_slot, lists.start,
+            lists.end, lists.partner)
+    field_of(*args)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        field_of(*args)
+        times.append(time.perf_counter() - t)
+    return float(np.median(times)), int(lists.start[-1])
+
+
 def time_steps(sim, steps):
     t = time.perf_counter()
     sim.run(steps * DT)
@@ -81,13 +98,17 @@ def measure(n, tolerances, blocks, steps):
         seconds = float(np.median(times[name]))
         row = {"seconds_per_step": seconds, "relative_to_permanent": seconds / base}
         solver = sim.scene.induction
+        model = dk.cost.estimate(sim.scene, sim.integrator, DT).per_step
+        row["cost_model_seconds_per_step"] = model
         if solver is not None:
+            field, pairs = field_seconds(sim.scene)
             row.update(iterations_per_solve=solver.mean_iterations, most_iterations=solver.most_iterations,
-                       mean_moment=float(np.linalg.norm(sim.scene.particles.dipole, axis=1).mean()))
+                       mean_moment=float(np.linalg.norm(sim.scene.particles.dipole, axis=1).mean()),
+                       field_seconds=field, field_pairs=pairs, field_seconds_per_pair=field / pairs)
         out[name] = row
-        print(f"N = {n}: {name}: {seconds * 1e3:.2f} ms/step ({seconds / base:.2f}x)"
-              + (f", {row['iterations_per_solve']:.1f} iterations per solve" if solver is not None else ""),
-              flush=True)
+        print(f"N = {n}: {name}: {seconds * 1e3:.2f} ms/step ({seconds / base:.2f}x; cost model {model * 1e3:.2f})"
+              + (f", {row['iterations_per_solve']:.1f} iterations per solve, field {field * 1e3:.2f} ms "
+                 f"({field / pairs * 1e9:.1f} ns a pair)" if solver is not None else ""), flush=True)
     return out
 
 

@@ -11,7 +11,11 @@ machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.j
       + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law] + N wave vectors x RECIPROCAL_VECTOR
       + MESH_CALL + N p^3 MESH_POINT + FFTs (a P3M mesh) + N (FMM_SPHERE + (digits of eps - 3) FMM_SPHERE_PER_DIGIT) (a fast multipole sum)
 
-a step ``integrator.evaluations_per_step`` of them plus STEP. The listed pairs are counted now
+a step ``integrator.evaluations_per_step`` of them plus STEP. Magnetisable spheres add a solve of
+their moments to each evaluation: INDUCTION_CALL + (iterations + 1) field evaluations, each
+N INDUCTION_SPHERE + the Dipole's listed (or all) pairs x FIELD_PAIR + its long-range sum, with
+SMOOTH_ITERATIONS iterations for a field that changes smoothly and JUMPING_ITERATIONS for a plain
+cutoff (demkit.interactions.induction). The listed pairs are counted now
 (a k-d tree within reach + skin). Touching pairs change while a scene runs, and they are the most
 expensive part of a frictional contact: the estimate follows them through the run as
 
@@ -67,6 +71,14 @@ TOUCHING = {("KelvinVoigt", False): 1.3e-8, ("Hertz", False): 2.2e-8,
 #: seconds per step beyond its force evaluations (the step loop, the guards; the paper's two-sphere
 #: scene measures 0.07-0.1 us a step in all)
 STEP = 5.0e-8
+#: seconds of an induced-moment solve's fixed work, per sphere and field evaluation, per pair of its
+#: field (benchmarks/bench_induction.py)
+INDUCTION_CALL = 2.0e-6
+INDUCTION_SPHERE = 3.0e-8
+FIELD_PAIR = 1.0e-8
+#: conjugate-gradient iterations per solve in a run: the field smooth in time (all pairs, a switched
+#: cutoff, a long-range sum: the extrapolated start), or jumping as pairs cross a plain cutoff
+SMOOTH_ITERATIONS, JUMPING_ITERATIONS = 2.0, 5.0
 #: seconds per recorded frame, and per sphere in it (the paper's scene: 0.9 us a frame of 2 spheres)
 RECORD_FRAME = 1.0e-6
 RECORD_SPHERE = 5.0e-9
@@ -179,9 +191,13 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         else:
             key, each = "listed dipole pairs", DIPOLE_PAIR
         parts[key] = parts.get(key, 0.0) + count * each
+    long_range = 0.0
     for tuned in scene.long_range:
         name, seconds = _long_range_seconds(tuned, n)
         parts[name] = parts.get(name, 0.0) + seconds
+        long_range += seconds
+    if scene.induction is not None:
+        parts["induction solve"] = _induction_seconds(scene, tree, long_range)
     law = _contact_law(scene)
     now = touching_now(scene, tree) if law is not None else 0
     mean, note, later = float(now), "", 0.0
@@ -215,6 +231,17 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         outputs += read * n * NOTES_SPHERE
     return Estimate(per_step=per_step, stepping=stepping, outputs=outputs, parts=parts, touching=(now, mean),
                     note=note, later=later)
+
+
+def _induction_seconds(scene, tree, long_range):
+    """Seconds of one solve of the induced moments (module docstring)."""
+    solver, n = scene.induction, len(scene.particles)
+    pairs = 0
+    if solver.group is not None:
+        pairs = next(count for group, _, count in pair_counts(scene, tree) if group is scene.plan.groups[solver.group])
+    jumps = solver.tuned is None and solver.kind == "list" and solver.inv_width == 0.0
+    iterations = JUMPING_ITERATIONS if jumps else SMOOTH_ITERATIONS
+    return INDUCTION_CALL + (iterations + 1.0) * (n * INDUCTION_SPHERE + pairs * FIELD_PAIR + long_range)
 
 
 def _long_range_seconds(tuned, n):
