@@ -224,6 +224,8 @@ def test_bad_susceptibilities_are_refused(bad, match):
 
 def test_scenes_that_cannot_induce_are_refused():
     p = dk.Particles([[0, 0, 0], [0, 0, 3 * R]], radius=R, susceptibility=100.0)
+    with pytest.raises(ValueError, match="nothing to magnetise them"):
+        dk.Scene(p, [dk.Dipole(A)])
     with pytest.raises(ValueError, match="need a dk.Dipole"):
         dk.Scene(p, [dk.UniformField((0, 0, B0))])
     with pytest.raises(ValueError, match="central power law"):
