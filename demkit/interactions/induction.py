@@ -16,9 +16,10 @@ T the dipole field operator (B = T m) and m_p the permanent moments,
 
     (I - a^1/2 T a^1/2) y = a^1/2 (B_0 + T m_p),    m_induced = a^1/2 y,
 
-a symmetric positive-definite system (T is symmetric) solved by conjugate gradients from the
-current moments until |residual| <= tolerance |right-hand side|. Each iteration costs one field
-evaluation of the magnetisable spheres' moments.
+a symmetric positive-definite system (T is symmetric) solved by conjugate gradients (compiled;
+object mode only for a long-range sum's field and magpylib fields) until |residual| <= tolerance
+|right-hand side|, from the current moments or, in a time loop, from 2 m(t) - m(t - dt). Each
+iteration costs one field evaluation.
 
 **Energy** (linear induction): U = U_dipole + U_field + sum_i |m_i|^2 / (2 alpha_i), the last term
 reported as "induction". U is stationary in the induced moments at the solution, so the forces and
@@ -434,14 +435,6 @@ class InducedMoments:
     def __repr__(self):
         return (f"InducedMoments({int(np.count_nonzero(self.alpha))} magnetisable spheres, {self.settings!r}, "
                 f"{self.mean_iterations:.1f} iterations per solve)")
-
-
-def susceptibility_values(particles):
-    """The particles' susceptibilities (N,), or None when none is positive."""
-    chi = getattr(particles, "susceptibility", None)
-    if chi is None or not np.any(chi > 0.0):
-        return None
-    return chi
 
 
 def prepare(particles, interactions, effects):
