@@ -217,11 +217,18 @@ def test_unwrapped_paths_are_continuous_across_periodic_boundaries():
     assert np.abs(np.diff(traj.position, axis=0)).max() > 0.9 * box.size.min()  # wrapped ones jump
 
 
+def thread_scene(p, box, parallel):
+    """Dipoles cut at 3 and contacts with friction history, re-sorted every 40 steps: the kernels of
+    restart_scenes.gas, so that the thread tests here and test_checkpoint's share one serial and one
+    thread module (a thread module of its own cost ~40 CPU s to compile on a cold cache)."""
+    inters = [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(2000.0, 3.0, friction=dk.Friction(0.4))]
+    return dk.Scene(p.copy(), inters, box=box, parallel=parallel, sort_every=40)
+
+
 def test_thread_count_changes_nothing_and_threads_agree_with_the_serial_loop():
     p, box = gas(n=300, periodic=True, seed=10)
-    inters = [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.0)]
-    serial = dk.Scene(p.copy(), inters, box=box, parallel=False)
-    threaded = dk.Scene(p.copy(), inters, box=box, parallel=True)
+    serial = thread_scene(p, box, parallel=False)
+    threaded = thread_scene(p, box, parallel=True)
     # one serial module for any size and thread setting (nothing recompiles), loops on threads in
     # the thread module only
     assert serial.kernels.source == threaded.kernels.source and "prange(" not in serial.kernels.source
@@ -235,7 +242,7 @@ def test_thread_count_changes_nothing_and_threads_agree_with_the_serial_loop():
     try:
         for threads in (1, numba.config.NUMBA_NUM_THREADS):
             numba.set_num_threads(threads)
-            scene = dk.Scene(p.copy(), inters, box=box, parallel=True)
+            scene = thread_scene(p, box, parallel=True)
             dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3)).run(duration=0.3)
             finals.append(scene.particles.position.copy())
     finally:
@@ -326,12 +333,11 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
     import demkit.simulation as simulation_module
     import demkit.threads as threads
     p, box = gas(n=300, periodic=True, seed=10)
-    inters = [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.0)]
     before = numba.get_num_threads()
 
     def final(parallel, nthreads):
         numba.set_num_threads(nthreads)
-        scene = dk.Scene(p.copy(), inters, box=box, parallel=parallel)
+        scene = thread_scene(p, box, parallel=parallel)
         sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
         sim.run(duration=0.3)
         return scene.particles.position.copy(), sim
@@ -355,7 +361,7 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
     np.testing.assert_array_equal(one_thread, on_threads)
     assert sim.statistics["threads"] == 1 and "measured" in sim.statistics["threads_reason"]
     assert set(sim.statistics["steps_per_second_by_threads"]) == {1, numba.config.NUMBA_NUM_THREADS}
-    ref_sim = dk.Simulation(dk.Scene(p.copy(), inters, box=box, parallel=True), dk.VelocityVerlet(dt=1e-3))
+    ref_sim = dk.Simulation(thread_scene(p, box, parallel=True), dk.VelocityVerlet(dt=1e-3))
     numba.set_num_threads(1)
     try:
         ref_sim.run(duration=0.4)
