@@ -296,6 +296,12 @@ def induce(position, dipole, tag, box, periodic, params, slot, start, end, partn
     return code
 
 
+def _table_value(index, kind, doc):
+    """A read-only property: the value at ``index`` of the solver's table, as ``kind``."""
+    return property(lambda self: kind(self.params[self.slot + index]) if self.params is not None else kind(0),
+                    doc=doc)
+
+
 class _Spheres:
     """What the long-range sums' field() reads of a Particles: positions, moments, a length."""
 
@@ -362,9 +368,6 @@ class InducedMoments:
         """Read and write the table at params[slot:] (the scene's)."""
         self.params, self.slot = params, slot
 
-    def _stat(self, index):
-        return float(self.params[self.slot + index]) if self.params is not None else 0.0
-
     @property
     def settings(self):
         """The :class:`Induction` settings (may be replaced between runs)."""
@@ -377,37 +380,13 @@ class InducedMoments:
             self.params[self.slot + TOLERANCE] = settings.tolerance
             self.params[self.slot + MAX_ITERATIONS] = settings.max_iterations
 
-    @property
-    def solves(self):
-        """Solves run so far."""
-        return int(self._stat(SOLVES))
-
-    @property
-    def iterations(self):
-        """Conjugate-gradient iterations of all solves so far."""
-        return int(self._stat(ITERATIONS))
-
-    @property
-    def most_iterations(self):
-        return int(self._stat(MOST))
-
-    @property
-    def last_iterations(self):
-        return int(self._stat(LAST_ITERATIONS))
-
-    @property
-    def last_code(self):
-        return int(self._stat(LAST_CODE))
-
-    @property
-    def last_residual(self):
-        """|residual| / |right-hand side| where the last solve stopped."""
-        return self._stat(LAST_RESIDUAL)
-
-    @property
-    def start_residual(self):
-        """|residual| / |right-hand side| where the last solve started."""
-        return self._stat(START_RESIDUAL)
+    solves = _table_value(SOLVES, int, "Solves run so far.")
+    iterations = _table_value(ITERATIONS, int, "Conjugate-gradient iterations of all solves so far.")
+    most_iterations = _table_value(MOST, int, "The most iterations one solve took.")
+    last_iterations = _table_value(LAST_ITERATIONS, int, "Iterations of the last solve.")
+    last_code = _table_value(LAST_CODE, int, "The last solve's code (CONVERGED, NOT_CONVERGED, NOT_POSITIVE).")
+    last_residual = _table_value(LAST_RESIDUAL, float, "|residual| / |right-hand side| where the last solve stopped.")
+    start_residual = _table_value(START_RESIDUAL, float, "|residual| / |right-hand side| where it started.")
 
     @property
     def mean_iterations(self):
