@@ -215,7 +215,7 @@ def pictures(pvd, path, moments):
     """columns.png: the last frame in 3-D and from the side, balls coloured by |m| / (alpha B0)."""
     from PIL import Image
 
-    look = dict(color_by=moments, cmap="plasma", clim=(1.0, CHAIN / LONE), color_label="|m| / alpha B0",
+    look = dict(color_by=moments, cmap="plasma", clim=(1.0, CHAIN / LONE), color_label="moment / alpha B0",
                 arrows=False, trail=0, frame="box")
     tiles = []
     for view, name in (("iso", "3d"), ("xz", "side")):
@@ -237,17 +237,17 @@ def main(argv=None):
     Returns the summary numbers and the paths written, as a dict."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", type=Path, default=HERE / "output", help="output folder")
-    parser.add_argument("--n", type=int, default=160, help="number of balls")
-    parser.add_argument("--volume-fraction", type=float, default=0.05, help="balls' volume / cell volume")
+    parser.add_argument("--n", type=int, default=200, help="number of balls")
+    parser.add_argument("--volume-fraction", type=float, default=0.08, help="balls' volume / cell volume")
     parser.add_argument("--gap", type=float, default=GAP, help="distance between the plates, diameters")
-    parser.add_argument("--duration", type=float, default=0.3, help="simulated time, s")
+    parser.add_argument("--duration", type=float, default=0.4, help="simulated time, s")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--steps-per-contact", type=float, default=STEPS_PER_CONTACT,
                         help="time steps in a contact (sets dt)")
-    parser.add_argument("--quick", action="store_true", help="60 balls for 0.12 s (for tests)")
+    parser.add_argument("--quick", action="store_true", help="60 balls at volume fraction 0.05 for 0.12 s (for tests)")
     args = parser.parse_args([] if argv is None else argv)
     if args.quick:
-        args.n, args.duration = 60, 0.12
+        args.n, args.volume_fraction, args.duration = 60, 0.05, 0.12
     args.output.mkdir(parents=True, exist_ok=True)
     height = args.gap * D
 
