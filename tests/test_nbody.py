@@ -32,7 +32,9 @@ BOXES = {"open": False, "periodic": True, "mixed": (True, False, True)}
 def test_lists_hold_exactly_the_pairs_within_each_cutoff_after_motion(kind):
     p, box = gas(n=300, periodic=BOXES[kind], uneven=True, seed=2)
     contact, dipole = dk.KelvinVoigt(stiffness=1000.0), dk.Dipole(prefactor=1.0, cutoff=3.0)
-    scene = dk.Scene(p, [contact, dipole], box=box if kind != "open" else None, skin=0.1)
+    # dipole first, as in the other Dipole + KelvinVoigt scenes here: the order of the interactions
+    # is part of the generated kernels, and this order shares them (the lists do not depend on it)
+    scene = dk.Scene(p, [dipole, contact], box=box if kind != "open" else None, skin=0.1)
     assert [g.kind for g in scene.plan.groups] == ["list", "list"]
     sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
     sim.run(duration=3.0)
