@@ -195,24 +195,20 @@ class Scene:
         return solver
 
     def _first_induction(self):
-        """Solve the induced moments of the starting positions (in the user's order, with pairs from
-        a cell list: the kernels' lists are built at the first push); ValueError if it fails."""
+        """Solve the induced moments of the starting positions (in the user's order, over a half list
+        of their own: the kernels' lists are built at the first push); ValueError if it fails."""
         solver, p = self.induction, self.particles
         n = len(p)
-        start, end = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
-        partner = np.zeros(0, dtype=np.int32)
-        if solver.kind == "list":
-            pairs = self.close_pairs(solver.cutoff)
-            pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
-            partner = np.ascontiguousarray(pairs[:, 1], dtype=np.int32)
-            start = np.searchsorted(pairs[:, 0], np.arange(n)).astype(np.int64)
-            end = np.searchsorted(pairs[:, 0], np.arange(n), side="right").astype(np.int64)
+        index = np.arange(n, dtype=np.int64)
         position = p.position.copy()  # wrapped into the box (the kernels wrap theirs later)
         for axis in np.flatnonzero(self.periodic):
             position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
-        code = induction.induce(position, p.dipole, np.arange(n, dtype=np.int64), self.arrays["box"],
-                                self.arrays["periodic"], self.params, self.induction_slot, start, end, partner,
-                                np.zeros((n, 0)), 0, False)
+        pairs = new_pair_list(solver.cutoff if solver.kind == "list" else 0.0, n, 0, 1)
+        if solver.kind == "list":
+            neighbours.rebuild(pairs, position, index, self.arrays["box"], self.arrays["periodic"])
+        code = induction.induce(position, p.dipole, index, self.arrays["box"], self.arrays["periodic"], self.params,
+                                self.induction_slot, pairs.start, pairs.end, pairs.partner, np.zeros((n, 0)), 0,
+                                False)
         if code:
             raise ValueError(f"at the starting positions {solver.failure(code)}")
         if self.arrays["dipole"] is not p.dipole:

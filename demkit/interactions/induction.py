@@ -329,8 +329,6 @@ class InducedMoments:
     history_size = HISTORY
 
     def __init__(self, dipole, kind, box, effects, alpha, settings):
-        from .fields import UniformField
-        from .magnets import MagnetField
         self._settings = settings
         self.prefactor = dipole.prefactor
         self.kind = kind
@@ -341,9 +339,7 @@ class InducedMoments:
         self.inv_width = dipole.inv_switch_width if switched else 0.0
         self.tuned = dipole.tuned if dipole.long_range is not None else None
         self.screening = getattr(dipole, "alpha", 0.0) if self.tuned is not None else 0.0
-        self.uniform = sum((np.asarray(e.field, dtype=np.float64) for e in effects if isinstance(e, UniformField)),
-                           np.zeros(3))
-        self.magnets = [e for e in effects if isinstance(e, MagnetField)]
+        self.uniform, self.magnets = applied_sources(effects)
         self.alpha = np.ascontiguousarray(alpha, dtype=np.float64)
         self.key = next(_KEYS)
         _SOLVERS[self.key] = self
@@ -416,13 +412,19 @@ class InducedMoments:
                 f"{self.mean_iterations:.1f} iterations per solve)")
 
 
+def applied_sources(effects):
+    """(B of the UniformFields summed (3,), the MagnetFields): what makes B_0 among ``effects``."""
+    from .fields import UniformField
+    from .magnets import MagnetField
+    uniform = sum((np.asarray(e.field, dtype=np.float64) for e in effects if isinstance(e, UniformField)), np.zeros(3))
+    return uniform, [e for e in effects if isinstance(e, MagnetField)]
+
+
 def prepare(particles, interactions, effects):
     """Check a scene's magnetisable spheres and give them their moments in the applied field alone
     (m = alpha B_0, the solve's first guess, which long-range sums are tuned with); returns the
     polarisabilities (N,), or None when no sphere has chi > 0 (the scene then does no induction work)."""
     from .dipole import Dipole
-    from .fields import UniformField
-    from .magnets import MagnetField
     chi = particles.susceptibility
     if chi is None or not np.any(chi > 0.0):
         return None
@@ -436,12 +438,10 @@ def prepare(particles, interactions, effects):
     alpha = polarisability(particles.radius, chi, dipole.prefactor)
     particles.require("dipole")
     soft = alpha > 0.0
-    b0 = np.zeros((len(particles), 3))
-    for effect in effects:
-        if isinstance(effect, UniformField):
-            b0 += effect.field
-        elif isinstance(effect, MagnetField):
-            b0 += effect.field(particles.position)
+    uniform, magnets = applied_sources(effects)
+    b0 = np.tile(uniform, (len(particles), 1))
+    for magnet in magnets:
+        b0 += magnet.field(particles.position)
     particles.dipole[soft] = alpha[soft, None] * b0[soft]
     if not np.any(particles.dipole):
         raise ValueError("the magnetisable spheres have nothing to magnetise them: no applied field (dk.UniformField, "
