@@ -3,10 +3,12 @@
 Parts (all by default; name some to run only those):
 
 * ``speed``: the N = 8000 reference scene (benchmarks/reference_scene.py: periodic, phi = 0.2,
-  dipoles of 2, kT = 1), velocity Verlet dt = 0.001, skin 0.3, 1000 timed steps after a warm-up:
-  ``nofric`` (Dipole(prefactor=1, cutoff=4) + KelvinVoigt(1000, 1.5)) and ``nodip_nofric``
-  (KelvinVoigt only, spheres without dipoles or spins), demkit on 1 and 2 threads, LAMMPS
-  (benchmarks/lammps/in.reference, same data file) on 1 and 2 MPI ranks; best of 3 each.
+  dipoles of 2, kT = 1), velocity Verlet dt = 0.001, skin 0.3, 1000 timed steps after a warm-up
+  (5000 without dipoles), the deck's four models: ``nofric`` (Dipole(prefactor=1, cutoff=4) +
+  KelvinVoigt(1000, 1.5)), ``full`` (the same with Friction(0.5, 2/7 k_n, 0.75, slip_radius="full"),
+  LAMMPS' linear_history), ``nodip_nofric`` (KelvinVoigt only, spheres without dipoles or spins)
+  and ``nodip`` (KelvinVoigt with that friction, spinning spheres); demkit on 1 and 2 threads,
+  LAMMPS (benchmarks/lammps/in.reference, same data file) on 1 and 2 MPI ranks; best of 3 each.
 * ``memory``: bytes per sphere of the engine for contacts + dipoles + per-contact history (a
   3-value history on the contact list, as friction keeps), counted array by array (recording excluded).
 * ``scaling``: contact-only cost per particle-step and peak memory for N = 1e3 ... 1e6 (one
@@ -45,11 +47,16 @@ CHILD = textwrap.dedent("""
     numba.set_num_threads({threads})
     scene_data = load_reference_scene({n}, {folder!r})
     p, box = particles_and_box(scene_data)
-    if {model!r} == "nodip_nofric":
-        p = dk.Particles(position=p.position, velocity=p.velocity, radius=p.radius, mass=p.mass)
-        inters = [dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
-    else:
-        inters = [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(stiffness=1000.0, damping=1.5)]
+    model = {model!r}  # the deck's models: full, nofric, nodip, nodip_nofric
+    if model.startswith("nodip"):
+        p = dk.Particles(position=p.position, velocity=p.velocity, radius=p.radius, mass=p.mass,
+                         angular_velocity=p.angular_velocity if model == "nodip" else None)
+    extra = {{}}
+    if model in ("full", "nodip"):  # LAMMPS' linear_history kt = 2/7 kn, damping 0.5 of the normal's
+        extra["friction"] = dk.Friction(0.5, stiffness=2.0 / 7.0 * 1000.0, damping=0.75, slip_radius="full")
+    inters = [dk.KelvinVoigt(stiffness=1000.0, damping=1.5, **extra)]
+    if not model.startswith("nodip"):
+        inters.insert(0, dk.Dipole(prefactor=1.0, cutoff=4.0))
     scene = dk.Scene(p, inters, box=box, skin=0.3)
     sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
     sim.run(duration=0.02)  # compile or load the kernels, first list builds
@@ -86,9 +93,9 @@ def part_speed(folder, quick):
     from reference_scene import write_reference_scene
     _, _, data = write_reference_scene(N_REFERENCE, folder)
     rows = []
-    for model in ("nofric", "nodip_nofric"):
+    for model in ("nofric", "full", "nodip_nofric", "nodip"):
         for cores in (1, 2):
-            steps = 300 if quick else (STEPS if model == "nofric" else 5 * STEPS)
+            steps = 300 if quick else (STEPS if not model.startswith("nodip") else 5 * STEPS)
             ours = demkit_run(model, cores, steps=steps, folder=folder, repeats=1 if quick else 3)
             theirs = lammps_rate(model, cores, data, steps=steps, repeats=1 if quick else 3)
             rows.append({"model": model, "cores": cores, "demkit_particle_steps_per_s": ours["particle_steps_per_second"],

@@ -42,8 +42,8 @@ ENERGY_KINDS = ("magnetic", "contact")
 BLOCK = 64
 #: per-particle fields that are scalars (the others are 3-vectors)
 SCALAR_FIELDS = ("radius", "mass")
-#: rows of the gather buffer: separation, at most every field, r2 and the partner's index
-GATHER_ROWS = 3 + 3 * 3 + 2 + 2
+#: rows of the gather buffer: the partner's position, then at most every field
+GATHER_ROWS = 3 + 3 * 3 + 2
 _MODULES = {}
 
 
@@ -210,6 +210,8 @@ class _Source:
         for a, axis in enumerate("xyz"):
             if self.plan.periodic[a] and group.kind == "list":
                 lines += [f"    l{axis} = box[{a}]", f"    h{axis} = 0.5 * box[{a}]"]
+                if group.blocked:
+                    lines.append(f"    il{axis} = 1.0 / box[{a}]")
         for k, inter in group.members:
             for m in range(len(inter.parameters)):
                 lines.append(f"    p{k}_{m} = params[{self.param_slot[k] + m}]")
@@ -318,9 +320,8 @@ class _Source:
         return open_, close
 
     def gathered_fields(self, group):
-        """Rows of the gather buffer: the separations (rows 0-2), then each field the group's
-        interactions read, as {field: first row}; and the number of those rows (r2 and the partner's
-        index follow)."""
+        """Rows of the gather buffer: the partners' positions (rows 0-2), then each field the group's
+        interactions read, as {field: first row}; and the number of those rows."""
         rows, row = {}, 3
         for _, inter in group.members:
             for name in inter.reads:
@@ -330,18 +331,19 @@ class _Source:
         return rows, row
 
     def blocked_loop(self, group, indent, first, last, force, torque, out, gather):
-        """Rows in blocks of BLOCK entries. A scalar loop copies into contiguous rows of ``gather``
-        the separation, r2 and the fields of every partner within the cutoff (compacted without
-        branches; column 0 holds the owner's fields); a branch-free loop the compiler vectorises
-        evaluates them (the pair functions see the gathered columns as the field arrays, j = 1 + u)
-        into ``out``; a scalar loop scatters the forces and torques."""
+        """Rows in blocks of BLOCK entries, in three loops. A copy loop puts the partners' positions
+        and fields in contiguous rows of ``gather`` (column 0 holds the owner's fields); a
+        branch-free loop the compiler vectorises takes the separations (minimum image by rounding,
+        ``d -= L rint(d / L)``), evaluates every entry and multiplies by 0 the pairs beyond a cutoff
+        (cheaper than compacting the list: the skin's 20 % extra pairs cost less than a branchy
+        copy), into ``out``; a scalar loop scatters the forces and torques. Partner indices are
+        read as unsigned (no negative-index test per access)."""
         pad = " " * indent
-        rows, nrows = self.gathered_fields(group)
+        rows, _ = self.gathered_fields(group)
         head = self.rows(group, indent, first, last)[:6]
         open_, close = self.owner_sums(group, indent + 4, force, torque)
         cols = ["fx", "fy", "fz"] + (["tix", "tiy", "tiz", "tjx", "tjy", "tjz"] if group.torque else [])
         inner = pad + " " * 12
-        cut = next((k for k, inter in group.members if inter.cutoff_distance is not None), None)
 
         def copy(index, column, target):
             lines = []
@@ -354,32 +356,33 @@ class _Source:
 
         body = copy("i", 0, pad + "    ")
         body += [f"{pad}    for b0 in range(start[i], end[i], {BLOCK}):",
-                 f"{pad}        m = 0",
-                 f"{pad}        for p in range(b0, min(b0 + {BLOCK}, end[i])):",
-                 f"{inner}j = partner[p]"]
-        body += self.geometry(group, inner)
-        body += [f"{inner}{gather}[0, m + 1] = dx", f"{inner}{gather}[1, m + 1] = dy",
-                 f"{inner}{gather}[2, m + 1] = dz", f"{inner}{gather}[{nrows}, m + 1] = r2",
-                 f"{inner}{gather}[{nrows + 1}, m + 1] = j"]
-        body += copy("j", "m + 1", inner)
-        body.append(f"{inner}m += r2 < c{cut}" if cut is not None else f"{inner}m += 1")
+                 f"{pad}        m = min({BLOCK}, end[i] - b0)",
+                 f"{pad}        for u in range(m):",
+                 f"{inner}j = np.uint32(partner[b0 + u])",
+                 f"{inner}{gather}[0, u + 1] = position[j, 0]", f"{inner}{gather}[1, u + 1] = position[j, 1]",
+                 f"{inner}{gather}[2, u + 1] = position[j, 2]"]
+        body += copy("j", "u + 1", inner)
         body += [f"{pad}        for u in range(m):",
                  f"{inner}j = u + 1",
-                 f"{inner}dx = {gather}[0, j]", f"{inner}dy = {gather}[1, j]", f"{inner}dz = {gather}[2, j]",
-                 f"{inner}r2 = {gather}[{nrows}, j]"]
+                 f"{inner}dx = {gather}[0, j] - xi", f"{inner}dy = {gather}[1, j] - yi",
+                 f"{inner}dz = {gather}[2, j] - zi"]
+        for a, axis in enumerate("xyz"):
+            if self.plan.periodic[a]:
+                body.append(f"{inner}d{axis} -= l{axis} * np.rint(d{axis} * il{axis})")
+        body.append(f"{inner}r2 = dx * dx + dy * dy + dz * dz")
         body += [f"{inner}{c} = 0.0" for c in cols]
         for k, inter in group.members:
             outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if inter.torque else [])
             call = _pair_call(k, inter, 0, "force", owner="0", fields="g_")  # the gathered columns
             body.append(f"{inner}{', '.join(outs)} = {call}")
             keep = ""
-            if inter.cutoff_distance is not None and k != cut:
+            if inter.cutoff_distance is not None:  # beyond it r2 >= c > 0: the values are finite
                 body.append(f"{inner}keep = 1.0 if r2 < c{k} else 0.0")
                 keep = " * keep"
             body += [f"{inner}{c} += {o}{keep}" for c, o in zip(cols, outs)]
         body += [f"{inner}{out}[{n}, u] = {c}" for n, c in enumerate(cols)]
         body += [f"{pad}        for u in range(m):",
-                 f"{inner}j = int({gather}[{nrows + 1}, u + 1])",
+                 f"{inner}j = np.uint32(partner[b0 + u])",
                  f"{inner}{force}[j, 0] += {out}[0, u]", f"{inner}{force}[j, 1] += {out}[1, u]",
                  f"{inner}{force}[j, 2] += {out}[2, u]",
                  f"{inner}fix -= {out}[0, u]", f"{inner}fiy -= {out}[1, u]", f"{inner}fiz -= {out}[2, u]"]

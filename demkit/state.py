@@ -152,8 +152,10 @@ def _get_lists(s):
 
 
 def new_pair_list(reach, n, history_width, chunks, capacity=None):
-    """An empty growing list for n particles (filled, and grown, in compiled code)."""
-    capacity = max(4 * n, 16) if capacity is None else max(int(capacity), 16)
+    """An empty growing list for n particles (filled, and grown, in compiled code). It starts with
+    room for one pair per particle; the first build grows it to what it holds and 1/8 more
+    (demkit.neighbours.GROWTH), so a list's memory follows its pairs, not a guess."""
+    capacity = max(n, 16) if capacity is None else max(int(capacity), 16)
     return PairList(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                     np.zeros(capacity, dtype=np.int32),
                     np.zeros((0, history_width)), np.zeros(chunks + 1, dtype=np.int64))
