@@ -24,6 +24,10 @@ from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
 CHUNK_SECONDS = 0.2
+#: ... and at least this many times what the last return to Python took to copy the arrays back to
+#: the user's order and check them (~0.1 s for a million spheres: chunks of 0.2 s doubled the cost
+#: of a step)
+CHUNK_OVERHEAD_RATIO = 20.0
 #: a run that will write more files or bytes than this is announced (LargeOutputWarning)
 LARGE_OUTPUT_FILES = 10_000
 LARGE_OUTPUT_BYTES = 10 * 2**30
@@ -139,8 +143,9 @@ class Simulation:
     integrator cannot do with the scene; :func:`demkit.guards.while_stepping` re-checks what
     changes at the start of every run and every chunk.
 
-    The compiled loop hands control back to Python about every :data:`CHUNK_SECONDS` of wall time
-    (at step boundaries, which changes no result): Ctrl-C then ends a run cleanly (see :meth:`run`).
+    The compiled loop hands control back to Python about every :data:`CHUNK_SECONDS` of wall time,
+    or :data:`CHUNK_OVERHEAD_RATIO` times what such a return takes, whichever is longer (at step
+    boundaries, which changes no result): Ctrl-C then ends a run cleanly (see :meth:`run`).
     """
 
     def __init__(self, scene, integrator, writers=(), checkpoint=None, max_energy_growth=None, notes=True):
@@ -259,6 +264,7 @@ class Simulation:
         clock = time.perf_counter()
         done = 0
         chunk_steps = 16 if self._rate is None else max(1, int(self._rate * CHUNK_SECONDS))
+        guarding = 0.0
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
@@ -273,7 +279,9 @@ class Simulation:
                 try:
                     failed = loop(chunk, done, stride, self.integrator.dt, forces_ready, state, record)
                 finally:
+                    returned = time.perf_counter()
                     scene.pull()
+                    between = guarding + time.perf_counter() - returned  # O(N) copies and checks: size the chunks
                 forces_ready = self.forces_valid = True
                 if failed >= 0:
                     self._fail(done + failed + 1, start_step, stride, record)
@@ -283,13 +291,15 @@ class Simulation:
                 probe = self._threads.probing  # a probe's rate does not size the next chunks
                 self._threads.measured(chunk, seconds, first=self._rate is None)
                 if not probe:
-                    chunk_steps = self._next_chunk(chunk, seconds, chunk_steps)
+                    chunk_steps = self._next_chunk(chunk, seconds, chunk_steps, between)
                 notice.end()
                 bar.update(done)
                 for w, ws in zip(self.writers, writer_steps):
                     if self.step % ws == 0:
                         w.write(self)
+                guarding = time.perf_counter()
                 self._check_while_stepping(done, start_step, stride, record)
+                guarding = time.perf_counter() - guarding
                 if self.checkpoint is not None and (
                         (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
                     self._save_checkpoint()
@@ -401,12 +411,16 @@ class Simulation:
         scene.stepped_by = self
         return continuing and self.forces_valid
 
-    def _next_chunk(self, steps, seconds, current):
-        """Steps of the next compiled chunk: about CHUNK_SECONDS of wall time, growing at most 4x."""
+    def _next_chunk(self, steps, seconds, current, between=0.0):
+        """Steps of the next compiled chunk: about CHUNK_SECONDS of wall time, or CHUNK_OVERHEAD_RATIO
+        times ``between`` (the seconds the last return to Python spent copying the arrays back and
+        checking them; writers and checkpoints, which have their own schedules, not counted) when
+        that is longer; growing at most 4x."""
         if seconds > 0:
             rate = steps / seconds
             self._rate = rate if self._rate is None else 0.5 * (self._rate + rate)
-        target = int(self._rate * CHUNK_SECONDS) if self._rate else 4 * current
+        span = max(CHUNK_SECONDS, CHUNK_OVERHEAD_RATIO * between)
+        target = int(self._rate * span) if self._rate else 4 * current
         return max(1, min(target, 4 * current))
 
     def _energy_now(self, scale=False):

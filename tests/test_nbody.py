@@ -352,6 +352,7 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
         monkeypatch.setattr(scene_module, "PARALLEL_MIN", 100)  # parallel=None: threads measured
         monkeypatch.setattr(scene_module, "THREADS_FROM_SECONDS", 0.0)
         monkeypatch.setattr(simulation_module, "CHUNK_SECONDS", 1e-4)  # many chunks
+        monkeypatch.setattr(simulation_module, "CHUNK_OVERHEAD_RATIO", 0.0)
         monkeypatch.setattr(threads.ThreadChoice, "_worth", lambda self: 0.0)  # load the thread module at once
         monkeypatch.setattr(threads, "RECHECK_SECONDS", 0.0)  # every chunk a probe: switch all the time
         monkeypatch.setattr(threads, "MARGIN", math.inf)  # threads never kept

@@ -284,6 +284,7 @@ def terminal_and_eager(monkeypatch):
     monkeypatch.setattr(prog, "AUTO_SECONDS", 0.0)
     monkeypatch.setattr(prog, "AUTO_AFTER", 0.0)
     monkeypatch.setattr(dk.simulation, "CHUNK_SECONDS", 1e-9)  # runs of one-step chunks: many updates
+    monkeypatch.setattr(dk.simulation, "CHUNK_OVERHEAD_RATIO", 0.0)
 
 
 def test_an_accuracy_study_shows_one_bar_over_its_runs_and_the_same_results(capsys, terminal_and_eager):
