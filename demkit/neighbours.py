@@ -618,7 +618,9 @@ def pairs_of(pl, tag):
 @njit(cache=True)
 def cell_order(position, box, periodic, width):
     """Permutation of the particles by cell (cells at least ``width`` wide, x slowest): particle
-    order[k] goes to place k."""
+    order[k] goes to place k. (A Z-order curve was tried: a million-sphere contact loop ran 37 ns a
+    sphere instead of 26; in x-major order a loop's partners lie in three planes of cells that it
+    walks through as streams.)"""
     n = position.shape[0]
     origin = np.empty(3)
     size = np.empty(3)
