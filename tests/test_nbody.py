@@ -387,3 +387,16 @@ def test_only_scenes_with_enough_work_per_step_are_cut_into_chunks_for_threads()
     assert pairs / (2000 * 0.5 * rho * 4 / 3 * math.pi * (4.0 + dipoles.skin) ** 3 * 1.2e-8) == pytest.approx(1, rel=0.05)
     from demkit.threads import ThreadChoice
     assert "estimated" in ThreadChoice(contacts, "velocity_verlet").describe()
+
+
+def test_chunks_last_twenty_times_the_copying_and_checking_between_them():
+    """A compiled chunk lasts CHUNK_SECONDS, or 20x what the last return to Python spent copying the
+    arrays back and checking them when that is longer (a million spheres: ~0.1 s a return), and
+    grows at most 4x from one chunk to the next."""
+    p = dk.Particles(position=[[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]], radius=0.5, mass=1.0)
+    sim = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(stiffness=1000.0, damping=1.0)]), dk.VelocityVerlet(dt=1e-3))
+    assert sim._next_chunk(1000, 1.0, 1000) == int(1000 * dk.simulation.CHUNK_SECONDS)  # 1000 steps a second
+    sim._rate = None
+    assert sim._next_chunk(1000, 1.0, 1000, between=0.1) == 2000  # 2 s of steps, not 0.2 s
+    sim._rate = None
+    assert sim._next_chunk(100, 0.1, 100, between=0.1) == 400  # at most 4x the last chunk
