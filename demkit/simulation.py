@@ -358,12 +358,14 @@ class Simulation:
 
     def _open_writers(self, resuming=False):
         """Once per simulation: start the writers' output with the current state, or (``resuming``)
-        let those that can continue their existing output up to the current time."""
+        let those that can continue their existing output up to the current time. A resumed series
+        gets the current state only when it is due on the writer's grid (a checkpoint saved between
+        two frames, as time-based ones are, adds no frame an uninterrupted run would not have)."""
         if self._opened:
             return
         for w in self.writers:
             if resuming and hasattr(w, "resume"):
-                if w.resume(self):
+                if w.resume(self) and self.step % self._steps(w.every, "writer interval") == 0:
                     w.write(self)
             else:
                 w.open(self)

@@ -15,7 +15,7 @@ from restart_scenes import gas
 
 N, DT, UNTIL, FRAME_EVERY = 120, 2e-3, 120.0, 0.4
 
-def _child_run(tmp_path, ready):
+def _child_run(tmp_path, ready, until=UNTIL):
     """The run, as a user's script would do it: resume when there is a checkpoint, else start."""
     scene = gas(n=N)
     checkpoint = dk.Checkpoint(tmp_path / "run.ckpt", every=2.0, seconds=0.05)
@@ -25,12 +25,12 @@ def _child_run(tmp_path, ready):
     if resuming:
         sim.resume()
     os.write(ready, b"r")
-    sim.run(until=UNTIL)
+    sim.run(until=until)
     sim.close()
     np.save(tmp_path / "final.npy", scene.particles.position)
 
 
-def _fork(tmp_path):
+def _fork(tmp_path, until=UNTIL):
     """A child process running the script (forked: this process has compiled the kernels already,
     so the child starts at once); returns its pid once it is about to run."""
     read, write = os.pipe()
@@ -39,7 +39,7 @@ def _fork(tmp_path):
         code = 0
         try:
             os.close(read)
-            _child_run(tmp_path, write)
+            _child_run(tmp_path, write, until)
         except BaseException:  # noqa: BLE001 (report anything, never return into pytest)
             import traceback
             traceback.print_exc()
@@ -85,3 +85,29 @@ def test_sigkill_at_random_moments_loses_nothing_and_resumes_exactly(tmp_path):
     assert series.time[-1] == UNTIL
     assert np.allclose(series.position[-1], scene.particles.position[np.argsort(scene.particles.ids)])
     assert not list((tmp_path / "series").glob("*.tmp"))
+
+
+def test_a_checkpoint_between_two_frames_adds_no_frame_to_the_resumed_series(tmp_path, monkeypatch):
+    """One-step chunks (as on a loaded machine) put the time-based checkpoints between frames: a run
+    resumed from one continues the series on its grid, with no frame at the checkpoint's time."""
+    from demkit import simulation
+    monkeypatch.setattr(simulation, "CHUNK_SECONDS", 1e-9)
+    monkeypatch.setattr(simulation, "CHUNK_OVERHEAD_RATIO", 0.0)
+    until = 40 * FRAME_EVERY
+    scene = gas(n=N)
+    dk.Simulation(scene, dk.VelocityVerlet(DT)).run(until=until)  # the truth
+    rng = random.Random(7)
+    resumed_from = []
+    for _ in range(4):
+        pid = _fork(tmp_path, until)
+        time.sleep(rng.uniform(0.1, 0.3))
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        resumed_from.append(_check_after_kill(tmp_path))
+    assert any(step % round(FRAME_EVERY / DT) for step in resumed_from), resumed_from  # some between frames
+    pid = _fork(tmp_path, until)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert np.array_equal(np.load(tmp_path / "final.npy"), scene.particles.position)
+    series = dk.read_series(tmp_path / "series" / "particles.pvd")
+    assert np.allclose(series.time, np.arange(41) * FRAME_EVERY), series.time
