@@ -72,10 +72,11 @@ TOUCHING = {("KelvinVoigt", False): 1.3e-8, ("Hertz", False): 2.2e-8,
 #: scene measures 0.07-0.1 us a step in all)
 STEP = 5.0e-8
 #: seconds of an induced-moment solve's fixed work, per sphere and field evaluation, per pair of its
-#: field (benchmarks/bench_induction.py: 17-26 ns a listed pair at N = 1000 and 8000)
+#: field (benchmarks/bench_induction.py: 11-16 ns a listed pair at N = 1000 and 8000 with the blocked
+#: field loop, on a machine where the dipole force loop takes 15-19 ns a pair)
 INDUCTION_CALL = 2.0e-6
 INDUCTION_SPHERE = 3.0e-8
-FIELD_PAIR = 2.0e-8
+FIELD_PAIR = 1.3e-8
 #: conjugate-gradient iterations per solve at the default tolerance 1e-6 in a run: the field smooth
 #: in time (all pairs, a switched cutoff, a long-range sum: the extrapolated start; 4.2-4.5 measured on
 #: the reference scene), or jumping as pairs cross a plain cutoff (6.2-6.3)
