@@ -17,7 +17,9 @@ scheduler time slice, and two threads ran a 4000-sphere gas 8-40x slower than on
 2. then runs a short probe chunk (about :data:`PROBE_SECONDS` of one-thread time) on all threads
    and keeps whichever ran more steps per second;
 3. checks again after :data:`RECHECK_SECONDS` (doubling up to :data:`RECHECK_MAX` while threads keep
-   losing), and leaves threads at once when a chunk on threads runs slower than one thread did.
+   losing), and leaves threads at once when a chunk on threads runs clearly slower than one thread
+   did (under :data:`LEAVE` of its rate: a busy core makes threads 8-40x slower, while chunks of
+   the same run differ by 20-30 % with the list rebuilds and sorts they happen to hold).
 
 ``parallel=True`` always runs on threads, ``parallel=False`` never. ``Simulation.statistics``
 (``threads``, ``threads_reason``), the progress bar and ``demkit info`` say what was chosen and why.
@@ -54,6 +56,11 @@ RECHECK_SECONDS = 4.0
 RECHECK_MAX = 64.0
 #: threads must be at least this much faster to be kept (timing noise between chunks)
 MARGIN = 1.05
+#: an ordinary chunk on threads leaves them only below this fraction of the last one-thread rate.
+#: That rate can be seconds old and chunks differ by the rebuilds they hold: leaving at any loss
+#: (MARGIN) sent the N = 8000 reference scene back to one thread after one slow chunk (144 against
+#: 140 steps/s) where threads ran 1.5-1.9x as fast, and kept it there for seconds
+LEAVE = 0.8
 #: a run shorter than this (seconds, at the one-thread rate) does not compile the thread module
 WORTH_COMPILING = 5.0
 
@@ -161,6 +168,8 @@ class ThreadChoice:
         one, many = self.rates[1], self.rates[self.max_threads]
         if self.fixed is not None or one is None or many is None or (ran == 1 and not probing):
             return  # nothing to decide (an ordinary one-thread chunk decides nothing)
+        if ran > 1 and not probing and many > LEAVE * one:
+            return  # an ordinary chunk on threads, against an older one-thread rate: stay
         faster = many > MARGIN * one
         self.threads = self.max_threads if faster else 1
         if faster:
