@@ -300,7 +300,9 @@ class Simulation:
                 guarding = time.perf_counter()
                 self._check_while_stepping(done, start_step, stride, record)
                 guarding = time.perf_counter() - guarding
-                if self.checkpoint is not None and (
+                # the last chunk's state is saved after the end frame is written (below): saved
+                # here, a kill before that frame left a checkpoint at the run's end and no end frame
+                if self.checkpoint is not None and done < nsteps and (
                         (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
                     self._save_checkpoint()
                 if interrupt.caught and done < nsteps:

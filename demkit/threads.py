@@ -18,8 +18,10 @@ scheduler time slice, and two threads ran a 4000-sphere gas 8-40x slower than on
    and keeps whichever ran more steps per second;
 3. checks again after :data:`RECHECK_SECONDS` (doubling up to :data:`RECHECK_MAX` while threads keep
    losing), and leaves threads at once when a chunk on threads runs clearly slower than one thread
-   did (under :data:`LEAVE` of its rate: a busy core makes threads 8-40x slower, while chunks of
-   the same run differ by 20-30 % with the list rebuilds and sorts they happen to hold).
+   did (under :data:`LEAVE` of its rate: a busy core makes threads up to 40x slower, while chunks
+   of the same run differ by 20-30 % with the list rebuilds and sorts they happen to hold), or when
+   the chunks on threads since they were chosen, :data:`SPELL_CHUNKS` or more, ran no faster than
+   one thread did on average.
 
 ``parallel=True`` always runs on threads, ``parallel=False`` never. ``Simulation.statistics``
 (``threads``, ``threads_reason``), the progress bar and ``demkit info`` say what was chosen and why.
@@ -61,6 +63,9 @@ MARGIN = 1.05
 #: (MARGIN) sent the N = 8000 reference scene back to one thread after one slow chunk (144 against
 #: 140 steps/s) where threads ran 1.5-1.9x as fast, and kept it there for seconds
 LEAVE = 0.8
+#: ... and after this many chunks on threads, when their mean rate is no better than one thread's
+#: (beside a busy core the dipole reference scene ran 0.9x as fast on threads: never under LEAVE)
+SPELL_CHUNKS = 3
 #: a run shorter than this (seconds, at the one-thread rate) does not compile the thread module
 WORTH_COMPILING = 5.0
 
@@ -82,6 +87,7 @@ class ThreadChoice:
         self.probing = False  # is the current chunk a probe (or the untimed "warm-up" step)?
         self._warm = False
         self._after_probe = False
+        self._spell = [0, 0.0, 0]  # steps, seconds and chunks on threads since they were chosen
         if not scene.parallel:
             self.fixed, self.reason = 1, self._why_serial()
         elif self.max_threads == 1:
@@ -168,10 +174,16 @@ class ThreadChoice:
         one, many = self.rates[1], self.rates[self.max_threads]
         if self.fixed is not None or one is None or many is None or (ran == 1 and not probing):
             return  # nothing to decide (an ordinary one-thread chunk decides nothing)
-        if ran > 1 and not probing and many > LEAVE * one:
-            return  # an ordinary chunk on threads, against an older one-thread rate: stay
+        if ran > 1 and not probing:  # an ordinary chunk on threads, against an older one-thread rate
+            spell = self._spell
+            spell[0], spell[1], spell[2] = spell[0] + steps, spell[1] + seconds, spell[2] + 1
+            mean = spell[0] / spell[1]
+            if many > LEAVE * one and (spell[2] < SPELL_CHUNKS or mean > one):
+                return  # stay
+            many = min(many, mean)
         faster = many > MARGIN * one
         self.threads = self.max_threads if faster else 1
+        self._spell = [0, 0.0, 0]
         if faster:
             self.reason = f"{self.max_threads} threads measured {many / one:.2f}x as fast as one"
             self.recheck = RECHECK_SECONDS

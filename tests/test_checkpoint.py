@@ -228,6 +228,36 @@ def test_ctrl_c_ends_a_run_cleanly_keeping_frames_state_and_a_checkpoint(tmp_pat
     assert np.array_equal(scene2.particles.angular_velocity, scene.particles.angular_velocity)
 
 
+def test_a_kill_before_the_end_frame_leaves_a_checkpoint_from_which_the_rerun_writes_it(tmp_path, monkeypatch):
+    """A run ending between two frames writes an end frame after its last chunk. A checkpoint due at
+    that last step is saved after the end frame, so a kill in between leaves an earlier checkpoint:
+    the rerun of the same command redoes the last steps and writes the end frame (before, it found
+    a checkpoint at the end time, refused run(until=end) and the end frame was never written)."""
+    from demkit.io import read_pvd
+    path, out = tmp_path / "c.ckpt", tmp_path / "out"
+
+    def simulation():
+        checkpoint = dk.Checkpoint(path, every=1e-4)  # due at every step, the run's last one included
+        writer = dk.VTKWriter(out, every=4e-4, resume=checkpoint.exists())
+        return dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4), writers=[writer], checkpoint=checkpoint)
+
+    def killed(*args):
+        raise RuntimeError("killed")
+
+    sim = simulation()
+    monkeypatch.setattr(sim, "_write_end", killed)
+    with pytest.raises(RuntimeError, match="killed"):
+        sim.run(until=10e-4)  # frames at steps 0, 4, 8, then the end frame at step 10
+    assert ckpt_module.load(path)[0]["step"] < 10
+    again = simulation()
+    again.resume()
+    again.run(until=10e-4)
+    again.close()
+    times = [t for t, _ in read_pvd(out / "particles.pvd")] if (out / "particles.pvd").exists() else None
+    assert times == pytest.approx([0.0, 4e-4, 8e-4, 10e-4])
+    assert ckpt_module.load(path)[0]["step"] == 10
+
+
 def test_run_arguments_are_checked():
     sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4))
     for bad in ("10", True, None):

@@ -373,19 +373,31 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
     np.testing.assert_array_equal(sim.scene.particles.position, ref_sim.scene.particles.position)
 
 
-def test_threads_outlast_a_slow_chunk_but_not_a_collapse():
+def test_threads_outlast_a_slow_chunk_but_not_a_collapse_or_a_slow_spell():
     """On threads, an ordinary chunk is compared with a one-thread rate measured seconds before;
-    chunks differ by the list rebuilds they hold, so threads are left only below LEAVE of that rate
-    (a busy core makes them 8-40x slower), while a probe must win by MARGIN."""
+    chunks differ by the list rebuilds they hold, so threads are left at once only below LEAVE of
+    that rate (a busy core making them far slower), or once SPELL_CHUNKS chunks on threads ran no
+    faster than one thread on average (a busy core beside a long step: ~0.9x); a probe must win by MARGIN."""
     from demkit import threads
-    choice = threads.ThreadChoice.__new__(threads.ThreadChoice)  # the decision alone, no scene
-    choice.fixed, choice.max_threads, choice.threads, choice.probing = None, 2, 2, False
-    choice.rates, choice.reason = {1: 140.0, 2: 180.0}, "2 threads measured 1.29x as fast as one"
-    choice.recheck, choice.next_check = threads.RECHECK_SECONDS, 0.0
-    choice.measured(33, 33 / 120.0)  # 0.86x of one thread's last rate: noise, stay
-    assert choice.threads == 2 and "1.29x" in choice.reason
+
+    def on_threads():
+        choice = threads.ThreadChoice.__new__(threads.ThreadChoice)  # the decision alone, no scene
+        choice.fixed, choice.max_threads, choice.threads, choice.probing = None, 2, 2, False
+        choice.rates, choice.reason = {1: 140.0, 2: 180.0}, "2 threads measured 1.29x as fast as one"
+        choice.recheck, choice.next_check, choice._spell = threads.RECHECK_SECONDS, 0.0, [0, 0.0, 0]
+        return choice
+
+    choice = on_threads()
+    for rate in (120.0, 190.0, 185.0, 125.0, 180.0):  # one slow chunk now and then: noise, stay
+        choice.measured(33, 33 / rate)
+        assert choice.threads == 2 and "1.29x" in choice.reason
     choice.measured(33, 33 / 70.0)  # 0.5x: the other core is busy, leave at once
     assert choice.threads == 1 and "0.50x" in choice.reason
+    choice = on_threads()
+    for k in range(threads.SPELL_CHUNKS):  # each chunk 0.9x: none below LEAVE, their mean no faster
+        assert choice.threads == 2
+        choice.measured(33, 33 / 126.0)
+    assert choice.threads == 1 and "0.90x" in choice.reason
     choice.threads, choice.probing = 2, True  # a probe on threads must win by MARGIN
     choice.measured(8, 8 / 143.0)
     assert choice.threads == 1
