@@ -305,7 +305,8 @@ class Simulation:
                 if self.checkpoint is not None and done < nsteps and (
                         (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
                     self._save_checkpoint()
-                if interrupt.caught and done < nsteps:
+                if interrupt.caught and done < nsteps:  # statistics of the steps done, then stop
+                    self._measure(done, time.perf_counter() - clock, int(scene.counters[REBUILDS]) - rebuilds)
                     self._interrupted(done, start_step, stride, record)
         if extra_final:
             kern.record_frame(nframes, state, record)

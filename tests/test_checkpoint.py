@@ -212,6 +212,7 @@ def test_ctrl_c_ends_a_run_cleanly_keeping_frames_state_and_a_checkpoint(tmp_pat
     assert waited < 0.5 + 1.0  # honoured within a chunk (~0.2 s), not at the end of the run
     traj = sim.trajectory
     assert sim.time > 1e-3 and traj.time[-1] == sim.time and len(traj) >= 2
+    assert sim.statistics["steps"] == sim.step - 10 and sim.statistics["threads"] == 1  # the interrupted run's
     assert np.array_equal(traj.position[-1], scene.particles.position)
     assert np.all(np.diff(traj.time) > 0)
     meta, _ = ckpt_module.load(path)
