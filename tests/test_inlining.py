@@ -1,0 +1,77 @@
+"""demkit.inlining: numba's inliner copies a callee's IR with one memo per copy (linear, not quadratic).
+
+Independent truths: the copy must equal the original block by block (numba's own IR equality), share
+one scope like the original, be made afresh each time, and inlined code must compute what the plain
+Python functions compute. The compile time it saves is measured in benchmarks/bench_latency.py.
+"""
+import os
+import subprocess
+import sys
+
+import numba
+from numba.core import inline_closurecall, ir
+from numba.core.compiler import run_frontend
+
+import demkit  # noqa: F401 (installs the patch)
+from demkit import inlining
+
+
+def branchy(x, n):
+    total = 0.0
+    for k in range(n):
+        if k % 3 == 0:
+            total += x * k
+        elif k % 3 == 1:
+            total -= x
+        else:
+            total *= 0.5
+    while total > 100.0:
+        total /= 7.0
+    return total
+
+
+def test_the_patch_is_in_place_after_importing_demkit():
+    assert inlining.INSTALLED
+    assert getattr(inline_closurecall.InlineWorker.inline_ir, "demkit_one_memo", False)
+    assert isinstance(inline_closurecall.copy, inlining._OneMemoPerCopy)
+    assert inlining.install()  # a second install keeps the one patch
+
+
+def test_a_copy_of_an_ir_equals_it_shares_one_new_scope_and_is_made_afresh_each_time():
+    blocks = run_frontend(branchy).blocks
+    assert len(blocks) > 5
+    shim = inlining._OneMemoPerCopy()
+    shim.memo = {}  # as during an inlining
+    first = {label: shim.deepcopy(block) for label, block in blocks.items()}
+    second = {label: shim.deepcopy(block) for label, block in blocks.items()}
+    for copies in (first, second):
+        assert copies == blocks  # numba's structural equality, statement by statement
+        scopes = {id(block.scope) for block in copies.values()}
+        assert len(scopes) == 1 and id(next(iter(blocks.values())).scope) not in scopes
+    for label in blocks:
+        assert first[label] is not second[label]
+        assert first[label].body[0] is not second[label].body[0]
+    # outside an inlining it is copy.deepcopy: every block its own scope copy
+    shim.memo = None
+    alone = [shim.deepcopy(block) for block in blocks.values()]
+    assert len({id(block.scope) for block in alone}) == len(alone)
+
+
+def test_inlined_functions_compute_what_python_computes():
+    callee = numba.njit(inline="always")(branchy)
+
+    @numba.njit
+    def twice(x, n):
+        return callee(x, n) + callee(x + 1.0, n + 5)
+
+    for x, n in ((0.3, 10), (2.0, 40), (-1.5, 7)):
+        assert twice(x, n) == branchy(x, n) + branchy(x + 1.0, n + 5)
+    assert isinstance(next(iter(run_frontend(branchy).blocks.values())), ir.Block)
+
+
+def test_demkit_plain_inlining_keeps_numba_as_it_is():
+    code = ("import demkit, copy; from numba.core import inline_closurecall as ic; "
+            "print(demkit.inlining.INSTALLED, ic.copy is copy)")
+    env = dict(os.environ, DEMKIT_PLAIN_INLINING="1")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True"]
