@@ -31,7 +31,8 @@ from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
-from .state import DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairList, PairListTuple, State, StateTuple, new_pair_list
+from .state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, make_pair_list, make_state,
+                    new_pair_list)
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
 #: same limit stops a run, see demkit.state.DEEP_OVERLAP_FRACTION)
@@ -322,7 +323,7 @@ class Scene:
             history = np.zeros((n * (n - 1) // 2 if group.width else 0, group.width))
             fields = (math.inf, np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                       np.zeros(0, dtype=np.int32), history, bounds)
-            lists.append(PairList(*fields) if growing else PairListTuple(*fields))
+            lists.append(make_pair_list(*fields) if growing else PairListTuple(*fields))
         threads = self.chunks if any(g.parallel for g in plan.groups) else 0
         omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
         dipole = p.dipole if p.dipole is not None else empty_vectors()
@@ -367,7 +368,7 @@ class Scene:
     def _state_object(self):
         """The named state the kernels take, over the arrays in ``self.arrays``."""
         values = [self.arrays[name] for name in STATE_FIELDS]
-        return State(*values) if self.plan.growing else StateTuple(*values)
+        return make_state(*values) if self.plan.growing else StateTuple(*values)
 
     # ---- state -----------------------------------------------------------------------------
     def _pairs(self):

@@ -150,12 +150,32 @@ def _get_lists(s):
     return s.lists
 
 
+# Constructors compiled once and cached on disk. Calling State(...) or PairList(...) from Python
+# goes through numba's StructRefProxy constructor, which is compiled anew in every process for
+# every combination of field types (about 1 s for a State, 0.2-0.3 s for a PairList, each time a
+# process builds its first scene of a kind, even with every kernel cached).
+@njit(cache=True)
+def make_pair_list(reach, start, end, partner, history, bounds):
+    """A :class:`PairList` of these fields (see the class)."""
+    return PairList(reach, start, end, partner, history, bounds)
+
+
+@njit(cache=True)
+def make_state(position, velocity, angular_velocity, dipole, radius, mass, inertia, tag, image, force, torque,
+               accum, params, box, periodic, reference, skin, status, counters, lists, thread_force, thread_torque,
+               thread_power, scratch, gather, sphere_history, stage):
+    """A :class:`State` of these fields, in the order of :data:`STATE_FIELDS`."""
+    return State(position, velocity, angular_velocity, dipole, radius, mass, inertia, tag, image, force, torque,
+                 accum, params, box, periodic, reference, skin, status, counters, lists, thread_force, thread_torque,
+                 thread_power, scratch, gather, sphere_history, stage)
+
+
 
 def new_pair_list(reach, n, history_width, chunks, capacity=None):
     """An empty growing list for n particles (filled, and grown, in compiled code). It starts with
     room for one pair per particle; the first build grows it to what it holds and 1/8 more
     (demkit.neighbours.GROWTH), so a list's memory follows its pairs, not a guess."""
     capacity = max(n, 16) if capacity is None else max(int(capacity), 16)
-    return PairList(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
-                    np.zeros(capacity, dtype=np.int32),
-                    np.zeros((0, history_width)), np.zeros(chunks + 1, dtype=np.int64))
+    return make_pair_list(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
+                          np.zeros(capacity, dtype=np.int32),
+                          np.zeros((0, history_width)), np.zeros(chunks + 1, dtype=np.int64))

@@ -6,24 +6,31 @@ import textwrap
 
 SCRIPT = textwrap.dedent("""
     import numpy as np
+    from numba.core import event
     import demkit as dk
     # one sphere in a periodic box: no neighbour-list call from Python before the cached kernels run
-    p = dk.Particles(position=[[1.0, 2.0, 3.0]], velocity=[[0.5, 0.0, 0.0]], radius=0.1)
-    scene = dk.Scene(p, [dk.KelvinVoigt(1.0)], box=dk.Box([10, 10, 10], periodic=[True, True, False]))
-    traj = dk.Simulation(scene, dk.VelocityVerlet(dt=0.01)).run(duration=30.0, record_every=10.0)
+    with event.install_recorder("numba:compile") as compiled:
+        p = dk.Particles(position=[[1.0, 2.0, 3.0]], velocity=[[0.5, 0.0, 0.0]], radius=0.1)
+        scene = dk.Scene(p, [dk.KelvinVoigt(1.0)], box=dk.Box([10, 10, 10], periodic=[True, True, False]))
+        traj = dk.Simulation(scene, dk.VelocityVerlet(dt=0.01)).run(duration=30.0, record_every=10.0)
+    print(sorted(ev.data["dispatcher"].py_func.__qualname__ for _, ev in compiled.buffer if ev.is_start))
     print(repr(float(traj.unwrapped()[-1, 0, 0])))
 """)
 
 
 def test_a_scene_whose_kernels_load_from_the_cache_runs_in_a_new_process(tmp_path):
-    """The second process loads every kernel from the cache: it segfaulted (exit -11) when numba's
+    """The second process loads every kernel from the cache and compiles nothing at all (the scene's
+    state once compiled its constructor in every process, ~1 s); it segfaulted (exit -11) when numba's
     threading layer had not been started, which the threaded list builder in the cached code needs."""
     env = dict(os.environ, DEMKIT_CACHE_DIR=str(tmp_path / "cache"), DEMKIT_QUIET="1")
-    outputs = []
+    outputs, compiled = [], []
     for _ in range(2):
         run = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env, timeout=300)
         assert run.returncode == 0, run.stderr[-2000:]
         outputs.append(float(run.stdout.strip().splitlines()[-1]))
+        compiled.append(run.stdout.strip().splitlines()[-2])
+    assert compiled[0] != "[]"  # the first process compiled the scene's kernels
+    assert compiled[1] == "[]", f"the second process compiled {compiled[1]}"
     # free flight across the periodic x boundary: x = 1 + 0.5 t, unwrapped
     assert outputs[0] == outputs[1]
     assert abs(outputs[0] - 16.0) < 1e-9
