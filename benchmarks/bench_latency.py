@@ -27,7 +27,7 @@ Parts (all by default; name some to run only those):
 Usage: python benchmarks/bench_latency.py [threads] [compile] [long_range] [--quick] [--against=<git revision>]
 
 ``--against=REV`` runs the compile part of revision REV's code alternating with this one's (before
-and after, side by side on the same machine).
+and after, side by side on the same machine), written under ``compile_against_REV``.
 """
 from __future__ import annotations
 
@@ -354,8 +354,9 @@ def main(argv):
         against = next((a.split("=", 1)[1] for a in argv if a.startswith("--against=")), None)
         scenes = ["two_magnets", "gas600"] if quick else ["two_magnets", "two_magnets_rk4", "gas600",
                                                           "magnetic_cluster", "accuracy3"]
-        results["compile"] = {"machine": machine, "against": against,
-                              "rows": part_compile(quick, scenes, against=against)}
+        key = f"compile_against_{against}" if against else "compile"  # a comparison keeps its own table
+        results[key] = {"machine": machine, "against": against, "quick": quick,
+                        "rows": part_compile(quick, scenes, against=against)}
     if "long_range" in parts:  # the dipole sums of every range: compilation, and threads beside a busy core
         results["long_range"] = {
             "machine": machine,
