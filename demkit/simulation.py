@@ -268,7 +268,7 @@ class Simulation:
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
-        with CatchInterrupt() as interrupt, _Stepping(scene), bar:
+        with CatchInterrupt() as interrupt, _Stepping(scene), bar, _MeasuredOnFailure(self, start_step, clock, rebuilds):
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
@@ -650,6 +650,24 @@ def _physical_memory():
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
         return 0
+
+
+class _MeasuredOnFailure:
+    """A run stopped by a SimulationError leaves ``sim.statistics`` describing its own steps (up to
+    ``sim.step``), not the run before it."""
+
+    def __init__(self, sim, start_step, clock, rebuilds):
+        self.sim, self.start_step, self.clock, self.rebuilds = sim, start_step, clock, rebuilds
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, trace):
+        if kind is not None and issubclass(kind, SimulationError):
+            sim = self.sim
+            sim._measure(sim.step - self.start_step, time.perf_counter() - self.clock,
+                         int(sim.scene.counters[REBUILDS]) - self.rebuilds)
+        return False
 
 
 class _Stepping:

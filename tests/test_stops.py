@@ -12,15 +12,18 @@ def test_a_sphere_falling_through_a_soft_wall_stops_before_it_passes():
     p = dk.Particles([[0.0, 0.0, 21.0]], radius=1.0, mass=1.0)
     scene = dk.Scene(p, [dk.KelvinVoigt(10.0), dk.Wall((0, 0, 0), (0, 0, 1)), dk.Gravity((0, 0, -1.0))])
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    sim.run(1.0, record_every=0.5)  # a run that goes well, then one that stops
+    first = sim.step
     with pytest.raises(dk.SimulationError, match="overlaps Wall.*more than 0.5 of its radius") as err:
-        sim.run(10.0, record_every=0.5)
+        sim.run(9.0, record_every=0.5)
+    assert sim.statistics["steps"] == sim.step - first > 0  # the stopped run's figures, not the first run's
     z = p.position[0, 2]
     assert 0.45 < 1.0 - z < 0.6  # stopped as the overlap passed half the radius, not later
     fall = np.sqrt(2 * 20.0)  # time to fall to the wall
     assert fall < err.value.time < fall + 1.0
     assert err.value.particle == 0 and err.value.step == sim.step
     traj = err.value.trajectory
-    assert len(traj) == int(err.value.time / 0.5) + 1 and np.isfinite(traj.position).all()
+    assert len(traj) == int((err.value.time - 1.0) / 0.5) + 1 and np.isfinite(traj.position).all()  # this run's frames
 
 
 def test_two_spheres_tunnelling_through_a_soft_contact_stop_with_both_ids():
@@ -44,5 +47,6 @@ def test_energy_growth_guard_stops_a_run_gaining_energy():
     sim = dk.Simulation(scene, dk.EulerCromer(0.06), max_energy_growth=0.05)
     with pytest.raises(dk.SimulationError, match="energy grew by"):
         sim.run(200.0, record_every=1.0)
+    assert sim.statistics["steps"] == sim.step > 0 and sim.statistics["seconds"] > 0
     energy = sim.trajectory.energy["total"] + sim.trajectory.energy["dissipated"]
     assert np.isfinite(energy).all()
