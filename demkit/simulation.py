@@ -183,6 +183,7 @@ class Simulation:
             raise TypeError(f"notes must be True or False, got {notes!r}")
         self.notes = notes
         self.energy_origin = None  # (total + dissipated, scale) at the start, for max_energy_growth
+        self.resumed_meta = None  # what a resumed checkpoint says about the run that wrote it
         self._opened = False
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
         self._rate = None  # measured steps per second of wall time (sizes the compiled chunks)
@@ -218,7 +219,9 @@ class Simulation:
             of wall time; True: a bar always; False: never (see :mod:`demkit.progress`). The bar
             is updated between compiled chunks (about every 0.2 s) and closed however the run ends.
         When the scene's kernels must first be compiled (not in the on-disk cache), a line on stderr
-        says so, and another how long it took.
+        says so, and another how long it took. A simulation resumed at the time ``until`` already
+        (a finished checkpointing script run again) steps and writes nothing and returns the one
+        frame of its state, with a note on stderr.
 
         Ctrl-C (SIGINT) ends the run at the next chunk boundary (within about 0.2 s): the frames
         recorded so far and the state reached are kept in ``trajectory`` (last frame: the state at
@@ -227,9 +230,24 @@ class Simulation:
         """
         check_progress(progress)
         nsteps = self._run_length(duration, until)
+        if nsteps == 0:
+            return self._already_there()
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
         with compile_notice(lambda: compile_estimate(self.scene.plan, "run")) as notice:  # ended after the first chunk
             return self._advance(nsteps, stride, progress, notice)
+
+    def _already_there(self):
+        """run(until=t) of a simulation resumed at t: the script that checkpoints and resumes (see
+        docs/restart.md) was run again after it finished. Nothing is stepped or written; the
+        trajectory is the one frame of the state reached, and a note says so."""
+        say_notes([f"t = {self.time:.6g} was already reached (resumed from a checkpoint at the run's end): "
+                   f"nothing to run; delete the checkpoint to start over"])
+        self._prepare()
+        record = self._allocate(1)
+        self._threads.kernels.record_frame(0, self.scene.state, record)
+        self._last_frame = _frame_of(record, 0)
+        self._measure(0, 0.0, 0)
+        return self._keep(record, self.step, [0])
 
     def _advance(self, nsteps, stride, progress, notice):
         """The body of :meth:`run`."""
@@ -385,6 +403,8 @@ class Simulation:
         if not math.isfinite(end):
             raise ValueError(f"until must be a finite time, got {end}")
         steps = int(round(end / self.integrator.dt)) - self.step
+        if steps == 0 and self.resumed_meta is not None:
+            return 0  # resumed at the end time already: a finished script run again (see run())
         if steps < 1:
             raise ValueError(f"until = {end:.6g} is not after the current time {self.time:.6g} (dt = "
                              f"{self.integrator.dt:.6g})")

@@ -299,3 +299,33 @@ def test_a_run_announces_a_large_output_before_it_starts(tmp_path, monkeypatch):
     sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4), writers=[writer])
     with pytest.warns(dk.LargeOutputWarning, match="about 2[0-9] files"):
         sim.run(2e-3)
+
+
+def test_the_checkpoint_script_run_again_after_it_finished_runs_nothing_and_changes_nothing(tmp_path, capfd):
+    """docs/restart.md's pattern (resume when a checkpoint exists, then run(until=T)) run a second
+    time after it finished: no ValueError, no step, no file touched; the one frame is the end state."""
+    path, out = tmp_path / "run.ckpt", tmp_path / "out"
+
+    def script():
+        checkpoint = dk.Checkpoint(path, every=2e-3)
+        writer = dk.VTKWriter(out, every=1e-3, resume=checkpoint.exists())
+        sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4), writers=[writer], checkpoint=checkpoint)
+        if checkpoint.exists():
+            sim.resume()
+        traj = sim.run(until=5e-3, record_every=1e-3)
+        sim.close()
+        return sim, traj
+
+    _, first = script()
+    files = {f.name: f.read_bytes() for f in sorted(out.iterdir())}
+    saved = path.read_bytes()
+    capfd.readouterr()
+    sim, again = script()
+    assert "already reached" in capfd.readouterr().err
+    assert sim.step == 50 and sim.statistics["steps"] == 0
+    assert len(again) == 1 and again.time[0] == pytest.approx(5e-3)
+    assert np.array_equal(again.position[0], first.position[-1])
+    assert np.array_equal(again.energy["total"], first.energy["total"][-1:])
+    assert {f.name: f.read_bytes() for f in sorted(out.iterdir())} == files and path.read_bytes() == saved
+    with pytest.raises(ValueError, match="not after"):  # before the end: still refused
+        sim.run(until=4e-3)
