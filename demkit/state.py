@@ -155,19 +155,15 @@ def _get_lists(s):
 # every combination of field types (about 1 s for a State, 0.2-0.3 s for a PairList, each time a
 # process builds its first scene of a kind, even with every kernel cached).
 @njit(cache=True)
-def make_pair_list(reach, start, end, partner, history, bounds):
-    """A :class:`PairList` of these fields (see the class)."""
-    return PairList(reach, start, end, partner, history, bounds)
+def make_pair_list(*fields):
+    """A :class:`PairList` of these fields, in the order of :data:`PAIR_LIST_FIELDS`."""
+    return PairList(*fields)
 
 
 @njit(cache=True)
-def make_state(position, velocity, angular_velocity, dipole, radius, mass, inertia, tag, image, force, torque,
-               accum, params, box, periodic, reference, skin, status, counters, lists, thread_force, thread_torque,
-               thread_power, scratch, gather, sphere_history, stage):
+def make_state(*fields):
     """A :class:`State` of these fields, in the order of :data:`STATE_FIELDS`."""
-    return State(position, velocity, angular_velocity, dipole, radius, mass, inertia, tag, image, force, torque,
-                 accum, params, box, periodic, reference, skin, status, counters, lists, thread_force, thread_torque,
-                 thread_power, scratch, gather, sphere_history, stage)
+    return State(*fields)
 
 
 
