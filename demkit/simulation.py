@@ -286,7 +286,7 @@ class Simulation:
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
-        with CatchInterrupt() as interrupt, _Stepping(scene), bar, _MeasuredOnFailure(self, start_step, clock, rebuilds):
+        with CatchInterrupt() as interrupt, _Stepping(scene), bar, _MeasuredOnStop(self, start_step, clock, rebuilds):
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
@@ -323,8 +323,7 @@ class Simulation:
                 if self.checkpoint is not None and done < nsteps and (
                         (check_steps and self.step % check_steps == 0) or self.checkpoint.due(time.perf_counter())):
                     self._save_checkpoint()
-                if interrupt.caught and done < nsteps:  # statistics of the steps done, then stop
-                    self._measure(done, time.perf_counter() - clock, int(scene.counters[REBUILDS]) - rebuilds)
+                if interrupt.caught and done < nsteps:
                     self._interrupted(done, start_step, stride, record)
         if extra_final:
             kern.record_frame(nframes, state, record)
@@ -672,9 +671,9 @@ def _physical_memory():
         return 0
 
 
-class _MeasuredOnFailure:
-    """A run stopped by a SimulationError leaves ``sim.statistics`` describing its own steps (up to
-    ``sim.step``), not the run before it."""
+class _MeasuredOnStop:
+    """A run stopped by a SimulationError or Ctrl-C leaves ``sim.statistics`` describing its own
+    steps (up to ``sim.step``), not the run before it."""
 
     def __init__(self, sim, start_step, clock, rebuilds):
         self.sim, self.start_step, self.clock, self.rebuilds = sim, start_step, clock, rebuilds
@@ -683,7 +682,7 @@ class _MeasuredOnFailure:
         return self
 
     def __exit__(self, kind, error, trace):
-        if kind is not None and issubclass(kind, SimulationError):
+        if kind is not None and issubclass(kind, (SimulationError, KeyboardInterrupt)):
             sim = self.sim
             sim._measure(sim.step - self.start_step, time.perf_counter() - self.clock,
                          int(sim.scene.counters[REBUILDS]) - self.rebuilds)
