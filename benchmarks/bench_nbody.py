@@ -8,7 +8,11 @@ Parts (all by default; name some to run only those):
   KelvinVoigt(1000, 1.5)), ``full`` (the same with Friction(0.5, 2/7 k_n, 0.75, slip_radius="full"),
   LAMMPS' linear_history), ``nodip_nofric`` (KelvinVoigt only, spheres without dipoles or spins)
   and ``nodip`` (KelvinVoigt with that friction, spinning spheres); demkit on 1 and 2 threads,
-  LAMMPS (benchmarks/lammps/in.reference, same data file) on 1 and 2 MPI ranks; best of 3 each.
+  LAMMPS (benchmarks/lammps/in.reference, same data file) on 1 and 2 MPI ranks. This machine's
+  speed drifts by 20-50 % between minutes, so the two codes alternate: ROUNDS rounds, each a demkit
+  process (best of 3 runs in it) and a LAMMPS run (best of 2), the order swapped every round; a
+  round's ratio compares runs made within the same minute, and the figure kept is the median of the
+  rounds' ratios (all rounds' rates are in the row).
 * ``memory``: bytes per sphere of the engine for contacts + dipoles + per-contact history (a
   3-value history on the contact list, as friction keeps), counted array by array (recording excluded).
 * ``scaling``: contact-only cost per particle-step and peak memory for N = 1e3 ... 1e6 (one
@@ -37,6 +41,8 @@ RESULTS = HERE / "results" / "nbody.json"
 DECK = HERE / "lammps" / "in.reference"
 N_REFERENCE = 8000
 STEPS = 1000
+#: alternating demkit / LAMMPS rounds per model and core count (part speed)
+ROUNDS = 3
 
 # one demkit measurement in a fresh process (threads and peak memory are per process)
 CHILD = textwrap.dedent("""
@@ -90,19 +96,37 @@ def lammps_rate(model, ranks, data, steps=STEPS, repeats=3):
 
 
 def part_speed(folder, quick):
+    import statistics
+
     from reference_scene import write_reference_scene
     _, _, data = write_reference_scene(N_REFERENCE, folder)
     rows = []
+    rounds = 1 if quick else ROUNDS
     for model in ("nofric", "full", "nodip_nofric", "nodip"):
         for cores in (1, 2):
             steps = 300 if quick else (STEPS if not model.startswith("nodip") else 5 * STEPS)
-            ours = demkit_run(model, cores, steps=steps, folder=folder, repeats=1 if quick else 3)
-            theirs = lammps_rate(model, cores, data, steps=steps, repeats=1 if quick else 3)
-            rows.append({"model": model, "cores": cores, "demkit_particle_steps_per_s": ours["particle_steps_per_second"],
-                         "lammps_atom_steps_per_s": theirs,
-                         "ratio": None if theirs is None else ours["particle_steps_per_second"] / theirs,
-                         "steps_per_list_build": ours["steps_per_build"], "lists": ours["lists"]})
-            print(json.dumps(rows[-1], default=float))
+            ours, theirs, ratios, builds, lists = [], [], [], [], None
+            for r in range(rounds):  # the codes alternate, the order swapped each round (module docstring)
+                pair = {}
+                for code in ("demkit", "lammps") if r % 2 == 0 else ("lammps", "demkit"):
+                    if code == "demkit":
+                        res = demkit_run(model, cores, steps=steps, folder=folder, repeats=1 if quick else 3)
+                        pair["demkit"] = res["particle_steps_per_second"]
+                        builds.append(res["steps_per_build"])
+                        lists = res["lists"]
+                    else:
+                        pair["lammps"] = lammps_rate(model, cores, data, steps=steps, repeats=1 if quick else 2)
+                ours.append(pair["demkit"])
+                theirs.append(pair["lammps"])
+                if pair["lammps"] is not None:
+                    ratios.append(pair["demkit"] / pair["lammps"])
+            rows.append({"model": model, "cores": cores,
+                         "demkit_particle_steps_per_s": statistics.median(ours),
+                         "lammps_atom_steps_per_s": statistics.median(theirs) if ratios else None,
+                         "ratio": statistics.median(ratios) if ratios else None,
+                         "ratio_rounds": ratios, "demkit_rounds": ours, "lammps_rounds": theirs,
+                         "steps_per_list_build": statistics.median(builds), "lists": lists})
+            print(json.dumps(rows[-1], default=float), flush=True)
     return rows
 
 
@@ -246,6 +270,10 @@ def main(argv):
             t = time.perf_counter()
             if part == "speed":
                 results["speed"] = part_speed(folder, quick)
+                rev = subprocess.run(["git", "-C", str(HERE.parent), "rev-parse", "--short", "HEAD"],
+                                     capture_output=True, text=True).stdout.strip()
+                results["speed_note"] = (f"measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} at {rev}: "
+                                         f"median of {1 if quick else ROUNDS} alternating demkit/LAMMPS round(s)")
             elif part == "memory":
                 results["memory"] = part_memory(folder)
             elif part == "scaling":
