@@ -427,8 +427,9 @@ class _Source:
         lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
                  f"def {name}_forces_chunked({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
                  '    """Owners cut into fixed chunks: chunk 0 adds into force/torque, the others into buffers',
-                 '    of their own, summed in chunk order (the same result for any number of threads, and',
-                 '    in the serial module, where the chunks run one after the other)."""']
+                 '    of their own (zero on entry), summed in chunk order and zeroed again by sum_chunks (the',
+                 '    same result for any number of threads, and in the serial module, where the chunks run',
+                 '    one after the other)."""']
         lines += self.prelude(group)
         lines += ["    chunks = bounds.shape[0] - 1",
                   f"    for t in {loop}(chunks):",
@@ -436,13 +437,7 @@ class _Source:
                   "        ct = torque if t == 0 else chunk_torque[t - 1]",
                   "        co = scratch[t]",
                   "        cg = gather[t]",
-                  "        if t > 0:",
-                  "            for i in range(n):",
-                  "                for a in range(3):",
-                  "                    cf[i, a] = 0.0"]
-        if group.torque:
-            lines += ["                    ct[i, a] = 0.0"]
-        lines += ["        power = 0.0"]
+                  "        power = 0.0"]  # the buffers are zero: sum_chunks leaves them so
         lines += self.loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
         lines += ["        chunk_power[t] = power",
                   "    if chunks > 1:",

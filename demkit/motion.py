@@ -315,12 +315,15 @@ def empty_vectors(dtype=np.float64):
 
 @njit(**KERNEL_OPTIONS)
 def sum_chunks(target, buffers, count):
-    """target += buffers[0] + ... + buffers[count - 1], in that order (chunked pair loops)."""
+    """target += buffers[0] + ... + buffers[count - 1], in that order, and the buffers zeroed for
+    the next evaluation (chunked pair loops: their buffers are zero on entry, so no separate pass
+    clears them)."""
     for i in range(target.shape[0]):
         for a in range(3):
             total = target[i, a]
             for t in range(count):
                 total += buffers[t, i, a]
+                buffers[t, i, a] = 0.0
             target[i, a] = total
 
 
@@ -407,12 +410,14 @@ def kick_all_threads(velocity, angular_velocity, dipole, force, torque, mass, in
 
 @njit(**THREAD_OPTIONS)
 def sum_chunks_threads(target, buffers, count):
-    """:func:`sum_chunks`, particles split among threads (the same sums, the same order)."""
+    """:func:`sum_chunks`, particles split among threads (the same sums, the same order; the
+    buffers zeroed)."""
     for i in prange(target.shape[0]):
         for a in range(3):
             total = target[i, a]
             for t in range(count):
                 total += buffers[t, i, a]
+                buffers[t, i, a] = 0.0
             target[i, a] = total
 
 

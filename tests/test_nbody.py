@@ -252,6 +252,23 @@ def test_thread_count_changes_nothing_and_threads_agree_with_the_serial_loop():
     np.testing.assert_array_equal(finals[0], finals[1])  # bit-identical whatever the thread count
 
 
+def test_chunk_buffers_are_zero_after_every_force_evaluation_so_the_next_needs_no_clearing():
+    """The chunked pair loops add chunks 1.. into buffers that must be zero on entry: sum_chunks
+    zeroes them as it sums (no separate clearing pass). Stale buffers would add a chunk's forces
+    twice in the next evaluation."""
+    p, box = gas(n=300, periodic=True, seed=10)
+    scene = thread_scene(p, box, parallel=True)
+    assert scene.arrays["thread_force"].shape[0] >= 1  # at least two chunks
+    f0, t0 = scene.forces()
+    assert np.abs(f0).max() > 0 and np.abs(t0).max() > 0
+    for kernels in (scene.kernels, scene.thread_kernels):  # the serial and the thread module
+        kernels.forces_of(scene.state, False)
+        assert not scene.arrays["thread_force"].any() and not scene.arrays["thread_torque"].any()
+        f1, t1 = scene.forces()
+        np.testing.assert_array_equal(f1, f0)
+        np.testing.assert_array_equal(t1, t0)
+
+
 def test_small_open_scenes_have_no_lists_no_threads_no_periodic_code():
     p = dk.Particles(position=[[0.0, 0, 0], [3.0, 0, 0]], radius=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
     scene = dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(1.0)])
