@@ -26,6 +26,7 @@ Parts (all by default; name some to run only those):
   two-sphere scene (open space, no lists, no threads) against its figure before the N-body engine.
 
 Usage: python benchmarks/bench_nbody.py [speed] [memory] [scaling] [allpairs] [unused] [plot] [--quick]
+       [--models=nofric,full,nodip_nofric,nodip] (part speed: only these models; the others' rows are kept)
 """
 from __future__ import annotations
 
@@ -44,6 +45,8 @@ RESULTS = HERE / "results" / "nbody.json"
 DECK = HERE / "lammps" / "in.reference"
 N_REFERENCE = 8000
 STEPS = 1000
+#: the deck's models (part speed)
+MODELS = ("nofric", "full", "nodip_nofric", "nodip")
 #: alternating demkit / LAMMPS rounds per model and core count (part speed)
 ROUNDS = 3
 
@@ -105,14 +108,14 @@ def lammps_rate(model, ranks, data, steps=STEPS, repeats=3):
     return max(rates)
 
 
-def part_speed(folder, quick):
+def part_speed(folder, quick, models=MODELS):
     import statistics
 
     from reference_scene import write_reference_scene
     _, _, data = write_reference_scene(N_REFERENCE, folder)
     rows = []
     rounds = 1 if quick else ROUNDS
-    for model in ("nofric", "full", "nodip_nofric", "nodip"):
+    for model in models:
         for cores in (1, 2):
             steps = 300 if quick else (STEPS if not model.startswith("nodip") else 5 * STEPS)
             ours, theirs, ratios, builds, lists = [], [], [], [], None
@@ -279,11 +282,17 @@ def main(argv):
         for part in parts:
             t = time.perf_counter()
             if part == "speed":
-                results["speed"] = part_speed(folder, quick)
+                models = next((a.split("=", 1)[1].split(",") for a in argv if a.startswith("--models=")), MODELS)
+                rows = part_speed(folder, quick, models)
                 rev = subprocess.run(["git", "-C", str(HERE.parent), "rev-parse", "--short", "HEAD"],
                                      capture_output=True, text=True).stdout.strip()
-                results["speed_note"] = (f"measured {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} at {rev}: "
-                                         f"median of {1 if quick else ROUNDS} alternating demkit/LAMMPS round(s)")
+                when = f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} at {rev}"
+                for row in rows:
+                    row["measured"] = when
+                kept = [r for r in results.get("speed", []) if r["model"] not in models]  # --models: the others stay
+                results["speed"] = sorted(kept + rows, key=lambda r: (MODELS.index(r["model"]), r["cores"]))
+                results["speed_note"] = (f"each row: median of {1 if quick else ROUNDS} alternating demkit/LAMMPS "
+                                         "round(s), measured when its 'measured' says")
             elif part == "memory":
                 results["memory"] = part_memory(folder)
             elif part == "scaling":

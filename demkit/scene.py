@@ -66,7 +66,7 @@ class Scene:
     skin : extra reach of the neighbour lists (length); default 0.3 mean diameters. Lists are
         rebuilt when a sphere has moved skin/2.
     parallel : None (default: a scene of at least 2000 spheres whose force evaluation is
-        estimated at 1 ms or more may use threads, and each run measures whether they pay, see
+        estimated at 0.5 ms or more may use threads, and each run measures whether they pay, see
         :mod:`demkit.threads`), True (always threads) or False (never). Threads follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops
         of such a scene are cut into ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results
         do not depend on how many threads run them, nor on whether threads run them at all.

@@ -732,7 +732,7 @@ def _check_memory(data, box, interactions, src):
     frames = int(run["duration"] / run["record_every"]) + 2 if run["record_every"] else 2
     torques = any(inter.torque or "angular_velocity" in inter.reads for inter in interactions)
     threads = int(numba.config.NUMBA_NUM_THREADS) if n >= PARALLEL_MIN and options.get("parallel") is not False else 1
-    # (an upper bound: with parallel unset, only scenes whose force evaluation is estimated at 1 ms or
+    # (an upper bound: with parallel unset, only scenes whose force evaluation is estimated at 0.5 ms or
     # more are cut into chunks for threads, demkit.threads.THREADS_FROM_SECONDS)
     try:
         stages = parse_method(data["integrator"]["method"])(1.0).stage_arrays

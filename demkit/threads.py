@@ -44,10 +44,13 @@ PAIR_SECONDS = 1.2e-8
 SPHERE_SECONDS = 5.0e-8
 #: with parallel=None, a scene is cut into chunks for threads when one force evaluation is
 #: estimated to take at least this long (seconds): below it the threads' waits cost what they gain
-#: (measured: a 4000-sphere contact-only gas, 0.13 ms a step, ran 0.66x as fast on two threads on
-#: an idle machine; 8000 dipoles cut at 4 diameters, ~5 ms, 1.9x as fast), and chunks alone cost a
-#: serial run up to 20 % (force buffers summed every step)
-THREADS_FROM_SECONDS = 1.0e-3
+#: (measured: a 4000-sphere contact-only gas, 0.13 ms a step, estimated 0.28 ms, ran 0.66x as fast on
+#: two threads on an idle machine; the N = 8000 reference scene's contacts, estimated 0.57 ms, 0.2-0.3
+#: ms a step from its start, 1.12-1.31x as fast without friction and 1.14-1.46x with it; 8000
+#: dipoles cut at 4 diameters, ~5 ms, 1.9x as fast). Chunks cost a serial run what summing their
+#: buffers costs: 3 % for those 8000 contact-only spheres (15-24 % for the 4000-sphere gas, measured
+#: when the buffers were also cleared in a pass of their own)
+THREADS_FROM_SECONDS = 0.5e-3
 #: length of a probe chunk on threads, in seconds of one-thread time (short: under load a chunk
 #: on threads can run 40x slower than on one)
 PROBE_SECONDS = 0.02

@@ -424,12 +424,19 @@ def test_threads_outlast_a_slow_chunk_but_not_a_collapse_or_a_slow_spell():
 
 
 def test_only_scenes_with_enough_work_per_step_are_cut_into_chunks_for_threads():
-    """parallel=None: chunks (and threads) only where a force evaluation is estimated at 1 ms or
-    more; the estimate follows the pairs (a longer dipole cutoff, more pairs, more time)."""
+    """parallel=None: chunks (and threads) only where a force evaluation is estimated at 0.5 ms or
+    more; the estimate follows the pairs (a longer dipole cutoff, more pairs, more time). Contact-only
+    gases at volume fraction 0.2: 8000 spheres (0.2-0.3 ms a step, 1.1-1.5x as fast on two threads)
+    qualify, 4000 (0.13 ms, 0.66x) do not."""
+    from demkit.threads import THREADS_FROM_SECONDS
+    assert THREADS_FROM_SECONDS == 0.5e-3
     p, box = gas(n=2000, periodic=True, seed=3, dipoles=True)
     contacts = dk.Scene(p.copy(), [dk.KelvinVoigt(stiffness=1000.0, damping=1.0)], box=box)
     dipoles = dk.Scene(p.copy(), [dk.Dipole(prefactor=1.0, cutoff=4.0), dk.KelvinVoigt(1000.0, 1.0)], box=box)
-    assert contacts.force_seconds < 1e-3 < dipoles.force_seconds
+    assert contacts.force_seconds < 0.5e-3 < dipoles.force_seconds
+    for n, eligible in ((4000, False), (8000, True)):
+        q, qbox = gas(n=n, periodic=True, seed=4, dipoles=False)
+        assert dk.Scene(q, [dk.KelvinVoigt(stiffness=1000.0, damping=1.0)], box=qbox).parallel == eligible
     assert contacts.chunks == 1 and not contacts.parallel
     assert dipoles.chunks == numba.config.NUMBA_NUM_THREADS and dipoles.parallel == (dipoles.chunks > 1)
     pairs = dipoles.force_seconds - contacts.force_seconds  # the dipole list's pairs, about 1/2 rho 4/3 pi (4 + skin)^3
