@@ -32,7 +32,7 @@ from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
 from .state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, make_pair_list, make_state,
-                    new_pair_list)
+                    new_pair_list, touch_getters)
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
 #: same limit stops a run, see demkit.state.DEEP_OVERLAP_FRACTION)
@@ -368,7 +368,11 @@ class Scene:
     def _state_object(self):
         """The named state the kernels take, over the arrays in ``self.arrays``."""
         values = [self.arrays[name] for name in STATE_FIELDS]
-        return make_state(*values) if self.plan.growing else StateTuple(*values)
+        if not self.plan.growing:
+            return StateTuple(*values)
+        state = make_state(*values)
+        touch_getters(state)
+        return state
 
     # ---- state -----------------------------------------------------------------------------
     def _pairs(self):

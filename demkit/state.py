@@ -150,6 +150,16 @@ def _get_lists(s):
     return s.lists
 
 
+def touch_getters(state):
+    """Read every list field of ``state`` through the proxies once, so that their compiled getters
+    exist for its types before a run starts. Compiled (or loaded from the cache) later, in the
+    middle of a run, a getter waited for numba's compiler lock, which the background compilation of
+    the thread module holds for tens of seconds on a cold cache: the end of a first run (its
+    statistics read the lists) and Ctrl-C stalled 5-12 s on an 8000-sphere frictional gas."""
+    for pl in state.lists:
+        pl.reach, pl.start, pl.end, pl.partner, pl.history, pl.bounds
+
+
 # Constructors compiled once and cached on disk. Calling State(...) or PairList(...) from Python
 # goes through numba's StructRefProxy constructor, which is compiled anew in every process for
 # every combination of field types (about 1 s for a State, 0.2-0.3 s for a PairList, each time a

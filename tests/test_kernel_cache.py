@@ -34,3 +34,29 @@ def test_a_scene_whose_kernels_load_from_the_cache_runs_in_a_new_process(tmp_pat
     # free flight across the periodic x boundary: x = 1 + 0.5 t, unwrapped
     assert outputs[0] == outputs[1]
     assert abs(outputs[0] - 16.0) < 1e-9
+
+
+GETTERS = textwrap.dedent("""
+    import numba
+    import demkit as dk
+    from demkit import state as st
+    p = dk.Particles(position=[[1.0, 2.0, 3.0], [4.0, 2.0, 3.0]], velocity=[[0.5, 0.0, 0.0], [0.0, 0.0, 0.0]], radius=0.1)
+    scene = dk.Scene(p, [dk.KelvinVoigt(1.0)], box=dk.Box([10, 10, 10], periodic=[True, True, False]))
+    state_type = numba.typeof(scene.state)
+    pl_type = state_type.field_dict["lists"][0]  # (not read through the proxy: that would compile it)
+    have = [any(sig[0] == state_type for sig in st._get_lists.signatures)]
+    have += [any(sig[0] == pl_type for sig in getter.signatures)
+             for getter in (st._get_reach, st._get_start, st._get_end, st._get_partner, st._get_history, st._get_bounds)]
+    print(have)
+""")
+
+
+def test_a_new_scene_has_its_list_getters_compiled_before_any_run(tmp_path):
+    """The proxies' compiled getters for a new kind of state exist once the Scene is made, so no
+    run has to compile or load them midway: there they waited for numba's compiler lock, held for
+    tens of seconds by the background compilation of the thread module (a first run's end and its
+    Ctrl-C stalled 5-12 s). Checked in a fresh process, where nothing else compiled them."""
+    env = dict(os.environ, DEMKIT_CACHE_DIR=str(tmp_path / "cache"), DEMKIT_QUIET="1")
+    run = subprocess.run([sys.executable, "-c", GETTERS], capture_output=True, text=True, env=env, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.strip().splitlines()[-1] == "[True, True, True, True, True, True, True]"
