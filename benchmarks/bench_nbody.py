@@ -183,22 +183,40 @@ SCALING_CHILD = textwrap.dedent("""
     import json, resource, sys, time
     import numba, numpy as np, demkit as dk
     numba.set_num_threads({threads})
+
+    def rss():  # resident memory now (bytes)
+        return int(open("/proc/self/statm").read().split()[1]) * resource.getpagesize()
+
     n = {n}
+    rss_import = rss()
     box = dk.build.box_for(n, 0.5, 0.2, periodic=True)
     rng = np.random.default_rng(1)
     x = dk.build.random_packing(n, 0.5, box, seed=rng)
     v = dk.build.thermal_velocities(n, 1.0, 1.0, seed=rng)
     p = dk.Particles(position=x, velocity=v, radius=0.5, mass=1.0)
+    del x, v
     scene = dk.Scene(p, [dk.KelvinVoigt(stiffness=1000.0, damping=1.5)], box=box, skin=0.3)
+    rss_scene = rss()
     sim = dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
     sim.run(duration=0.01)
     steps = max(100, min(2000, int(1e8 / n)))  # 100 steps of 10^6 spheres: per-run costs (checks, copies) amortised as in real runs
     sim.run(duration=steps * 1e-3)
     st = sim.statistics
+    nbytes = lambda arrays: sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
+    lists = [getattr(pl, k) for pl in scene.state.lists for k in ("start", "end", "partner", "history", "bounds")]
+    user = [getattr(p, k) for k in ("position", "velocity", "angular_velocity", "radius", "mass", "inertia", "ids",
+                                    "image")] if scene.plan.sorted else []
+    t = sim.trajectory
+    frames = [t.position, t.velocity, t.image, t.radius, t.mass, t.inertia, t.ids]
     print("RESULT", json.dumps({{"n": n, "particle_steps_per_second": st["particle_steps_per_second"],
         "ns_per_particle_step": 1e9 / st["particle_steps_per_second"], "steps": steps,
-        "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}}))
+        "peak_rss_bytes": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024,
+        "rss_after_import_bytes": rss_import, "rss_after_scene_bytes": rss_scene,
+        "state_bytes": nbytes(scene.arrays.values()), "list_bytes": nbytes(lists),
+        "user_array_bytes": nbytes(user), "last_run_frames_bytes": nbytes(frames),
+        "threads_used": st["threads"]}}))
 """)
+
 
 
 def part_scaling(quick):

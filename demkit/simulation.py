@@ -258,6 +258,9 @@ class Simulation:
         forces_ready = self._prepare()
         state = scene.state
         kern = self._threads.kernels  # the module of the runs' loops (record_frame compiled once)
+        # the last run's frames (returned to the caller, who keeps them or not) are let go before
+        # this run's are allocated: two runs' frames at once were the peak memory of runs of 10^6 spheres
+        self.trajectory = self._recording = None
         record = self._allocate(nframes + extra_final)
         if forces_ready and self._last_frame is not None:
             for row, value in zip(record, self._last_frame):

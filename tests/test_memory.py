@@ -130,3 +130,34 @@ def test_demkit_info_answers_at_once_for_a_scene_too_big_for_any_machine(tmp_pat
                                   "(10000 x 10000 x 10000 cells of 4, fcc) need about ")
     assert len(done.stderr.strip().splitlines()) == 1
     assert seconds < 30  # the interpreter and numba's import; nothing is built
+
+
+def test_a_run_lets_go_of_the_last_runs_frames_before_recording_its_own():
+    """Two runs' frames at once were the peak memory of repeated runs of 10^6 spheres: the second run
+    must not hold the first run's record (the caller holds it if it wants it)."""
+    import gc
+    import weakref
+
+    p = dk.Particles(position=[[0.0, 0.0, 0.0], [1.5, 0.0, 0.0]], velocity=[[0.1, 0.0, 0.0], [0.0, 0.0, 0.0]],
+                     radius=0.5, mass=1.0)
+    seen = []
+
+    class Probe:  # a writer: called during the run, after its first chunk
+        every = 0.01
+
+        def open(self, sim, resuming=False):
+            pass
+
+        def write(self, sim):
+            gc.collect()
+            seen.append(first_record() is None)
+
+        def close(self):
+            pass
+
+    sim = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(stiffness=100.0, damping=0.1)]), dk.VelocityVerlet(dt=1e-3))
+    first_record = weakref.ref(sim.run(duration=0.01).position.base)
+    assert first_record() is not None  # still there after its run (sim.trajectory)
+    sim.writers.append(Probe())
+    sim.run(duration=0.02)
+    assert seen and all(seen), "the first run's frames were still held during the second run"
