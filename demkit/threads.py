@@ -23,6 +23,10 @@ scheduler time slice, and two threads ran a 4000-sphere gas 8-40x slower than on
    the chunks on threads since they were chosen, :data:`SPELL_CHUNKS` or more, ran no faster than
    one thread did on average.
 
+A new Simulation of a kind of scene already measured in this process (the same compiled loops, as
+many spheres and threads) starts on the last choice made for it, with its rates, and checks it again
+after :data:`RECHECK_SECONDS` as above (see ``_CHOSEN``).
+
 ``parallel=True`` always runs on threads, ``parallel=False`` never. ``Simulation.statistics``
 (``threads``, ``threads_reason``), the progress bar and ``demkit info`` say what was chosen and why.
 """
@@ -72,6 +76,12 @@ SPELL_CHUNKS = 3
 #: a run shorter than this (seconds, at the one-thread rate) does not compile the thread module
 WORTH_COMPILING = 5.0
 
+#: the last measured choice per kind of scene in this process: (serial loop, spheres, threads) ->
+#: (threads chosen, {threads: steps per second}, reason). A new Simulation of the same kind starts
+#: there instead of on one thread (a sweep's or a benchmark's many short runs spent their first
+#: second or more on one thread, loading the thread module and probing it)
+_CHOSEN = {}
+
 
 class ThreadChoice:
     """Chooses, chunk by chunk, the serial or the thread module for one Simulation."""
@@ -100,6 +110,20 @@ class ThreadChoice:
         else:
             self.fixed, self.reason = None, "measuring: one thread until the thread module is ready"
         self.threads = self.fixed or 1
+        self._key = (self.serial_loop, len(scene.particles), self.max_threads)
+        if self.fixed is None and self._key in _CHOSEN:
+            self._start_from(*_CHOSEN[self._key])
+
+    def _start_from(self, threads, rates, reason):
+        """Start where the last measured run of the same kind of scene (the same compiled loops, as
+        many spheres and threads) in this process ended: on its choice, with its rates, the thread
+        module already loaded; checked again after RECHECK_SECONDS like any choice."""
+        self.thread_loop = self._threaded()
+        self.rates = dict(rates)
+        self.threads = threads
+        self._warm = True
+        self.next_check = time.perf_counter() + self.recheck
+        self.reason = f"{reason} (in an earlier run of this kind of scene; checked again while running)"
 
     def _why_serial(self):
         scene = self.scene
@@ -196,6 +220,8 @@ class ThreadChoice:
             if probing and ran > 1:  # threads lost their probe: look again later and later
                 self.recheck = min(2.0 * self.recheck, RECHECK_MAX)
             self.next_check = time.perf_counter() + self.recheck
+        if getattr(self, "_key", None) is not None:
+            _CHOSEN[self._key] = (self.threads, {1: one, self.max_threads: many}, self.reason)
 
     def _worth(self):
         """Seconds of run left (at the one-thread rate) that make loading the thread module worth

@@ -390,6 +390,49 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
     np.testing.assert_array_equal(sim.scene.particles.position, ref_sim.scene.particles.position)
 
 
+def test_a_new_simulation_starts_on_the_choice_measured_for_its_kind_of_scene(monkeypatch):
+    """Threads measured faster for a kind of scene (the same loops, spheres and threads): a new
+    Simulation of a new scene of that kind starts on threads at once, the rates carried over, and
+    still checks them again (here every chunk, and threads always lose: it goes back to one thread).
+    A scene with another number of spheres starts from scratch."""
+    import demkit.scene as scene_module
+    import demkit.threads as threads
+    p, box = gas(n=300, periodic=True, seed=10)
+    monkeypatch.setattr(scene_module, "PARALLEL_MIN", 100)
+    monkeypatch.setattr(scene_module, "THREADS_FROM_SECONDS", 0.0)
+    monkeypatch.setattr(threads.ThreadChoice, "_worth", lambda self: 0.0)
+    monkeypatch.setattr(threads, "_CHOSEN", {})
+    monkeypatch.setattr(dk.simulation, "CHUNK_SECONDS", 1e-4)  # many chunks
+    monkeypatch.setattr(dk.simulation, "CHUNK_OVERHEAD_RATIO", 0.0)
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs two numba threads")
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        monkeypatch.setattr(threads, "MARGIN", 0.0)  # threads always win
+        monkeypatch.setattr(threads, "RECHECK_SECONDS", 0.0)
+        first = dk.Simulation(thread_scene(p, box, parallel=None), dk.VelocityVerlet(dt=1e-3))
+        assert first._threads.threads == 1  # nothing known yet
+        first.run(duration=0.05)
+        first._threads._compiling.join()
+        first.run(duration=0.05)  # the probe: threads chosen
+        assert first.statistics["threads"] > 1
+        monkeypatch.setattr(threads, "RECHECK_SECONDS", 60.0)
+        again = dk.Simulation(thread_scene(p, box, parallel=None), dk.VelocityVerlet(dt=1e-3))
+        assert again._threads.threads > 1 and "earlier run" in again._threads.reason
+        assert again._threads.rates == first._threads.rates
+        monkeypatch.setattr(threads, "RECHECK_SECONDS", 0.0)
+        monkeypatch.setattr(threads, "MARGIN", math.inf)  # now threads always lose their check
+        again = dk.Simulation(thread_scene(p, box, parallel=None), dk.VelocityVerlet(dt=1e-3))
+        again.run(duration=0.1)
+        assert again.statistics["threads"] == 1 and "measured" in again.statistics["threads_reason"]
+        q, qbox = gas(n=301, periodic=True, seed=10)
+        other = dk.Simulation(thread_scene(q, qbox, parallel=None), dk.VelocityVerlet(dt=1e-3))
+        assert other._threads.threads == 1 and other._threads.thread_loop is None
+    finally:
+        numba.set_num_threads(before)
+
+
 def test_threads_outlast_a_slow_chunk_but_not_a_collapse_or_a_slow_spell():
     """On threads, an ordinary chunk is compared with a one-thread rate measured seconds before;
     chunks differ by the list rebuilds they hold, so threads are left at once only below LEAVE of
