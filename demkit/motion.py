@@ -190,16 +190,28 @@ def kick_all(velocity, angular_velocity, dipole, force, torque, mass, inertia, h
     advance_spin(angular_velocity, dipole, torque, inertia, h, rotate_h)
 
 
+#: the exponent bits of an IEEE double: all set exactly for NaN and +-inf
+EXPONENT_BITS = np.uint64(0x7FF0000000000000)
+
+
+@njit(**KERNEL_OPTIONS)
+def largest_exponent(values):
+    """The largest exponent field (bits masked by EXPONENT_BITS) of a C-contiguous float64 array:
+    EXPONENT_BITS exactly when it holds a NaN or an inf. An integer maximum, which the compiler
+    vectorises (a floating-point sum may not be reordered: one add after the other, 3.4x slower
+    for 8000 spheres' positions, velocities and spins)."""
+    bits = values.reshape(-1).view(np.uint64)
+    worst = np.uint64(0)
+    for k in range(bits.shape[0]):
+        worst = max(worst, bits[k] & EXPONENT_BITS)
+    return worst
+
+
 @njit(**KERNEL_OPTIONS)
 def state_is_finite(position, velocity, angular_velocity):
     """True if no position, velocity or angular velocity is NaN or inf."""
-    s = 0.0
-    for i in range(position.shape[0]):
-        s += position[i, 0] + position[i, 1] + position[i, 2]
-        s += velocity[i, 0] + velocity[i, 1] + velocity[i, 2]
-    for i in range(angular_velocity.shape[0]):
-        s += angular_velocity[i, 0] + angular_velocity[i, 1] + angular_velocity[i, 2]
-    return math.isfinite(s)  # a NaN or inf anywhere makes the sum NaN or inf
+    worst = max(largest_exponent(position), largest_exponent(velocity))
+    return max(worst, largest_exponent(angular_velocity)) != EXPONENT_BITS
 
 
 @njit(**KERNEL_OPTIONS)
@@ -434,11 +446,14 @@ def clear_threads(force, torque):
 
 @njit(cache=True, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")  # reductions need NRT
 def state_is_finite_threads(position, velocity, angular_velocity):
-    """:func:`state_is_finite` on threads (a sum in any order is finite exactly when all terms are)."""
-    s = 0.0
-    for i in prange(position.shape[0]):
-        s += position[i, 0] + position[i, 1] + position[i, 2] + velocity[i, 0] + velocity[i, 1] + velocity[i, 2]
-    t = 0.0
-    for i in prange(angular_velocity.shape[0]):
-        t += angular_velocity[i, 0] + angular_velocity[i, 1] + angular_velocity[i, 2]
-    return math.isfinite(s + t)
+    """:func:`state_is_finite` on threads (the largest exponent field, see :func:`largest_exponent`)."""
+    a = position.reshape(-1).view(np.uint64)
+    b = velocity.reshape(-1).view(np.uint64)
+    c = angular_velocity.reshape(-1).view(np.uint64)
+    worst = np.uint64(0)
+    for k in prange(a.shape[0]):
+        worst = max(worst, max(a[k] & EXPONENT_BITS, b[k] & EXPONENT_BITS))
+    spin = np.uint64(0)
+    for k in prange(c.shape[0]):
+        spin = max(spin, c[k] & EXPONENT_BITS)
+    return max(worst, spin) != EXPONENT_BITS

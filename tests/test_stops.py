@@ -50,3 +50,26 @@ def test_energy_growth_guard_stops_a_run_gaining_energy():
     assert sim.statistics["steps"] == sim.step > 0 and sim.statistics["seconds"] > 0
     energy = sim.trajectory.energy["total"] + sim.trajectory.energy["dissipated"]
     assert np.isfinite(energy).all()
+
+
+@pytest.mark.parametrize("threads", [False, True])
+def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads):
+    """The check every step ends with (serial and on threads) against np.isfinite: NaN of either
+    sign and +-inf in each array at each place, among values of both signs (an unsigned maximum of
+    the raw bits would let a negative number hide an inf), and huge finite values (a sum of them
+    overflows: the earlier check called 1e308 + 1e308 non-finite)."""
+    from demkit.motion import state_is_finite, state_is_finite_threads
+    check = state_is_finite_threads if threads else state_is_finite
+    rng = np.random.default_rng(5)
+    arrays = [rng.normal(size=(37, 3)) * 10.0 ** rng.integers(-300, 300, size=(37, 3)) for _ in range(3)]
+    arrays[0][3] = 1e308
+    arrays[1][4] = -1e308
+    assert check(*arrays) and check(arrays[0], arrays[1], np.zeros((0, 3)))
+    for bad in (np.nan, -np.nan, np.inf, -np.inf):
+        for a in arrays:
+            for k in range(a.size):
+                old = a.flat[k]
+                a.flat[k] = bad
+                assert not check(*arrays), (bad, k)
+                a.flat[k] = old
+    assert check(*arrays) == all(np.isfinite(a).all() for a in arrays)
