@@ -52,8 +52,8 @@ def test_energy_growth_guard_stops_a_run_gaining_energy():
     assert np.isfinite(energy).all()
 
 
-@pytest.mark.parametrize("threads", [False, True])
-def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads):
+@pytest.mark.parametrize("threads, n", [(False, 37), (True, 37), (False, 3)])
+def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads, n):
     """The check every step ends with (serial and on threads) against np.isfinite: NaN of either
     sign and +-inf in each array at each place, among values of both signs (an unsigned maximum of
     the raw bits would let a negative number hide an inf), and huge finite values (a sum of them
@@ -61,9 +61,9 @@ def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads):
     from demkit.motion import state_is_finite, state_is_finite_threads
     check = state_is_finite_threads if threads else state_is_finite
     rng = np.random.default_rng(5)
-    arrays = [rng.normal(size=(37, 3)) * 10.0 ** rng.integers(-300, 300, size=(37, 3)) for _ in range(3)]
-    arrays[0][3] = 1e308
-    arrays[1][4] = -1e308
+    arrays = [rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-300, 300, size=(n, 3)) for _ in range(3)]
+    arrays[0][n - 1] = 1e308  # few spheres: their values are checked one by one, many: as raw bits
+    arrays[1][n - 2] = -1e308
     assert check(*arrays) and check(arrays[0], arrays[1], np.zeros((0, 3)))
     for bad in (np.nan, -np.nan, np.inf, -np.inf):
         for a in arrays:
