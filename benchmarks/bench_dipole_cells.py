@@ -22,7 +22,6 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import math  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -31,33 +30,20 @@ from numba import njit  # noqa: E402
 
 import demkit as dk  # noqa: E402
 from demkit.interactions.dipole import dipole_force  # noqa: E402
+from demkit.neighbours import bin_particles  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 OPTIONS = dict(fastmath={"contract", "arcp"}, error_model="numpy", cache=True)
 BLOCK = 64
 
 
-@njit(**OPTIONS)
 def cell_order(position, length, ncell):
-    """(order, start): the spheres by cell (x fastest) of a cubic periodic box cut into ncell^3."""
+    """(order, start): the spheres by cell of a cubic periodic box cut into ncell^3 cells, z fastest
+    (demkit's own counting sort, neighbours.bin_particles)."""
     n = position.shape[0]
-    size = length / ncell
-    cell = np.empty(n, np.int64)
-    for i in range(n):
-        cx = int(math.floor(position[i, 0] / size)) % ncell
-        cy = int(math.floor(position[i, 1] / size)) % ncell
-        cz = int(math.floor(position[i, 2] / size)) % ncell
-        cell[i] = (cz * ncell + cy) * ncell + cx
-    start = np.zeros(ncell ** 3 + 1, np.int64)
-    for i in range(n):
-        start[cell[i] + 1] += 1
-    for c in range(ncell ** 3):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(n, np.int64)
-    for i in range(n):
-        order[fill[cell[i]]] = i
-        fill[cell[i]] += 1
+    order, start = np.empty(n, np.int64), np.empty(ncell ** 3 + 1, np.int64)
+    bin_particles(position, np.full(3, length), np.ones(3, np.bool_), np.zeros(3), np.full(3, length / ncell),
+                  np.full(3, ncell, np.int64), np.empty(n, np.int64), start, order)
     return order, start
 
 
@@ -106,7 +92,7 @@ def cell_walk_forces(position, dipole, start, ncell, length, cutoff2, prefactor,
     inverse = 1.0 / length
     candidates = 0
     for c in range(ncell ** 3):
-        cx, cy, cz = c % ncell, (c // ncell) % ncell, c // (ncell * ncell)
+        cz, cy, cx = c % ncell, (c // ncell) % ncell, c // (ncell * ncell)  # bin_particles' numbering
         for i in range(start[c], start[c + 1]):
             xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
             gathered[3, 0], gathered[4, 0], gathered[5, 0] = dipole[i, 0], dipole[i, 1], dipole[i, 2]
@@ -117,8 +103,8 @@ def cell_walk_forces(position, dipole, start, ncell, length, cutoff2, prefactor,
                 if s == shell.shape[0]:
                     lo, hi = i + 1, start[c + 1]  # the own cell: later spheres only
                 else:
-                    other = ((((cz + shell[s, 2]) % ncell) * ncell + (cy + shell[s, 1]) % ncell) * ncell
-                             + (cx + shell[s, 0]) % ncell)
+                    other = ((((cx + shell[s, 0]) % ncell) * ncell + (cy + shell[s, 1]) % ncell) * ncell
+                             + (cz + shell[s, 2]) % ncell)
                     lo, hi = start[other], start[other + 1]
                 candidates += hi - lo
                 for j in range(lo, hi):
