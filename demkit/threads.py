@@ -220,7 +220,7 @@ class ThreadChoice:
             if probing and ran > 1:  # threads lost their probe: look again later and later
                 self.recheck = min(2.0 * self.recheck, RECHECK_MAX)
             self.next_check = time.perf_counter() + self.recheck
-        if getattr(self, "_key", None) is not None:
+        if self._key is not None:
             _CHOSEN[self._key] = (self.threads, {1: one, self.max_threads: many}, self.reason)
 
     def _worth(self):

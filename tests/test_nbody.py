@@ -445,6 +445,7 @@ def test_threads_outlast_a_slow_chunk_but_not_a_collapse_or_a_slow_spell():
         choice.fixed, choice.max_threads, choice.threads, choice.probing = None, 2, 2, False
         choice.rates, choice.reason = {1: 140.0, 2: 180.0}, "2 threads measured 1.29x as fast as one"
         choice.recheck, choice.next_check, choice._spell = threads.RECHECK_SECONDS, 0.0, [0, 0.0, 0]
+        choice._key = None  # remembered for no kind of scene
         return choice
 
     choice = on_threads()
