@@ -171,7 +171,7 @@ def part_memory(folder):
         for name in ("start", "end", "partner", "history", "bounds"):
             counted[f"list{g}.{name}"] = getattr(pl, name).nbytes
     if scene.plan.sorted:
-        for name in ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia", "ids", "image"):
+        for name in dk.scene.PARTICLE_FIELDS + ("ids",):
             value = getattr(scene.particles, name)
             if value is not None:
                 counted[f"user.{name}"] = value.nbytes
@@ -206,8 +206,7 @@ SCALING_CHILD = textwrap.dedent("""
     st = sim.statistics
     nbytes = lambda arrays: sum(a.nbytes for a in arrays if isinstance(a, np.ndarray))
     lists = [getattr(pl, k) for pl in scene.state.lists for k in ("start", "end", "partner", "history", "bounds")]
-    user = [getattr(p, k) for k in ("position", "velocity", "angular_velocity", "radius", "mass", "inertia", "ids",
-                                    "image")] if scene.plan.sorted else []
+    user = [getattr(p, k) for k in dk.scene.PARTICLE_FIELDS + ("ids",)] if scene.plan.sorted else []
     t = sim.trajectory
     frames = [t.position, t.velocity, t.image, t.radius, t.mass, t.inertia, t.ids]
     print("RESULT", json.dumps({{"n": n, "particle_steps_per_second": st["particle_steps_per_second"],
@@ -218,7 +217,6 @@ SCALING_CHILD = textwrap.dedent("""
         "user_array_bytes": nbytes(user), "last_run_frames_bytes": nbytes(frames),
         "threads_used": st["threads"]}}))
 """)
-
 
 
 def part_scaling(quick):
