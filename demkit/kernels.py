@@ -456,12 +456,12 @@ class _Source:
         return body
 
     def group_energies(self, g, group):
-        lines = ["", "", "@njit(**INNER)", f"def group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out):",
+        lines = ["", "", "@njit(**STRICT)", f"def group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out):",
                  f'    """Add the potential energies of group {g} to out[2 + kind]."""']
         lines += self.prelude(group)
         lines += self.rows(group, 4, 0, "n")
         lines += self.energy_statements(group, lambda k: f"out[{2 + self.kinds.index(self.plan.interactions[k].energy_kind)}]")
-        lines += ["", "", "@njit(**INNER)",
+        lines += ["", "", "@njit(**STRICT)",
                   f"def group_{g}_pair_energies({ARRAYS}, {LIST_ARRAYS}, owners, partners, out):",
                   f'    """owners[q], partners[q], out[q, k]: entry q of group {g} and its energy under',
                   '    interaction k (global numbering)."""']
@@ -474,7 +474,7 @@ class _Source:
     def group_pair_forces(self, g, group):
         """Every entry of group g with its separation and each member's force on j, committing
         nothing (for measurements: demkit.measure)."""
-        lines = ["", "", "@njit(**INNER)",
+        lines = ["", "", "@njit(**STRICT)",
                  f"def group_{g}_pair_forces({ARRAYS}, {LIST_ARRAYS}, owners, partners, out):",
                  f'    """owners[q], partners[q]: entry q of group {g}; out[q, :3] its separation x_j - x_i,',
                  '    out[q, 3 + 3 m: 6 + 3 m] the force on j of the group\'s member m."""']
@@ -536,7 +536,7 @@ class _Source:
                 body.append("power += w")
             lines += [pad + line for line in body]
         lines.append("    return power")
-        lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out):",
+        lines += ["", "", "@njit(**STRICT)", f"def sphere_energies({ARRAYS}, history, out):",
                   '    """Add the potential energies of the single-sphere effects to out[2 + kind]."""'] + head
         for e, effect in enumerate(plan.effects):
             slot = 2 + self.kinds.index(effect.energy_kind)
@@ -704,7 +704,7 @@ class _Source:
                              f"s.params[{q + 3}], horizon))")
         lines.append("    return earliest")
         # energies
-        lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
+        lines += ["", "", "@njit(**STRICT_OUTER)", "def energies_of(s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
         if plan.lists:
             lines.append("    maintain_lists(s, False != False)")
@@ -727,12 +727,12 @@ class _Source:
             lines.append(f"    return {self.induce_call('False != False')}")
         for g, group in enumerate(plan.groups):
             for kind in ("pair_energies", "pair_forces"):
-                lines += ["", "", "@njit(**OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
+                lines += ["", "", "@njit(**STRICT_OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
                 if plan.lists:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
+        lines += ["", "", "@njit(**STRICT_LOOP)", "def record_frame(k, s, record):",
                   '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
                   "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
                   "                s.inertia, s.box, s.periodic, record)",
@@ -804,7 +804,8 @@ class _Source:
                 for kind, fn in zip(("force", "energy"), effect.pair_functions()):
                     lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
         cache = self.importable
-        fast = 'fastmath={"contract", "arcp"}, error_model="numpy"'
+        from .motion import FASTMATH
+        fast = f'fastmath={FASTMATH!r}, error_model="numpy"'
         # no reference counting in small scenes, unless a long-range sum allocates (its arrays into object mode)
         nrt = "" if plan.growing or plan.sums or plan.induction is not None else ", _nrt=False"
         if plan.growing:  # big scenes: separate pair-loop functions, no reference counting inside
@@ -814,7 +815,11 @@ class _Source:
         lines += [f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
-                  f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})"]  # time loops let other threads run (threads.py)
+                  f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})",  # time loops let other threads run (threads.py)
+                  # energies and diagnostics: IEEE arithmetic, the same bits on both tiers (motion.FASTMATH)
+                  "STRICT = dict(INNER, fastmath=False)",
+                  "STRICT_OUTER = dict(OUTER, fastmath=False)",
+                  "STRICT_LOOP = dict(LOOP, fastmath=False)"]
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group) + self.group_pair_forces(g, group)
         for g, name, sub, _ in self.parts:
@@ -864,7 +869,17 @@ def is_cached(plan, templates, function, threads=False):
     if not all(_importable(fn) for inter in interactions for fn in inter.pair_functions()):
         return False
     key = _fingerprint(generate_source(plan, templates, True, threads), interactions)
-    return any((_cache_dir() / "__pycache__").glob(f"demkit_kernel_{key}.{function}-*.nbi"))
+    return cached_function(f"demkit_kernel_{key}", function)
+
+
+def cached_function(module, function):
+    """Is ``function`` of the generated module named ``module`` in numba's disk cache? (numba puts
+    it beside the file, or under NUMBA_CACHE_DIR in a folder of its own when that is set)"""
+    pattern = f"{module}.{function}-*.nbi"
+    if any((_cache_dir() / "__pycache__").glob(pattern)):
+        return True
+    root = os.environ.get("NUMBA_CACHE_DIR")
+    return bool(root) and any(Path(root).glob(f"*/{pattern}"))
 
 
 def build_module(plan, templates, threads=False):

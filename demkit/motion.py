@@ -15,7 +15,11 @@ from numba import njit, prange
 #: ~2x on small scenes), fused multiply-add (exact NaN/inf semantics are kept, so the non-finite
 #: checks still work) and IEEE division (x/0 gives inf or NaN, caught by those checks, instead of
 #: a Python ZeroDivisionError test at every division, which also stops vectorisation).
-KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy",
+#: the fast-math flags of every stepping kernel (fused multiply-add, reciprocals). They let LLVM
+#: round differently where code is shaped differently, so the energies (diagnostics, compiled by
+#: the generic and the fused modules alike) are compiled without them: the same bits on both tiers
+FASTMATH = {"contract", "arcp"}
+KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy",
                       inline="always")
 #: options of the helpers the contact laws share (friction, rolling and spring elements): compiled
 #: once and called, not inlined into every law and loop that uses them. Inlining them made numba
@@ -387,7 +391,7 @@ sum_chunks_called = _called(sum_chunks)
 
 # ---- the same passes on threads, for threaded scenes with neighbour lists (their generated module
 # imports these under the plain names, so integrator templates stay as they are)
-THREAD_OPTIONS = dict(cache=True, _nrt=False, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")
+THREAD_OPTIONS = dict(cache=True, _nrt=False, parallel=True, fastmath=FASTMATH, error_model="numpy")
 
 
 @njit(**THREAD_OPTIONS)
@@ -416,7 +420,7 @@ def rotate_threads(vectors, angular_velocity, h):
         rotate_one(vectors, angular_velocity, h, i)
 
 
-@njit(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
+@njit(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy")
 def advance_spin_threads(angular_velocity, dipole, torque, inertia, kick_h, rotate_h):
     """:func:`advance_spin` with its passes on threads."""
     if angular_velocity.shape[0] == 0:
@@ -427,7 +431,7 @@ def advance_spin_threads(angular_velocity, dipole, torque, inertia, kick_h, rota
         rotate_threads(dipole, angular_velocity, rotate_h)
 
 
-@njit(cache=True, _nrt=False, fastmath={"contract", "arcp"}, error_model="numpy")
+@njit(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy")
 def kick_all_threads(velocity, angular_velocity, dipole, force, torque, mass, inertia, h, rotate_h):
     """:func:`kick_all` with its passes on threads."""
     kick_threads(velocity, force, mass, h)
@@ -458,7 +462,7 @@ def clear_threads(force, torque):
             torque[i, a] = 0.0
 
 
-@njit(cache=True, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")  # reductions need NRT
+@njit(cache=True, parallel=True, fastmath=FASTMATH, error_model="numpy")  # reductions need NRT
 def state_is_finite_threads(position, velocity, angular_velocity):
     """:func:`state_is_finite` on threads (the largest exponent field, see :func:`largest_exponent`)."""
     a = position.reshape(-1).view(np.uint64)

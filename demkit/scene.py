@@ -27,7 +27,8 @@ from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
 from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
-from .kernels import BLOCK, GATHER_ROWS, Group, Plan, build_module, energy_kinds
+from . import generic
+from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
@@ -76,7 +77,7 @@ class Scene:
         own copies, synchronised at the start and end of every run and for every diagnostic.
     """
 
-    def __init__(self, particles, interactions, box=None, skin=None, parallel=None, sort_every=None):
+    def __init__(self, particles, interactions, box=None, skin=None, parallel=None, sort_every=None, tier=None):
         if not isinstance(particles, Particles):
             raise TypeError(f"particles must be a demkit.Particles, got {type(particles).__name__}")
         if isinstance(interactions, (PairInteraction, SphereInteraction)):
@@ -130,6 +131,7 @@ class Scene:
         self.chunks = machine if wanted and machine > 1 else 1
         self.parallel = self.chunks > 1  # may run on threads
         self._thread_kernels = None
+        self.tier_requested = _tier(tier)
         self.plan = self._plan()
         #: the induced-moment solve (demkit.interactions.induction.InducedMoments), or None
         self.induction = self._induction(polarisabilities)
@@ -148,7 +150,7 @@ class Scene:
             self.state = self._make_state()
             if self.induction is not None:
                 self._first_induction()
-            self.kernels = build_module(self.plan, TEMPLATES)
+            self.kernels = self._kernels(threads=False)
             self.validate()
         # the lists are built (and a sorted scene sorted by cell) at the first push, by the first
         # run or diagnostic: their code then compiles with the rest of the scene's, under one
@@ -162,8 +164,23 @@ class Scene:
         """The kernel module whose loops run on numba's threads (the same arithmetic as
         ``kernels``; compiled when first asked for)."""
         if self._thread_kernels is None:
-            self._thread_kernels = build_module(self.plan, TEMPLATES, threads=True)
+            self._thread_kernels = self._kernels(threads=True)
         return self._thread_kernels
+
+    def _kernels(self, threads):
+        """The compiled module of this scene's tier (the thread module with ``threads``)."""
+        if self.tier == 1:
+            return generic.build_generic(self.plan.growing, threads)
+        return build_module(self.plan, TEMPLATES, threads=threads)
+
+    def _choose_tier(self):
+        """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""
+        if self.program is None:
+            if self.tier_requested == 1:
+                raise ValueError(f"tier=1: the generic module cannot run this scene ({self.program_refusal}); "
+                                 f"use tier=None or 2")
+            return 2
+        return 2 if self.tier_requested == 2 else 1
 
     def _sorting(self, sort_every):
         plan, n = self.plan, len(self.particles)
@@ -324,6 +341,10 @@ class Scene:
             fields = (math.inf, np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                       np.zeros(0, dtype=np.int32), history, bounds)
             lists.append(make_pair_list(*fields) if growing else PairListTuple(*fields))
+        while len(lists) < generic.MAX_GROUPS:  # every state has as many lists: one compiled code for all
+            fields = (0.0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
+                      np.zeros((0, 0)), np.zeros(2, dtype=np.int64))
+            lists.append(make_pair_list(*fields) if growing else PairListTuple(*fields))
         threads = self.chunks if any(g.parallel for g in plan.groups) else 0
         omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
         dipole = p.dipole if p.dipole is not None else empty_vectors()
@@ -344,6 +365,8 @@ class Scene:
         for inter in self.interactions + self.effects:
             self.time_step_slots += [slot + m for m, name in enumerate(inter.parameters) if name == "dt"]
             slot += len(inter.parameters)
+        self.program, self.program_refusal = generic.program_of(plan, _Source(plan, True), self.energy_kinds)
+        self.tier = self._choose_tier()
         own = (lambda a: a.copy()) if plan.sorted else (lambda a: a)  # sorted: the kernels' own order
         mass, inertia = own(p.mass), own(p.inertia)
         if self.has_fixed:  # fixed spheres: infinite mass and inertia in the kernels' copies
@@ -361,7 +384,8 @@ class Scene:
             thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)),
-            sphere_history=np.zeros((n, plan.effect_width)), stage=np.zeros((0, 0, 3)))
+            sphere_history=np.zeros((n, plan.effect_width)), stage=np.zeros((0, 0, 3)),
+            program=self.program if self.program is not None else np.zeros((1, generic.COLUMNS), dtype=np.int64))
         self.arrays = fields
         return self._state_object()
 
@@ -712,6 +736,20 @@ class Scene:
     def __repr__(self):
         where = f", {self.box}" if self.box is not None else ""
         return f"Scene({len(self.particles)} particles, {list(self.interactions)}{where})"
+
+
+def _tier(tier):
+    """The tier asked for (None, 1 or 2), from the argument or else DEMKIT_TIER."""
+    import os
+    if tier is None:
+        tier = os.environ.get("DEMKIT_TIER") or None
+        if tier is not None and tier not in ("1", "2"):
+            raise ValueError(f"DEMKIT_TIER must be 1 or 2 (or unset), got {tier!r}")
+    if tier is None:
+        return None
+    if tier not in (1, 2, "1", "2") or isinstance(tier, bool):
+        raise ValueError(f"tier must be None (automatic), 1 (the generic module) or 2 (the fused module), got {tier!r}")
+    return int(tier)
 
 
 def energy_dict(values, kinds, dissipated):

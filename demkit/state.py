@@ -49,7 +49,7 @@ PAIR_LIST_FIELDS = ("reach", "start", "end", "partner", "history", "bounds")
 STATE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia",
                 "tag", "image", "force", "torque", "accum", "params", "box", "periodic", "reference",
                 "skin", "status", "counters", "lists", "thread_force", "thread_torque", "thread_power",
-                "scratch", "gather", "sphere_history", "stage")
+                "scratch", "gather", "sphere_history", "stage", "program")
 
 StateTuple = namedtuple("StateTuple", STATE_FIELDS)
 PairListTuple = namedtuple("PairListTuple", PAIR_LIST_FIELDS)

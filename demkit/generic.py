@@ -1,0 +1,773 @@
+"""Tier 1: one generic kernel module per install, where a scene is data, not code.
+
+:mod:`demkit.kernels` writes one fused module per combination of interactions (tier 2): the
+fastest loops, but each new combination compiles for 5-30 CPU s before its first step. This
+module writes the *generic* module: the same pair loops, time loops and upkeep, in which every
+shipped pair law and single-sphere effect (the :data:`PAIR_LAWS` and :data:`EFFECTS` catalogues)
+sits behind an integer *kind* switch, and the scene's *program* -- which laws act in which pair
+loop, their parameter slots, cutoffs, history offsets, periodic axes, effects -- is an int64 table
+in the state (``s.program``, made by :func:`program_of`). Its source depends on demkit alone, so it
+is compiled once per install (function by function, as runs need them) and loaded from numba's
+cache in a fraction of a second by every later scene, whatever its combination.
+
+The generic loops do the fused loops' arithmetic in the fused loops' order (members of a pair loop
+in the scene's order, the same minimum image, the same blocks of pairs for dipoles), so a run gives
+the same bits on either tier and may switch tier between chunks (:mod:`demkit.tiers`).
+
+Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
+
+* row 0, the header: :data:`H_LISTS` (the scene has neighbour lists), :data:`H_PERIODIC`,
+  :data:`H_SORTED`, :data:`H_EFFECTS` (number of effects), :data:`H_SHORTEST` (the first list's group);
+* row ``group_row(g, speed)`` for each pair loop g < :data:`MAX_GROUPS` and speed (0: every member,
+  1: the fast ones, 2: the slow ones, for multiple time stepping): ``G_*`` flags, then up to
+  :data:`MAX_MEMBERS` members of ``M_*`` columns each;
+* row ``effect_row(e)`` for each single-sphere effect: ``E_*`` columns.
+
+Scenes this tier cannot run (your own pair functions, long-range sums, magnetisable spheres, more
+groups, members or effects than the table holds) get ``None`` from :func:`program_of` and run on
+tier 2 only.
+"""
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+import textwrap
+
+import numpy as np
+
+from .state import DEEP_OVERLAP_FRACTION
+
+MAX_GROUPS = 3
+MAX_MEMBERS = 4
+MAX_EFFECTS = 16
+# header row
+H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST = range(5)
+# group rows: flags, then the members
+(G_COUNT, G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ, G_EXISTS) = range(11)
+G_MEMBERS = 11
+M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX = range(7)
+M_COLUMNS = 7
+# effect rows
+E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE = range(6)
+COLUMNS = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
+SPEEDS = (None, "fast", "slow")
+
+#: the shipped pair laws: (module, force function, energy function, torque, dissipative, branch_free)
+PAIR_LAWS = (
+    ("demkit.interactions.dipole", "dipole_force", "dipole_energy", True, False, True),
+    ("demkit.interactions.dipole", "switched_dipole_force", "switched_dipole_energy", True, False, True),
+    ("demkit.interactions.dipole", "power_law_force", "power_law_energy", False, False, True),
+    ("demkit.interactions.dipole", "switched_power_law_force", "switched_power_law_energy", False, False, True),
+    ("demkit.interactions.contact", "kelvin_voigt_force", "kelvin_voigt_energy", False, True, False),
+    ("demkit.interactions.contact", "kelvin_voigt_friction_force", "kelvin_voigt_friction_energy", True, True, False),
+    ("demkit.interactions.contact", "kelvin_voigt_twisting_force", "kelvin_voigt_twisting_energy", True, True, False),
+    ("demkit.interactions.hertz", "hertz_force", "hertz_energy", False, True, False),
+    ("demkit.interactions.hertz", "hertz_friction_force", "hertz_friction_energy", True, True, False),
+    ("demkit.interactions.hertz", "hertz_twisting_force", "hertz_twisting_energy", True, True, False),
+)
+#: the shipped single-sphere effects: (module, force function, energy function, torque, dissipative,
+#: plane_contact)
+EFFECTS = (
+    ("demkit.interactions.fields", "gravity_force", "gravity_energy", False, False, False),
+    ("demkit.interactions.fields", "field_torque", "field_energy", True, False, False),
+    ("demkit.interactions.langevin", "langevin_force", "langevin_energy", True, False, False),
+    ("demkit.interactions.magnets", "magnet_force", "magnet_energy", True, False, False),
+    ("demkit.interactions.wall", "wall_kelvin_voigt_force", "wall_kelvin_voigt_energy", False, True, True),
+    ("demkit.interactions.wall", "wall_kelvin_voigt_friction_force", "wall_kelvin_voigt_friction_energy",
+     True, True, True),
+    ("demkit.interactions.wall", "wall_kelvin_voigt_twisting_force", "wall_kelvin_voigt_twisting_energy",
+     True, True, True),
+    ("demkit.interactions.wall", "wall_hertz_force", "wall_hertz_energy", False, True, True),
+    ("demkit.interactions.wall", "wall_hertz_friction_force", "wall_hertz_friction_energy", True, True, True),
+    ("demkit.interactions.wall", "wall_hertz_twisting_force", "wall_hertz_twisting_energy", True, True, True),
+)
+FIELD_NAMES = ("velocity", "angular_velocity", "dipole", "radius", "mass")
+
+
+class Law:
+    """One catalogue entry: its functions and the shape of their calls (read from their signature)."""
+
+    def __init__(self, kind, module, force, energy, torque, dissipative, special, pair):
+        self.kind, self.module, self.force_name, self.energy_name = kind, module, force, energy
+        self.torque, self.dissipative = torque, dissipative
+        self.branch_free = special if pair else False
+        self.plane_contact = special if not pair else False
+        self.pair = pair
+        fn = getattr(importlib.import_module(module), force)
+        names = list(inspect.signature(fn.py_func).parameters)[6 if pair else 4:]
+        self.reads = []
+        while names and names[0] in FIELD_NAMES:
+            self.reads.append(names.pop(0))
+        self.reads = tuple(self.reads)
+        self.history = bool(names) and names[0] == "history"
+        if self.history:
+            names = names[4:]
+        self.table = bool(names) and names[0] == "params"
+        if self.table:
+            names = names[2:]
+        self.parameters = len(names)
+        self.functions = (fn, getattr(importlib.import_module(module), energy))
+
+    def fits(self, inter):
+        """Is ``inter`` (a scene's interaction or effect) this law, called the way the law is?"""
+        table = np.size(inter.table_values()) > 0 if not self.pair else False
+        return (tuple(inter.pair_functions()) == self.functions and bool(inter.torque) == self.torque
+                and bool(inter.dissipative) == self.dissipative and tuple(inter.reads) == self.reads
+                and bool(inter.history_size) == self.history and len(inter.parameters) == self.parameters
+                and table == self.table and (self.pair or bool(getattr(inter, "plane_contact", False))
+                                             == self.plane_contact))
+
+
+_CATALOGUE = None
+
+
+def catalogue():
+    """(pair laws, effects): the :class:`Law` entries, in the order of their kind numbers."""
+    global _CATALOGUE
+    if _CATALOGUE is None:
+        _CATALOGUE = ([Law(k, *entry, pair=True) for k, entry in enumerate(PAIR_LAWS)],
+                      [Law(k, *entry, pair=False) for k, entry in enumerate(EFFECTS)])
+    return _CATALOGUE
+
+
+def group_row(g, speed):
+    return 1 + 3 * g + speed
+
+
+def effect_row(e):
+    return 1 + 3 * MAX_GROUPS + e
+
+
+def _law_of(inter, laws):
+    for law in laws:
+        if law.fits(inter):
+            return law
+    return None
+
+
+def program_of(plan, slots, kinds):
+    """(program, None): the scene's program (int64 table, see the module docstring), or (None, why)
+    when tier 1 cannot run the scene. ``slots``: the parameter slots (``param_slot``,
+    ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.kernels._Source` gives them);
+    ``kinds``: the energy kinds."""
+    laws, effect_laws = catalogue()
+    if plan.sums:
+        return None, "long-range dipole sums run on tier 2 only"
+    if plan.induction is not None:
+        return None, "magnetisable spheres run on tier 2 only"
+    if len(plan.groups) > MAX_GROUPS:
+        return None, f"{len(plan.groups)} pair loops (interactions of different reach), more than {MAX_GROUPS}"
+    if len(plan.effects) > MAX_EFFECTS:
+        return None, f"{len(plan.effects)} single-sphere effects, more than {MAX_EFFECTS}"
+    rows = 1 + 3 * MAX_GROUPS + MAX_EFFECTS
+    program = np.zeros((rows, COLUMNS), dtype=np.int64)
+    program[0, H_LISTS] = bool(plan.lists)
+    program[0, H_PERIODIC] = any(plan.periodic)
+    program[0, H_SORTED] = plan.sorted
+    program[0, H_EFFECTS] = len(plan.effects)
+    program[0, H_SHORTEST] = plan.lists[0] if plan.lists else 0
+    from .kernels import Group
+    for g, group in enumerate(plan.groups):
+        if len(group.members) > MAX_MEMBERS:
+            return None, f"{len(group.members)} interactions in one pair loop, more than {MAX_MEMBERS}"
+        for sp, speed in enumerate(SPEEDS):
+            members = [(k, inter) for k, inter in group.members if speed is None or inter.slow == (speed == "slow")]
+            if not members:
+                continue
+            sub = Group(members, group.kind, group.reach, group.parallel)
+            row = program[group_row(g, sp)]
+            row[G_EXISTS] = 1
+            row[G_COUNT] = len(members)
+            row[G_LIST] = group.kind == "list"
+            row[G_BLOCKED] = sub.blocked
+            row[G_TORQUE] = sub.torque
+            row[G_WIDTH] = group.width
+            row[G_CONTACT_ONLY] = all(inter.contact_reach for _, inter in members)
+            row[G_CONTACT] = any(inter.contact_reach for _, inter in members)
+            for a in range(3):
+                row[G_PX + a] = plan.periodic[a] and group.kind == "list"
+            for m, (k, inter) in enumerate(members):
+                law = _law_of(inter, laws)
+                if law is None or (sub.blocked and law.reads != ("dipole",)):
+                    return None, f"{type(inter).__name__}'s pair functions are not in the generic module's catalogue"
+                base = G_MEMBERS + M_COLUMNS * m
+                row[base + M_KIND] = law.kind
+                row[base + M_SLOT] = slots.param_slot[k]
+                row[base + M_CUT] = slots.cutoff_slot[k] if inter.cutoff_distance is not None else -1
+                row[base + M_OFFSET] = group.offsets[k]
+                row[base + M_SIZE] = inter.history_size
+                row[base + M_ENERGY] = 2 + kinds.index(inter.energy_kind)
+                row[base + M_INDEX] = k
+    offsets = plan.effect_offsets
+    for e, effect in enumerate(plan.effects):
+        law = _law_of(effect, effect_laws)
+        if law is None:
+            return None, f"{type(effect).__name__}'s functions are not in the generic module's catalogue"
+        row = program[effect_row(e)]
+        row[E_KIND] = law.kind
+        row[E_SLOT] = slots.effect_slot[e]
+        row[E_TABLE] = slots.table_slot.get(e, -1)
+        row[E_OFFSET] = offsets[e]
+        row[E_ENERGY] = 2 + kinds.index(effect.energy_kind)
+        row[E_SIZE] = effect.history_size
+    return program, None
+
+
+# ---- the generic module's source -------------------------------------------------------------------
+ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status"
+LIST_ARRAYS = "start, end, partner, history"
+TORQUES = ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")
+
+
+def _pair_call(law, kind, owner="i", prefix=""):
+    args = [owner, "j", "dx", "dy", "dz", "r2", *(prefix + name for name in law.reads)]
+    if law.history:
+        args += ["history", "p", "off", "commit" if kind == "force" else "False"]
+    args += [f"params[slot + {m}]" for m in range(law.parameters)]
+    return f"law_{law.kind}_{kind}({', '.join(args)})"
+
+
+def _effect_call(law, kind):
+    args = ["i", "x", "y", "z", *law.reads]
+    if law.history:
+        args += ["history", "i", "off", "commit" if kind == "force" else "False"]
+    if law.table:
+        args += ["params", "table"]
+    args += [f"params[slot + {m}]" for m in range(law.parameters)]
+    return f"effect_{law.kind}_{kind}({', '.join(args)})"
+
+
+def _switch(entries, pad, body):
+    """An if/elif chain over ``kind``: body(entry) gives each branch's lines."""
+    lines = []
+    for n, entry in enumerate(entries):
+        lines.append(f"{pad}{'if' if n == 0 else 'elif'} kind == {entry.kind}:")
+        lines += [f"{pad}    {line}" for line in body(entry)]
+    return lines
+
+
+class _Generic:
+    """Builds the text of a generic module (``growing``: the scenes with neighbour lists, a structref
+    state; ``threads``: chunked loops on prange)."""
+
+    def __init__(self, growing, threads):
+        self.growing, self.threads = growing, threads
+        self.laws, self.effects = catalogue()
+
+    # ---- pair loops ---------------------------------------------------------------------------
+    def header(self):
+        return ["    n = position.shape[0]",
+                "    count = program[G_COUNT]",
+                "    is_list = program[G_LIST] != 0",
+                "    torque_on = program[G_TORQUE] != 0",
+                "    width = program[G_WIDTH]",
+                "    contact_only = program[G_CONTACT_ONLY] != 0",
+                "    any_contact = program[G_CONTACT] != 0",
+                "    px = program[G_PX] != 0",
+                "    py = program[G_PY] != 0",
+                "    pz = program[G_PZ] != 0",
+                "    lx = box[0]", "    hx = 0.5 * box[0]", "    ilx = 1.0 / box[0] if px else 0.0",
+                "    ly = box[1]", "    hy = 0.5 * box[1]", "    ily = 1.0 / box[1] if py else 0.0",
+                "    lz = box[2]", "    hz = 0.5 * box[2]", "    ilz = 1.0 / box[2] if pz else 0.0"]
+
+    def rows(self, pad, first, last):
+        """Loop header over owners first..last-1 and their entries; the body goes at pad + 8."""
+        return [f"{pad}for i in range({first}, {last}):",
+                f"{pad}    if is_list and start[i] == end[i]:",
+                f"{pad}        continue",
+                f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
+
+    def entries(self, pad):
+        return [f"{pad}lo = start[i] if is_list else i + 1",
+                f"{pad}hi = end[i] if is_list else n",
+                f"{pad}base = 0 if is_list else i * (2 * n - i - 1) // 2 - (i + 1)",
+                f"{pad}for q in range(lo, hi):",
+                f"{pad}    j = partner[q] if is_list else q",
+                f"{pad}    p = q if is_list else base + q"]
+
+    def geometry(self, pad):
+        lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
+        for axis in "xyz":
+            d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
+            lines += [f"{pad}if p{axis}:", f"{pad}    if {d} > {h}:", f"{pad}        {d} -= {l}",
+                      f"{pad}    elif {d} < -{h}:", f"{pad}        {d} += {l}"]
+        return lines + [f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
+
+    def member(self, pad):
+        """The member mm's columns as locals."""
+        return [f"{pad}mb = G_MEMBERS + M_COLUMNS * mm",
+                f"{pad}kind = program[mb + M_KIND]",
+                f"{pad}slot = program[mb + M_SLOT]",
+                f"{pad}cut = program[mb + M_CUT]",
+                f"{pad}off = program[mb + M_OFFSET]"]
+
+    def deep_overlap(self, pad):
+        return [f"{pad}small = radius[i] if radius[i] < radius[j] else radius[j]",
+                f"{pad}deep = radius[i] + radius[j] - {DEEP_OVERLAP_FRACTION!r} * small",
+                f"{pad}if r2 < deep * deep and status[0] == OK:",
+                f"{pad}    status[0] = DEEP_OVERLAP", f"{pad}    status[1] = i", f"{pad}    status[3] = j"]
+
+    def force_body(self, pad, force, torque):
+        body = [f"{pad}if contact_only and r2 >= (radius[i] + radius[j]) * (radius[i] + radius[j]):",
+                f"{pad}    held = False",
+                f"{pad}    for h in range(width):",
+                f"{pad}        if history[p, h] != 0.0:",
+                f"{pad}            held = True",
+                f"{pad}            break",
+                f"{pad}    if not held:",
+                f"{pad}        continue",
+                f"{pad}if any_contact:"]
+        body += self.deep_overlap(pad + "    ")
+        body += [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"] + [f"{pad}{c} = 0.0" for c in TORQUES]
+        body += [f"{pad}for mm in range(count):"]
+        inner = pad + "    "
+        body += self.member(inner)
+        body += [f"{inner}if cut >= 0 and not r2 < params[cut]:",
+                 f"{inner}    if commit:",
+                 f"{inner}        for h in range(off, off + program[mb + M_SIZE]):",
+                 f"{inner}            history[p, h] = 0.0",
+                 f"{inner}    continue"]
+
+        def branch(law):
+            outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
+            outs += ["w"] if law.dissipative else []
+            lines = [f"{', '.join(outs)} = {_pair_call(law, 'force')}", "fx += ax", "fy += ay", "fz += az"]
+            if law.torque:
+                lines += ["tix += bix", "tiy += biy", "tiz += biz", "tjx += bjx", "tjy += bjy", "tjz += bjz"]
+            if law.dissipative:
+                lines.append("power += w")
+            return lines
+        body += _switch(self.laws, inner, branch)
+        body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
+                 f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz",
+                 f"{pad}if torque_on:",
+                 f"{pad}    {torque}[j, 0] += tjx", f"{pad}    {torque}[j, 1] += tjy", f"{pad}    {torque}[j, 2] += tjz",
+                 f"{pad}    qix += tix", f"{pad}    qiy += tiy", f"{pad}    qiz += tiz"]
+        return body
+
+    def owner_sums(self, pad, force, torque):
+        open_ = [f"{pad}{c} = 0.0" for c in ("fix", "fiy", "fiz", "qix", "qiy", "qiz")]
+        close = [f"{pad}{force}[i, 0] += fix", f"{pad}{force}[i, 1] += fiy", f"{pad}{force}[i, 2] += fiz",
+                 f"{pad}if torque_on:", f"{pad}    {torque}[i, 0] += qix", f"{pad}    {torque}[i, 1] += qiy",
+                 f"{pad}    {torque}[i, 2] += qiz"]
+        return open_, close
+
+    def plain_loop(self, pad, first, last, force, torque):
+        open_, close = self.owner_sums(pad + "    ", force, torque)
+        return (self.rows(pad, first, last) + open_ + self.entries(pad + "    ") + self.geometry(pad + " " * 8)
+                + self.force_body(pad + " " * 8, force, torque) + close)
+
+    def blocked_loop(self, pad, first, last, force, torque, out, gather):
+        """Dipole-like members (branch-free, reading only the moments) over blocks of BLOCK entries
+        (see demkit.kernels._Source.blocked_loop): the switch is taken once per block and member."""
+        open_, close = self.owner_sums(pad + "    ", force, torque)
+        inner = pad + " " * 12
+        body = [f"{pad}    {gather}[3, 0] = dipole[i, 0]", f"{pad}    {gather}[4, 0] = dipole[i, 1]",
+                f"{pad}    {gather}[5, 0] = dipole[i, 2]",
+                f"{pad}    for b0 in range(start[i], end[i], BLOCK):",
+                f"{pad}        m = min(BLOCK, end[i] - b0)",
+                f"{pad}        for u in range(m):",
+                f"{inner}j = np.uint32(partner[b0 + u])",
+                f"{inner}{gather}[0, u + 1] = position[j, 0]", f"{inner}{gather}[1, u + 1] = position[j, 1]",
+                f"{inner}{gather}[2, u + 1] = position[j, 2]",
+                f"{inner}{gather}[3, u + 1] = dipole[j, 0]", f"{inner}{gather}[4, u + 1] = dipole[j, 1]",
+                f"{inner}{gather}[5, u + 1] = dipole[j, 2]",
+                f"{pad}        for u in range(m):"]
+        body += [f"{inner}{out}[{c}, u] = 0.0" for c in range(9)]
+        body += [f"{pad}        for mm in range(count):"]
+        body += self.member(inner)
+        body += [f"{inner}c = params[cut] if cut >= 0 else math.inf"]
+
+        def branch(law):
+            outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
+            lines = ["for u in range(m):", "    j = u + 1",
+                     f"    dx = {gather}[0, j] - xi", f"    dy = {gather}[1, j] - yi", f"    dz = {gather}[2, j] - zi"]
+            for axis in "xyz":
+                lines += [f"    if p{axis}:", f"        d{axis} -= l{axis} * np.rint(d{axis} * il{axis})"]
+            lines += ["    r2 = dx * dx + dy * dy + dz * dz",
+                      f"    {', '.join(outs)} = {_pair_call(law, 'force', owner='0', prefix='g_')}",
+                      "    keep = 1.0 if r2 < c else 0.0"]
+            lines += [f"    {out}[{n}, u] += {o} * keep" for n, o in enumerate(outs)]
+            return lines
+        body += _switch([law for law in self.laws if law.branch_free], inner, branch)
+        body += [f"{pad}        for u in range(m):",
+                 f"{inner}j = np.uint32(partner[b0 + u])",
+                 f"{inner}{force}[j, 0] += {out}[0, u]", f"{inner}{force}[j, 1] += {out}[1, u]",
+                 f"{inner}{force}[j, 2] += {out}[2, u]",
+                 f"{inner}fix -= {out}[0, u]", f"{inner}fiy -= {out}[1, u]", f"{inner}fiz -= {out}[2, u]",
+                 f"{inner}if torque_on:",
+                 f"{inner}    qix += {out}[3, u]", f"{inner}    qiy += {out}[4, u]", f"{inner}    qiz += {out}[5, u]",
+                 f"{inner}    {torque}[j, 0] += {out}[6, u]", f"{inner}    {torque}[j, 1] += {out}[7, u]",
+                 f"{inner}    {torque}[j, 2] += {out}[8, u]"]
+        return self.rows(pad, first, last) + open_ + body + close
+
+    def chunked(self, name, loop):
+        """A pair-loop function over fixed chunks of owners (see demkit.kernels: the same bits on any
+        number of threads, and serially)."""
+        signature = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, "
+                     f"chunk_torque, chunk_power, program")
+        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):"]
+        lines += self.header()
+        lines += ["    chunks = bounds.shape[0] - 1",
+                  f"    for t in {'prange' if self.threads else 'range'}(chunks):",
+                  "        cf = force if t == 0 else chunk_force[t - 1]",
+                  "        ct = torque if t == 0 else chunk_torque[t - 1]",
+                  "        co = scratch[t]",
+                  "        cg = gather[t]",
+                  "        g_dipole = cg[3:6].T",
+                  "        power = 0.0"]
+        lines += loop("        ", "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
+        lines += ["        chunk_power[t] = power",
+                  "    if chunks > 1:",
+                  "        sum_chunks(force, chunk_force, chunks - 1)",
+                  "        if torque_on:",
+                  "            sum_chunks(torque, chunk_torque, chunks - 1)",
+                  "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
+                  "    return power"]
+        return lines
+
+    def pair_functions(self):
+        lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
+        lines += self.chunked("pairs_forces_blocked", self.blocked_loop)
+        # energies, and per-entry energies and forces (diagnostics)
+        for name, signature, doc in (
+                ("pairs_energies", "out", "Add the potential energies of the loop to out[kind]."),
+                ("pairs_pair_energies", "owners, partners, out", "owners[e], partners[e], out[e, k]: every entry "
+                                                                  "and its energy under interaction k."),
+                ("pairs_pair_forces", "owners, partners, out", "owners[e], partners[e], out[e, :3] the separation, "
+                                                                "out[e, 3 + 3 m:] member m's force on j.")):
+            lines += ["", "", "@njit(**STRICT)", f"def {name}({ARRAYS}, {LIST_ARRAYS}, {signature}, program):",
+                      f'    """{doc}"""']
+            lines += self.header() + ["    e = 0", "    commit = False"]
+            lines += self.rows("    ", 0, "n if is_list else n - 1") + self.entries("        ")
+            pad = " " * 12
+            lines += self.geometry(pad)
+            if name != "pairs_energies":
+                lines += [f"{pad}owners[e] = i", f"{pad}partners[e] = j"]
+            if name == "pairs_pair_forces":
+                lines += [f"{pad}out[e, 0] = dx", f"{pad}out[e, 1] = dy", f"{pad}out[e, 2] = dz"]
+            lines += [f"{pad}for mm in range(count):"]
+            inner = pad + "    "
+            lines += self.member(inner) + [f"{inner}if cut >= 0 and not r2 < params[cut]:", f"{inner}    continue"]
+            if name == "pairs_pair_forces":
+                def branch(law):
+                    outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
+                    outs += ["w"] if law.dissipative else []
+                    return [f"{', '.join(outs)} = {_pair_call(law, 'force')}",
+                            "out[e, 3 + 3 * mm] = ax", "out[e, 4 + 3 * mm] = ay", "out[e, 5 + 3 * mm] = az"]
+            else:
+                target = ("out[program[mb + M_ENERGY]]" if name == "pairs_energies"
+                          else "out[e, program[mb + M_INDEX]]")
+
+                def branch(law, target=target):
+                    return [f"{target} += {_pair_call(law, 'energy')}"]
+            lines += _switch(self.laws, inner, branch)
+            lines += [f"{pad}e += 1"]
+        return lines
+
+    # ---- single-sphere effects ------------------------------------------------------------------
+    def sphere_functions(self):
+        head = ["    n = position.shape[0]", "    count = program[0, H_EFFECTS]",
+                "    for i in range(n):", "        x = position[i, 0]", "        y = position[i, 1]",
+                "        z = position[i, 2]", "        for e in range(count):",
+                "            er = EFFECT_ROW + e", "            kind = program[er, E_KIND]",
+                "            slot = program[er, E_SLOT]", "            table = program[er, E_TABLE]",
+                "            off = program[er, E_OFFSET]"]
+        lines = ["", "", "@njit(**INNER)", f"def sphere_forces({ARRAYS}, force, torque, history, commit, program):",
+                 '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
+                 "    power = 0.0"] + head
+
+        def branch(law):
+            outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if law.torque else []) + (["w"] if law.dissipative else [])
+            body = [f"{', '.join(outs)} = {_effect_call(law, 'force')}"]
+            lines = []
+            if law.plane_contact:  # walls: plane, nx, ny, nz come first (see demkit.kernels)
+                lines += ["overlap = radius[i] - (x * params[slot + 1] + y * params[slot + 2] + z * params[slot + 3] "
+                          "- params[slot])",
+                          "held = False",
+                          "for h in range(off, off + program[er, E_SIZE]):",
+                          "    if history[i, h] != 0.0:",
+                          "        held = True",
+                          "        break",
+                          "if overlap > 0.0 or held:"]
+                body += [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
+                         "    status[0] = DEEP_OVERLAP", "    status[1] = i", "    status[3] = -1 - e"]
+                pad = "    "
+            else:
+                pad = ""
+            body += [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
+            if law.torque:
+                body += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
+            if law.dissipative:
+                body.append("power += w")
+            return lines + [pad + line for line in body]
+        lines += _switch(self.effects, " " * 12, branch)
+        lines.append("    return power")
+        lines += ["", "", "@njit(**STRICT)", f"def sphere_energies({ARRAYS}, history, out, program):",
+                  '    """Add the potential energies of the single-sphere effects to out[kind]."""'] + head
+        lines += _switch(self.effects, " " * 12,
+                         lambda law: [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
+        return lines
+
+    # ---- scene-level functions --------------------------------------------------------------------
+    def list_args(self, g):
+        return ", ".join(f"s.lists[{g}].{name}" for name in LIST_ARRAYS.split(", "))
+
+    def forces_body(self, speed, force, torque, strict):
+        sp = SPEEDS.index(speed)
+        lines = [f"    maintain_lists(s, {strict} != False)"] if self.growing else []
+        lines += ["    commit_flag = commit != False", f"    clear({force}, {torque})", "    power = 0.0"]
+        fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
+        for g in range(MAX_GROUPS):
+            row = group_row(g, sp)
+            args = (f"{fields}, {force}, {torque}, {self.list_args(g)}, s.scratch, s.gather, commit_flag, "
+                    f"s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power, s.program[{row}]")
+            lines += [f"    if s.program[{row}, G_COUNT] > 0:",
+                      f"        if s.program[{row}, G_BLOCKED] != 0:",
+                      f"            power += pairs_forces_blocked({args})",
+                      "        else:",
+                      f"            power += pairs_forces({args})"]
+        if speed != "slow":
+            lines += ["    if s.program[0, H_EFFECTS] > 0:",
+                      f"        power += sphere_forces({fields}, {force}, {torque}, s.sphere_history, commit_flag, "
+                      f"s.program)"]
+        return lines + ["    return power"]
+
+    def scene_functions(self):
+        fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
+        lines = []
+        if self.growing:
+            lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
+                      '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
+                      '    build (see demkit.kernels)."""',
+                      "    d2, k = max_displacement(s.position, s.reference)",
+                      "    if d2 <= 0.25 * s.skin * s.skin:",
+                      "        return",
+                      "    if strict and d2 > s.skin * s.skin and s.status[0] == OK:",
+                      "        s.status[0] = MOVED_TOO_FAR",
+                      "        s.status[1] = k"]
+            for g in range(MAX_GROUPS):
+                lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
+                          f"        rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)"]
+            lines += ["    copy_rows(s.reference, s.position)",
+                      "    s.counters[REBUILDS] += 1",
+                      "    s.counters[WRAP_DUE] = 1"]
+            lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
+                      '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""']
+            for g in range(MAX_GROUPS):
+                lines.append(f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)")
+            lines += ["    shortest = s.program[0, H_SHORTEST]",
+                      "    reach = s.lists[0].reach if shortest == 0 else (s.lists[1].reach if shortest == 1 else "
+                      "s.lists[2].reach)",
+                      "    order = cell_order(s.position, s.box, s.periodic, reach)",
+                      "    n = order.shape[0]",
+                      "    vectors = np.empty((n, 3))",
+                      "    scalars = np.empty(n)",
+                      "    integers = np.empty(n, dtype=np.int64)",
+                      "    count = np.empty((n, 3), dtype=np.int64)"]
+            lines += [f"    permute_vectors(s.{name}, order, vectors)" for name in
+                      ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
+            lines += [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
+            lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
+                      "    for k in range(s.stage.shape[0]):",
+                      "        permute_vectors(s.stage[k], order, vectors)",
+                      "    if s.sphere_history.shape[1] > 0:",
+                      "        permute_rows(s.sphere_history, order)"]
+            for g in range(MAX_GROUPS):
+                row = group_row(g, 0)
+                lines += [f"    if s.program[{row}, G_LIST] != 0:",
+                          f"        build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)",
+                          f"        if s.program[{row}, G_WIDTH] > 0:",
+                          f"            restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})",
+                          f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
+            lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
+        lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
+                  '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
+        lines += self.forces_body(None, "force", "torque", "strict")
+        lines += ["", "", "@njit(**OUTER)", "def forces_of(s, commit):",
+                  '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the power."""']
+        lines += self.forces_body(None, "s.force", "s.torque", "True")
+        for speed in ("fast", "slow"):
+            lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(s, force, torque, commit):",
+                      f'    """The {speed} forces and torques only into force/torque."""']
+            lines += self.forces_body(speed, "force", "torque", "True")
+        lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
+                  '    """Earliest time in (0, horizon] at which a contact starts or stops (see demkit.events)."""',
+                  "    earliest = math.inf"]
+        args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
+        for g in range(MAX_GROUPS):
+            row = group_row(g, 0)
+            lines += [f"    if s.program[{row}, G_COUNT] > 0 and s.program[{row}, G_CONTACT] != 0:",
+                      f"        if s.program[{row}, G_LIST] != 0:",
+                      f"            earliest = min(earliest, earliest_crossing_list({args}, s.lists[{g}].start, "
+                      f"s.lists[{g}].end, s.lists[{g}].partner, horizon))",
+                      "        else:",
+                      f"            earliest = min(earliest, earliest_crossing_all({args}, horizon))"]
+        lines += ["    for e in range(s.program[0, H_EFFECTS]):",
+                  "        if PLANE_CONTACT[s.program[EFFECT_ROW + e, E_KIND]]:",
+                  "            q = s.program[EFFECT_ROW + e, E_SLOT]",
+                  "            earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, force, s.mass, "
+                  "s.radius, s.params[q], s.params[q + 1], s.params[q + 2], s.params[q + 3], horizon))",
+                  "    return earliest"]
+        lines += ["", "", "@njit(**STRICT_OUTER)", "def energies_of(s, out):",
+                  '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
+        if self.growing:
+            lines.append("    maintain_lists(s, False != False)")
+        lines += ["    for a in range(out.shape[0]):", "        out[a] = 0.0",
+                  "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
+        for g in range(MAX_GROUPS):
+            row = group_row(g, 0)
+            lines += [f"    if s.program[{row}, G_COUNT] > 0:",
+                      f"        pairs_energies({fields}, {self.list_args(g)}, out, s.program[{row}])"]
+        lines += ["    if s.program[0, H_EFFECTS] > 0:",
+                  f"        sphere_energies({fields}, s.sphere_history, out, s.program)"]
+        for kind in ("pair_energies", "pair_forces"):
+            lines += ["", "", "@njit(**STRICT_OUTER)", f"def {kind}_of(s, g, owners, partners, out):"]
+            if self.growing:
+                lines.append("    maintain_lists(s, False != False)")
+            for g in range(MAX_GROUPS):
+                lines += [f"    if g == {g}:",
+                          f"        pairs_{kind}({fields}, {self.list_args(g)}, owners, partners, out, "
+                          f"s.program[{group_row(g, 0)}])"]
+        lines += ["", "", "@njit(**STRICT_LOOP)", "def record_frame(k, s, record):",
+                  '    """Frame k of the record."""',
+                  "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
+                  "                s.inertia, s.box, s.periodic, record)",
+                  "    e = record[4]",
+                  "    last = e.shape[1] - 1",
+                  "    energies_of(s, e[k, :last])",
+                  "    e[k, last] = s.accum[0]",
+                  "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
+                  '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
+                  '    steps left until the next frame (see demkit.kernels)."""']
+        if self.growing:
+            lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
+                      "        s.counters[WRAP_DUE] = 0",
+                      "        if s.program[0, H_PERIODIC] != 0:",
+                      "            wrap(s.position, s.reference, s.image, s.box, s.periodic)",
+                      "        if s.program[0, H_SORTED] != 0:",
+                      "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
+                      "                sort_particles(s)",
+                      "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
+        lines += ["    if s.status[0] != OK:",
+                  "        s.status[2] = step", "        return -1",
+                  "    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
+                  "        s.status[0] = NON_FINITE",
+                  "        s.status[2] = step",
+                  "        return -1",
+                  "    if countdown == 1:",
+                  "        record_frame(step // stride, s, record)",
+                  "        return stride",
+                  "    return countdown - 1"]
+        return lines
+
+    def text(self, templates):
+        lines = ['"""demkit\'s generic kernel module (tier 1): written by demkit.generic, do not edit."""',
+                 "import math", "import numpy as np", "from numba import njit, prange",
+                 "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
+                 "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
+                 "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
+                 "from demkit.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
+                 "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
+                 "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
+                 "                               restore_history)",
+                 "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
+                 "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START)",
+                 "from demkit.kernels import BLOCK",
+                 "from demkit.generic import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
+                 "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
+                 "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
+                 "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE)",
+                 f"EFFECT_ROW = {effect_row(0)}",
+                 f"PLANE_CONTACT = ({', '.join(str(bool(law.plane_contact)) for law in self.effects)},)",
+                 ""]
+        if self.growing:
+            from .motion import CALLED_PASSES
+            lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
+                      + ")"]
+        if self.threads:
+            lines += ["from demkit.motion import sum_chunks_threads as sum_chunks",
+                      "from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
+                      "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
+                      "                           state_is_finite_threads as state_is_finite)",
+                      "from demkit.neighbours import (max_displacement_threads as max_displacement,",
+                      "                               rebuild_threads as rebuild, build_threads as build)"]
+        for prefix, entries in (("law", self.laws), ("effect", self.effects)):
+            for law in entries:
+                lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
+                          f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
+        from .motion import FASTMATH
+        fast = f'fastmath={FASTMATH!r}, error_model="numpy"'
+        nrt = "" if self.growing else ", _nrt=False"
+        # pair and sphere loops are functions of their own, compiled once and called (inlined, numba
+        # would re-type and re-lower the whole catalogue at every call site)
+        lines.append(f"INNER = dict(cache=True, _nrt=False, {fast})")
+        lines += [f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
+                  f"OUTER = dict(cache=True, inline='always', {fast}{nrt})",
+                  "UPKEEP = dict(cache=True)",
+                  f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})",
+                  "STRICT = dict(INNER, fastmath=False)",
+                  "STRICT_OUTER = dict(OUTER, fastmath=False)",
+                  "STRICT_LOOP = dict(LOOP, fastmath=False)"]
+        lines += self.pair_functions() + self.sphere_functions() + self.scene_functions()
+        for name, template in templates.items():
+            src = textwrap.dedent(inspect.getsource(template))
+            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
+            lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
+        return "\n".join(lines) + "\n"
+
+
+# ---- building and loading ---------------------------------------------------------------------------
+def generic_source(growing, threads=False):
+    """Python source of the generic module (``growing``: for scenes with neighbour lists)."""
+    from .integrators import TEMPLATES
+    return _Generic(growing, threads).text(TEMPLATES)
+
+
+def _name(growing, threads):
+    from .kernels import _fingerprint
+    source = generic_source(growing, threads)
+    return source, f"demkit_generic_{_fingerprint(source, [])}"
+
+
+_MODULES = {}
+
+
+def build_generic(growing, threads=False):
+    """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
+    threads, compiled function by function as called and cached on disk like the fused modules."""
+    key = (bool(growing), bool(threads))
+    if key not in _MODULES:
+        import numba
+
+        from .kernels import _load_from_file
+        source, name = _name(growing, threads)
+        module = _load_from_file(name, source)
+        numba.get_num_threads()  # start numba's threading layer (see demkit.kernels.build_module)
+        module.source = source
+        _MODULES[key] = GenericKernels(module)
+    return _MODULES[key]
+
+
+def is_cached(growing, threads, function):
+    """Is ``function`` of this generic module in numba's disk cache already?"""
+    from .kernels import cached_function
+    return cached_function(_name(growing, threads)[1], function)
+
+
+class GenericKernels:
+    """A generic module seen through the names of a fused one (``pair_energies_<g>``, ...)."""
+
+    tier = 1
+
+    def __init__(self, module):
+        self.module = module
+
+    def __getattr__(self, name):
+        for kind in ("pair_energies", "pair_forces"):
+            if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
+                g = int(name[len(kind) + 1:])
+                function = getattr(self.module, f"{kind}_of")
+                return lambda s, owners, partners, out: function(s, g, owners, partners, out)
+        return getattr(self.module, name)
