@@ -20,11 +20,20 @@ Parts (all by default; name some to run only those):
   demkit's own modules cached (a new scene on a machine that ran demkit before) and fully warm; and
   a scene differing only in parameter values and particle count (which must compile nothing).
 
+* ``tiers`` (only when named): the two tiers of compiled code (docs/engine.md). ``fresh_install``:
+  every cache empty, CPU s to the first step of the paper's scene (the main job's). ``new_combination``:
+  demkit's install-wide code cached (the generic module warmed by *other* scenes of the same kind:
+  a three-sphere Kelvin-Voigt scene for the small scenes, a periodic contact-only gas for scenes
+  with lists), the scene's own fused module never compiled: CPU s from ``import demkit`` to the
+  first step in a fresh process. ``install_wide``: CPU s compiling every function of the generic
+  modules (serial and threads) as the integrators and diagnostics use them. ``speed``: steps per
+  second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
+
 * ``long_range`` (only when named): the same two measurements for long-range dipole sums: the
   compile part for the N = 1000 reference scene with Ewald(1e-4) and the N = 8000 one with
   P3M(1e-4) (frictionless Hooke contacts), the threads part for the latter.
 
-Usage: python benchmarks/bench_latency.py [threads] [compile] [long_range] [--quick] [--against=<git revision>]
+Usage: python benchmarks/bench_latency.py [threads] [compile] [tiers] [long_range] [--quick] [--against=<git revision>]
 
 ``--against=REV`` runs the compile part of revision REV's code alternating with this one's (before
 and after, side by side on the same machine), written under ``compile_against_REV``.
@@ -252,7 +261,7 @@ class Count(event.Listener):
     def on_start(self, ev):
         pass
     def on_end(self, ev):
-        if (ev.data["dispatcher"].py_func.__module__ or "").startswith("demkit_kernel"):
+        if (ev.data["dispatcher"].py_func.__module__ or "").startswith(("demkit_kernel", "demkit_generic")):
             compiled.append(ev.data["dispatcher"].py_func.__name__)
 event.register("numba:compile", Count())
 import numpy as np
@@ -340,6 +349,125 @@ def part_compile(quick, scenes, against=None, rounds=2):
     return rows
 
 
+# scenes that warm the generic modules (install-wide code) without compiling a target scene's fused module
+WARM_GENERIC = {
+    "small": """
+        def make():
+            p = dk.Particles(position=[[0, 0, 0], [1.5, 0, 0], [0, 1.5, 0]], velocity=[[0.1, 0, 0], [0, 0, 0], [0, 0, 0]],
+                             radius=0.5, mass=1.0)
+            return dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0)], tier=1), {integrator}
+    """,
+    "lists": """
+        def make():
+            n, R = 300, 0.5
+            box = dk.build.box_for(n, R, 0.2)
+            p = dk.Particles(position=dk.build.random_packing(n, R, box, seed=3), radius=R, mass=1.0)
+            return dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1), {integrator}
+    """,
+}
+TIER_SCENES = {  # name: (scene source, kind of state, integrator)
+    "two_magnets": ("two_magnets", "small", "dk.EulerCromer(0.01)"),
+    "gas600": ("gas600", "lists", "dk.VelocityVerlet(1e-3)"),
+    "pour_twisting": ("pour_twisting", "lists", "dk.VelocityVerlet(1e-3)"),
+}
+SCENES["pour_twisting"] = """
+        def make():
+            # a walled pour: Hertz with friction, rolling and twisting resistance, gravity and a field
+            R, side = 0.5, 8.0
+            k = np.arange(400)
+            pos = np.stack([0.75 + 1.25 * (k % 6), 0.75 + 1.25 * ((k // 6) % 6), 1.0 + 1.25 * (k // 36)], axis=1)
+            rng = np.random.default_rng(3)
+            d = rng.normal(size=(400, 3))
+            p = dk.Particles(position=pos + rng.uniform(-0.1, 0.1, (400, 3)), radius=R, mass=1.0, dipole=0.1 * d)
+            law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5),
+                           rolling=dk.RollingResistance(0.05), twisting=dk.TwistingResistance())
+            walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
+                     dk.Wall((side, side, 0), (-1, 0, 0)), dk.Wall((side, side, 0), (0, -1, 0))]
+            return dk.Scene(p, [law, dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0, 0.1)), *walls], skin=0.4), \
+                dk.VelocityVerlet(1e-3)
+    """
+
+SPEED_CHILD = """
+import json, time
+import numpy as np
+import demkit as dk
+{scene}
+scene, integrator = make()
+scene = dk.Scene(scene.particles, list(scene.interactions + scene.effects), box=scene.box, tier={tier})
+sim = dk.Simulation(scene, integrator)
+sim.run(duration=20 * integrator.dt, progress=False)
+steps = 20
+while True:  # about {seconds} s of stepping
+    t = time.perf_counter(); sim.run(duration=steps * integrator.dt, progress=False); took = time.perf_counter() - t
+    if took > {seconds}:
+        break
+    steps = int(steps * min(10.0, 1.5 * {seconds} / max(took, 1e-3)))
+print("RESULT", json.dumps({{"steps_per_s": steps / took, "tier": sim.statistics["tier"]}}))
+"""
+
+INSTALL_CHILD = """
+import json, time
+t0 = time.process_time()
+import numpy as np
+import demkit as dk
+from demkit.integrators import TEMPLATES
+p = dk.Particles(position=[[0, 0, 0], [1.5, 0, 0], [0, 1.5, 0]], radius=0.5, mass=1.0, dipole=np.eye(3))
+small = dk.Scene(p, [dk.Dipole(0.01), dk.KelvinVoigt(1000.0, 1.0)], tier=1)
+n, R = 300, 0.5
+box = dk.build.box_for(n, R, 0.2)
+q = dk.Particles(position=dk.build.random_packing(n, R, box, seed=3), radius=R, mass=1.0, dipole=np.tile([1.0, 0, 0], (n, 1)))
+big = dk.Scene(q, [dk.Dipole(0.01, cutoff=3.0), dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1, parallel=True)
+record = None
+for scene in (small, big):
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    sim.run(duration=1e-3, progress=False)  # record_frame and the lists
+    scene.energy(); scene.forces(); scene.pair_energies(); scene.pair_forces()
+    signature = scene.kernels.velocity_verlet_steps.signatures[0]
+    for threads in ((False, True) if scene is big else (False,)):
+        module = scene.thread_kernels if threads else scene.kernels
+        for name in TEMPLATES:
+            getattr(module, name + "_steps").compile(signature)
+print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0}}))
+"""
+
+
+def part_tiers(quick, rounds=3):
+    """The tiers' figures (see the module docstring)."""
+    tmp = tempfile.mkdtemp(prefix="demkit-latency-")
+    cache = Path(tmp) / "kernels"
+    env = dict(os.environ, DEMKIT_CACHE_DIR=str(cache), DEMKIT_QUIET="1")
+    rows = []
+    try:
+        _empty_caches(cache)
+        rows.append({"what": "fresh_install", "scene": "two_magnets",
+                     **_child(COMPILE_CHILD.format(scene=_scene_source("two_magnets", tmp)), env)})
+        print(json.dumps(rows[-1]), flush=True)
+        for name, (source, kind, integrator) in TIER_SCENES.items():
+            warm = COMPILE_CHILD.format(scene=textwrap.dedent(WARM_GENERIC[kind].format(integrator=integrator)))
+            _child(warm, env)  # the install-wide code this kind of scene needs, from another scene
+            first = _child(COMPILE_CHILD.format(scene=_scene_source(source, tmp)), env)
+            rows.append({"what": "new_combination", "scene": name, **first})
+            print(json.dumps(rows[-1]), flush=True)
+        _empty_caches(cache)
+        rows.append({"what": "install_wide", **_child(INSTALL_CHILD.format(), env)})
+        print(json.dumps(rows[-1]), flush=True)
+        for name in ("two_magnets", "gas600"):
+            row = {"what": "speed", "scene": name, "tier1_runs": [], "tier2_runs": []}
+            for r in range(1 if quick else rounds):
+                for tier in ((1, 2) if r % 2 == 0 else (2, 1)):
+                    res = _child(SPEED_CHILD.format(scene=_scene_source(name, tmp), tier=tier,
+                                                    seconds=2.0 if quick else 4.0), env)
+                    row[f"tier{tier}_runs"].append(res["steps_per_s"])
+            row["tier1"] = statistics.median(row["tier1_runs"])
+            row["tier2"] = statistics.median(row["tier2_runs"])
+            row["ratio_tier1_to_tier2"] = row["tier1"] / row["tier2"]
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return rows
+
+
 def main(argv):
     quick = "--quick" in argv
     parts = [a for a in argv if not a.startswith("--")] or ["threads", "compile"]
@@ -357,6 +485,8 @@ def main(argv):
         key = f"compile_against_{against}" if against else "compile"  # a comparison keeps its own table
         results[key] = {"machine": machine, "against": against, "quick": quick,
                         "rows": part_compile(quick, scenes, against=against)}
+    if "tiers" in parts:
+        results["tiers"] = {"machine": machine, "quick": quick, "rows": part_tiers(quick)}
     if "long_range" in parts:  # the dipole sums of every range: compilation, and threads beside a busy core
         results["long_range"] = {
             "machine": machine,

@@ -215,7 +215,9 @@ def info_command(args):
           + (f", outputs {_duration(est.outputs)}" if est.outputs >= 0.05 else "")
           + " (one thread, compilation not included; dk.cost)")
     from .threads import ThreadChoice
+    from .tiers import TierChoice
     print(f"threads       {ThreadChoice(scene, integ.template).describe()}")
+    print(f"compiled code {TierChoice(scene, f'{integ.template}_steps').describe()}")
     return 0
 
 

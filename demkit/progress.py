@@ -313,12 +313,17 @@ def _listener():
 #: neighbour lists, one integrator (the paper's pair: 7-11 s); the first run of a scene with lists
 #: (a 600-sphere magnetic gas with Hertz contacts and friction: 13-18 s) and building it (2-8 s);
 #: the cell-list code, compiled once per install when the first scene with lists is built (~15 s)
-ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (0, 2), "cell_lists": 15}
+ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (0, 2), "cell_lists": 15, "generic": (30, 60)}
 
 
-def compile_estimate(plan, phase):
+def compile_estimate(plan, phase, tier=2):
     """Text of the compile notice for a scene of this plan at ``phase`` ("scene": building it, "run":
-    its first run): the expected seconds, from :data:`ESTIMATES`."""
+    its first run): the expected seconds, from :data:`ESTIMATES`; on ``tier`` 1 (the generic module)
+    a one-time compile for this machine."""
+    if tier == 1:
+        lo, hi = ESTIMATES["generic"]
+        return (f"about {lo}-{hi} s on an idle machine, once for this machine: demkit's generic kernels, "
+                f"which then serve every scene")
     lo, hi = ESTIMATES["lists" if plan.growing else "small"]
     if phase == "scene" and plan.growing:
         lo, hi = ESTIMATES["lists_scene"]  # the state only: the lists are built (and compiled) at the first run

@@ -146,7 +146,7 @@ class Scene:
         self._synced = None  # digest of the user's arrays when they last matched the kernels' (see push)
         self.stepping = False  # inside a Simulation.run: the arrays are the kernels' (push has nothing to do)
         self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
-        with compile_notice(lambda: compile_estimate(self.plan, "scene")):  # a line on stderr when not cached yet
+        with compile_notice(lambda: compile_estimate(self.plan, "scene", getattr(self, "tier", 2))):  # a line on stderr when not cached yet
             self.state = self._make_state()
             if self.induction is not None:
                 self._first_induction()
@@ -167,9 +167,9 @@ class Scene:
             self._thread_kernels = self._kernels(threads=True)
         return self._thread_kernels
 
-    def _kernels(self, threads):
-        """The compiled module of this scene's tier (the thread module with ``threads``)."""
-        if self.tier == 1:
+    def _kernels(self, threads, tier=None):
+        """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``)."""
+        if (tier or self.tier) == 1:
             return generic.build_generic(self.plan.growing, threads)
         return build_module(self.plan, TEMPLATES, threads=threads)
 

@@ -20,6 +20,7 @@ from .notes import RunNotes, say as say_notes
 from .progress import Progress, check_progress, compile_estimate, compile_notice
 from .scene import energy_dict
 from .threads import ThreadChoice
+from .tiers import TierChoice
 from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
@@ -192,6 +193,7 @@ class Simulation:
             guards.before_stepping(scene, integrator)
             integrator.check(scene)
         self._threads = ThreadChoice(scene, integrator.template)
+        self._tiers = TierChoice(scene, f"{integrator.template}_steps")
 
     @property
     def time(self):
@@ -233,7 +235,7 @@ class Simulation:
         if nsteps == 0:
             return self._already_there()
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
-        with compile_notice(lambda: compile_estimate(self.scene.plan, "run")) as notice:  # ended after the first chunk
+        with compile_notice(lambda: compile_estimate(self.scene.plan, "run", self._tiers.tier)) as notice:  # ended after the first chunk
             return self._advance(nsteps, stride, progress, notice)
 
     def _already_there(self):
@@ -294,8 +296,9 @@ class Simulation:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
                     chunk = min(chunk, every - (start_step + done) % every)
+                self._switch_tier(nsteps - done)
                 loop, chunk = self._threads.loop(chunk, nsteps - done)
-                bar.extra = self._threads.label
+                bar.extra = f"{self._threads.label}, tier {self._tiers.tier}"
                 began = time.perf_counter()
                 try:
                     failed = loop(chunk, done, stride, self.integrator.dt, forces_ready, state, record)
@@ -565,8 +568,17 @@ class Simulation:
             "steps_per_build": nsteps / rebuilds if rebuilds else None,
             "lists": scene.neighbour_lists(), "skin": scene.skin if scene.plan.lists else None,
             **self._threads.statistics(),
+            **self._tiers.statistics(),
             "chunks": scene.chunks,
         }
+
+    def _switch_tier(self, steps_left):
+        """Between chunks: run tier 2's loops from now on when it is ready (demkit.tiers)."""
+        seconds_left = steps_left / self._rate if self._rate else None
+        modules = self._tiers.ready(seconds_left, busy=self._threads.compiling)
+        if modules is not None:
+            self._threads.use_modules(*modules)
+            self._tiers.switched(self.step)
 
     def close(self):
         """Close the writers (call when done; further runs reopen nothing)."""

@@ -89,6 +89,8 @@ class ThreadChoice:
     def __init__(self, scene, template):
         self.scene = scene
         self.name = f"{template}_steps"
+        self.serial_module = scene.kernels  # the tier's modules (demkit.tiers: tier 2 may replace them)
+        self._thread_module = lambda: scene.thread_kernels
         self.serial_loop = getattr(scene.kernels, self.name)
         self.thread_loop = None
         self.max_threads = numba.get_num_threads() if scene.parallel else 1
@@ -110,7 +112,9 @@ class ThreadChoice:
         else:
             self.fixed, self.reason = None, "measuring: one thread until the thread module is ready"
         self.threads = self.fixed or 1
-        self._key = (self.serial_loop, len(scene.particles), self.max_threads)
+        # the kind of scene: its compiled loops (the generic module runs every scene: its program too)
+        self._key = (self.serial_loop, scene.program.tobytes() if scene.program is not None else None,
+                     len(scene.particles), self.max_threads)
         if self.fixed is None and self._key in _CHOSEN:
             self._start_from(*_CHOSEN[self._key])
 
@@ -143,7 +147,7 @@ class ThreadChoice:
     def kernels(self):
         """The module whose record_frame a run calls from Python: the thread module when threads
         always run (parallel=True), else the serial one (so that it is compiled once)."""
-        return self.scene.thread_kernels if self.fixed and self.fixed > 1 else self.scene.kernels
+        return self._thread_module() if self.fixed and self.fixed > 1 else self.serial_module
 
     @property
     def label(self):
@@ -164,7 +168,7 @@ class ThreadChoice:
             if serial is not None and self._compiling is None and remaining / serial >= self._worth():
                 self._start_compiling()
             if self._compiling is not None and not self._compiling.is_alive():
-                self.thread_loop = getattr(self.scene.thread_kernels, self.name)
+                self.thread_loop = getattr(self._thread_module(), self.name)
                 self.next_check = now  # probe now
         after_probe, self._after_probe = self._after_probe, False
         if self.thread_loop is not None and serial is not None and now >= self.next_check and not after_probe:
@@ -229,23 +233,43 @@ class ThreadChoice:
         if self._cached is None:
             from .integrators import TEMPLATES
             from .kernels import is_cached
-            self._cached = is_cached(self.scene.plan, TEMPLATES, self.name, threads=True)
+            if self.serial_module is self.scene.kernels and self.scene.tier == 1:
+                from .generic import is_cached as generic_cached
+                self._cached = generic_cached(self.scene.plan.growing, True, self.name)
+            else:
+                self._cached = is_cached(self.scene.plan, TEMPLATES, self.name, threads=True)
         return 0.5 if self._cached else WORTH_COMPILING
 
     def _threaded(self):
         if self.thread_loop is None:
-            self.thread_loop = getattr(self.scene.thread_kernels, self.name)
+            self.thread_loop = getattr(self._thread_module(), self.name)
         return self.thread_loop
+
+    @property
+    def compiling(self):
+        """Is the thread module being compiled in the background?"""
+        return self._compiling is not None and self._compiling.is_alive()
+
+    def use_modules(self, serial, threaded):
+        """Run the loops of these modules from now on (tier 2 took over: demkit.tiers); ``threaded``
+        None: the thread module is compiled when threads are worth it, as at a run's start."""
+        self.serial_module = serial
+        self.serial_loop = getattr(serial, self.name)
+        scene = self.scene
+        self._thread_module = (lambda: threaded) if threaded is not None else (lambda: scene._kernels(threads=True, tier=2))
+        self.thread_loop = getattr(threaded, self.name) if threaded is not None else None
+        self._compiling, self._cached = None, None
+        if self.thread_loop is None and self.fixed is None and self.threads > 1:
+            self.threads = 1  # back to one thread until tier 2's thread module is ready
 
     def _start_compiling(self):
         """Compile (or load from the cache) the thread module on another thread while the run goes
         on with one: the compiled chunks release the GIL."""
-        scene, name = self.scene, self.name
+        name, serial, threaded = self.name, self.serial_module, self._thread_module
 
         def work():
             try:
-                module = scene.thread_kernels
-                getattr(module, name).compile(getattr(scene.kernels, name).signatures[0])
+                getattr(threaded(), name).compile(getattr(serial, name).signatures[0])
             except Exception:  # noqa: BLE001 - a failed compile just keeps the run on one thread
                 pass
 

@@ -1,0 +1,122 @@
+"""Which compiled code runs a scene: the generic module (tier 1) or its own fused module (tier 2).
+
+A scene of shipped interactions starts on tier 1 (:mod:`demkit.generic`: compiled once per install,
+loaded in a fraction of a second). Its own fused module (:mod:`demkit.kernels`) runs 0-25 % faster
+but costs 5-30 CPU s to compile the first time a combination of interactions is run. So a run
+
+1. starts on tier 1;
+2. compiles tier 2 on another thread (or loads it, when numba's cache has it) once the run has at
+   least :data:`WORTH_COMPILING` seconds left (:data:`WORTH_LOADING` when cached), while it goes on;
+3. switches to tier 2 between two compiled chunks as soon as it is ready.
+
+Both tiers do the same arithmetic in the same order, so a run gives the same bits whenever the
+switch happens, or whether it happens at a all (``tests/test_tiers.py``). A run that ends before
+tier 2 is ready never waits for it, and one shorter than :data:`WORTH_COMPILING` never compiles it.
+``Scene(tier=1)`` never switches, ``Scene(tier=2)`` starts on tier 2; ``sim.statistics`` (``tier``,
+``tier_reason``, ``tier_switch_step``), the progress bar and ``demkit info`` say which tier ran.
+"""
+from __future__ import annotations
+
+import threading
+
+from .progress import BACKGROUND
+
+#: a run with at least this many seconds left on tier 1 compiles tier 2 in the background (a first
+#: compile of a combination costs 5-30 CPU s on the other core; tier 2 saves 0-25 % of the run)
+WORTH_COMPILING = 20.0
+#: ... and loads it from numba's cache with at least this many seconds left (about 1 s to load)
+WORTH_LOADING = 2.0
+
+
+class TierChoice:
+    """Chooses, between chunks, the tier whose loops one Simulation runs."""
+
+    def __init__(self, scene, name):
+        self.scene, self.name = scene, name
+        self.tier = scene.tier
+        self.switch_step = None
+        self.switchable = scene.tier == 1 and scene.tier_requested is None
+        if scene.tier == 2:
+            self.reason = ("tier=2 asked for" if scene.tier_requested == 2 else
+                           f"the generic module cannot run this scene ({scene.program_refusal})")
+        elif scene.tier_requested == 1:
+            self.reason = "tier=1 asked for"
+        else:
+            self.reason = "the generic module (tier 1) until the scene's fused module is worth compiling"
+        self._work = None
+        self._modules = None  # (serial, thread or None) of tier 2, once compiled
+        self._cached = None
+
+    def _worth(self):
+        if self._cached is None:
+            from .integrators import TEMPLATES
+            from .kernels import is_cached
+            self._cached = is_cached(self.scene.plan, TEMPLATES, self.name)
+        return WORTH_LOADING if self._cached else WORTH_COMPILING
+
+    def ready(self, seconds_left, busy=False):
+        """Tier 2's (serial module, thread module or None) when the run should switch to it now, else
+        None; ``seconds_left`` of run at the current rate (None: not measured yet); ``busy``: another
+        background compilation runs (tier 2 waits for it: both would queue on numba's lock)."""
+        if not self.switchable or seconds_left is None:
+            return None
+        if self._work is None:
+            if busy or seconds_left < self._worth():
+                return None
+            self._start()
+            return None
+        if self._work.is_alive() or self._modules is None:
+            return None
+        self.switchable = False
+        return self._modules
+
+    def switched(self, step):
+        """The run now runs tier 2, from global step ``step`` on."""
+        self.tier, self.switch_step = 2, step
+        self.reason = (f"the scene's fused module (tier 2), {'loaded' if self._cached else 'compiled'} while the "
+                       f"run went on, from step {step} (tier 1 before: the same bits)")
+
+    def _start(self):
+        """Compile (or load) tier 2's loop for this run on another thread: the serial module, and the
+        thread module too when the scene may run on threads."""
+        scene, name = self.scene, self.name
+
+        def work():
+            from .integrators import TEMPLATES
+            from .kernels import build_module
+            try:
+                signatures = {}  # the generic loops' (the same state types on both tiers)
+                for function in (name, "record_frame"):
+                    for generic in (scene.kernels, scene._thread_kernels):
+                        compiled = getattr(generic, function).signatures if generic is not None else []
+                        if compiled:
+                            signatures[function] = compiled[0]
+                modules = []
+                for threads in ((False, True) if scene.parallel else (False,)):
+                    module = build_module(scene.plan, TEMPLATES, threads=threads)
+                    for function, signature in signatures.items():
+                        getattr(module, function).compile(signature)
+                    modules.append(module)
+                self._modules = (modules[0], modules[1] if len(modules) > 1 else None)
+            except Exception:  # noqa: BLE001 - a failed compile keeps the run on tier 1
+                self._modules = None
+
+        from .threads import _UNFINISHED
+        self._work = threading.Thread(target=work, name=BACKGROUND, daemon=True)
+        self._work.start()
+        _UNFINISHED.append(self._work)
+
+    def describe(self):
+        """One line for ``demkit info``: which tier runs this scene and why."""
+        if self.switchable:
+            return (f"tier 1, the generic module (compiled once per install); the scene's own fused module (tier 2, "
+                    f"the same bits, up to 25 % faster) is compiled in the background by runs with more than "
+                    f"{WORTH_COMPILING:g} s to go, loaded by runs of more than {WORTH_LOADING:g} s once cached")
+        return f"tier {self.tier}: {self.reason}"
+
+    @property
+    def compiling(self):
+        return self._work is not None and self._work.is_alive()
+
+    def statistics(self):
+        return {"tier": self.tier, "tier_reason": self.reason, "tier_switch_step": self.switch_step}

@@ -1,0 +1,143 @@
+"""The two tiers of compiled code (demkit.tiers): the generic module (tier 1) and a scene's fused
+module (tier 2) give byte-equal trajectories, energies and diagnostics, and a run that switches
+from one to the other in its middle gives the same bits as either. The scenes are chosen to cover
+every shipped pair law and effect, every integrator, open and periodic boxes, lists and all pairs,
+blocked dipole loops, sorting, chunks on threads and multiple time stepping, with few fused modules
+(each costs seconds to compile; the generic module is shared by the whole suite)."""
+import numpy as np
+import pytest
+
+import demkit as dk
+from demkit import generic, tiers
+
+
+def small_scene(tier, laws="kelvin_voigt"):
+    """Six spheres in open space (all pairs, no lists) above a floor, between walls."""
+    rng = np.random.default_rng(4)
+    pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5],
+                    [1.6, 0.4, 1.4]])
+    d = rng.normal(size=(6, 3))
+    p = dk.Particles(position=pos, velocity=0.3 * rng.normal(size=(6, 3)), radius=0.5, mass=1.0,
+                     angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None])
+    if laws == "kelvin_voigt":
+        law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
+                             twisting=dk.TwistingResistance())
+        pair = [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5)]
+        more = [dk.UniformField((0.0, 0.05, 0.02))]
+    else:
+        law = dk.Hertz(young=5e4, poisson=0.3, restitution=0.6, friction=dk.Friction(0.3),
+                       twisting=dk.TwistingResistance())
+        pair = [dk.PowerLawDipole(prefactor=0.05)]
+        more = [dk.Langevin(drag=0.5, temperature=0.01, seed=3)]
+    walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0))]
+    return dk.Scene(p, [*pair, law, dk.Gravity((0, 0, -1.0)), *more, *walls], tier=tier)
+
+
+def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_voigt=False):
+    """A periodic frictional magnetic gas: neighbour lists, blocked dipole loops."""
+    R = 0.5
+    box = dk.build.box_for(n, R, 0.25)
+    pos = dk.build.random_packing(n, R, box, seed=1)
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(n, 3))
+    p = dk.Particles(position=pos, velocity=rng.normal(size=(n, 3)), radius=R, mass=1.0,
+                     dipole=d / np.linalg.norm(d, axis=1)[:, None])
+    law = (dk.KelvinVoigt(2000.0, 3.0) if kelvin_voigt else
+           dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5),
+                    rolling=dk.RollingResistance(0.02)))
+    dipole = dk.PowerLawDipole(prefactor=1.0, cutoff=3.0, switch_width=1.0) if power_law else \
+        dk.Dipole(prefactor=1.0, cutoff=4.0)
+    return dk.Scene(p, [dipole, law], box=box, tier=tier, parallel=parallel, sort_every=sort_every)
+
+
+def outcome(scene, integrator, duration, switch=False):
+    """Everything a run records and the diagnostics after it, as one array of bits."""
+    sim = dk.Simulation(scene, integrator)
+    if switch:  # compile tier 2 at once, switch when ready (here: at once, the module is in memory)
+        sim._tiers._worth = lambda: 0.0
+    traj = sim.run(duration=duration, record_every=duration / 4, progress=False)
+    energies = np.stack(list(traj.energy.values())[:-1]) if isinstance(traj.energy, dict) else traj.energy
+    force, torque = scene.forces()
+    pairs, pair_energy = scene.pair_energies()
+    parts = [traj.position, traj.velocity, np.asarray(energies, dtype=float), force, torque, pair_energy]
+    if traj.angular_velocity is not None:
+        parts.append(traj.angular_velocity)
+    parts += [f for *_, f in scene.pair_forces()]
+    return sim, np.concatenate([np.ravel(a) for a in parts])
+
+
+def same_bits(make, integrator, duration):
+    a = outcome(make(1), integrator, duration)[1]
+    b = outcome(make(2), integrator, duration)[1]
+    assert a.shape == b.shape
+    assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ between the tiers"
+    return a
+
+
+@pytest.mark.parametrize("integrator", [dk.VelocityVerlet(2e-4), dk.EulerCromer(2e-4),
+                                        dk.MultipleTimeStep(4e-4, inner=2),
+                                        dk.VelocityVerlet(2e-4, resolve_contacts=True)],
+                         ids=["verlet", "euler_cromer", "multiple_time_step", "contact_events"])
+def test_small_scene_same_bits(integrator):
+    same_bits(small_scene, integrator, 0.05)
+
+
+def test_hertz_power_law_langevin_same_bits():
+    same_bits(lambda tier: small_scene(tier, laws="hertz"), dk.VelocityVerlet(2e-4), 0.05)
+
+
+@pytest.mark.parametrize("integrator", [dk.VelocityVerlet(1e-3), dk.RK4(1e-3), dk.ForestRuth(1e-3)],
+                         ids=["verlet", "rk4", "forest_ruth"])
+def test_periodic_gas_same_bits(integrator):
+    # RK4 and Forest-Ruth integrate no contact history: frictionless contacts
+    make = gas if isinstance(integrator, dk.VelocityVerlet) else (lambda tier: gas(tier, kelvin_voigt=True))
+    same_bits(make, integrator, 0.2)
+
+
+def test_sorted_chunked_gas_on_threads_same_bits():
+    """Sorting by cell, chunks on numba's threads (parallel=True), the switched power law."""
+    same_bits(lambda tier: gas(tier, n=1100, parallel=True, sort_every=40, power_law=True),
+              dk.VelocityVerlet(1e-3), 0.1)
+
+
+def test_switch_in_the_middle_same_bits():
+    """A run that starts on tier 1 and switches to tier 2 when it is ready ends with the same bits."""
+    plain = outcome(gas(1), dk.VelocityVerlet(1e-3), 0.3)[1]
+    outcome(gas(2), dk.VelocityVerlet(1e-3), 0.01)  # tier 2 compiled in this process
+    sim, switched = outcome(gas(None), dk.VelocityVerlet(1e-3), 0.3, switch=True)
+    assert sim.statistics["tier"] == 2 and 0 < sim.statistics["tier_switch_step"] < 300
+    assert switched.tobytes() == plain.tobytes()
+
+
+def test_tier_choice_and_refusals():
+    scene = gas(None, n=100)
+    assert scene.tier == 1 and scene.kernels.tier == 1
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    sim.run(duration=0.01, progress=False)
+    assert sim.statistics["tier"] == 1 and sim.statistics["tier_switch_step"] is None  # too short to compile
+    assert "generic" in sim.statistics["tier_reason"]
+    with pytest.raises(ValueError, match="tier must be"):
+        gas(3)
+    p = dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=0.5, mass=1.0, dipole=[[1, 0, 0], [1, 0, 0]])
+    box = dk.Box((10, 10, 10), periodic=True)
+    ewald = [dk.Dipole(prefactor=1.0, long_range=dk.Ewald(1e-3))]
+    assert dk.Scene(p, ewald, box=box).tier == 2  # long-range sums: tier 2 only
+    with pytest.raises(ValueError, match="long-range"):
+        dk.Scene(p, ewald, box=box, tier=1)
+
+
+def test_program_layout():
+    """The program holds what the fused module hard-codes: kinds, slots, offsets, flags."""
+    scene = small_scene(1)
+    program = scene.program
+    laws, effects = generic.catalogue()
+    row = program[generic.group_row(0, 0)]
+    assert row[generic.G_COUNT] == 2 and row[generic.G_LIST] == 0 and row[generic.G_TORQUE] == 1
+    kinds = [laws[row[generic.G_MEMBERS + generic.M_COLUMNS * m + generic.M_KIND]].force_name for m in range(2)]
+    assert kinds == ["switched_dipole_force", "kelvin_voigt_twisting_force"]
+    fast = program[generic.group_row(0, 1)]
+    assert fast[generic.G_COUNT] == 1  # the contact law alone (the dipole is slow)
+    assert program[0, generic.H_EFFECTS] == 5
+    names = [effects[program[generic.effect_row(e), generic.E_KIND]].force_name for e in range(5)]
+    assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
+    assert tiers.WORTH_COMPILING > tiers.WORTH_LOADING > 0
