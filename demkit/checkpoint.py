@@ -325,6 +325,6 @@ def restore(scene, arrays):
         fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])
                                                         for name in PAIR_LIST_FIELDS[1:]]
         lists.append(make_pair_list(*fields) if scene.plan.growing else PairListTuple(*fields))
-    scene.arrays["lists"] = tuple(lists)
+    scene.arrays["lists"] = scene.padded(lists)
     scene.state = scene._state_object()
     scene.pull()

@@ -42,7 +42,8 @@ MAX_GROUPS = 3
 MAX_MEMBERS = 4
 MAX_EFFECTS = 16
 # header row
-H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST = range(5)
+(H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT,
+ H_INDUCTION_OFFSET, H_INDUCTION_ENERGY) = range(11)
 # group rows: flags, then the members
 (G_COUNT, G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ, G_EXISTS) = range(11)
 G_MEMBERS = 11
@@ -50,6 +51,8 @@ M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX = range(7)
 M_COLUMNS = 7
 # effect rows
 E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE = range(6)
+# long-range sum rows
+S_KIND, S_SLOT, S_ENERGY = range(3)
 COLUMNS = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
 SPEEDS = (None, "fast", "slow")
 
@@ -59,6 +62,7 @@ PAIR_LAWS = (
     ("demkit.interactions.dipole", "switched_dipole_force", "switched_dipole_energy", True, False, True),
     ("demkit.interactions.dipole", "power_law_force", "power_law_energy", False, False, True),
     ("demkit.interactions.dipole", "switched_power_law_force", "switched_power_law_energy", False, False, True),
+    ("demkit.interactions.ewald", "ewald_real_force", "ewald_real_energy", True, False, True),
     ("demkit.interactions.contact", "kelvin_voigt_force", "kelvin_voigt_energy", False, True, False),
     ("demkit.interactions.contact", "kelvin_voigt_friction_force", "kelvin_voigt_friction_energy", True, True, False),
     ("demkit.interactions.contact", "kelvin_voigt_twisting_force", "kelvin_voigt_twisting_energy", True, True, False),
@@ -82,6 +86,11 @@ EFFECTS = (
     ("demkit.interactions.wall", "wall_hertz_friction_force", "wall_hertz_friction_energy", True, True, True),
     ("demkit.interactions.wall", "wall_hertz_twisting_force", "wall_hertz_twisting_energy", True, True, True),
 )
+#: the long-range sums over all spheres: (module, function), called as
+#: f(position, dipole, box, params, slot, force, torque, with_forces) -> energy
+SUMS = (("demkit.interactions.ewald", "reciprocal_sum"), ("demkit.interactions.p3m", "p3m_sum"),
+        ("demkit.interactions.fmm", "fmm_sum"))
+MAX_SUMS = 2
 FIELD_NAMES = ("velocity", "angular_velocity", "dipole", "radius", "mass")
 
 
@@ -139,6 +148,16 @@ def effect_row(e):
     return 1 + 3 * MAX_GROUPS + e
 
 
+def sum_row(q):
+    return 1 + 3 * MAX_GROUPS + MAX_EFFECTS + q
+
+
+def needs_nrt(plan):
+    """Does the scene need numba's reference counting in its outer loops (a long-range sum or the
+    induced-moment solve allocates)? Then it runs on the generic module compiled with it."""
+    return bool(plan.growing or plan.sums or plan.induction is not None)
+
+
 def _law_of(inter, laws):
     for law in laws:
         if law.fits(inter):
@@ -152,16 +171,27 @@ def program_of(plan, slots, kinds):
     ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.kernels._Source` gives them);
     ``kinds``: the energy kinds."""
     laws, effect_laws = catalogue()
-    if plan.sums:
-        return None, "long-range dipole sums run on tier 2 only"
-    if plan.induction is not None:
-        return None, "magnetisable spheres run on tier 2 only"
+    if len(plan.sums) > MAX_SUMS:
+        return None, f"{len(plan.sums)} long-range sums, more than {MAX_SUMS}"
     if len(plan.groups) > MAX_GROUPS:
         return None, f"{len(plan.groups)} pair loops (interactions of different reach), more than {MAX_GROUPS}"
     if len(plan.effects) > MAX_EFFECTS:
         return None, f"{len(plan.effects)} single-sphere effects, more than {MAX_EFFECTS}"
-    rows = 1 + 3 * MAX_GROUPS + MAX_EFFECTS
+    rows = 1 + 3 * MAX_GROUPS + MAX_EFFECTS + MAX_SUMS
     program = np.zeros((rows, COLUMNS), dtype=np.int64)
+    for q, (tuned, slot) in enumerate(zip(plan.sums, slots.sum_slot)):
+        kind = [f"{module}.{name}" for module, name in SUMS].index(".".join(tuned.kernel)) \
+            if ".".join(tuned.kernel) in [f"{module}.{name}" for module, name in SUMS] else None
+        if kind is None:
+            return None, f"the long-range sum {tuned.kernel} is not in the generic module's catalogue"
+        program[sum_row(q)] [:3] = (kind, slot, 2 + kinds.index(tuned.energy_kind))
+    program[0, H_SUMS] = len(plan.sums)
+    if plan.induction is not None:
+        program[0, H_INDUCTION] = 1
+        program[0, H_INDUCTION_GROUP] = -1 if plan.induction.group is None else plan.induction.group
+        program[0, H_INDUCTION_SLOT] = slots.induction_slot
+        program[0, H_INDUCTION_OFFSET] = plan.effect_width - plan.induction.history_size
+        program[0, H_INDUCTION_ENERGY] = 2 + kinds.index(plan.induction.energy_kind)
     program[0, H_LISTS] = bool(plan.lists)
     program[0, H_PERIODIC] = any(plan.periodic)
     program[0, H_SORTED] = plan.sorted
@@ -251,8 +281,8 @@ class _Generic:
     """Builds the text of a generic module (``growing``: the scenes with neighbour lists, a structref
     state; ``threads``: chunked loops on prange)."""
 
-    def __init__(self, growing, threads):
-        self.growing, self.threads = growing, threads
+    def __init__(self, growing, threads, nrt):
+        self.growing, self.threads, self.nrt = growing, threads, nrt
         self.laws, self.effects = catalogue()
 
     # ---- pair loops ---------------------------------------------------------------------------
@@ -402,12 +432,14 @@ class _Generic:
                  f"{inner}    {torque}[j, 2] += {out}[8, u]"]
         return self.rows(pad, first, last) + open_ + body + close
 
-    def chunked(self, name, loop):
+    def chunked(self, name, loop, blocked=False):
         """A pair-loop function over fixed chunks of owners (see demkit.kernels: the same bits on any
         number of threads, and serially)."""
         signature = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, "
                      f"chunk_torque, chunk_power, program")
-        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):"]
+        options = ("BLOCKED_PARALLEL" if self.threads else "BLOCKED") if blocked else \
+            ("PARALLEL" if self.threads else "INNER")
+        lines = ["", "", f"@njit(**{options})", f"def {name}({signature}):"]
         lines += self.header()
         lines += ["    chunks = bounds.shape[0] - 1",
                   f"    for t in {'prange' if self.threads else 'range'}(chunks):",
@@ -429,7 +461,8 @@ class _Generic:
 
     def pair_functions(self):
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
-        lines += self.chunked("pairs_forces_blocked", self.blocked_loop)
+        if self.growing:
+            lines += self.chunked("pairs_forces_blocked", self.blocked_loop, blocked=True)
         # energies, and per-entry energies and forces (diagnostics)
         for name, signature, doc in (
                 ("pairs_energies", "out", "Add the potential energies of the loop to out[kind]."),
@@ -437,7 +470,7 @@ class _Generic:
                                                                   "and its energy under interaction k."),
                 ("pairs_pair_forces", "owners, partners, out", "owners[e], partners[e], out[e, :3] the separation, "
                                                                 "out[e, 3 + 3 m:] member m's force on j.")):
-            lines += ["", "", "@njit(**STRICT)", f"def {name}({ARRAYS}, {LIST_ARRAYS}, {signature}, program):",
+            lines += ["", "", "@njit(**INNER)", f"def {name}({ARRAYS}, {LIST_ARRAYS}, {signature}, program):",
                       f'    """{doc}"""']
             lines += self.header() + ["    e = 0", "    commit = False"]
             lines += self.rows("    ", 0, "n if is_list else n - 1") + self.entries("        ")
@@ -504,7 +537,7 @@ class _Generic:
             return lines + [pad + line for line in body]
         lines += _switch(self.effects, " " * 12, branch)
         lines.append("    return power")
-        lines += ["", "", "@njit(**STRICT)", f"def sphere_energies({ARRAYS}, history, out, program):",
+        lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out, program):",
                   '    """Add the potential energies of the single-sphere effects to out[kind]."""'] + head
         lines += _switch(self.effects, " " * 12,
                          lambda law: [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
@@ -517,21 +550,31 @@ class _Generic:
     def forces_body(self, speed, force, torque, strict):
         sp = SPEEDS.index(speed)
         lines = [f"    maintain_lists(s, {strict} != False)"] if self.growing else []
-        lines += ["    commit_flag = commit != False", f"    clear({force}, {torque})", "    power = 0.0"]
+        lines += ["    commit_flag = commit != False"]
+        if self.nrt and speed != "fast":  # induced moments first: the slow forces read them
+            lines += ["    if s.program[0, H_INDUCTION] != 0:",
+                      "        if induce_now(s, commit_flag) != 0 and s.status[0] == OK:",
+                      "            s.status[0] = INDUCTION_FAILED"]
+        lines += [f"    clear({force}, {torque})", "    power = 0.0"]
         fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         for g in range(MAX_GROUPS):
             row = group_row(g, sp)
             args = (f"{fields}, {force}, {torque}, {self.list_args(g)}, s.scratch, s.gather, commit_flag, "
                     f"s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power, s.program[{row}]")
-            lines += [f"    if s.program[{row}, G_COUNT] > 0:",
-                      f"        if s.program[{row}, G_BLOCKED] != 0:",
-                      f"            power += pairs_forces_blocked({args})",
-                      "        else:",
-                      f"            power += pairs_forces({args})"]
+            if self.growing:  # blocked loops run over neighbour lists only
+                lines += [f"    if s.program[{row}, G_COUNT] > 0:",
+                          f"        if s.program[{row}, G_BLOCKED] != 0:",
+                          f"            power += pairs_forces_blocked({args})",
+                          "        else:",
+                          f"            power += pairs_forces({args})"]
+            else:
+                lines += [f"    if s.program[{row}, G_COUNT] > 0:", f"        power += pairs_forces({args})"]
         if speed != "slow":
             lines += ["    if s.program[0, H_EFFECTS] > 0:",
                       f"        power += sphere_forces({fields}, {force}, {torque}, s.sphere_history, commit_flag, "
                       f"s.program)"]
+        if self.nrt and speed != "fast":
+            lines += [f"    long_range(s, {force}, {torque}, True)"]
         return lines + ["    return power"]
 
     def scene_functions(self):
@@ -582,6 +625,36 @@ class _Generic:
                           f"            restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})",
                           f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
             lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
+        if self.nrt:
+            lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque, with_forces):",
+                      '    """The long-range sums (an Ewald sum\'s reciprocal part, P3M, FMM); returns their energy',
+                      '    by column of out (with_forces: their forces and torques added)."""',
+                      "    total = 0.0",
+                      "    for q in range(s.program[0, H_SUMS]):",
+                      "        kind = s.program[SUM_ROW + q, S_KIND]",
+                      "        slot = s.program[SUM_ROW + q, S_SLOT]"]
+            for k, (module, name) in enumerate(SUMS):
+                lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
+                          f"            total += sum_{k}(s.position, s.dipole, s.box, s.params, slot, force, torque, "
+                          f"with_forces)"]
+            lines += ["    return total"]
+            lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
+                      '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
+                      "    g = s.program[0, H_INDUCTION_GROUP]",
+                      "    slot = s.program[0, H_INDUCTION_SLOT]",
+                      "    offset = s.program[0, H_INDUCTION_OFFSET]"]
+            for g in range(MAX_GROUPS):
+                lines += [f"    {'if' if g == 0 else 'elif'} g == {g}:",
+                          f"        return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
+                          f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.sphere_history, offset, commit)"]
+            lines += ["    return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
+                      "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32), "
+                      "s.sphere_history, offset, commit)"]
+            lines += ["", "", "@njit(**OUTER)", "def induce_of(s):",
+                      '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
+            if self.growing:
+                lines.append("    maintain_lists(s, False != False)")
+            lines += ["    return induce_now(s, False != False)"]
         lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
         lines += self.forces_body(None, "force", "torque", "strict")
@@ -610,7 +683,7 @@ class _Generic:
                   "            earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, force, s.mass, "
                   "s.radius, s.params[q], s.params[q + 1], s.params[q + 2], s.params[q + 3], horizon))",
                   "    return earliest"]
-        lines += ["", "", "@njit(**STRICT_OUTER)", "def energies_of(s, out):",
+        lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
         if self.growing:
             lines.append("    maintain_lists(s, False != False)")
@@ -622,15 +695,27 @@ class _Generic:
                       f"        pairs_energies({fields}, {self.list_args(g)}, out, s.program[{row}])"]
         lines += ["    if s.program[0, H_EFFECTS] > 0:",
                   f"        sphere_energies({fields}, s.sphere_history, out, s.program)"]
+        if self.nrt:  # in the fused module's order: the sums, then the induced moments' energy
+            lines += ["    for q in range(s.program[0, H_SUMS]):",
+                      "        kind = s.program[SUM_ROW + q, S_KIND]",
+                      "        slot = s.program[SUM_ROW + q, S_SLOT]",
+                      "        column = s.program[SUM_ROW + q, S_ENERGY]"]
+            for k in range(len(SUMS)):
+                lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
+                          f"            out[column] += sum_{k}(s.position, s.dipole, s.box, s.params, slot, s.force, "
+                          f"s.torque, False)"]
+            lines += ["    if s.program[0, H_INDUCTION] != 0:",
+                      "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
+                      "s.program[0, H_INDUCTION_SLOT])"]
         for kind in ("pair_energies", "pair_forces"):
-            lines += ["", "", "@njit(**STRICT_OUTER)", f"def {kind}_of(s, g, owners, partners, out):"]
+            lines += ["", "", "@njit(**OUTER)", f"def {kind}_of(s, g, owners, partners, out):"]
             if self.growing:
                 lines.append("    maintain_lists(s, False != False)")
             for g in range(MAX_GROUPS):
                 lines += [f"    if g == {g}:",
                           f"        pairs_{kind}({fields}, {self.list_args(g)}, owners, partners, out, "
                           f"s.program[{group_row(g, 0)}])"]
-        lines += ["", "", "@njit(**STRICT_LOOP)", "def record_frame(k, s, record):",
+        lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                   '    """Frame k of the record."""',
                   "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
                   "                s.inertia, s.box, s.periodic, record)",
@@ -680,8 +765,15 @@ class _Generic:
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
                  "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE)",
                  f"EFFECT_ROW = {effect_row(0)}",
+                 f"SUM_ROW = {sum_row(0)}",
                  f"PLANE_CONTACT = ({', '.join(str(bool(law.plane_contact)) for law in self.effects)},)",
                  ""]
+        if self.nrt:
+            lines += ["from demkit.state import INDUCTION_FAILED",
+                      "from demkit.interactions.induction import induce, induction_energy",
+                      "from demkit.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
+                      "H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, S_KIND, S_SLOT, S_ENERGY)"]
+            lines += [f"from {module} import {name} as sum_{k}" for k, (module, name) in enumerate(SUMS)]
         if self.growing:
             from .motion import CALLED_PASSES
             lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
@@ -698,8 +790,11 @@ class _Generic:
                 lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
                           f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
         from .motion import FASTMATH
-        fast = f'fastmath={FASTMATH!r}, error_model="numpy"'
-        nrt = "" if self.growing else ", _nrt=False"
+        # IEEE arithmetic everywhere but in the blocked dipole loops (motion.FASTMATH); sorted: a set's
+        # order changes from process to process, and so would the module's text and cache
+        flags = "fastmath={" + ", ".join(repr(flag) for flag in sorted(FASTMATH)) + "}"
+        fast = 'error_model="numpy"'
+        nrt = "" if self.nrt else ", _nrt=False"
         # pair and sphere loops are functions of their own, compiled once and called (inlined, numba
         # would re-type and re-lower the whole catalogue at every call site)
         lines.append(f"INNER = dict(cache=True, _nrt=False, {fast})")
@@ -707,9 +802,8 @@ class _Generic:
                   f"OUTER = dict(cache=True, inline='always', {fast}{nrt})",
                   "UPKEEP = dict(cache=True)",
                   f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})",
-                  "STRICT = dict(INNER, fastmath=False)",
-                  "STRICT_OUTER = dict(OUTER, fastmath=False)",
-                  "STRICT_LOOP = dict(LOOP, fastmath=False)"]
+                  f"BLOCKED = dict(INNER, {flags})",
+                  f"BLOCKED_PARALLEL = dict(PARALLEL, {flags})"]
         lines += self.pair_functions() + self.sphere_functions() + self.scene_functions()
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
@@ -719,30 +813,33 @@ class _Generic:
 
 
 # ---- building and loading ---------------------------------------------------------------------------
-def generic_source(growing, threads=False):
-    """Python source of the generic module (``growing``: for scenes with neighbour lists)."""
+def generic_source(growing, threads=False, nrt=None):
+    """Python source of the generic module (``growing``: for scenes with neighbour lists; ``nrt``:
+    with numba's reference counting, long-range sums and induced moments; always with lists)."""
     from .integrators import TEMPLATES
-    return _Generic(growing, threads).text(TEMPLATES)
+    return _Generic(growing, threads, growing if nrt is None else (nrt or growing)).text(TEMPLATES)
 
 
-def _name(growing, threads):
+def _name(growing, threads, nrt=None):
     from .kernels import _fingerprint
-    source = generic_source(growing, threads)
+    source = generic_source(growing, threads, nrt)
     return source, f"demkit_generic_{_fingerprint(source, [])}"
 
 
 _MODULES = {}
 
 
-def build_generic(growing, threads=False):
+def build_generic(growing, threads=False, nrt=None):
     """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
-    threads, compiled function by function as called and cached on disk like the fused modules."""
-    key = (bool(growing), bool(threads))
+    threads, with or without reference counting (see :func:`needs_nrt`), compiled function by
+    function as called and cached on disk like the fused modules."""
+    nrt = bool(growing) if nrt is None else bool(nrt or growing)
+    key = (bool(growing), bool(threads), nrt)
     if key not in _MODULES:
         import numba
 
         from .kernels import _load_from_file
-        source, name = _name(growing, threads)
+        source, name = _name(growing, threads, nrt)
         module = _load_from_file(name, source)
         numba.get_num_threads()  # start numba's threading layer (see demkit.kernels.build_module)
         module.source = source
@@ -750,10 +847,10 @@ def build_generic(growing, threads=False):
     return _MODULES[key]
 
 
-def is_cached(growing, threads, function):
+def is_cached(growing, threads, function, nrt=None):
     """Is ``function`` of this generic module in numba's disk cache already?"""
     from .kernels import cached_function
-    return cached_function(_name(growing, threads)[1], function)
+    return cached_function(_name(growing, threads, nrt)[1], function)
 
 
 class GenericKernels:

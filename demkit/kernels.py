@@ -414,8 +414,9 @@ class _Source:
     def group_forces(self, g, group, name=None):
         name = name or f"group_{g}"
         signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
+        inner, parallel = ("BLOCKED", "BLOCKED_PARALLEL") if group.blocked else ("INNER", "PARALLEL")
         if not group.parallel:
-            lines = ["", "", "@njit(**INNER)", f"def {name}_forces({signature}):",
+            lines = ["", "", f"@njit(**{inner})", f"def {name}_forces({signature}):",
                      f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
             lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
             lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
@@ -424,7 +425,7 @@ class _Source:
         # chunked: the same text runs on threads (prange, the thread module) or chunk after chunk
         # (range, the serial module), so both give the same bits
         loop = "prange" if self.threads else "range"
-        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
+        lines = ["", "", f"@njit(**{parallel})" if self.threads else f"@njit(**{inner})",
                  f"def {name}_forces_chunked({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
                  '    """Owners cut into fixed chunks: chunk 0 adds into force/torque, the others into buffers',
                  '    of their own (zero on entry), summed in chunk order and zeroed again by sum_chunks (the',
@@ -456,12 +457,12 @@ class _Source:
         return body
 
     def group_energies(self, g, group):
-        lines = ["", "", "@njit(**STRICT)", f"def group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out):",
+        lines = ["", "", "@njit(**INNER)", f"def group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out):",
                  f'    """Add the potential energies of group {g} to out[2 + kind]."""']
         lines += self.prelude(group)
         lines += self.rows(group, 4, 0, "n")
         lines += self.energy_statements(group, lambda k: f"out[{2 + self.kinds.index(self.plan.interactions[k].energy_kind)}]")
-        lines += ["", "", "@njit(**STRICT)",
+        lines += ["", "", "@njit(**INNER)",
                   f"def group_{g}_pair_energies({ARRAYS}, {LIST_ARRAYS}, owners, partners, out):",
                   f'    """owners[q], partners[q], out[q, k]: entry q of group {g} and its energy under',
                   '    interaction k (global numbering)."""']
@@ -474,7 +475,7 @@ class _Source:
     def group_pair_forces(self, g, group):
         """Every entry of group g with its separation and each member's force on j, committing
         nothing (for measurements: demkit.measure)."""
-        lines = ["", "", "@njit(**STRICT)",
+        lines = ["", "", "@njit(**INNER)",
                  f"def group_{g}_pair_forces({ARRAYS}, {LIST_ARRAYS}, owners, partners, out):",
                  f'    """owners[q], partners[q]: entry q of group {g}; out[q, :3] its separation x_j - x_i,',
                  '    out[q, 3 + 3 m: 6 + 3 m] the force on j of the group\'s member m."""']
@@ -536,7 +537,7 @@ class _Source:
                 body.append("power += w")
             lines += [pad + line for line in body]
         lines.append("    return power")
-        lines += ["", "", "@njit(**STRICT)", f"def sphere_energies({ARRAYS}, history, out):",
+        lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out):",
                   '    """Add the potential energies of the single-sphere effects to out[2 + kind]."""'] + head
         for e, effect in enumerate(plan.effects):
             slot = 2 + self.kinds.index(effect.energy_kind)
@@ -704,7 +705,7 @@ class _Source:
                              f"s.params[{q + 3}], horizon))")
         lines.append("    return earliest")
         # energies
-        lines += ["", "", "@njit(**STRICT_OUTER)", "def energies_of(s, out):",
+        lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
         if plan.lists:
             lines.append("    maintain_lists(s, False != False)")
@@ -727,12 +728,12 @@ class _Source:
             lines.append(f"    return {self.induce_call('False != False')}")
         for g, group in enumerate(plan.groups):
             for kind in ("pair_energies", "pair_forces"):
-                lines += ["", "", "@njit(**STRICT_OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
+                lines += ["", "", "@njit(**OUTER)", f"def {kind}_{g}(s, owners, partners, out):"]
                 if plan.lists:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        lines += ["", "", "@njit(**STRICT_LOOP)", "def record_frame(k, s, record):",
+        lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                   '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
                   "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
                   "                s.inertia, s.box, s.periodic, record)",
@@ -805,21 +806,22 @@ class _Source:
                     lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
         cache = self.importable
         from .motion import FASTMATH
-        fast = f'fastmath={FASTMATH!r}, error_model="numpy"'
+        # IEEE arithmetic everywhere but in the blocked dipole loops (motion.FASTMATH); sorted: a set's
+        # order changes from process to process, and so would the module's text and cache
+        flags = "fastmath={" + ", ".join(repr(flag) for flag in sorted(FASTMATH)) + "}"
+        fast = 'error_model="numpy"'
         # no reference counting in small scenes, unless a long-range sum allocates (its arrays into object mode)
         nrt = "" if plan.growing or plan.sums or plan.induction is not None else ", _nrt=False"
         if plan.growing:  # big scenes: separate pair-loop functions, no reference counting inside
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop
-            lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache})")
+            lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache}, fastmath=False)")
         lines += [f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
                   f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})",  # time loops let other threads run (threads.py)
-                  # energies and diagnostics: IEEE arithmetic, the same bits on both tiers (motion.FASTMATH)
-                  "STRICT = dict(INNER, fastmath=False)",
-                  "STRICT_OUTER = dict(OUTER, fastmath=False)",
-                  "STRICT_LOOP = dict(LOOP, fastmath=False)"]
+                  f"BLOCKED = dict(cache={cache}, _nrt=False, {fast}, {flags})",
+                  f"BLOCKED_PARALLEL = dict(PARALLEL, {flags})"]
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group) + self.group_pair_forces(g, group)
         for g, name, sub, _ in self.parts:
@@ -880,6 +882,14 @@ def cached_function(module, function):
         return True
     root = os.environ.get("NUMBA_CACHE_DIR")
     return bool(root) and any(Path(root).glob(f"*/{pattern}"))
+
+
+def fused_source(plan, templates, threads=False):
+    """The text of the fused module (tier 2) of this plan, as :func:`build_module` would compile it."""
+    interactions = plan.interactions + plan.effects
+    importable = all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
+    importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
+    return generate_source(plan, templates, importable, threads)
 
 
 def build_module(plan, templates, threads=False):

@@ -167,10 +167,16 @@ class Scene:
             self._thread_kernels = self._kernels(threads=True)
         return self._thread_kernels
 
+    def fused_source(self, threads=False):
+        """The text of this scene's fused module (tier 2; generated, not compiled): what code the
+        scene's combination of interactions needs, and only that."""
+        from .kernels import fused_source
+        return fused_source(self.plan, TEMPLATES, threads)
+
     def _kernels(self, threads, tier=None):
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``)."""
         if (tier or self.tier) == 1:
-            return generic.build_generic(self.plan.growing, threads)
+            return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan))
         return build_module(self.plan, TEMPLATES, threads=threads)
 
     def _choose_tier(self):
@@ -341,10 +347,7 @@ class Scene:
             fields = (math.inf, np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                       np.zeros(0, dtype=np.int32), history, bounds)
             lists.append(make_pair_list(*fields) if growing else PairListTuple(*fields))
-        while len(lists) < generic.MAX_GROUPS:  # every state has as many lists: one compiled code for all
-            fields = (0.0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
-                      np.zeros((0, 0)), np.zeros(2, dtype=np.int64))
-            lists.append(make_pair_list(*fields) if growing else PairListTuple(*fields))
+        lists = self.padded(lists)
         threads = self.chunks if any(g.parallel for g in plan.groups) else 0
         omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
         dipole = p.dipole if p.dipole is not None else empty_vectors()
@@ -380,7 +383,7 @@ class Scene:
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
             skin=self.skin, status=np.zeros(4, dtype=np.int64),
             counters=np.array([0, 0, 0, 0, self.sort_every, 1, 0], dtype=np.int64),
-            lists=tuple(lists), thread_force=np.zeros((max(threads - 1, 0), n, 3)),
+            lists=lists, thread_force=np.zeros((max(threads - 1, 0), n, 3)),
             thread_torque=np.zeros((max(threads - 1, 0), n, 3)),
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)),
@@ -388,6 +391,16 @@ class Scene:
             program=self.program if self.program is not None else np.zeros((1, generic.COLUMNS), dtype=np.int64))
         self.arrays = fields
         return self._state_object()
+
+    def padded(self, lists):
+        """The scene's lists followed by empty ones up to demkit.generic.MAX_GROUPS: every state has
+        as many, so that one compiled generic module serves every scene."""
+        lists = list(lists)
+        while len(lists) < generic.MAX_GROUPS:
+            fields = (0.0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
+                      np.zeros((0, 0)), np.zeros(2, dtype=np.int64))
+            lists.append(make_pair_list(*fields) if self.plan.growing else PairListTuple(*fields))
+        return tuple(lists)
 
     def _state_object(self):
         """The named state the kernels take, over the arrays in ``self.arrays``."""

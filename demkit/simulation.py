@@ -574,7 +574,8 @@ class Simulation:
 
     def _switch_tier(self, steps_left):
         """Between chunks: run tier 2's loops from now on when it is ready (demkit.tiers)."""
-        seconds_left = steps_left / self._rate if self._rate else None
+        rate = self._threads.rates.get(self._threads.threads)  # measured after the first chunk (no compiling)
+        seconds_left = steps_left / rate if rate else None
         modules = self._tiers.ready(seconds_left, busy=self._threads.compiling)
         if modules is not None:
             self._threads.use_modules(*modules)

@@ -362,7 +362,7 @@ def test_a_scene_without_friction_keeps_no_history_and_compiles_no_friction():
     scene = dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0), dk.Gravity((0, 0, -1))], box=box)
     assert all(lst.history.size == 0 for lst in scene.state.lists)
     assert scene.arrays["sphere_history"].size == 0
-    assert "friction" not in scene.kernels.source and "wall" not in scene.kernels.source
+    assert "friction" not in scene.fused_source() and "wall" not in scene.fused_source()
 
 
 @pytest.mark.parametrize("make, message", [

@@ -39,7 +39,7 @@ def test_guide_plugin_force_is_minus_energy_gradient(guide_namespace):
     soft = guide_namespace["SoftRepulsion"](strength=3.0)
     p = dk.Particles(position=[[0, 0, 0], [1.7, 0.2, 0.1]], radius=1.0)
     scene = dk.Scene(p, [soft])
-    assert "guide_example" not in scene.kernels.source  # compiled in memory, not imported
+    assert "guide_example" not in scene.fused_source()  # compiled in memory, not imported
     force, _ = scene.forces()
     np.testing.assert_allclose(force[1], -energy_gradient(scene, "contact", 1, h=1e-6), rtol=1e-6)
     assert np.allclose(force[0], -force[1])

@@ -214,7 +214,7 @@ def test_the_table_lives_in_params_and_other_effects_are_called_as_before(magpy)
     table = weak.effects[1].table_values()
     start = len(weak.params) - len(table)
     assert start == 3 + 12 and np.array_equal(weak.params[start:], table)
-    source = weak.kernels.source
+    source = weak.fused_source()
     assert "sforce_0(i, x, y, z, dipole, q0_0, q0_1, q0_2)" in source
     assert f"sforce_1(i, x, y, z, dipole, params, {start}, q1_0, " in source
     assert strong.kernels is weak.kernels  # same code, different params
@@ -224,6 +224,6 @@ def test_the_table_lives_in_params_and_other_effects_are_called_as_before(magpy)
 def test_scenes_without_a_magnet_field_compile_none_of_it():
     p = dk.Particles(position=[[0, 0, 0]], radius=1.0, mass=1.0, dipole=[[1.0, 0, 0]])
     scene = dk.Scene(p, [dk.UniformField((0.5, 0, 0)), dk.Gravity((0, 0, -1))])
-    source = scene.kernels.source
+    source = scene.fused_source()
     assert "sforce_0(i, x, y, z, dipole, q0_0, q0_1, q0_2)" in source and not re.search(r"params, \d", source)
     assert "magnet" not in source and len(scene.params) == 6  # no table, no call with one

@@ -233,8 +233,8 @@ def test_thread_count_changes_nothing_and_threads_agree_with_the_serial_loop():
     threaded = thread_scene(p, box, parallel=True)
     # one serial module for any size and thread setting (nothing recompiles), loops on threads in
     # the thread module only
-    assert serial.kernels.source == threaded.kernels.source and "prange(" not in serial.kernels.source
-    assert "prange(" in threaded.thread_kernels.source
+    assert serial.fused_source() == threaded.fused_source() and "prange(" not in serial.fused_source()
+    assert "prange(" in threaded.fused_source(threads=True)
     f0, t0 = serial.forces()
     f1, t1 = threaded.forces()
     np.testing.assert_allclose(f1, f0, rtol=0, atol=1e-12 * np.abs(f0).max())
@@ -272,14 +272,14 @@ def test_chunk_buffers_are_zero_after_every_force_evaluation_so_the_next_needs_n
 def test_small_open_scenes_have_no_lists_no_threads_no_periodic_code():
     p = dk.Particles(position=[[0.0, 0, 0], [3.0, 0, 0]], radius=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
     scene = dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(1.0)])
-    src = scene.kernels.source
+    src = scene.fused_source()
     assert [g.kind for g in scene.plan.groups] == ["all"]
     assert "maintain_lists" not in src and "prange(" not in src.split("def group_0_energies")[0]
     assert "lx = box" not in src and "image" not in scene.arrays or scene.arrays["image"].size == 0
     assert scene.particles.image is None and scene.history_values == 0
     open_big, _ = gas(n=100, periodic=False, dipoles=False)
     scene = dk.Scene(open_big, [dk.KelvinVoigt(100.0)])
-    assert "lx = box" not in scene.kernels.source and scene.particles.image is None
+    assert "lx = box" not in scene.fused_source() and scene.particles.image is None
 
 
 def test_statistics_report_rebuilds_pairs_and_rates():

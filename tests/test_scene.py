@@ -18,7 +18,7 @@ def test_scene_without_dipoles_has_no_dipole_fields_or_code():
     p = scene.particles
     assert p.dipole is None and p.angular_velocity is None
     assert scene.history_values == 0
-    assert "dipole_force" not in scene.kernels.source and "force_1" not in scene.kernels.source
+    assert "dipole_force" not in scene.fused_source() and "force_1" not in scene.fused_source()
     traj = dk.Simulation(scene, dk.VelocityVerlet(0.01)).run(duration=1.0, record_every=0.5)
     assert traj.dipole is None and traj.angular_velocity is None
     assert p.dipole is None and p.angular_velocity is None
@@ -27,8 +27,8 @@ def test_scene_without_dipoles_has_no_dipole_fields_or_code():
 def test_dipole_scene_allocates_spin():
     scene = two_magnets()
     assert scene.particles.angular_velocity.shape == (2, 3)
-    assert "dipole_force" in scene.kernels.source
-    assert "cache=True" in scene.kernels.source  # library interactions are compiled once, then cached
+    assert "dipole_force" in scene.fused_source()
+    assert "cache=True" in scene.fused_source()  # library interactions are compiled once, then cached
 
 
 def test_energy_keys_and_total():

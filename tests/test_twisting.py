@@ -208,14 +208,14 @@ def test_unused_twisting_costs_nothing_and_used_adds_two_history_values():
         assert plain.history_size == width and plain.twisting is None and "twisting" not in repr(plain)
         assert len(plain.parameters) == 11
         s = scene(plain)
-        assert "twist" not in s.kernels.source
+        assert "twist" not in s.fused_source()
         assert s.effects[0].history_size == width and s.effects[0].table_values().size == 0
         twisted = dk.KelvinVoigt(1e3, 1.0, friction=dk.Friction(0.3), rolling=rolling,
                                  twisting=dk.TwistingResistance())
         assert twisted.history_size == width + 2
         assert twisted.parameters == plain.parameters[:-1] + ("k_tw", "eta_tw", "lever_tw", "dt")
         s = scene(twisted)
-        assert "kelvin_voigt_twisting_force" in s.kernels.source and s.effects[0].history_size == width + 2
+        assert "kelvin_voigt_twisting_force" in s.fused_source() and s.effects[0].history_size == width + 2
         # the wall's table: (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw), Marshall's as -1
         np.testing.assert_array_equal(s.effects[0].table_values()[3:], [-1.0, -1.0, -1.0])
     hertz = dk.Hertz(1e7, 0.3, friction=dk.Friction(0.3), twisting=dk.TwistingResistance(1.0, 0.0, 1e-3))

@@ -17,6 +17,8 @@ x = (r - r_on)/w on [r_on, r_c],
 
     S(x) = 1 - 10 x^3 + 15 x^4 - 6 x^5,     dS/dr = -30 x^2 (1 - x)^2 / w,
 
+(computed as y^3 (10 - 15 y + 6 y^2) with y = 1 - x, which keeps S's relative accuracy near r_c)
+
 so S, S' and S'' vanish at r_c and S', S'' at r_on. The switched pair is a genuine potential,
 
     U_s = S U,    F_j,s = -dU_s/dx_j = S F_j - U S'(r) n,    tau_s = S tau,
@@ -142,7 +144,7 @@ def switched_dipole_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, in
     # switch: x = (r - r_on)/w in [0, 1]; S = 1 - x^3 (10 - 15 x + 6 x^2), dS/dr = -30 x^2 (1-x)^2 / w
     x = min(max((r2 * inv_r - switch_on) * inv_width, 0.0), 1.0)
     y = 1.0 - x
-    s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+    s = y * y * y * (10.0 - y * (15.0 - 6.0 * y))  # = 1 - x^3 (10 - 15 x + 6 x^2), exact near the cutoff
     ds = -30.0 * x * x * y * y * inv_width
     u = inv_r3 * (ab - 3.0 * ad * bd * inv_r2)             # plain pair energy U
     g = -u * ds * inv_r                                    # -U S' n = g d
@@ -158,7 +160,7 @@ def switched_dipole_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on, i
     ab = dipole[i, 0] * dipole[j, 0] + dipole[i, 1] * dipole[j, 1] + dipole[i, 2] * dipole[j, 2]
     inv_r3 = 1.0 / (r2 * math.sqrt(r2))
     x = min(max((math.sqrt(r2) - switch_on) * inv_width, 0.0), 1.0)
-    return prefactor * inv_r3 * (ab - 3.0 * ad * bd / r2) * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
+    return prefactor * inv_r3 * (ab - 3.0 * ad * bd / r2) * (1.0 - x) ** 3 * (10.0 - (1.0 - x) * (15.0 - 6.0 * (1.0 - x)))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -170,7 +172,7 @@ def switched_power_law_force(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on,
     f = -6.0 * prefactor * mi * mj / (r2 * r2 * r)         # F_j = f d
     x = min(max((r - switch_on) * inv_width, 0.0), 1.0)
     y = 1.0 - x
-    s = 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+    s = y * y * y * (10.0 - y * (15.0 - 6.0 * y))  # = 1 - x^3 (10 - 15 x + 6 x^2), exact near the cutoff
     ds = -30.0 * x * x * y * y * inv_width
     u = -2.0 * prefactor * mi * mj / (r2 * r)
     g = s * f - u * ds / r
@@ -184,14 +186,15 @@ def switched_power_law_energy(i, j, dx, dy, dz, r2, dipole, prefactor, switch_on
     mj = math.sqrt(dipole[j, 0] ** 2 + dipole[j, 1] ** 2 + dipole[j, 2] ** 2)
     r = math.sqrt(r2)
     x = min(max((r - switch_on) * inv_width, 0.0), 1.0)
-    return -2.0 * prefactor * mi * mj / (r2 * r) * (1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x)))
+    return -2.0 * prefactor * mi * mj / (r2 * r) * (1.0 - x) ** 3 * (10.0 - (1.0 - x) * (15.0 - 6.0 * (1.0 - x)))
 
 
 def switch(r, cutoff, switch_width):
     """The switching function S(r) and dS/dr (numpy, for tests and plots)."""
     r = np.asarray(r, dtype=float)
     x = np.clip((r - (cutoff - switch_width)) / switch_width, 0.0, 1.0)
-    return 1.0 - 10 * x**3 + 15 * x**4 - 6 * x**5, -30.0 * x**2 * (1.0 - x) ** 2 / switch_width
+    y = 1.0 - x  # S(x) = 1 - 10 x^3 + 15 x^4 - 6 x^5 = 10 y^3 - 15 y^4 + 6 y^5: no cancellation near r_c
+    return y**3 * (10.0 - y * (15.0 - 6.0 * y)), -30.0 * x**2 * y**2 / switch_width
 
 
 class Dipole(PairInteraction):

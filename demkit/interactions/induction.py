@@ -141,7 +141,7 @@ def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, 
                 c = 3.0 * b * inv_r2
                 x = min(max((r2 * math.sqrt(inv_r2) - switch_on) * inv_width, 0.0), 1.0)
                 if inv_width > 0.0:
-                    scale *= 1.0 - x * x * x * (10.0 - x * (15.0 - 6.0 * x))
+                    scale *= (1.0 - x) ** 3 * (10.0 - (1.0 - x) * (15.0 - 6.0 * (1.0 - x)))
                 b *= scale
                 c *= scale
                 sj = c * (gathered[3, u] * dx + gathered[4, u] * dy + gathered[5, u] * dz)
