@@ -101,6 +101,8 @@ def run_command(args):
         again = ("run the same command to resume" if checkpoint is not None else
                  "no [outputs.checkpoint]: a rerun starts over")
         what = "interrupted" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
+        from .threads import finish_compiling
+        finish_compiling()  # a compilation in the background ends first (said on stderr): this line stays the last
         print(f"demkit run: {what}; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
         return 130 if isinstance(err, KeyboardInterrupt) else 1
     seconds = time.perf_counter() - clock

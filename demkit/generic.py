@@ -432,14 +432,12 @@ class _Generic:
                  f"{inner}    {torque}[j, 2] += {out}[8, u]"]
         return self.rows(pad, first, last) + open_ + body + close
 
-    def chunked(self, name, loop, blocked=False):
+    def chunked(self, name, loop):
         """A pair-loop function over fixed chunks of owners (see demkit.kernels: the same bits on any
         number of threads, and serially)."""
         signature = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, "
                      f"chunk_torque, chunk_power, program")
-        options = ("BLOCKED_PARALLEL" if self.threads else "BLOCKED") if blocked else \
-            ("PARALLEL" if self.threads else "INNER")
-        lines = ["", "", f"@njit(**{options})", f"def {name}({signature}):"]
+        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):"]
         lines += self.header()
         lines += ["    chunks = bounds.shape[0] - 1",
                   f"    for t in {'prange' if self.threads else 'range'}(chunks):",
@@ -462,7 +460,7 @@ class _Generic:
     def pair_functions(self):
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
         if self.growing:
-            lines += self.chunked("pairs_forces_blocked", self.blocked_loop, blocked=True)
+            lines += self.chunked("pairs_forces_blocked", self.blocked_loop)
         # energies, and per-entry energies and forces (diagnostics)
         for name, signature, doc in (
                 ("pairs_energies", "out", "Add the potential energies of the loop to out[kind]."),
@@ -789,10 +787,10 @@ class _Generic:
             for law in entries:
                 lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
                           f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
-        from .motion import FASTMATH
-        # IEEE arithmetic everywhere but in the blocked dipole loops (motion.FASTMATH); sorted: a set's
-        # order changes from process to process, and so would the module's text and cache
-        flags = "fastmath={" + ", ".join(repr(flag) for flag in sorted(FASTMATH)) + "}"
+        # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
+        # rounds differently where code is shaped differently, and the generic and fused modules
+        # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
+        # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
         nrt = "" if self.nrt else ", _nrt=False"
         # pair and sphere loops are functions of their own, compiled once and called (inlined, numba
@@ -801,9 +799,7 @@ class _Generic:
         lines += [f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache=True, inline='always', {fast}{nrt})",
                   "UPKEEP = dict(cache=True)",
-                  f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})",
-                  f"BLOCKED = dict(INNER, {flags})",
-                  f"BLOCKED_PARALLEL = dict(PARALLEL, {flags})"]
+                  f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})"]
         lines += self.pair_functions() + self.sphere_functions() + self.scene_functions()
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))

@@ -414,9 +414,8 @@ class _Source:
     def group_forces(self, g, group, name=None):
         name = name or f"group_{g}"
         signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
-        inner, parallel = ("BLOCKED", "BLOCKED_PARALLEL") if group.blocked else ("INNER", "PARALLEL")
         if not group.parallel:
-            lines = ["", "", f"@njit(**{inner})", f"def {name}_forces({signature}):",
+            lines = ["", "", "@njit(**INNER)", f"def {name}_forces({signature}):",
                      f'    """Forces and torques of group {g} added to force/torque; returns the dissipated power."""']
             lines += self.prelude(group) + ["    power = 0.0", "    out = scratch[0]", "    gat = gather[0]"]
             lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
@@ -425,7 +424,7 @@ class _Source:
         # chunked: the same text runs on threads (prange, the thread module) or chunk after chunk
         # (range, the serial module), so both give the same bits
         loop = "prange" if self.threads else "range"
-        lines = ["", "", f"@njit(**{parallel})" if self.threads else f"@njit(**{inner})",
+        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
                  f"def {name}_forces_chunked({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
                  '    """Owners cut into fixed chunks: chunk 0 adds into force/torque, the others into buffers',
                  '    of their own (zero on entry), summed in chunk order and zeroed again by sum_chunks (the',
@@ -805,10 +804,10 @@ class _Source:
                 for kind, fn in zip(("force", "energy"), effect.pair_functions()):
                     lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
         cache = self.importable
-        from .motion import FASTMATH
-        # IEEE arithmetic everywhere but in the blocked dipole loops (motion.FASTMATH); sorted: a set's
-        # order changes from process to process, and so would the module's text and cache
-        flags = "fastmath={" + ", ".join(repr(flag) for flag in sorted(FASTMATH)) + "}"
+        # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
+        # rounds differently where code is shaped differently, and the generic and fused modules
+        # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
+        # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
         # no reference counting in small scenes, unless a long-range sum allocates (its arrays into object mode)
         nrt = "" if plan.growing or plan.sums or plan.induction is not None else ", _nrt=False"
@@ -819,9 +818,7 @@ class _Source:
         lines += [f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
-                  f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})",  # time loops let other threads run (threads.py)
-                  f"BLOCKED = dict(cache={cache}, _nrt=False, {fast}, {flags})",
-                  f"BLOCKED_PARALLEL = dict(PARALLEL, {flags})"]
+                  f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})"]  # time loops let other threads run (threads.py)
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group) + self.group_pair_forces(g, group)
         for g, name, sub, _ in self.parts:

@@ -15,9 +15,9 @@ from numba import njit, prange
 #: ~2x on small scenes), fused multiply-add (exact NaN/inf semantics are kept, so the non-finite
 #: checks still work) and IEEE division (x/0 gives inf or NaN, caught by those checks, instead of
 #: a Python ZeroDivisionError test at every division, which also stops vectorisation).
-#: the fast-math flags of every stepping kernel (fused multiply-add, reciprocals). They let LLVM
-#: round differently where code is shaped differently, so the energies (diagnostics, compiled by
-#: the generic and the fused modules alike) are compiled without them: the same bits on both tiers
+#: the fast-math flags of demkit's shared helpers, compiled once and called (the same machine code
+#: for every scene). The generated modules use none (demkit.kernels, demkit.generic): there LLVM
+#: would round differently where the generic and the fused code are shaped differently
 FASTMATH = {"contract", "arcp"}
 KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy",
                       inline="always")

@@ -262,6 +262,9 @@ def _announce():
         estimate = n.estimate() if callable(n.estimate) else n.estimate
         when = f"first run only, {estimate or COMPILE_ESTIMATE}" if n.cached else \
             "every run: pair functions defined in __main__ or a notebook are not cached"
+    if estimate and estimate.startswith("once for this machine"):  # tier 1 (demkit.tiers)
+        _say(f"demkit: compiling kernels {estimate}...")
+        return
     _say(f"demkit: compiling kernels for this scene ({when})...")
 
 
@@ -322,8 +325,8 @@ def compile_estimate(plan, phase, tier=2):
     a one-time compile for this machine."""
     if tier == 1:
         lo, hi = ESTIMATES["generic"]
-        return (f"about {lo}-{hi} s on an idle machine, once for this machine: demkit's generic kernels, "
-                f"which then serve every scene")
+        return (f"once for this machine: demkit's generic kernels, which then serve every scene of shipped "
+                f"interactions; about {lo}-{hi} s on an idle machine")
     lo, hi = ESTIMATES["lists" if plan.growing else "small"]
     if phase == "scene" and plan.growing:
         lo, hi = ESTIMATES["lists_scene"]  # the state only: the lists are built (and compiled) at the first run

@@ -321,12 +321,14 @@ _UNFINISHED = []
 
 
 @atexit.register
-def _finish_compiling():
+def finish_compiling():
+    """Wait for the compilations running in the background (the thread module, a scene's fused
+    module: demkit.tiers), saying so on stderr."""
     alive = [t for t in _UNFINISHED if t.is_alive()]
     if alive:
         from .progress import quiet
         if not quiet():
-            print("demkit: finishing the compilation of the thread module (cached for the next runs)...",
+            print("demkit: finishing a compilation started in the background (cached for the next runs)...",
                   file=sys.stderr, flush=True)
         for t in alive:
             t.join()

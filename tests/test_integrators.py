@@ -81,8 +81,9 @@ def test_a_million_steps_symplectic_energy_stays_bounded_rk4_drifts(integrator, 
     first, second = error[:51].max(), error[51:].max()
     if integrator.symplectic:
         # bounded: the second half of the run reaches the same largest error as the first
-        # (measured ratios 1.015 VV, 1.007 FR); a drift would double it
-        assert second < 1.1 * first
+        # (measured ratios 1.015 VV, 1.007 FR with fused multiply-adds; 1.106 VV in IEEE arithmetic:
+        # the largest of 50 samples of an oscillating error); a drift would double it
+        assert second < 1.25 * first
         assert first < (2e-3 if integrator is dk.VelocityVerlet else 1e-4)  # measured 1.6e-4, 1.0e-5
     else:
         # RK4 loses energy steadily: the error grows about linearly (measured 0.025 -> 0.047),
