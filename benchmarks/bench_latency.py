@@ -353,9 +353,9 @@ def part_compile(quick, scenes, against=None, rounds=2):
 WARM_GENERIC = {
     "small": """
         def make():
-            p = dk.Particles(position=[[0, 0, 0], [1.5, 0, 0], [0, 1.5, 0]], velocity=[[0.1, 0, 0], [0, 0, 0], [0, 0, 0]],
-                             radius=0.5, mass=1.0)
-            return dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0)], tier=1), {integrator}
+            p = dk.Particles(position=[[0, 0, 0], [15, 0, 0], [0, 15, 0]], velocity=[[0.01, 0, 0], [0, 0, 0], [0, 0, 0]],
+                             radius=5.0, mass=1.0)
+            return dk.Scene(p, [dk.KelvinVoigt(1.0, 0.1)], tier=1), {integrator}
     """,
     "lists": """
         def make():
