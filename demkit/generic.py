@@ -579,21 +579,12 @@ class _Generic:
         fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         lines = []
         if self.growing:
-            lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
-                      '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
-                      '    build (see demkit.kernels)."""',
-                      "    d2, k = max_displacement(s.position, s.reference)",
-                      "    if d2 <= 0.25 * s.skin * s.skin:",
-                      "        return",
-                      "    if strict and d2 > s.skin * s.skin and s.status[0] == OK:",
-                      "        s.status[0] = MOVED_TOO_FAR",
-                      "        s.status[1] = k"]
+            from .kernels import MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL
+            lines += MAINTAIN_LISTS_HEAD
             for g in range(MAX_GROUPS):
                 lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
                           f"        rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)"]
-            lines += ["    copy_rows(s.reference, s.position)",
-                      "    s.counters[REBUILDS] += 1",
-                      "    s.counters[WRAP_DUE] = 1"]
+            lines += MAINTAIN_LISTS_TAIL
             lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
                       '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""']
             for g in range(MAX_GROUPS):

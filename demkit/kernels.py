@@ -172,6 +172,22 @@ def _callable_arguments(inter, args):
     return args
 
 
+#: the generated maintain_lists around its rebuild calls (the fused and the generic modules)
+MAINTAIN_LISTS_HEAD = ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
+                       '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
+                       '    build; ``strict``: flag MOVED_TOO_FAR when it moved more than the skin (a step too long',
+                       '    for the lists to be trusted)."""',
+                       "    d2, k = max_displacement(s.position, s.reference)",
+                       "    if d2 <= 0.25 * s.skin * s.skin:",
+                       "        return",
+                       "    if strict and d2 > s.skin * s.skin and s.status[0] == OK:",
+                       "        s.status[0] = MOVED_TOO_FAR",
+                       "        s.status[1] = k"]
+MAINTAIN_LISTS_TAIL = ["    copy_rows(s.reference, s.position)",
+                       "    s.counters[REBUILDS] += 1",
+                       "    s.counters[WRAP_DUE] = 1"]
+
+
 class _Source:
     """Builds the text of the generated module."""
 
@@ -628,20 +644,9 @@ class _Source:
         if plan.lists:
             # callers pass strict as a bool *variable* (True != False): numba compiles a function
             # once per literal argument value, and this one links the whole list builder
-            lines += ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
-                      '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
-                      '    build; ``strict``: flag MOVED_TOO_FAR when it moved more than the skin (a step too long',
-                      '    for the lists to be trusted)."""',
-                      "    d2, k = max_displacement(s.position, s.reference)",
-                      "    if d2 <= 0.25 * s.skin * s.skin:",
-                      "        return",
-                      "    if strict and d2 > s.skin * s.skin and s.status[0] == OK:",
-                      "        s.status[0] = MOVED_TOO_FAR",
-                      "        s.status[1] = k"]
+            lines += MAINTAIN_LISTS_HEAD
             lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)" for g in plan.lists]
-            lines += ["    copy_rows(s.reference, s.position)",
-                      "    s.counters[REBUILDS] += 1",
-                      "    s.counters[WRAP_DUE] = 1"]
+            lines += MAINTAIN_LISTS_TAIL
         if plan.sorted:
             history = [g for g in plan.lists if plan.groups[g].width]
             shortest = plan.lists[0]  # groups come sorted by reach: the cells of the shortest list
