@@ -31,11 +31,11 @@ from __future__ import annotations
 
 import importlib
 import inspect
-import math
 import textwrap
 
 import numpy as np
 
+from .kernels import END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME
 from .state import DEEP_OVERLAP_FRACTION
 
 MAX_GROUPS = 3
@@ -579,7 +579,6 @@ class _Generic:
         fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         lines = []
         if self.growing:
-            from .kernels import MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL
             lines += MAINTAIN_LISTS_HEAD
             for g in range(MAX_GROUPS):
                 lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
@@ -592,19 +591,9 @@ class _Generic:
             lines += ["    shortest = s.program[0, H_SHORTEST]",
                       "    reach = s.lists[0].reach if shortest == 0 else (s.lists[1].reach if shortest == 1 else "
                       "s.lists[2].reach)",
-                      "    order = cell_order(s.position, s.box, s.periodic, reach)",
-                      "    n = order.shape[0]",
-                      "    vectors = np.empty((n, 3))",
-                      "    scalars = np.empty(n)",
-                      "    integers = np.empty(n, dtype=np.int64)",
-                      "    count = np.empty((n, 3), dtype=np.int64)"]
-            lines += [f"    permute_vectors(s.{name}, order, vectors)" for name in
-                      ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
-            lines += [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
-            lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
-                      "    for k in range(s.stage.shape[0]):",
-                      "        permute_vectors(s.stage[k], order, vectors)",
-                      "    if s.sphere_history.shape[1] > 0:",
+                      "    order = cell_order(s.position, s.box, s.periodic, reach)"]
+            lines += PERMUTE_BY_ORDER
+            lines += ["    if s.sphere_history.shape[1] > 0:",
                       "        permute_rows(s.sphere_history, order)"]
             for g in range(MAX_GROUPS):
                 row = group_row(g, 0)
@@ -704,17 +693,7 @@ class _Generic:
                 lines += [f"    if g == {g}:",
                           f"        pairs_{kind}({fields}, {self.list_args(g)}, owners, partners, out, "
                           f"s.program[{group_row(g, 0)}])"]
-        lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
-                  '    """Frame k of the record."""',
-                  "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
-                  "                s.inertia, s.box, s.periodic, record)",
-                  "    e = record[4]",
-                  "    last = e.shape[1] - 1",
-                  "    energies_of(s, e[k, :last])",
-                  "    e[k, last] = s.accum[0]",
-                  "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
-                  '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
-                  '    steps left until the next frame (see demkit.kernels)."""']
+        lines += RECORD_FRAME
         if self.growing:
             lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
                       "        s.counters[WRAP_DUE] = 0",
@@ -724,16 +703,7 @@ class _Generic:
                       "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                       "                sort_particles(s)",
                       "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += ["    if s.status[0] != OK:",
-                  "        s.status[2] = step", "        return -1",
-                  "    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
-                  "        s.status[0] = NON_FINITE",
-                  "        s.status[2] = step",
-                  "        return -1",
-                  "    if countdown == 1:",
-                  "        record_frame(step // stride, s, record)",
-                  "        return stride",
-                  "    return countdown - 1"]
+        lines += END_STEP_TAIL
         return lines
 
     def text(self, templates):

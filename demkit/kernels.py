@@ -188,6 +188,43 @@ MAINTAIN_LISTS_TAIL = ["    copy_rows(s.reference, s.position)",
                        "    s.counters[WRAP_DUE] = 1"]
 
 
+#: the generated sort_particles' permutation of every per-particle array by ``order``
+PERMUTE_BY_ORDER = (["    n = order.shape[0]",
+                     "    vectors = np.empty((n, 3))",
+                     "    scalars = np.empty(n)",
+                     "    integers = np.empty(n, dtype=np.int64)",
+                     "    count = np.empty((n, 3), dtype=np.int64)"]
+                    + [f"    permute_vectors(s.{name}, order, vectors)" for name in
+                       ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
+                    + [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
+                    + ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
+                       "    for k in range(s.stage.shape[0]):  # integrators' arrays that outlive a step",
+                       "        permute_vectors(s.stage[k], order, vectors)"])
+#: the generated record_frame, and end_step's opening
+RECORD_FRAME = ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
+                '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
+                "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
+                "                s.inertia, s.box, s.periodic, record)",
+                "    e = record[4]",
+                "    last = e.shape[1] - 1",
+                "    energies_of(s, e[k, :last])",
+                "    e[k, last] = s.accum[0]",
+                "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
+                '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
+                '    steps left until the next frame (recording frame step // stride when it is due)."""']
+#: end_step after its list upkeep: stops, the finiteness check, the frame when due
+END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagged a stop",
+                 "        s.status[2] = step", "        return -1",
+                 "    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
+                 "        s.status[0] = NON_FINITE",
+                 "        s.status[2] = step",
+                 "        return -1",
+                 "    if countdown == 1:",
+                 "        record_frame(step // stride, s, record)",
+                 "        return stride",
+                 "    return countdown - 1"]
+
+
 class _Source:
     """Builds the text of the generated module."""
 
@@ -654,18 +691,8 @@ class _Source:
                       '    """Re-order the particles by cell (memory locality) and rebuild the lists, carrying',
                       '    their history by tag. Only between steps: every per-particle array moves."""']
             lines += [f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)" for g in history]
-            lines += [f"    order = cell_order(s.position, s.box, s.periodic, s.lists[{shortest}].reach)",
-                      "    n = order.shape[0]",
-                      "    vectors = np.empty((n, 3))",
-                      "    scalars = np.empty(n)",
-                      "    integers = np.empty(n, dtype=np.int64)",
-                      "    count = np.empty((n, 3), dtype=np.int64)"]
-            lines += [f"    permute_vectors(s.{name}, order, vectors)" for name in
-                      ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
-            lines += [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
-            lines += ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
-                      "    for k in range(s.stage.shape[0]):  # integrators' arrays that outlive a step",
-                      "        permute_vectors(s.stage[k], order, vectors)"]
+            lines += [f"    order = cell_order(s.position, s.box, s.periodic, s.lists[{shortest}].reach)"]
+            lines += PERMUTE_BY_ORDER
             if plan.effect_width:
                 lines.append("    permute_rows(s.sphere_history, order)")
             for g in plan.lists:
@@ -737,17 +764,7 @@ class _Source:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        lines += ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
-                  '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
-                  "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
-                  "                s.inertia, s.box, s.periodic, record)",
-                  "    e = record[4]",
-                  "    last = e.shape[1] - 1",
-                  "    energies_of(s, e[k, :last])",
-                  "    e[k, last] = s.accum[0]",
-                  "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
-                  '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
-                  '    steps left until the next frame (recording frame step // stride when it is due)."""']
+        lines += RECORD_FRAME
         if plan.lists and (any(plan.periodic) or plan.sorted):
             lines += ["    if s.counters[WRAP_DUE] != 0:", "        s.counters[WRAP_DUE] = 0"]
             if any(plan.periodic):
@@ -756,16 +773,7 @@ class _Source:
                 lines += ["        if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += ["    if s.status[0] != OK:  # list upkeep or a pair loop flagged a stop",
-                  "        s.status[2] = step", "        return -1"]
-        lines += ["    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
-                  "        s.status[0] = NON_FINITE",
-                  "        s.status[2] = step",
-                  "        return -1",
-                  "    if countdown == 1:",
-                  "        record_frame(step // stride, s, record)",
-                  "        return stride",
-                  "    return countdown - 1"]
+        lines += END_STEP_TAIL
         return lines
 
     def text(self, templates):
