@@ -31,12 +31,18 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import re
 import textwrap
+import warnings
 
 import numpy as np
 
 from .kernels import END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME
 from .state import DEEP_OVERLAP_FRACTION
+
+# the scene-level functions call the pieces as numba's first-class functions (an experimental
+# feature of numba, used here in its documented form: compiled results passed as arguments)
+warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
 
 MAX_GROUPS = 3
 MAX_MEMBERS = 4
@@ -459,8 +465,9 @@ class _Generic:
 
     def pair_functions(self):
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
-        if self.growing:
-            lines += self.chunked("pairs_forces_blocked", self.blocked_loop)
+        lines += self.chunked("pairs_forces_blocked", self.blocked_loop)
+        if self.threads:  # the thread pieces: the two chunked loops on prange, the rest is serial
+            return lines
         # energies, and per-entry energies and forces (diagnostics)
         for name, signature, doc in (
                 ("pairs_energies", "out", "Add the potential energies of the loop to out[kind]."),
@@ -542,37 +549,48 @@ class _Generic:
         return lines
 
     # ---- scene-level functions --------------------------------------------------------------------
-    def list_args(self, g):
-        return ", ".join(f"s.lists[{g}].{name}" for name in LIST_ARRAYS.split(", "))
+    def call(self, name):
+        """How the scene-level functions call ``name``: through ``calls`` when this variant passes it
+        (:func:`calls_of`), else directly."""
+        names = calls_of(self.growing)
+        return f"calls[{names.index(name)}]" if name in names else name
+
+    def list_args(self, g=None):
+        """The arrays of pair list g (None: of the list ``pl``)."""
+        return ", ".join(f"s.lists[{g}].{name}" if g is not None else f"pl.{name}" for name in LIST_ARRAYS.split(", "))
 
     def forces_body(self, speed, force, torque, strict):
         sp = SPEEDS.index(speed)
-        lines = [f"    maintain_lists(s, {strict} != False)"] if self.growing else []
+        lines = [f"    {self.call('maintain_lists')}(s, {strict} != False)"] if self.growing else []
         lines += ["    commit_flag = commit != False"]
         if self.nrt and speed != "fast":  # induced moments first: the slow forces read them
             lines += ["    if s.program[0, H_INDUCTION] != 0:",
-                      "        if induce_now(s, commit_flag) != 0 and s.status[0] == OK:",
+                      f"        if {self.call('induce_now')}(s, commit_flag) != 0 and s.status[0] == OK:",
                       "            s.status[0] = INDUCTION_FAILED"]
         lines += [f"    clear({force}, {torque})", "    power = 0.0"]
         fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
-        for g in range(MAX_GROUPS):
-            row = group_row(g, sp)
-            args = (f"{fields}, {force}, {torque}, {self.list_args(g)}, s.scratch, s.gather, commit_flag, "
-                    f"s.lists[{g}].bounds, s.thread_force, s.thread_torque, s.thread_power, s.program[{row}]")
-            if self.growing:  # blocked loops run over neighbour lists only
-                lines += [f"    if s.program[{row}, G_COUNT] > 0:",
-                          f"        if s.program[{row}, G_BLOCKED] != 0:",
-                          f"            power += pairs_forces_blocked({args})",
-                          "        else:",
-                          f"            power += pairs_forces({args})"]
-            else:
-                lines += [f"    if s.program[{row}, G_COUNT] > 0:", f"        power += pairs_forces({args})"]
+        # one call site per piece, in a loop over the pair loops (each call site of a first-class
+        # function is lowered whole, and every time loop holds these lines)
+        args = (f"{fields}, {force}, {torque}, {self.list_args()}, s.scratch, s.gather, commit_flag, "
+                f"pl.bounds, s.thread_force, s.thread_torque, s.thread_power, s.program[row]")
+        lines += [f"    for g in range({MAX_GROUPS}):",
+                  f"        row = {group_row(0, sp)} + 3 * g",
+                  "        if s.program[row, G_COUNT] > 0:",
+                  "            pl = s.lists[g]"]
+        if self.growing:  # blocked loops run over neighbour lists only
+            lines += ["            if s.program[row, G_BLOCKED] != 0:",
+                      f"                power += calls[{PIECES.index('pairs_forces_blocked')}]({args})",
+                      "            else:",
+                      f"                power += calls[{PIECES.index('pairs_forces')}]({args})"]
+        else:
+            lines += [f"            power += calls[{PIECES.index('pairs_forces')}]({args})"]
         if speed != "slow":
             lines += ["    if s.program[0, H_EFFECTS] > 0:",
-                      f"        power += sphere_forces({fields}, {force}, {torque}, s.sphere_history, commit_flag, "
+                      f"        power += calls[{PIECES.index('sphere_forces')}]({fields}, {force}, {torque}, "
+                      "s.sphere_history, commit_flag, "
                       f"s.program)"]
         if self.nrt and speed != "fast":
-            lines += [f"    long_range(s, {force}, {torque}, True)"]
+            lines += [f"    {self.call('long_range')}(s, {force}, {torque})"]
         return lines + ["    return power"]
 
     def scene_functions(self):
@@ -604,18 +622,29 @@ class _Generic:
                           f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
             lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         if self.nrt:
-            lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque, with_forces):",
-                      '    """The long-range sums (an Ewald sum\'s reciprocal part, P3M, FMM); returns their energy',
-                      '    by column of out (with_forces: their forces and torques added)."""',
+            # the sums are called as in the fused module, their flag written out (with_forces True for
+            # the forces, False for the energies): LLVM specialises them on it, and the bits follow
+            lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
+                      '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
+                      '    FMM); returns their energy."""',
                       "    total = 0.0",
                       "    for q in range(s.program[0, H_SUMS]):",
                       "        kind = s.program[SUM_ROW + q, S_KIND]",
                       "        slot = s.program[SUM_ROW + q, S_SLOT]"]
-            for k, (module, name) in enumerate(SUMS):
+            for k in range(len(SUMS)):
                 lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
-                          f"            total += sum_{k}(s.position, s.dipole, s.box, s.params, slot, force, torque, "
-                          f"with_forces)"]
+                          f"            total += sum_{k}(s.position, s.dipole, s.box, s.params, slot, force, torque, True)"]
             lines += ["    return total"]
+            lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
+                      '    """Add the energy of each long-range sum to its column of out."""',
+                      "    for q in range(s.program[0, H_SUMS]):",
+                      "        kind = s.program[SUM_ROW + q, S_KIND]",
+                      "        slot = s.program[SUM_ROW + q, S_SLOT]",
+                      "        column = s.program[SUM_ROW + q, S_ENERGY]"]
+            for k in range(len(SUMS)):
+                lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
+                          f"            out[column] += sum_{k}(s.position, s.dipole, s.box, s.params, slot, s.force, "
+                          f"s.torque, False)"]
             lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
                       '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
                       "    g = s.program[0, H_INDUCTION_GROUP]",
@@ -633,17 +662,17 @@ class _Generic:
             if self.growing:
                 lines.append("    maintain_lists(s, False != False)")
             lines += ["    return induce_now(s, False != False)"]
-        lines += ["", "", "@njit(**OUTER)", "def compute_forces(s, force, torque, commit, strict):",
+        lines += ["", "", "@njit(**OUTER)", "def compute_forces(calls, s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
         lines += self.forces_body(None, "force", "torque", "strict")
-        lines += ["", "", "@njit(**OUTER)", "def forces_of(s, commit):",
+        lines += ["", "", "@njit(**OUTER)", "def forces_of(calls, s, commit):",
                   '    """Forces and torques into s.force/s.torque (lists kept up to date); returns the power."""']
         lines += self.forces_body(None, "s.force", "s.torque", "True")
         for speed in ("fast", "slow"):
-            lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(s, force, torque, commit):",
+            lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(calls, s, force, torque, commit):",
                       f'    """The {speed} forces and torques only into force/torque."""']
             lines += self.forces_body(speed, "force", "torque", "True")
-        lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
+        lines += ["", "", "@njit(**LOOP)", "def next_contact_event(s, force, horizon):",
                   '    """Earliest time in (0, horizon] at which a contact starts or stops (see demkit.events)."""',
                   "    earliest = math.inf"]
         args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
@@ -661,27 +690,21 @@ class _Generic:
                   "            earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, force, s.mass, "
                   "s.radius, s.params[q], s.params[q + 1], s.params[q + 2], s.params[q + 3], horizon))",
                   "    return earliest"]
-        lines += ["", "", "@njit(**OUTER)", "def energies_of(s, out):",
+        lines += ["", "", "@njit(**OUTER)", "def energies_of(calls, s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
         if self.growing:
-            lines.append("    maintain_lists(s, False != False)")
+            lines.append(f"    {self.call('maintain_lists')}(s, False != False)")
         lines += ["    for a in range(out.shape[0]):", "        out[a] = 0.0",
                   "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
-        for g in range(MAX_GROUPS):
-            row = group_row(g, 0)
-            lines += [f"    if s.program[{row}, G_COUNT] > 0:",
-                      f"        pairs_energies({fields}, {self.list_args(g)}, out, s.program[{row}])"]
+        lines += [f"    for g in range({MAX_GROUPS}):",
+                  f"        row = {group_row(0, 0)} + 3 * g",
+                  "        if s.program[row, G_COUNT] > 0:",
+                  "            pl = s.lists[g]",
+                  f"            calls[{PIECES.index('pairs_energies')}]({fields}, {self.list_args()}, out, s.program[row])"]
         lines += ["    if s.program[0, H_EFFECTS] > 0:",
-                  f"        sphere_energies({fields}, s.sphere_history, out, s.program)"]
+                  f"        calls[{PIECES.index('sphere_energies')}]({fields}, s.sphere_history, out, s.program)"]
         if self.nrt:  # in the fused module's order: the sums, then the induced moments' energy
-            lines += ["    for q in range(s.program[0, H_SUMS]):",
-                      "        kind = s.program[SUM_ROW + q, S_KIND]",
-                      "        slot = s.program[SUM_ROW + q, S_SLOT]",
-                      "        column = s.program[SUM_ROW + q, S_ENERGY]"]
-            for k in range(len(SUMS)):
-                lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
-                          f"            out[column] += sum_{k}(s.position, s.dipole, s.box, s.params, slot, s.force, "
-                          f"s.torque, False)"]
+            lines += [f"    {self.call('sum_energies')}(s, out)"]
             lines += ["    if s.program[0, H_INDUCTION] != 0:",
                       "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
                       "s.program[0, H_INDUCTION_SLOT])"]
@@ -693,7 +716,9 @@ class _Generic:
                 lines += [f"    if g == {g}:",
                           f"        pairs_{kind}({fields}, {self.list_args(g)}, owners, partners, out, "
                           f"s.program[{group_row(g, 0)}])"]
-        lines += RECORD_FRAME
+        lines += [line.replace("def record_frame(k,", "def record_frame(calls, k,")
+                  .replace("energies_of(s,", "energies_of(calls, s,")
+                  .replace("def end_step(step,", "def end_step(calls, step,") for line in RECORD_FRAME]
         if self.growing:
             lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
                       "        s.counters[WRAP_DUE] = 0",
@@ -701,12 +726,12 @@ class _Generic:
                       "            wrap(s.position, s.reference, s.image, s.box, s.periodic)",
                       "        if s.program[0, H_SORTED] != 0:",
                       "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
-                      "                sort_particles(s)",
+                      f"                {self.call('sort_particles')}(s)",
                       "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += END_STEP_TAIL
+        lines += [line.replace("record_frame(step", "record_frame(calls, step") for line in END_STEP_TAIL]
         return lines
 
-    def text(self, templates):
+    def imports(self):
         lines = ['"""demkit\'s generic kernel module (tier 1): written by demkit.generic, do not edit."""',
                  "import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
@@ -727,6 +752,47 @@ class _Generic:
                  f"SUM_ROW = {sum_row(0)}",
                  f"PLANE_CONTACT = ({', '.join(str(bool(law.plane_contact)) for law in self.effects)},)",
                  ""]
+        if self.threads:
+            lines += ["from demkit.motion import sum_chunks_threads as sum_chunks",
+                      "from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
+                      "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
+                      "                           state_is_finite_threads as state_is_finite)",
+                      "from demkit.neighbours import (max_displacement_threads as max_displacement,",
+                      "                               rebuild_threads as rebuild, build_threads as build)"]
+        # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
+        # rounds differently where code is shaped differently, and the generic and fused modules
+        # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
+        # law on threads differed by an ulp)
+        fast = 'error_model="numpy"'
+        nrt = "" if self.nrt else ", _nrt=False"
+        lines += [f"INNER = dict(cache=True, _nrt=False, {fast})",
+                  f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
+                  f"OUTER = dict(cache=True, inline='always', {fast}{nrt})",
+                  "UPKEEP = dict(cache=True)",
+                  f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})"]
+        return lines
+
+    def pieces_text(self):
+        """The pieces: the pair loops and the single-sphere loops over the catalogue (each compiled
+        once per install, called through function pointers), and a do-nothing stub of each with its
+        arguments (passed in place of a piece a scene never calls, so that it is never compiled)."""
+        lines = self.imports()
+        for prefix, entries in (("law", self.laws), ("effect", self.effects)):
+            for law in entries:
+                lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
+                          f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
+        lines += self.pair_functions()
+        if not self.threads:
+            lines += self.sphere_functions()
+        for name, (params, result) in PIECE_ARGUMENTS.items():
+            if not self.threads or name in THREAD_PIECES:
+                lines += ["", "", "@njit(**INNER)", f"def no_{name}({params}):", f"    return {result}"]
+        return "\n".join(lines) + "\n"
+
+    def text(self, templates):
+        """The scene-level functions and the time loops: every function that reaches a piece takes the
+        tuple ``calls`` (the pieces as first-class functions, :data:`PIECES` order) first."""
+        lines = self.imports()
         if self.nrt:
             lines += ["from demkit.state import INDUCTION_FAILED",
                       "from demkit.interactions.induction import induce, induction_energy",
@@ -737,36 +803,38 @@ class _Generic:
             from .motion import CALLED_PASSES
             lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
                       + ")"]
-        if self.threads:
-            lines += ["from demkit.motion import sum_chunks_threads as sum_chunks",
-                      "from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
-                      "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
-                      "                           state_is_finite_threads as state_is_finite)",
-                      "from demkit.neighbours import (max_displacement_threads as max_displacement,",
-                      "                               rebuild_threads as rebuild, build_threads as build)"]
-        for prefix, entries in (("law", self.laws), ("effect", self.effects)):
-            for law in entries:
-                lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
-                          f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
-        # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
-        # rounds differently where code is shaped differently, and the generic and fused modules
-        # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
-        # law on threads differed by an ulp)
-        fast = 'error_model="numpy"'
-        nrt = "" if self.nrt else ", _nrt=False"
-        # pair and sphere loops are functions of their own, compiled once and called (inlined, numba
-        # would re-type and re-lower the whole catalogue at every call site)
-        lines.append(f"INNER = dict(cache=True, _nrt=False, {fast})")
-        lines += [f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
-                  f"OUTER = dict(cache=True, inline='always', {fast}{nrt})",
-                  "UPKEEP = dict(cache=True)",
-                  f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})"]
-        lines += self.pair_functions() + self.sphere_functions() + self.scene_functions()
+        lines.append(f"from {_pieces_name(False)[1]} import pairs_pair_energies, pairs_pair_forces")
+        lines += self.scene_functions()
+        if self.growing:  # stubs passed for the sums and the induction solve to scenes without them
+            lines += ["", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
+                      "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
+                      "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
-            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
+            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, ", 1)
+            src = re.sub(r"\b(forces_of|fast_forces_of|slow_forces_of|end_step)\(", r"\1(calls, ", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         return "\n".join(lines) + "\n"
+
+
+#: the pieces, in the order of the ``calls`` tuple the scene-level functions take
+PIECES = ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies")
+THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
+#: the list upkeep and the allocating sums of the variant for scenes with lists, also passed through
+#: ``calls`` (linked into every time loop, they would be optimised again in each)
+SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now")
+
+
+def calls_of(growing):
+    """The names in a variant's ``calls`` tuple, in order."""
+    return PIECES + (SCENE_PIECES if growing else ())
+_CHUNKED = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, chunk_torque, "
+            f"chunk_power, program")
+#: each piece's parameters and what its stub returns
+PIECE_ARGUMENTS = {"pairs_forces": (_CHUNKED, "0.0"), "pairs_forces_blocked": (_CHUNKED, "0.0"),
+                   "sphere_forces": (f"{ARRAYS}, force, torque, history, commit, program", "0.0"),
+                   "pairs_energies": (f"{ARRAYS}, {LIST_ARRAYS}, out, program", "None"),
+                   "sphere_energies": (f"{ARRAYS}, history, out, program", "None")}
 
 
 # ---- building and loading ---------------------------------------------------------------------------
@@ -783,25 +851,67 @@ def _name(growing, threads, nrt=None):
     return source, f"demkit_generic_{_fingerprint(source, [])}"
 
 
+def _pieces_name(threads):
+    from .kernels import _fingerprint
+    source = _Generic(False, threads, False).pieces_text()
+    return source, f"demkit_generic_pieces_{'threads_' if threads else ''}{_fingerprint(source, [])}"
+
+
 _MODULES = {}
 
 
-def build_generic(growing, threads=False, nrt=None):
-    """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
-    threads, with or without reference counting (see :func:`needs_nrt`), compiled function by
-    function as called and cached on disk like the fused modules."""
-    nrt = bool(growing) if nrt is None else bool(nrt or growing)
-    key = (bool(growing), bool(threads), nrt)
+def _load(key, source_and_name):
     if key not in _MODULES:
         import numba
 
         from .kernels import _load_from_file
-        source, name = _name(growing, threads, nrt)
+        source, name = source_and_name()
         module = _load_from_file(name, source)
         numba.get_num_threads()  # start numba's threading layer (see demkit.kernels.build_module)
         module.source = source
-        _MODULES[key] = GenericKernels(module)
+        _MODULES[key] = module
     return _MODULES[key]
+
+
+def _pieces(threads):
+    """The pieces module (serial, or the thread pieces: the chunked loops on prange)."""
+    if not threads:
+        _load(("pieces", False), lambda: _pieces_name(False))
+    return _load(("pieces", threads), lambda: _pieces_name(threads))
+
+
+def build_generic(growing, threads=False, nrt=None, needs=PIECES):
+    """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
+    threads, with or without reference counting (see :func:`needs_nrt`), compiled function by
+    function as called and cached on disk like the fused modules; seen by a scene that calls the
+    pieces ``needs`` (see :func:`needs_of`: the others are never compiled for it)."""
+    nrt = bool(growing) if nrt is None else bool(nrt or growing)
+    key = (bool(growing), bool(threads), nrt)
+    view = key + (tuple(needs),)
+    if view not in _MODULES:
+        _pieces(False)
+        module = _load(key, lambda: _name(growing, threads, nrt))
+        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), tuple(needs))
+    return _MODULES[view]
+
+
+def needs_of(program):
+    """The pieces a scene of this program calls (:data:`PIECES`)."""
+    rows = [group_row(g, sp) for g in range(MAX_GROUPS) for sp in range(len(SPEEDS))]
+    needs = []
+    if any(program[r, G_COUNT] > 0 and program[r, G_BLOCKED] == 0 for r in rows):
+        needs += ["pairs_forces"]
+    if any(program[r, G_COUNT] > 0 and program[r, G_BLOCKED] != 0 for r in rows):
+        needs += ["pairs_forces_blocked"]
+    if program[0, H_EFFECTS] > 0:
+        needs += ["sphere_forces", "sphere_energies"]
+    if any(program[group_row(g, 0), G_COUNT] > 0 for g in range(MAX_GROUPS)):
+        needs += ["pairs_energies"]
+    if program[0, H_SUMS] > 0:
+        needs += ["long_range", "sum_energies"]
+    if program[0, H_INDUCTION] != 0:
+        needs += ["induce_now"]
+    return tuple(needs)
 
 
 def is_cached(growing, threads, function, nrt=None):
@@ -810,13 +920,64 @@ def is_cached(growing, threads, function, nrt=None):
     return cached_function(_name(growing, threads, nrt)[1], function)
 
 
+def _fields(ty):
+    """name -> numba type of the fields of a state or pair list type (a structref or a named tuple)."""
+    if hasattr(ty, "field_dict"):
+        return dict(ty.field_dict)
+    return dict(zip(ty.instance_class._fields, ty.types))
+
+
+def piece_arguments(state_type):
+    """name -> the argument types of each piece, for states of this numba type (the calls made in
+    the scene-level functions, :meth:`_Generic.forces_body`)."""
+    from numba import types
+    f = _fields(state_type)
+    pl = _fields(f["lists"][0])
+    arrays = [f[name] for name in ARRAYS.split(", ")]
+    lists = [pl[name] for name in LIST_ARRAYS.split(", ")]
+    row = types.Array(f["program"].dtype, 1, "C")
+    chunked = (*arrays, f["force"], f["torque"], *lists, f["scratch"], f["gather"], types.boolean, pl["bounds"],
+               f["thread_force"], f["thread_torque"], f["thread_power"], row)
+    out = types.Array(types.float64, 1, "C")
+    return {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
+            "long_range": (state_type, f["force"], f["torque"]),
+            "sum_energies": (state_type, types.Array(types.float64, 1, "C")),
+            "induce_now": (state_type, types.boolean),
+            "pairs_forces": chunked, "pairs_forces_blocked": chunked,
+            "sphere_forces": (*arrays, f["force"], f["torque"], f["sphere_history"], types.boolean, f["program"]),
+            "pairs_energies": (*arrays, *lists, out, row),
+            "sphere_energies": (*arrays, f["sphere_history"], out, f["program"])}
+
+
 class GenericKernels:
-    """A generic module seen through the names of a fused one (``pair_energies_<g>``, ...)."""
+    """A generic module seen through the names of a fused one (``pair_energies_<g>``, ...), by scenes
+    that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
+    the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
     tier = 1
 
-    def __init__(self, module):
-        self.module = module
+    def __init__(self, module, growing, threads, needs):
+        self.module, self.growing, self.threads, self.needs = module, growing, threads, needs
+        self._calls = {}
+        self._bound = {}
+
+    def calls_for(self, state_type):
+        """The tuple of first-class functions the scene-level functions take, for this state type."""
+        if state_type not in self._calls:
+            from numba.core.types.function_type import CompileResultWAP
+            arguments = piece_arguments(state_type)
+            calls = []
+            for name in calls_of(self.growing):
+                if name in SCENE_PIECES:
+                    function = getattr(self.module, name if name in self.needs or name in SCENE_PIECES[:2]
+                                       else f"no_{name}")
+                else:
+                    module = _pieces(self.threads and name in THREAD_PIECES)
+                    function = getattr(module, name if name in self.needs else f"no_{name}")
+                function.compile(arguments[name])
+                calls.append(CompileResultWAP(function.overloads[arguments[name]]))
+            self._calls[state_type] = tuple(calls)
+        return self._calls[state_type]
 
     def __getattr__(self, name):
         for kind in ("pair_energies", "pair_forces"):
@@ -824,4 +985,31 @@ class GenericKernels:
                 g = int(name[len(kind) + 1:])
                 function = getattr(self.module, f"{kind}_of")
                 return lambda s, owners, partners, out: function(s, g, owners, partners, out)
-        return getattr(self.module, name)
+        function = getattr(self.module, name)
+        if "calls" not in inspect.signature(function.py_func).parameters:
+            return function
+        if name not in self._bound:
+            self._bound[name] = _Bound(self, function)
+        return self._bound[name]
+
+
+class _Bound:
+    """A scene-level function of the generic module with its first argument, the pieces, supplied
+    (for the type of the state among the arguments); ``signatures`` and ``compile`` without it."""
+
+    def __init__(self, kernels, function):
+        self.kernels, self.function = kernels, function
+        self.position = list(inspect.signature(function.py_func).parameters).index("s") - 1
+
+    def __call__(self, *args):
+        import numba
+        return self.function(self.kernels.calls_for(numba.typeof(args[self.position])), *args)
+
+    @property
+    def signatures(self):
+        return [signature[1:] for signature in self.function.signatures]
+
+    def compile(self, signature):
+        import numba
+        calls = self.kernels.calls_for(signature[self.position])
+        return self.function.compile((numba.typeof(calls), *signature))

@@ -176,7 +176,8 @@ class Scene:
     def _kernels(self, threads, tier=None):
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``)."""
         if (tier or self.tier) == 1:
-            return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan))
+            return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan),
+                                         generic.needs_of(self.program))
         return build_module(self.plan, TEMPLATES, threads=threads)
 
     def _choose_tier(self):
