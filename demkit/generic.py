@@ -23,9 +23,14 @@ Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
   :data:`MAX_MEMBERS` members of ``M_*`` columns each;
 * row ``effect_row(e)`` for each single-sphere effect: ``E_*`` columns.
 
-Scenes this tier cannot run (your own pair functions, long-range sums, magnetisable spheres, more
-groups, members or effects than the table holds) get ``None`` from :func:`program_of` and run on
-tier 2 only.
+Scenes this tier cannot run (your own pair functions, more groups, members or effects than the
+table holds) get ``None`` from :func:`program_of` and run on tier 2 only.
+
+The tier is compiled in pieces never linked into one another (docs/engine.md, "Tier 1 in pieces"):
+the pair and sphere loops in one *pieces* module (:meth:`_Generic.pieces_text`), the scene-level functions
+and time loops in four *variant* modules (:meth:`_Generic.text`), which take the pieces as numba
+first-class functions in a tuple ``calls`` (:data:`PIECES`, :data:`SCENE_PIECES`); numba would
+otherwise link and optimise the whole catalogue again in each of the seven time loops.
 """
 from __future__ import annotations
 
@@ -440,21 +445,28 @@ class _Generic:
 
     def chunked(self, name, loop):
         """A pair-loop function over fixed chunks of owners (see demkit.kernels: the same bits on any
-        number of threads, and serially)."""
+        number of threads, and serially). Each chunk is one call of ``<name>_chunk``, a serial function
+        of the serial pieces: the loop on threads (prange) is a few lines around it, not a second copy
+        of the catalogue for numba's parallel compiler (which took 55 s over the whole loop)."""
         signature = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, "
                      f"chunk_torque, chunk_power, program")
-        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):"]
-        lines += self.header()
-        lines += ["    chunks = bounds.shape[0] - 1",
+        lines = []
+        if not self.threads:
+            lines += ["", "", "@njit(**INNER)",
+                      f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last, program):",
+                      '    """The owners first..last-1 of the loop, their forces into cf/ct; returns the power."""']
+            lines += self.header()
+            lines += ["    g_dipole = cg[3:6].T", "    power = 0.0"]
+            lines += loop("    ", "first", "last", "cf", "ct", "co", "cg")
+            lines += ["    return power"]
+        lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):",
+                  "    torque_on = program[G_TORQUE] != 0",
+                  "    chunks = bounds.shape[0] - 1",
                   f"    for t in {'prange' if self.threads else 'range'}(chunks):",
                   "        cf = force if t == 0 else chunk_force[t - 1]",
                   "        ct = torque if t == 0 else chunk_torque[t - 1]",
-                  "        co = scratch[t]",
-                  "        cg = gather[t]",
-                  "        g_dipole = cg[3:6].T",
-                  "        power = 0.0"]
-        lines += loop("        ", "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
-        lines += ["        chunk_power[t] = power",
+                  f"        chunk_power[t] = {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
+                  "bounds[t], bounds[t + 1], program)",
                   "    if chunks > 1:",
                   "        sum_chunks(force, chunk_force, chunks - 1)",
                   "        if torque_on:",
@@ -781,6 +793,8 @@ class _Generic:
             for law in entries:
                 lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
                           f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
+        if self.threads:
+            lines.append(f"from {_pieces_name(False)[1]} import pairs_forces_chunk, pairs_forces_blocked_chunk")
         lines += self.pair_functions()
         if not self.threads:
             lines += self.sphere_functions()
