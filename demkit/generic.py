@@ -564,7 +564,7 @@ class _Generic:
     def call(self, name):
         """How the scene-level functions call ``name``: through ``calls`` when this variant passes it
         (:func:`calls_of`), else directly."""
-        names = calls_of(self.growing)
+        names = calls_of(self.growing, self.nrt)
         return f"calls[{names.index(name)}]" if name in names else name
 
     def list_args(self, g=None):
@@ -819,7 +819,7 @@ class _Generic:
                       + ")"]
         lines.append(f"from {_pieces_name(False)[1]} import pairs_pair_energies, pairs_pair_forces")
         lines += self.scene_functions()
-        if self.growing:  # stubs passed for the sums and the induction solve to scenes without them
+        if self.nrt:  # stubs passed for the sums and the induction solve to scenes without them
             lines += ["", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
                       "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
                       "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
@@ -834,14 +834,17 @@ class _Generic:
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
 PIECES = ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies")
 THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
-#: the list upkeep and the allocating sums of the variant for scenes with lists, also passed through
+#: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
 SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now")
 
 
-def calls_of(growing):
-    """The names in a variant's ``calls`` tuple, in order."""
-    return PIECES + (SCENE_PIECES if growing else ())
+def calls_of(growing, nrt):
+    """The names in a variant's ``calls`` tuple, in order (with lists: the list upkeep and the sums;
+    with reference counting: the sums)."""
+    return PIECES + (SCENE_PIECES if growing else SCENE_PIECES[2:] if nrt else ())
+
+
 _CHUNKED = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, chunk_torque, "
             f"chunk_power, program")
 #: each piece's parameters and what its stub returns
@@ -905,7 +908,7 @@ def build_generic(growing, threads=False, nrt=None, needs=PIECES):
     if view not in _MODULES:
         _pieces(False)
         module = _load(key, lambda: _name(growing, threads, nrt))
-        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), tuple(needs))
+        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), nrt, tuple(needs))
     return _MODULES[view]
 
 
@@ -970,8 +973,8 @@ class GenericKernels:
 
     tier = 1
 
-    def __init__(self, module, growing, threads, needs):
-        self.module, self.growing, self.threads, self.needs = module, growing, threads, needs
+    def __init__(self, module, growing, threads, nrt, needs):
+        self.module, self.growing, self.threads, self.nrt, self.needs = module, growing, threads, nrt, needs
         self._calls = {}
         self._bound = {}
 
@@ -981,7 +984,7 @@ class GenericKernels:
             from numba.core.types.function_type import CompileResultWAP
             arguments = piece_arguments(state_type)
             calls = []
-            for name in calls_of(self.growing):
+            for name in calls_of(self.growing, self.nrt):
                 if name in SCENE_PIECES:
                     function = getattr(self.module, name if name in self.needs or name in SCENE_PIECES[:2]
                                        else f"no_{name}")
