@@ -24,7 +24,8 @@ Parts (all by default; name some to run only those):
   every cache empty, CPU s to the first step of the paper's scene (the main job's). ``new_combination``:
   demkit's install-wide code cached (the generic module warmed by *other* scenes of the same kind:
   a three-sphere Kelvin-Voigt scene for the small scenes, a periodic contact-only gas for scenes
-  with lists), the scene's own fused module never compiled: CPU s from ``import demkit`` to the
+  with lists, then every piece of tier 1 compiled for that kind of state), the scene's own fused
+  module never compiled: CPU s from ``import demkit`` to the
   first step in a fresh process. ``install_wide``: CPU s compiling every function of the generic
   modules (serial and threads) as the integrators and diagnostics use them. ``speed``: steps per
   second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
@@ -365,6 +366,14 @@ WARM_GENERIC = {
             return dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1), {integrator}
     """,
 }
+#: after a warm-up scene: every piece of tier 1 its kind of scene may call (the pieces a scene does not
+#: call are compiled only when a scene calls them: demkit.generic.needs_of)
+WARM_PIECES = """
+import numba
+from demkit import generic
+view = generic.build_generic(scene.plan.growing, False, generic.needs_nrt(scene.plan), generic.PIECES + generic.SCENE_PIECES)
+view.calls_for(numba.typeof(scene.state))
+"""
 TIER_SCENES = {  # name: (scene source, kind of state, integrator)
     "two_magnets": ("two_magnets", "small", "dk.EulerCromer(0.01)"),
     "gas600": ("gas600", "lists", "dk.VelocityVerlet(1e-3)"),
@@ -422,7 +431,8 @@ for scene in (small, big):
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
     sim.run(duration=1e-3, progress=False)  # record_frame and the lists
     scene.energy(); scene.forces(); scene.pair_energies(); scene.pair_forces()
-    signature = scene.kernels.velocity_verlet_steps.signatures[0]
+    loops = [scene.kernels.velocity_verlet_steps] + ([scene.thread_kernels.velocity_verlet_steps] if scene is big else [])
+    signature = next(loop.signatures[0] for loop in loops if loop.signatures)  # the loop that ran
     for threads in ((False, True) if scene is big else (False,)):
         module = scene.thread_kernels if threads else scene.kernels
         for name in TEMPLATES:
@@ -444,7 +454,7 @@ def part_tiers(quick, rounds=3):
         print(json.dumps(rows[-1]), flush=True)
         for name, (source, kind, integrator) in TIER_SCENES.items():
             warm = COMPILE_CHILD.format(scene=textwrap.dedent(WARM_GENERIC[kind].format(integrator=integrator)))
-            _child(warm, env)  # the install-wide code this kind of scene needs, from another scene
+            _child(warm + WARM_PIECES, env)  # the install-wide code of this kind of scene, from another scene
             first = _child(COMPILE_CHILD.format(scene=_scene_source(source, tmp)), env)
             rows.append({"what": "new_combination", "scene": name, **first})
             print(json.dumps(rows[-1]), flush=True)
