@@ -374,11 +374,40 @@ from demkit import generic
 view = generic.build_generic(scene.plan.growing, False, generic.needs_nrt(scene.plan), generic.PIECES + generic.SCENE_PIECES)
 view.calls_for(numba.typeof(scene.state))
 """
+WARM_GENERIC["small_sums"] = """
+        def make():
+            # magnetisable spheres with Hertz contacts (the measured scene has Kelvin-Voigt, a field, gravity)
+            p = dk.Particles(position=[[0, 0, 0], [1.5, 0, 0], [0, 1.5, 0]], radius=0.5, mass=1.0, susceptibility=1.0)
+            return dk.Scene(p, [dk.Dipole(0.5), dk.Hertz(young=2e4, poisson=0.3, restitution=0.5),
+                                dk.UniformField((0, 0.2, 0))], tier=1), \
+                {integrator}
+    """
 TIER_SCENES = {  # name: (scene source, kind of state, integrator)
     "two_magnets": ("two_magnets", "small", "dk.EulerCromer(0.01)"),
     "gas600": ("gas600", "lists", "dk.VelocityVerlet(1e-3)"),
     "pour_twisting": ("pour_twisting", "lists", "dk.VelocityVerlet(1e-3)"),
+    "p3m": ("p3m", "lists", "dk.VelocityVerlet(1e-3)"),
+    "magnetisable": ("magnetisable", "small_sums", "dk.VelocityVerlet(1e-3)"),
 }
+SCENES["p3m"] = """
+        def make():
+            # 216 dipoles summed by P3M in a periodic box, Hertz contacts, a field
+            n, R = 216, 0.5
+            box = dk.build.box_for(n, R, 0.1)
+            rng = np.random.default_rng(5)
+            d = rng.normal(size=(n, 3))
+            p = dk.Particles(position=dk.build.random_packing(n, R, box, seed=2), radius=R, mass=1.0,
+                             dipole=d / np.linalg.norm(d, axis=1)[:, None])
+            return dk.Scene(p, [dk.Dipole(0.1, long_range=dk.P3M(1e-4)), dk.Hertz(young=2e4, poisson=0.3, restitution=0.5),
+                                dk.UniformField((0, 0, 0.2))], box=box), dk.VelocityVerlet(1e-3)
+    """
+SCENES["magnetisable"] = """
+        def make():
+            # a chain of five magnetisable spheres in a uniform field, Kelvin-Voigt contacts, gravity
+            p = dk.Particles(position=[[0, 0, 1.05 * k] for k in range(5)], radius=0.5, mass=1.0, susceptibility=3.0)
+            return dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(1000.0, 1.0), dk.UniformField((0, 0, 0.5)),
+                                dk.Gravity((0, 0, -1.0))]), dk.VelocityVerlet(1e-3)
+    """
 SCENES["pour_twisting"] = """
         def make():
             # a walled pour: Hertz with friction, rolling and twisting resistance, gravity and a field

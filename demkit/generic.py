@@ -605,6 +605,16 @@ class _Generic:
             lines += [f"    {self.call('long_range')}(s, {force}, {torque})"]
         return lines + ["    return power"]
 
+    def sum_switch(self, target, rest):
+        """For each long-range sum q of the program: target += its function(..., rest)."""
+        lines = ["    for q in range(s.program[0, H_SUMS]):",
+                 "        kind = s.program[SUM_ROW + q, S_KIND]",
+                 "        slot = s.program[SUM_ROW + q, S_SLOT]"]
+        for k in range(len(SUMS)):
+            lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
+                      f"            {target} += sum_{k}(s.position, s.dipole, s.box, s.params, slot, {rest})"]
+        return lines
+
     def scene_functions(self):
         fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         lines = []
@@ -639,24 +649,11 @@ class _Generic:
             lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
                       '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
                       '    FMM); returns their energy."""',
-                      "    total = 0.0",
-                      "    for q in range(s.program[0, H_SUMS]):",
-                      "        kind = s.program[SUM_ROW + q, S_KIND]",
-                      "        slot = s.program[SUM_ROW + q, S_SLOT]"]
-            for k in range(len(SUMS)):
-                lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
-                          f"            total += sum_{k}(s.position, s.dipole, s.box, s.params, slot, force, torque, True)"]
-            lines += ["    return total"]
+                      "    total = 0.0"]
+            lines += self.sum_switch("total", "force, torque, True") + ["    return total"]
             lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
-                      '    """Add the energy of each long-range sum to its column of out."""',
-                      "    for q in range(s.program[0, H_SUMS]):",
-                      "        kind = s.program[SUM_ROW + q, S_KIND]",
-                      "        slot = s.program[SUM_ROW + q, S_SLOT]",
-                      "        column = s.program[SUM_ROW + q, S_ENERGY]"]
-            for k in range(len(SUMS)):
-                lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
-                          f"            out[column] += sum_{k}(s.position, s.dipole, s.box, s.params, slot, s.force, "
-                          f"s.torque, False)"]
+                      '    """Add the energy of each long-range sum to its column of out."""']
+            lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, False")
             lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
                       '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
                       "    g = s.program[0, H_INDUCTION_GROUP]",

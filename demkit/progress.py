@@ -316,7 +316,7 @@ def _listener():
 #: neighbour lists, one integrator (the paper's pair: 7-11 s); the first run of a scene with lists
 #: (a 600-sphere magnetic gas with Hertz contacts and friction: 13-18 s) and building it (2-8 s);
 #: the cell-list code, compiled once per install when the first scene with lists is built (~15 s)
-ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (0, 2), "cell_lists": 15, "generic": (30, 60)}
+ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (0, 2), "cell_lists": 15, "generic": (15, 45)}
 
 
 def compile_estimate(plan, phase, tier=2):
