@@ -955,7 +955,7 @@ def piece_arguments(state_type):
     out = types.Array(types.float64, 1, "C")
     return {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
             "long_range": (state_type, f["force"], f["torque"]),
-            "sum_energies": (state_type, types.Array(types.float64, 1, "C")),
+            "sum_energies": (state_type, out),
             "induce_now": (state_type, types.boolean),
             "pairs_forces": chunked, "pairs_forces_blocked": chunked,
             "sphere_forces": (*arrays, f["force"], f["torque"], f["sphere_history"], types.boolean, f["program"]),
@@ -982,12 +982,10 @@ class GenericKernels:
             arguments = piece_arguments(state_type)
             calls = []
             for name in calls_of(self.growing, self.nrt):
-                if name in SCENE_PIECES:
-                    function = getattr(self.module, name if name in self.needs or name in SCENE_PIECES[:2]
-                                       else f"no_{name}")
-                else:
-                    module = _pieces(self.threads and name in THREAD_PIECES)
-                    function = getattr(module, name if name in self.needs else f"no_{name}")
+                module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES)
+                # the piece, or its stub when the scene never calls it (the list upkeep has none)
+                stubbed = name not in self.needs and hasattr(module, f"no_{name}")
+                function = getattr(module, f"no_{name}" if stubbed else name)
                 function.compile(arguments[name])
                 calls.append(CompileResultWAP(function.overloads[arguments[name]]))
             self._calls[state_type] = tuple(calls)
@@ -999,11 +997,10 @@ class GenericKernels:
                 g = int(name[len(kind) + 1:])
                 function = getattr(self.module, f"{kind}_of")
                 return lambda s, owners, partners, out: function(s, g, owners, partners, out)
-        function = getattr(self.module, name)
-        if "calls" not in inspect.signature(function.py_func).parameters:
-            return function
-        if name not in self._bound:
-            self._bound[name] = _Bound(self, function)
+        if name not in self._bound:  # the module's function, or it bound to the pieces when it takes them
+            function = getattr(self.module, name)
+            takes = "calls" in inspect.signature(function.py_func).parameters
+            self._bound[name] = _Bound(self, function) if takes else function
         return self._bound[name]
 
 
