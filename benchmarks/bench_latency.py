@@ -26,7 +26,9 @@ Parts (all by default; name some to run only those):
   a three-sphere Kelvin-Voigt scene for the small scenes, a periodic contact-only gas for scenes
   with lists, then every piece of tier 1 compiled for that kind of state), the scene's own fused
   module never compiled: CPU s from ``import demkit`` to the
-  first step in a fresh process. ``install_wide``: CPU s compiling every function of the generic
+  first step in a fresh process. ``tier2_first_step`` (the scenes with lists): then the same scene
+  started on tier 2 (``DEMKIT_TIER=2``) in a fresh process, CPU s to its first step: what tier 2 of a
+  new combination costs (its own pieces; the time loops are tier 1's). ``install_wide``: CPU s compiling every function of the generic
   modules (serial and threads) as the integrators and diagnostics use them. ``speed``: steps per
   second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
 
@@ -487,6 +489,10 @@ def part_tiers(quick, rounds=3):
             first = _child(COMPILE_CHILD.format(scene=_scene_source(source, tmp)), env)
             rows.append({"what": "new_combination", "scene": name, **first})
             print(json.dumps(rows[-1]), flush=True)
+            if kind == "lists" and name != "p3m":  # tier 2 of the same new combination: its own pieces
+                second = _child(COMPILE_CHILD.format(scene=_scene_source(source, tmp)), dict(env, DEMKIT_TIER="2"))
+                rows.append({"what": "tier2_first_step", "scene": name, **second})
+                print(json.dumps(rows[-1]), flush=True)
         if not quick:  # several minutes
             _empty_caches(cache)
             rows.append({"what": "install_wide", **_child(INSTALL_CHILD.format(), env)})

@@ -64,7 +64,10 @@ M_COLUMNS = 7
 E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE = range(6)
 # long-range sum rows
 S_KIND, S_SLOT, S_ENERGY = range(3)
-COLUMNS = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
+# ... and after the members, the row's own group and speed (read by a scene's own pieces, tier 2)
+G_GROUP = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
+G_SPEED = G_GROUP + 1
+COLUMNS = G_SPEED + 1
 SPEEDS = (None, "fast", "slow")
 
 #: the shipped pair laws: (module, force function, energy function, torque, dissipative, branch_free)
@@ -219,6 +222,8 @@ def program_of(plan, slots, kinds):
             sub = Group(members, group.kind, group.reach, group.parallel)
             row = program[group_row(g, sp)]
             row[G_EXISTS] = 1
+            row[G_GROUP] = g
+            row[G_SPEED] = sp
             row[G_COUNT] = len(members)
             row[G_LIST] = group.kind == "list"
             row[G_BLOCKED] = sub.blocked
@@ -894,18 +899,19 @@ def _pieces(threads):
     return _load(("pieces", threads), lambda: _pieces_name(threads))
 
 
-def build_generic(growing, threads=False, nrt=None, needs=PIECES):
+def build_generic(growing, threads=False, nrt=None, needs=PIECES, pieces=None):
     """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
     threads, with or without reference counting (see :func:`needs_nrt`), compiled function by
     function as called and cached on disk like the fused modules; seen by a scene that calls the
-    pieces ``needs`` (see :func:`needs_of`: the others are never compiled for it)."""
+    pieces ``needs`` (see :func:`needs_of`: the others are never compiled for it). ``pieces``: a
+    scene's own pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones."""
     nrt = bool(growing) if nrt is None else bool(nrt or growing)
     key = (bool(growing), bool(threads), nrt)
-    view = key + (tuple(needs),)
+    view = key + (tuple(needs), pieces and pieces.__name__)
     if view not in _MODULES:
         _pieces(False)
         module = _load(key, lambda: _name(growing, threads, nrt))
-        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), nrt, tuple(needs))
+        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), nrt, tuple(needs), pieces)
     return _MODULES[view]
 
 
@@ -968,10 +974,10 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    tier = 1
-
-    def __init__(self, module, growing, threads, nrt, needs):
+    def __init__(self, module, growing, threads, nrt, needs, pieces=None):
         self.module, self.growing, self.threads, self.nrt, self.needs = module, growing, threads, nrt, needs
+        self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
+        self.tier = 1 if pieces is None else 2
         self._calls = {}
         self._bound = {}
 
@@ -985,7 +991,10 @@ class GenericKernels:
                 module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
-                function = getattr(module, f"no_{name}" if stubbed else name)
+                if self.pieces is not None and name in PIECES and not stubbed:
+                    function = getattr(self.pieces, f"piece_{name}")
+                else:
+                    function = getattr(module, f"no_{name}" if stubbed else name)
                 function.compile(arguments[name])
                 calls.append(CompileResultWAP(function.overloads[arguments[name]]))
             self._calls[state_type] = tuple(calls)

@@ -776,7 +776,8 @@ class _Source:
         lines += END_STEP_TAIL
         return lines
 
-    def text(self, templates):
+    def head(self):
+        """The module's imports and the options of its functions."""
         plan = self.plan
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
@@ -832,6 +833,11 @@ class _Source:
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
                   f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})"]  # time loops let other threads run (threads.py)
+        return lines
+
+    def text(self, templates):
+        plan = self.plan
+        lines = self.head()
         for g, group in enumerate(plan.groups):
             lines += self.group_forces(g, group) + self.group_energies(g, group) + self.group_pair_forces(g, group)
         for g, name, sub, _ in self.parts:
@@ -841,6 +847,50 @@ class _Source:
             src = textwrap.dedent(inspect.getsource(template))
             src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
+        return "\n".join(lines) + "\n"
+
+    def pieces_text(self):
+        """Tier 2 of a scene with neighbour lists that tier 1 can run (see :func:`build_pieces`): its
+        own pair and sphere loops, under the names and with the arguments of the generic pieces
+        (:data:`demkit.generic.PIECE_ARGUMENTS`), which pick a pair loop by the program row's group and
+        speed (:data:`demkit.generic.G_GROUP`, :data:`demkit.generic.G_SPEED`)."""
+        from .generic import G_GROUP, G_SPEED, SPEEDS
+        plan = self.plan
+        lines = self.head()
+        for g, group in enumerate(plan.groups):
+            lines += self.group_forces(g, group) + self.group_energies(g, group)
+        for g, name, sub, _ in self.parts:
+            lines += self.group_forces(g, sub, name)
+        lines += self.sphere_functions()
+        arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
+        chunks = "bounds, chunk_force, chunk_torque, chunk_power"
+        lines += ["", "", "@njit(**INNER)", f"def piece_pairs_forces({arrays}, {chunks}, program):",
+                  '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""',
+                  f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]"]
+        split = {(g, sp): (name, sub) for g, name, sub, sp in self.parts}
+        for g, group in enumerate(plan.groups):
+            for sp, speed in enumerate(SPEEDS):
+                name, sub = split.get((g, speed), (None, group))
+                if speed is not None and (g, speed) not in split and any(
+                        inter.slow != (speed == "slow") for _, inter in group.members):
+                    continue  # no member of this speed: the program row is empty, never called
+                name = name or f"group_{g}"
+                call = (f"{name}_forces_chunked({arrays}, {chunks})" if sub.parallel
+                        else f"{name}_forces({arrays})")
+                lines += [f"    if g == {g} and speed == {sp}:", f"        return {call}"]
+        lines += ["    return 0.0",
+                  "", "", "piece_pairs_forces_blocked = piece_pairs_forces  # a group's own loop knows it is blocked",
+                  "", "", "@njit(**INNER)", f"def piece_pairs_energies({ARRAYS}, {LIST_ARRAYS}, out, program):",
+                  '    """Add the potential energies of the program row\'s group to out[kind]."""',
+                  f"    g = program[{G_GROUP}]"]
+        for g in range(len(plan.groups)):
+            lines += [f"    if g == {g}:", f"        group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out)"]
+        if plan.effects:
+            lines += ["", "", "@njit(**INNER)",
+                      f"def piece_sphere_forces({ARRAYS}, force, torque, history, commit, program):",
+                      f"    return sphere_forces({ARRAYS}, force, torque, history, commit)",
+                      "", "", "@njit(**INNER)", f"def piece_sphere_energies({ARRAYS}, history, out, program):",
+                      f"    sphere_energies({ARRAYS}, history, out)"]
         return "\n".join(lines) + "\n"
 
 
@@ -931,6 +981,30 @@ def build_module(plan, templates, threads=False):
     module.source = source
     _MODULES[key] = module
     return module
+
+
+def pieces_source(plan):
+    """The text of the scene's own pieces (tier 2 of a scene with neighbour lists, see
+    :meth:`_Source.pieces_text`)."""
+    return _Source(plan, True).pieces_text()
+
+
+def pieces_name(plan):
+    """The module name of the scene's own pieces (by the fingerprint of their text)."""
+    return f"demkit_pieces_{_fingerprint(pieces_source(plan), plan.interactions + plan.effects)}"
+
+
+def build_pieces(plan):
+    """The compiled module of the scene's own pieces: tier 2 of a scene with neighbour lists that the
+    generic module can run. The generic time loops call them through ``calls`` as they call the
+    generic pieces (:class:`demkit.generic.GenericKernels`), so tier 2 compiles the scene's pair and
+    sphere loops alone: its time loops, list upkeep and sums are tier 1's, compiled once per install."""
+    source, name = pieces_source(plan), pieces_name(plan)
+    if name not in _MODULES:
+        module = _load_from_file(name, source)
+        module.source = source
+        _MODULES[name] = module
+    return _MODULES[name]
 
 
 def _load_from_file(name, source):

@@ -28,7 +28,7 @@ from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
 from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
 from . import generic
-from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, energy_kinds
+from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds
 from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
@@ -174,11 +174,20 @@ class Scene:
         return fused_source(self.plan, TEMPLATES, threads)
 
     def _kernels(self, threads, tier=None):
-        """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``)."""
-        if (tier or self.tier) == 1:
+        """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``).
+        Tier 2 of a scene with neighbour lists that tier 1 can run is the generic time loops calling
+        the scene's own pieces (:func:`demkit.kernels.build_pieces`), on one thread; else its fused
+        module."""
+        tier = tier or self.tier
+        if tier == 1 or self._pieces_tier_2(threads):
+            pieces = build_pieces(self.plan) if tier == 2 else None
             return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan),
-                                         generic.needs_of(self.program))
+                                         generic.needs_of(self.program), pieces)
         return build_module(self.plan, TEMPLATES, threads=threads)
+
+    def _pieces_tier_2(self, threads):
+        """Is this scene's tier 2 (serial, or ``threads``) its own pieces in the generic loops?"""
+        return not threads and self.program is not None and self.plan.growing
 
     def _choose_tier(self):
         """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""

@@ -50,8 +50,11 @@ class TierChoice:
     def _worth(self):
         if self._cached is None:
             from .integrators import TEMPLATES
-            from .kernels import is_cached
-            self._cached = is_cached(self.scene.plan, TEMPLATES, self.name)
+            from .kernels import cached_function, is_cached, pieces_name
+            if self.scene._pieces_tier_2(threads=False):
+                self._cached = cached_function(pieces_name(self.scene.plan), "piece_pairs_forces")
+            else:
+                self._cached = is_cached(self.scene.plan, TEMPLATES, self.name)
         return WORTH_LOADING if self._cached else WORTH_COMPILING
 
     def ready(self, seconds_left, busy=False):
@@ -82,8 +85,6 @@ class TierChoice:
         scene, name = self.scene, self.name
 
         def work():
-            from .integrators import TEMPLATES
-            from .kernels import build_module
             try:
                 signatures = {}  # the generic loops' (the same state types on both tiers)
                 for function in (name, "record_frame"):
@@ -93,7 +94,7 @@ class TierChoice:
                             signatures[function] = compiled[0]
                 modules = []
                 for threads in ((False, True) if scene.parallel else (False,)):
-                    module = build_module(scene.plan, TEMPLATES, threads=threads)
+                    module = scene._kernels(threads, tier=2)
                     for function, signature in signatures.items():
                         getattr(module, function).compile(signature)
                     modules.append(module)

@@ -1,9 +1,11 @@
-"""The two tiers of compiled code (demkit.tiers): the generic module (tier 1) and a scene's fused
-module (tier 2) give byte-equal trajectories, energies and diagnostics, and a run that switches
-from one to the other in its middle gives the same bits as either. The scenes are chosen to cover
-every shipped pair law and effect, every integrator, open and periodic boxes, lists and all pairs,
-blocked dipole loops, sorting, chunks on threads and multiple time stepping, with few fused modules
-(each costs seconds to compile; the generic module is shared by the whole suite)."""
+"""The two tiers of compiled code (demkit.tiers): the generic module (tier 1) and a scene's own code
+(tier 2: its fused module in open space and on threads, its own pair and sphere loops called by the
+generic time loops with neighbour lists) give byte-equal trajectories, energies and diagnostics, and
+a run that switches from one to the other in its middle gives the same bits as either. The scenes
+are chosen to cover every shipped pair law and effect, every integrator, open and periodic boxes,
+lists and all pairs, blocked dipole loops, sorting, chunks on threads and multiple time stepping,
+with few tier-2 modules (each costs seconds to compile; the generic module is shared by the whole
+suite)."""
 import numpy as np
 import pytest
 
@@ -33,7 +35,7 @@ def small_scene(tier, laws="kelvin_voigt"):
     return dk.Scene(p, [*pair, law, dk.Gravity((0, 0, -1.0)), *more, *walls], tier=tier)
 
 
-def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_voigt=False):
+def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_voigt=False, cutoff=3.0):
     """A periodic frictional magnetic gas: neighbour lists, blocked dipole loops."""
     R = 0.5
     box = dk.build.box_for(n, R, 0.25)
@@ -45,30 +47,35 @@ def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_vo
     law = (dk.KelvinVoigt(2000.0, 3.0) if kelvin_voigt else
            dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5),
                     rolling=dk.RollingResistance(0.02)))
-    dipole = dk.PowerLawDipole(prefactor=1.0, cutoff=3.0, switch_width=1.0) if power_law else \
-        dk.Dipole(prefactor=1.0, cutoff=3.0)
+    dipole = dk.PowerLawDipole(prefactor=1.0, cutoff=cutoff, switch_width=1.0) if power_law else \
+        dk.Dipole(prefactor=1.0, cutoff=cutoff)
     return dk.Scene(p, [dipole, law], box=box, tier=tier, parallel=parallel, sort_every=sort_every)
 
 
-def outcome(scene, integrator, duration, switch=False):
-    """Everything a run records and the diagnostics after it, as one array of bits."""
+def outcome(scene, integrator, duration, switch=False, diagnostics=False):
+    """Everything a run records (and with ``diagnostics`` the forces, per-pair energies and forces
+    after it), as one array of bits. The diagnostics are functions of their own in each fused module
+    (5-20 CPU s to compile in each): the cases that ask for them cover all pairs in open space, lists
+    in periodic boxes, blocked dipole loops and the real-space Ewald law; the trajectory itself
+    depends on every force of every step."""
     sim = dk.Simulation(scene, integrator)
     if switch:  # compile tier 2 at once, switch when ready (here: at once, the module is in memory)
         sim._tiers._worth = lambda: 0.0
     traj = sim.run(duration=duration, record_every=duration / 4, progress=False)
     energies = np.stack(list(traj.energy.values())[:-1]) if isinstance(traj.energy, dict) else traj.energy
-    force, torque = scene.forces()
-    pairs, pair_energy = scene.pair_energies()
-    parts = [traj.position, traj.velocity, np.asarray(energies, dtype=float), force, torque, pair_energy]
+    parts = [traj.position, traj.velocity, np.asarray(energies, dtype=float)]
     if traj.angular_velocity is not None:
         parts.append(traj.angular_velocity)
-    parts += [f for *_, f in scene.pair_forces()]
+    if diagnostics:
+        force, torque = scene.forces()
+        parts += [force, torque, scene.pair_energies()[1]]
+        parts += [f for *_, f in scene.pair_forces()]
     return sim, np.concatenate([np.ravel(a) for a in parts])
 
 
-def same_bits(make, integrator, duration):
-    a = outcome(make(1), integrator, duration)[1]
-    b = outcome(make(2), integrator, duration)[1]
+def same_bits(make, integrator, duration, diagnostics=False):
+    a = outcome(make(1), integrator, duration, diagnostics=diagnostics)[1]
+    b = outcome(make(2), integrator, duration, diagnostics=diagnostics)[1]
     assert a.shape == b.shape
     assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ between the tiers"
     return a
@@ -93,7 +100,16 @@ def test_periodic_gas_same_bits(integrator):
     # integrator is a time loop of its own in the fused module: seconds to compile for each)
     friction = type(integrator) is dk.VelocityVerlet and not integrator.resolve_contacts
     make = gas if friction else (lambda tier: gas(tier, kelvin_voigt=True))
-    same_bits(make, integrator, 0.2)
+    same_bits(make, integrator, 0.2, diagnostics=friction)
+
+
+def test_multiple_time_steps_with_lists_same_bits():
+    """Multiple time stepping over neighbour lists: a slow dipole and a fast contact law of the same
+    reach share a pair loop, run as a fast and a slow loop (on tier 2: two pair loops of the scene's
+    own pieces, picked by the program row's speed)."""
+    scene = gas(1, kelvin_voigt=True, cutoff=1.0)
+    assert len(scene.plan.groups) == 1 and scene.program[generic.group_row(0, 1), generic.G_COUNT] == 1
+    same_bits(lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0), dk.MultipleTimeStep(2e-3, inner=2), 0.2)
 
 
 def test_sorted_chunked_gas_on_threads_same_bits():
@@ -116,7 +132,7 @@ def long_range_gas(tier, method):
 
 def test_long_range_sum_same_bits():
     """An Ewald sum (P3M and FMM are called the same way, from the same switch)."""
-    same_bits(lambda tier: long_range_gas(tier, dk.Ewald), dk.VelocityVerlet(1e-3), 0.05)
+    same_bits(lambda tier: long_range_gas(tier, dk.Ewald), dk.VelocityVerlet(1e-3), 0.05, diagnostics=True)
 
 
 def test_magnetisable_spheres_same_bits():
@@ -126,7 +142,7 @@ def test_magnetisable_spheres_same_bits():
                      dipole=[[0, 0, 0], [0, 0, 0], [0, 0, 0.2], [0, 0, 0]])
     make = lambda tier: dk.Scene(p.copy(), [dk.Dipole(prefactor=1.0), dk.KelvinVoigt(1000.0, 1.0),
                                             dk.UniformField((0, 0, 0.5))], tier=tier)  # noqa: E731
-    same_bits(make, dk.VelocityVerlet(1e-3), 0.05)
+    same_bits(make, dk.VelocityVerlet(1e-3), 0.05, diagnostics=True)  # the open box's diagnostics
 
 
 def test_switch_in_the_middle_same_bits():
@@ -141,6 +157,8 @@ def test_switch_in_the_middle_same_bits():
 def test_tier_choice_and_refusals():
     scene = gas(None)
     assert scene.tier == 1 and scene.kernels.tier == 1
+    # tier 2 of a scene with lists: the generic time loops calling the scene's own pieces
+    assert gas(2).kernels.tier == 2 and gas(2).kernels.pieces.__name__.startswith("demkit_pieces_")
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
     sim.run(duration=0.01, progress=False)
     assert sim.statistics["tier"] == 1 and sim.statistics["tier_switch_step"] is None  # too short to compile
