@@ -20,11 +20,14 @@ Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
   :data:`H_SORTED`, :data:`H_EFFECTS` (number of effects), :data:`H_SHORTEST` (the first list's group);
 * row ``group_row(g, speed)`` for each pair loop g < :data:`MAX_GROUPS` and speed (0: every member,
   1: the fast ones, 2: the slow ones, for multiple time stepping): ``G_*`` flags, then up to
-  :data:`MAX_MEMBERS` members of ``M_*`` columns each;
+  :data:`MAX_MEMBERS` members of ``M_*`` columns each, then :data:`G_GROUP` and :data:`G_SPEED`;
 * row ``effect_row(e)`` for each single-sphere effect: ``E_*`` columns.
 
 Scenes this tier cannot run (your own pair functions, more groups, members or effects than the
 table holds) get ``None`` from :func:`program_of` and run on tier 2 only.
+
+Tier 2 of a scene with neighbour lists is these time loops given the scene's own pieces
+(:func:`demkit.kernels.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
 
 The tier is compiled in pieces never linked into one another (docs/engine.md, "Tier 1 in pieces"):
 the pair and sphere loops in one *pieces* module (:meth:`_Generic.pieces_text`), the scene-level functions
@@ -992,7 +995,10 @@ class GenericKernels:
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
                 if self.pieces is not None and name in PIECES and not stubbed:
-                    function = getattr(self.pieces, f"piece_{name}")
+                    own = self.pieces  # the scene's own; its thread pieces hold the chunked loops alone
+                    if not (self.threads and name in THREAD_PIECES):
+                        own = getattr(own, "serial", own)
+                    function = getattr(own, f"piece_{name}")
                 else:
                     function = getattr(module, f"no_{name}" if stubbed else name)
                 function.compile(arguments[name])

@@ -849,38 +849,59 @@ class _Source:
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         return "\n".join(lines) + "\n"
 
-    def pieces_text(self):
+    def pieces_text(self, serial_name=None):
         """Tier 2 of a scene with neighbour lists that tier 1 can run (see :func:`build_pieces`): its
         own pair and sphere loops, under the names and with the arguments of the generic pieces
         (:data:`demkit.generic.PIECE_ARGUMENTS`), which pick a pair loop by the program row's group and
-        speed (:data:`demkit.generic.G_GROUP`, :data:`demkit.generic.G_SPEED`)."""
+        speed (:data:`demkit.generic.G_GROUP`, :data:`demkit.generic.G_SPEED`). Each chunk of a chunked
+        loop is one call of a serial function, ``<loop>_chunk``; the thread pieces (``self.threads``)
+        are the same dispatcher on prange, around the serial module's (``serial_name``) chunk calls."""
         from .generic import G_GROUP, G_SPEED, SPEEDS
         plan = self.plan
         lines = self.head()
-        for g, group in enumerate(plan.groups):
-            lines += self.group_forces(g, group) + self.group_energies(g, group)
-        for g, name, sub, _ in self.parts:
-            lines += self.group_forces(g, sub, name)
-        lines += self.sphere_functions()
-        arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
-        chunks = "bounds, chunk_force, chunk_torque, chunk_power"
-        lines += ["", "", "@njit(**INNER)", f"def piece_pairs_forces({arrays}, {chunks}, program):",
-                  '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""',
-                  f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]"]
         split = {(g, sp): (name, sub) for g, name, sub, sp in self.parts}
+        loops = {}  # (group, speed) -> (name, the group or part) of every pair loop a program row may ask for
         for g, group in enumerate(plan.groups):
             for sp, speed in enumerate(SPEEDS):
-                name, sub = split.get((g, speed), (None, group))
                 if speed is not None and (g, speed) not in split and any(
                         inter.slow != (speed == "slow") for _, inter in group.members):
                     continue  # no member of this speed: the program row is empty, never called
-                name = name or f"group_{g}"
-                call = (f"{name}_forces_chunked({arrays}, {chunks})" if sub.parallel
-                        else f"{name}_forces({arrays})")
-                lines += [f"    if g == {g} and speed == {sp}:", f"        return {call}"]
-        lines += ["    return 0.0",
-                  "", "", "piece_pairs_forces_blocked = piece_pairs_forces  # a group's own loop knows it is blocked",
-                  "", "", "@njit(**INNER)", f"def piece_pairs_energies({ARRAYS}, {LIST_ARRAYS}, out, program):",
+                name, sub = split.get((g, speed), (f"group_{g}", group))
+                loops[g, sp] = (name, sub)
+        chunked = sorted({name for name, sub in loops.values() if sub.parallel})
+        if self.threads:
+            lines.append(f"from {serial_name} import " + ", ".join(f"{name}_chunk" for name in chunked))
+        else:
+            for name, sub in {name: sub for name, sub in loops.values()}.items():
+                lines += self.group_chunk(name, sub) if sub.parallel else self.group_forces(0, sub, name)
+            for g, group in enumerate(plan.groups):
+                lines += self.group_energies(g, group)
+            lines += self.sphere_functions()
+        arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
+        lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
+                  f"def piece_pairs_forces({arrays}, bounds, chunk_force, chunk_torque, chunk_power, program):",
+                  '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""',
+                  f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]",
+                  "    chunks = bounds.shape[0] - 1", "    torque_on = False"]
+        for (g, sp), (name, sub) in loops.items():
+            lines.append(f"    if g == {g} and speed == {sp}:")
+            if not sub.parallel:
+                lines.append(f"        return {name}_forces({arrays})")
+                continue
+            lines += [f"        torque_on = {bool(sub.torque)}",
+                      f"        for t in {'prange' if self.threads else 'range'}(chunks):",
+                      "            cf = force if t == 0 else chunk_force[t - 1]",
+                      "            ct = torque if t == 0 else chunk_torque[t - 1]",
+                      f"            chunk_power[t] = {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], "
+                      "commit, bounds[t], bounds[t + 1])"]
+        lines += ["    if chunks > 1:", "        sum_chunks(force, chunk_force, chunks - 1)",
+                  "        if torque_on:", "            sum_chunks(torque, chunk_torque, chunks - 1)",
+                  "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
+                  "    return power",
+                  "", "", "piece_pairs_forces_blocked = piece_pairs_forces  # a group's own loop knows it is blocked"]
+        if self.threads:
+            return "\n".join(lines) + "\n"
+        lines += ["", "", "@njit(**INNER)", f"def piece_pairs_energies({ARRAYS}, {LIST_ARRAYS}, out, program):",
                   '    """Add the potential energies of the program row\'s group to out[kind]."""',
                   f"    g = program[{G_GROUP}]"]
         for g in range(len(plan.groups)):
@@ -892,6 +913,15 @@ class _Source:
                       "", "", "@njit(**INNER)", f"def piece_sphere_energies({ARRAYS}, history, out, program):",
                       f"    sphere_energies({ARRAYS}, history, out)"]
         return "\n".join(lines) + "\n"
+
+    def group_chunk(self, name, group):
+        """The owners first..last-1 of a chunked pair loop, their forces into cf/ct (the loop of
+        :meth:`group_forces`' chunks, as a function of its own); returns the dissipated power."""
+        lines = ["", "", "@njit(**INNER)",
+                 f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last):"]
+        lines += self.prelude(group) + ["    power = 0.0"]
+        lines += self.loop(group, 4, "first", "last", "cf", "ct", "co", "cg")
+        return lines + ["    return power"]
 
 
 def generate_source(plan, templates, importable, threads=False):
@@ -983,26 +1013,28 @@ def build_module(plan, templates, threads=False):
     return module
 
 
-def pieces_source(plan):
-    """The text of the scene's own pieces (tier 2 of a scene with neighbour lists, see
-    :meth:`_Source.pieces_text`)."""
-    return _Source(plan, True).pieces_text()
+def pieces_source(plan, threads=False):
+    """(text, module name) of the scene's own pieces (tier 2 of a scene with neighbour lists, see
+    :meth:`_Source.pieces_text`; ``threads``: its pair loops on threads, calling the serial chunks)."""
+    source = _Source(plan, True).pieces_text()
+    name = f"demkit_pieces_{_fingerprint(source, plan.interactions + plan.effects)}"
+    if threads:
+        source = _Source(plan, True, threads=True).pieces_text(serial_name=name)
+        name = f"demkit_pieces_threads_{_fingerprint(source, plan.interactions + plan.effects)}"
+    return source, name
 
 
-def pieces_name(plan):
-    """The module name of the scene's own pieces (by the fingerprint of their text)."""
-    return f"demkit_pieces_{_fingerprint(pieces_source(plan), plan.interactions + plan.effects)}"
-
-
-def build_pieces(plan):
-    """The compiled module of the scene's own pieces: tier 2 of a scene with neighbour lists that the
-    generic module can run. The generic time loops call them through ``calls`` as they call the
-    generic pieces (:class:`demkit.generic.GenericKernels`), so tier 2 compiles the scene's pair and
-    sphere loops alone: its time loops, list upkeep and sums are tier 1's, compiled once per install."""
-    source, name = pieces_source(plan), pieces_name(plan)
+def build_pieces(plan, threads=False):
+    """The compiled module of the scene's own pieces (``threads``: its pair loops on threads): tier 2
+    of a scene with neighbour lists that the generic module can run. The generic time loops call
+    them through ``calls`` as they call the generic pieces (:class:`demkit.generic.GenericKernels`),
+    so tier 2 compiles the scene's pair and sphere loops alone: its time loops, list upkeep and sums
+    are tier 1's, compiled once per install."""
+    serial = build_pieces(plan) if threads else None  # the serial chunks, imported by the thread pieces
+    source, name = pieces_source(plan, threads)
     if name not in _MODULES:
         module = _load_from_file(name, source)
-        module.source = source
+        module.source, module.serial = source, serial or module
         _MODULES[name] = module
     return _MODULES[name]
 

@@ -176,18 +176,17 @@ class Scene:
     def _kernels(self, threads, tier=None):
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``).
         Tier 2 of a scene with neighbour lists that tier 1 can run is the generic time loops calling
-        the scene's own pieces (:func:`demkit.kernels.build_pieces`), on one thread; else its fused
-        module."""
+        the scene's own pieces (:func:`demkit.kernels.build_pieces`); else its fused module."""
         tier = tier or self.tier
-        if tier == 1 or self._pieces_tier_2(threads):
-            pieces = build_pieces(self.plan) if tier == 2 else None
+        if tier == 1 or self._pieces_tier_2():
+            pieces = build_pieces(self.plan, threads) if tier == 2 else None
             return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan),
                                          generic.needs_of(self.program), pieces)
         return build_module(self.plan, TEMPLATES, threads=threads)
 
-    def _pieces_tier_2(self, threads):
-        """Is this scene's tier 2 (serial, or ``threads``) its own pieces in the generic loops?"""
-        return not threads and self.program is not None and self.plan.growing
+    def _pieces_tier_2(self):
+        """Is this scene's tier 2 its own pieces called by the generic loops (not a fused module)?"""
+        return self.program is not None and self.plan.growing
 
     def _choose_tier(self):
         """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""

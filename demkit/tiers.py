@@ -1,8 +1,9 @@
-"""Which compiled code runs a scene: the generic module (tier 1) or its own fused module (tier 2).
+"""Which compiled code runs a scene: the generic module (tier 1) or its own code (tier 2).
 
 A scene of shipped interactions starts on tier 1 (:mod:`demkit.generic`: compiled once per install,
-loaded in a fraction of a second). Its own fused module (:mod:`demkit.kernels`) runs 0-25 % faster
-but costs 5-30 CPU s to compile the first time a combination of interactions is run. So a run
+loaded in a fraction of a second). Its own code (:mod:`demkit.kernels`: with neighbour lists its own
+pair and sphere loops called by tier 1's time loops, in open space a fused module) runs 0-25 %
+faster but costs 3-30 CPU s to compile the first time a combination of interactions is run. So a run
 
 1. starts on tier 1;
 2. compiles tier 2 on another thread (or loads it, when numba's cache has it) once the run has at
@@ -10,7 +11,7 @@ but costs 5-30 CPU s to compile the first time a combination of interactions is 
 3. switches to tier 2 between two compiled chunks as soon as it is ready.
 
 Both tiers do the same arithmetic in the same order, so a run gives the same bits whenever the
-switch happens, or whether it happens at a all (``tests/test_tiers.py``). A run that ends before
+switch happens, or whether it happens at all (``tests/test_tiers.py``). A run that ends before
 tier 2 is ready never waits for it, and one shorter than :data:`WORTH_COMPILING` never compiles it.
 ``Scene(tier=1)`` never switches, ``Scene(tier=2)`` starts on tier 2; ``sim.statistics`` (``tier``,
 ``tier_reason``, ``tier_switch_step``), the progress bar and ``demkit info`` say which tier ran.
@@ -42,7 +43,7 @@ class TierChoice:
         elif scene.tier_requested == 1:
             self.reason = "tier=1 asked for"
         else:
-            self.reason = "the generic module (tier 1) until the scene's fused module is worth compiling"
+            self.reason = "the generic module (tier 1) until the scene's own code (tier 2) is worth compiling"
         self._work = None
         self._modules = None  # (serial, thread or None) of tier 2, once compiled
         self._cached = None
@@ -50,9 +51,9 @@ class TierChoice:
     def _worth(self):
         if self._cached is None:
             from .integrators import TEMPLATES
-            from .kernels import cached_function, is_cached, pieces_name
-            if self.scene._pieces_tier_2(threads=False):
-                self._cached = cached_function(pieces_name(self.scene.plan), "piece_pairs_forces")
+            from .kernels import cached_function, is_cached, pieces_source
+            if self.scene._pieces_tier_2():
+                self._cached = cached_function(pieces_source(self.scene.plan)[1], "piece_pairs_forces")
             else:
                 self._cached = is_cached(self.scene.plan, TEMPLATES, self.name)
         return WORTH_LOADING if self._cached else WORTH_COMPILING
@@ -76,7 +77,7 @@ class TierChoice:
     def switched(self, step):
         """The run now runs tier 2, from global step ``step`` on."""
         self.tier, self.switch_step = 2, step
-        self.reason = (f"the scene's fused module (tier 2), {'loaded' if self._cached else 'compiled'} while the "
+        self.reason = (f"the scene's own code (tier 2), {'loaded' if self._cached else 'compiled'} while the "
                        f"run went on, from step {step} (tier 1 before: the same bits)")
 
     def _start(self):
@@ -110,7 +111,7 @@ class TierChoice:
     def describe(self):
         """One line for ``demkit info``: which tier runs this scene and why."""
         if self.switchable:
-            return (f"tier 1, the generic module (compiled once per install); the scene's own fused module (tier 2, "
+            return (f"tier 1, the generic module (compiled once per install); the scene's own code (tier 2, "
                     f"the same bits, up to 25 % faster) is compiled in the background by runs with more than "
                     f"{WORTH_COMPILING:g} s to go, loaded by runs of more than {WORTH_LOADING:g} s once cached")
         return f"tier {self.tier}: {self.reason}"
