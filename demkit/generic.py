@@ -750,6 +750,7 @@ class _Generic:
 
     def imports(self):
         lines = ['"""demkit\'s generic kernel module (tier 1): written by demkit.generic, do not edit."""',
+                 _layout_line(),
                  "import math", "import numpy as np", "from numba import njit, prange",
                  "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
@@ -857,6 +858,33 @@ PIECE_ARGUMENTS = {"pairs_forces": (_CHUNKED, "0.0"), "pairs_forces_blocked": (_
                    "sphere_forces": (f"{ARRAYS}, force, torque, history, commit, program", "0.0"),
                    "pairs_energies": (f"{ARRAYS}, {LIST_ARRAYS}, out, program", "None"),
                    "sphere_energies": (f"{ARRAYS}, history, out, program", "None")}
+
+
+def _layout_line():
+    """The program's layout as a comment line: generated modules import its constants by name, and
+    numba's cache (keyed by their text) must not serve code compiled for another layout."""
+    layout = ", ".join(f"{name}={value}" for name, value in sorted(globals().items())
+                       if re.fullmatch(r"[HGMES]_[A-Z_]+|COLUMNS|MAX_[A-Z]+", name))
+    return f"# program layout: {layout}"
+
+
+def own_sphere_pieces(effects):
+    """Source lines of tier 1's single-sphere loops over the kinds of these effects only, named
+    ``piece_sphere_forces`` and ``piece_sphere_energies``: a scene's own sphere pieces (tier 2,
+    :func:`demkit.kernels.build_pieces`). A fused loop writes each effect out, and so compiles a law
+    once per wall (a box of five Hertz walls: five copies); this switch holds each kind once."""
+    laws = catalogue()[1]
+    source = _Generic(True, False, False)
+    source.effects = [laws[kind] for kind in sorted({_law_of(effect, laws).kind for effect in effects})]
+    lines = [_layout_line(), "from demkit.generic import H_EFFECTS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE",
+             f"EFFECT_ROW = {effect_row(0)}"]
+    for law in source.effects:
+        lines += [f"from {law.module} import {law.force_name} as effect_{law.kind}_force",
+                  f"from {law.module} import {law.energy_name} as effect_{law.kind}_energy"]
+    text = "\n".join(source.sphere_functions())
+    text = text.replace("def sphere_forces(", "def piece_sphere_forces(").replace(
+        "def sphere_energies(", "def piece_sphere_energies(")
+    return lines + text.splitlines()
 
 
 # ---- building and loading ---------------------------------------------------------------------------

@@ -876,15 +876,17 @@ class _Source:
                 lines += self.group_chunk(name, sub) if sub.parallel else self.group_forces(0, sub, name)
             for g, group in enumerate(plan.groups):
                 lines += self.group_energies(g, group)
-            lines += self.sphere_functions()
         arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
                   f"def piece_pairs_forces({arrays}, bounds, chunk_force, chunk_torque, chunk_power, program):",
                   '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""',
                   f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]",
                   "    chunks = bounds.shape[0] - 1", "    torque_on = False"]
+        rows = {}  # each loop once, with the speeds whose rows ask for it
         for (g, sp), (name, sub) in loops.items():
-            lines.append(f"    if g == {g} and speed == {sp}:")
+            rows.setdefault(name, (g, sub, []))[2].append(sp)
+        for name, (g, sub, speeds) in rows.items():
+            lines.append(f"    if g == {g} and ({' or '.join(f'speed == {sp}' for sp in speeds)}):")
             if not sub.parallel:
                 lines.append(f"        return {name}_forces({arrays})")
                 continue
@@ -906,12 +908,9 @@ class _Source:
                   f"    g = program[{G_GROUP}]"]
         for g in range(len(plan.groups)):
             lines += [f"    if g == {g}:", f"        group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out)"]
-        if plan.effects:
-            lines += ["", "", "@njit(**INNER)",
-                      f"def piece_sphere_forces({ARRAYS}, force, torque, history, commit, program):",
-                      f"    return sphere_forces({ARRAYS}, force, torque, history, commit)",
-                      "", "", "@njit(**INNER)", f"def piece_sphere_energies({ARRAYS}, history, out, program):",
-                      f"    sphere_energies({ARRAYS}, history, out)"]
+        if plan.effects:  # tier 1's sphere loops over the scene's kinds alone (see generic.own_sphere_pieces)
+            from .generic import own_sphere_pieces
+            lines += own_sphere_pieces(plan.effects)
         return "\n".join(lines) + "\n"
 
     def group_chunk(self, name, group):

@@ -112,6 +112,27 @@ def test_multiple_time_steps_with_lists_same_bits():
     same_bits(lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0), dk.MultipleTimeStep(2e-3, inner=2), 0.2)
 
 
+def walled_pour(tier, n=72):
+    """Spheres falling in a box of five walls, with neighbour lists in open space: Hertz contacts with
+    friction and twisting resistance, gravity, a field, a Langevin bath (tier 2: the scene's own
+    pieces, its sphere loop a switch over its effects' kinds)."""
+    k = np.arange(n)
+    rng = np.random.default_rng(6)
+    pos = np.stack([0.75 + 1.25 * (k % 4), 0.75 + 1.25 * ((k // 4) % 4), 1.0 + 1.25 * (k // 16)], axis=1)
+    p = dk.Particles(position=pos + rng.uniform(-0.1, 0.1, (n, 3)), velocity=rng.normal(size=(n, 3)), radius=0.5,
+                     mass=1.0, dipole=0.1 * rng.normal(size=(n, 3)))
+    law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5), twisting=dk.TwistingResistance())
+    walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
+             dk.Wall((5.5, 5.5, 0), (-1, 0, 0)), dk.Wall((5.5, 5.5, 0), (0, -1, 0))]
+    effects = [dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0.1, 0.1)), dk.Langevin(drag=0.5, temperature=0.01, seed=4)]
+    return dk.Scene(p, [law, *effects, *walls], skin=0.4, tier=tier)
+
+
+def test_walled_pour_with_lists_same_bits():
+    assert walled_pour(1).plan.growing
+    same_bits(walled_pour, dk.VelocityVerlet(1e-3), 0.3)
+
+
 def test_sorted_chunked_gas_on_threads_same_bits():
     """Sorting by cell, chunks on numba's threads (parallel=True), the switched power law."""
     same_bits(lambda tier: gas(tier, n=1100, parallel=True, sort_every=40, power_law=True),
