@@ -868,25 +868,6 @@ def _layout_line():
     return f"# program layout: {layout}"
 
 
-def own_sphere_pieces(effects):
-    """Source lines of tier 1's single-sphere loops over the kinds of these effects only, named
-    ``piece_sphere_forces`` and ``piece_sphere_energies``: a scene's own sphere pieces (tier 2,
-    :func:`demkit.kernels.build_pieces`). A fused loop writes each effect out, and so compiles a law
-    once per wall (a box of five Hertz walls: five copies); this switch holds each kind once."""
-    laws = catalogue()[1]
-    source = _Generic(True, False, False)
-    source.effects = [laws[kind] for kind in sorted({_law_of(effect, laws).kind for effect in effects})]
-    lines = [_layout_line(), "from demkit.generic import H_EFFECTS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE",
-             f"EFFECT_ROW = {effect_row(0)}"]
-    for law in source.effects:
-        lines += [f"from {law.module} import {law.force_name} as effect_{law.kind}_force",
-                  f"from {law.module} import {law.energy_name} as effect_{law.kind}_energy"]
-    text = "\n".join(source.sphere_functions())
-    text = text.replace("def sphere_forces(", "def piece_sphere_forces(").replace(
-        "def sphere_energies(", "def piece_sphere_energies(")
-    return lines + text.splitlines()
-
-
 # ---- building and loading ---------------------------------------------------------------------------
 def generic_source(growing, threads=False, nrt=None):
     """Python source of the generic module (``growing``: for scenes with neighbour lists; ``nrt``:

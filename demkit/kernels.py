@@ -545,55 +545,103 @@ class _Source:
         return lines + [f"{pad}q += 1"]
 
     # ---- single-sphere effects ---------------------------------------------------------------
-    def effect_call(self, e, effect, offset, kind):
+    def effect_call(self, e, effect, offset, kind, q=None, table=None):
+        """The call of effect e's force or energy function (``q``: the names holding its parameters,
+        ``table``: the expression of its table's slot)."""
         args = ["i", "x", "y", "z", *effect.reads]
         if effect.history_size:
             args += ["history", "i", str(offset), "commit" if kind == "force" else "False"]
         if e in self.table_slot:
-            args += ["params", str(self.table_slot[e])]
-        args += [f"q{e}_{m}" for m in range(len(effect.parameters))]
+            args += ["params", table or str(self.table_slot[e])]
+        args += q if q is not None else [f"q{e}_{m}" for m in range(len(effect.parameters))]
         return f"s{kind}_{e}({', '.join(_callable_arguments(effect, args))})"
+
+    def effect_runs(self):
+        """The effects in runs (first, last) of consecutive effects of one law: the same functions,
+        parameter count and history size, their parameters and history side by side, no table. A
+        run's effects share one call site in a loop (a box of five walls: one copy of the wall law,
+        not five, for numba and LLVM to compile), in the scene's order."""
+        plan, runs = self.plan, []
+        for e, effect in enumerate(plan.effects):
+            if runs:
+                first, last = runs[-1]
+                one = plan.effects[first]
+                tables = self.table_slot.get(first), self.table_slot.get(e), np.size(one.table_values())
+                if (effect.pair_functions() == one.pair_functions() and effect.parameters == one.parameters
+                        and effect.history_size == one.history_size and effect.energy_kind == one.energy_kind
+                        and np.size(effect.table_values()) == tables[2]
+                        and (tables[0] is None) == (tables[1] is None)
+                        and (tables[0] is None or tables[1] == tables[0] + (e - first) * tables[2])):
+                    runs[-1] = (first, e)
+                    continue
+            runs.append((e, e))
+        return runs
 
     def sphere_functions(self):
         plan = self.plan
         if not plan.effects:
             return []
         offsets = plan.effect_offsets
+        runs = self.effect_runs()
         prelude = [f"    q{e}_{m} = params[{self.effect_slot[e] + m}]"
-                   for e, effect in enumerate(plan.effects) for m in range(len(effect.parameters))]
+                   for e, last in runs if e == last for m in range(len(plan.effects[e].parameters))]
         head = ["    n = position.shape[0]"] + prelude + ["    for i in range(n):", "        x = position[i, 0]",
                                                           "        y = position[i, 1]", "        z = position[i, 2]"]
+
+        def effect_lines(e, last, body_of):
+            """Lines for the effects e..last (a run: a loop whose parameters and history offset follow e)."""
+            effect = plan.effects[e]
+            if e == last:
+                return [" " * 8 + line for line in body_of(str(e), str(offsets[e]), [f"q{e}_{m}" for m in range(
+                    len(effect.parameters))], None)]
+            size, width = len(effect.parameters), effect.history_size
+            lines = [f"        for e in range({e}, {last + 1}):",
+                     f"            qb = {self.effect_slot[e]} + {size} * (e - {e})",
+                     f"            ob = {offsets[e]} + {width} * (e - {e})"]
+            if e in self.table_slot:
+                lines.append(f"            tb = {self.table_slot[e]} + {np.size(effect.table_values())} * (e - {e})")
+            lines += [f"            u{m} = params[qb + {m}]" for m in range(size)]
+            return lines + [" " * 12 + line for line in body_of("e", "ob", [f"u{m}" for m in range(size)], "tb")]
+
+        def force_body(e):
+            effect = plan.effects[e]
+
+            def body(index, offset, q, table):
+                outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if effect.torque else []) + (
+                    ["w"] if effect.dissipative else [])
+                lines, pad = [], ""
+                call = [f"{', '.join(outs)} = {self.effect_call(e, effect, offset, 'force', q, table)}"]
+                if getattr(effect, "plane_contact", False):  # walls: plane, nx, ny, nz come first
+                    # a sphere clear of the wall, holding no history there, costs this test and no
+                    # call (the law would return zeros: measured 13 ns a sphere and frictional wall)
+                    held = "".join(f" or history[i, {offset} + {h}] != 0.0" for h in range(effect.history_size))
+                    lines += [f"overlap = radius[i] - (x * {q[1]} + y * {q[2]} + z * {q[3]} - {q[0]})",
+                              f"if overlap > 0.0{held}:"]
+                    pad = "    "
+                    call += [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
+                             "    status[0] = DEEP_OVERLAP", "    status[1] = i", f"    status[3] = -1 - {index}"]
+                call += [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
+                if effect.torque:
+                    call += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
+                if effect.dissipative:
+                    call.append("power += w")
+                return lines + [pad + line for line in call]
+            return body
+
         lines = ["", "", "@njit(**INNER)",
                  f"def sphere_forces({ARRAYS}, force, torque, history, commit):",
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
                  "    power = 0.0"] + head
-        for e, effect in enumerate(plan.effects):
-            outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if effect.torque else []) + (
-                ["w"] if effect.dissipative else [])
-            pad = " " * 8
-            body = [f"{', '.join(outs)} = {self.effect_call(e, effect, offsets[e], 'force')}"]
-            if getattr(effect, "plane_contact", False):  # walls: plane, nx, ny, nz come first
-                # a sphere clear of the wall, holding no history there, costs this test and no
-                # call (the law would return zeros: measured 13 ns a sphere and frictional wall)
-                held = "".join(f" or history[i, {h}] != 0.0"
-                               for h in range(offsets[e], offsets[e] + effect.history_size))
-                lines += [f"{pad}overlap = radius[i] - (x * q{e}_1 + y * q{e}_2 + z * q{e}_3 - q{e}_0)",
-                          f"{pad}if overlap > 0.0{held}:"]
-                pad += "    "
-                body += [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
-                         "    status[0] = DEEP_OVERLAP", "    status[1] = i", f"    status[3] = {-1 - e}"]
-            body += [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
-            if effect.torque:
-                body += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
-            if effect.dissipative:
-                body.append("power += w")
-            lines += [pad + line for line in body]
+        for e, last in runs:
+            lines += effect_lines(e, last, force_body(e))
         lines.append("    return power")
         lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out):",
                   '    """Add the potential energies of the single-sphere effects to out[2 + kind]."""'] + head
-        for e, effect in enumerate(plan.effects):
+        for e, last in runs:
+            effect = plan.effects[e]
             slot = 2 + self.kinds.index(effect.energy_kind)
-            lines.append(f"        out[{slot}] += {self.effect_call(e, effect, offsets[e], 'energy')}")
+            lines += effect_lines(e, last, lambda index, offset, q, table, e=e, effect=effect, slot=slot: [
+                f"out[{slot}] += {self.effect_call(e, effect, offset, 'energy', q, table)}"])
         return lines
 
     # ---- scene-level functions -----------------------------------------------------------------
@@ -876,6 +924,7 @@ class _Source:
                 lines += self.group_chunk(name, sub) if sub.parallel else self.group_forces(0, sub, name)
             for g, group in enumerate(plan.groups):
                 lines += self.group_energies(g, group)
+            lines += self.sphere_functions()
         arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
                   f"def piece_pairs_forces({arrays}, bounds, chunk_force, chunk_torque, chunk_power, program):",
@@ -908,9 +957,12 @@ class _Source:
                   f"    g = program[{G_GROUP}]"]
         for g in range(len(plan.groups)):
             lines += [f"    if g == {g}:", f"        group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out)"]
-        if plan.effects:  # tier 1's sphere loops over the scene's kinds alone (see generic.own_sphere_pieces)
-            from .generic import own_sphere_pieces
-            lines += own_sphere_pieces(plan.effects)
+        if plan.effects:
+            lines += ["", "", "@njit(**INNER)",
+                      f"def piece_sphere_forces({ARRAYS}, force, torque, history, commit, program):",
+                      f"    return sphere_forces({ARRAYS}, force, torque, history, commit)",
+                      "", "", "@njit(**INNER)", f"def piece_sphere_energies({ARRAYS}, history, out, program):",
+                      f"    sphere_energies({ARRAYS}, history, out)"]
         return "\n".join(lines) + "\n"
 
     def group_chunk(self, name, group):
