@@ -45,7 +45,8 @@ import warnings
 
 import numpy as np
 
-from .kernels import END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME
+from .kernels import (END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME,
+                      SPEEDS, deep_wall_overlap, effect_sums)
 from .state import DEEP_OVERLAP_FRACTION
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -71,7 +72,6 @@ S_KIND, S_SLOT, S_ENERGY = range(3)
 G_GROUP = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
 G_SPEED = G_GROUP + 1
 COLUMNS = G_SPEED + 1
-SPEEDS = (None, "fast", "slow")
 
 #: the shipped pair laws: (module, force function, energy function, torque, dissipative, branch_free)
 PAIR_LAWS = (
@@ -549,16 +549,11 @@ class _Generic:
                           "        held = True",
                           "        break",
                           "if overlap > 0.0 or held:"]
-                body += [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
-                         "    status[0] = DEEP_OVERLAP", "    status[1] = i", "    status[3] = -1 - e"]
+                body += deep_wall_overlap("e")
                 pad = "    "
             else:
                 pad = ""
-            body += [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
-            if law.torque:
-                body += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
-            if law.dissipative:
-                body.append("power += w")
+            body += effect_sums(law.torque, law.dissipative)
             return lines + [pad + line for line in body]
         lines += _switch(self.effects, " " * 12, branch)
         lines.append("    return power")

@@ -225,6 +225,25 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
                  "    return countdown - 1"]
 
 
+#: the speeds of a pair loop's members, for multiple time stepping: all of them, the fast, the slow
+SPEEDS = (None, "fast", "slow")
+
+
+def deep_wall_overlap(index):
+    """Lines flagging a sphere pushed deeper than DEEP_OVERLAP_FRACTION of its radius into wall ``index``."""
+    return [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
+            "    status[0] = DEEP_OVERLAP", "    status[1] = i", f"    status[3] = -1 - {index}"]
+
+
+def effect_sums(torque, dissipative):
+    """Lines adding a single-sphere effect's (ax, ay, az), (bx, by, bz) and w to sphere i's force,
+    torque and the dissipated power."""
+    lines = [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
+    if torque:
+        lines += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
+    return lines + (["power += w"] if dissipative else [])
+
+
 class _Source:
     """Builds the text of the generated module."""
 
@@ -618,13 +637,8 @@ class _Source:
                     lines += [f"overlap = radius[i] - (x * {q[1]} + y * {q[2]} + z * {q[3]} - {q[0]})",
                               f"if overlap > 0.0{held}:"]
                     pad = "    "
-                    call += [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
-                             "    status[0] = DEEP_OVERLAP", "    status[1] = i", f"    status[3] = -1 - {index}"]
-                call += [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
-                if effect.torque:
-                    call += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
-                if effect.dissipative:
-                    call.append("power += w")
+                    call += deep_wall_overlap(index)
+                call += effect_sums(effect.torque, effect.dissipative)
                 return lines + [pad + line for line in call]
             return body
 
@@ -897,14 +911,15 @@ class _Source:
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         return "\n".join(lines) + "\n"
 
-    def pieces_text(self, serial_name=None):
+    def pieces_text(self, columns, serial_name=None):
         """Tier 2 of a scene with neighbour lists that tier 1 can run (see :func:`build_pieces`): its
         own pair and sphere loops, under the names and with the arguments of the generic pieces
         (:data:`demkit.generic.PIECE_ARGUMENTS`), which pick a pair loop by the program row's group and
-        speed (:data:`demkit.generic.G_GROUP`, :data:`demkit.generic.G_SPEED`). Each chunk of a chunked
-        loop is one call of a serial function, ``<loop>_chunk``; the thread pieces (``self.threads``)
-        are the same dispatcher on prange, around the serial module's (``serial_name``) chunk calls."""
-        from .generic import G_GROUP, G_SPEED, SPEEDS
+        speed (``columns``: their columns in a row, :data:`demkit.generic.G_GROUP` and
+        :data:`demkit.generic.G_SPEED`). Each chunk of a chunked loop is one call of a serial function,
+        ``<loop>_chunk``; the thread pieces (``self.threads``) are the same dispatcher on prange, around
+        the serial module's (``serial_name``) chunk calls."""
+        G_GROUP, G_SPEED = columns
         plan = self.plan
         lines = self.head()
         split = {(g, sp): (name, sub) for g, name, sub, sp in self.parts}
@@ -1064,25 +1079,27 @@ def build_module(plan, templates, threads=False):
     return module
 
 
-def pieces_source(plan, threads=False):
+def pieces_source(plan, columns, threads=False):
     """(text, module name) of the scene's own pieces (tier 2 of a scene with neighbour lists, see
-    :meth:`_Source.pieces_text`; ``threads``: its pair loops on threads, calling the serial chunks)."""
-    source = _Source(plan, True).pieces_text()
+    :meth:`_Source.pieces_text`; ``columns``: where a program row holds its group and speed;
+    ``threads``: its pair loops on threads, calling the serial chunks)."""
+    source = _Source(plan, True).pieces_text(columns)
     name = f"demkit_pieces_{_fingerprint(source, plan.interactions + plan.effects)}"
     if threads:
-        source = _Source(plan, True, threads=True).pieces_text(serial_name=name)
+        source = _Source(plan, True, threads=True).pieces_text(columns, serial_name=name)
         name = f"demkit_pieces_threads_{_fingerprint(source, plan.interactions + plan.effects)}"
     return source, name
 
 
-def build_pieces(plan, threads=False):
-    """The compiled module of the scene's own pieces (``threads``: its pair loops on threads): tier 2
+def build_pieces(plan, columns, threads=False):
+    """The compiled module of the scene's own pieces (``columns`` and ``threads``: see
+    :func:`pieces_source`): tier 2
     of a scene with neighbour lists that the generic module can run. The generic time loops call
     them through ``calls`` as they call the generic pieces (:class:`demkit.generic.GenericKernels`),
     so tier 2 compiles the scene's pair and sphere loops alone: its time loops, list upkeep and sums
     are tier 1's, compiled once per install."""
-    serial = build_pieces(plan) if threads else None  # the serial chunks, imported by the thread pieces
-    source, name = pieces_source(plan, threads)
+    serial = build_pieces(plan, columns) if threads else None  # the serial chunks, imported by the thread pieces
+    source, name = pieces_source(plan, columns, threads)
     if name not in _MODULES:
         module = _load_from_file(name, source)
         module.source, module.serial = source, serial or module

@@ -179,10 +179,13 @@ class Scene:
         the scene's own pieces (:func:`demkit.kernels.build_pieces`); else its fused module."""
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
-            pieces = build_pieces(self.plan, threads) if tier == 2 else None
+            pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
             return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan),
                                          generic.needs_of(self.program), pieces)
         return build_module(self.plan, TEMPLATES, threads=threads)
+
+    #: where a program row holds its group and speed (read by the scene's own pieces)
+    program_columns = (generic.G_GROUP, generic.G_SPEED)
 
     def _pieces_tier_2(self):
         """Is this scene's tier 2 its own pieces called by the generic loops (not a fused module)?"""

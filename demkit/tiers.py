@@ -53,7 +53,8 @@ class TierChoice:
             from .integrators import TEMPLATES
             from .kernels import cached_function, is_cached, pieces_source
             if self.scene._pieces_tier_2():
-                self._cached = cached_function(pieces_source(self.scene.plan)[1], "piece_pairs_forces")
+                self._cached = cached_function(pieces_source(self.scene.plan, self.scene.program_columns)[1],
+                                               "piece_pairs_forces")
             else:
                 self._cached = is_cached(self.scene.plan, TEMPLATES, self.name)
         return WORTH_LOADING if self._cached else WORTH_COMPILING
