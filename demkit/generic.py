@@ -46,7 +46,7 @@ import warnings
 import numpy as np
 
 from .kernels import (END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME,
-                      SPEEDS, deep_wall_overlap, effect_sums)
+                      SPEEDS, chunks_run, deep_wall_overlap, effect_sums)
 from .state import DEEP_OVERLAP_FRACTION
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -468,20 +468,10 @@ class _Generic:
             lines += loop("    ", "first", "last", "cf", "ct", "co", "cg")
             lines += ["    return power"]
         lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):",
-                  "    torque_on = program[G_TORQUE] != 0",
-                  "    chunks = bounds.shape[0] - 1",
-                  f"    for t in {'prange' if self.threads else 'range'}(chunks):",
-                  "        cf = force if t == 0 else chunk_force[t - 1]",
-                  "        ct = torque if t == 0 else chunk_torque[t - 1]",
-                  f"        chunk_power[t] = {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
-                  "bounds[t], bounds[t + 1], program)",
-                  "    if chunks > 1:",
-                  "        sum_chunks(force, chunk_force, chunks - 1)",
-                  "        if torque_on:",
-                  "            sum_chunks(torque, chunk_torque, chunks - 1)",
-                  "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
-                  "    return power"]
-        return lines
+                  "    torque_on = program[G_TORQUE] != 0"]
+        return lines + chunks_run("prange" if self.threads else "range",
+                                  f"{name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
+                                  "bounds[t], bounds[t + 1], program)")
 
     def pair_functions(self):
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))

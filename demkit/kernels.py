@@ -229,6 +229,25 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
 SPEEDS = (None, "fast", "slow")
 
 
+def chunks_run(loop, call):
+    """Body lines of a pair loop cut into fixed chunks of owners: ``call`` (an expression of t, cf, ct)
+    runs chunk t, chunk 0 adding into force/torque, the others into buffers of their own (zero on
+    entry), over ``loop`` ("range", or "prange" on threads); then the buffers are summed in chunk order
+    (torque too when ``torque_on``, set before) and zeroed again by sum_chunks: the same bits on any
+    number of threads. Returns the dissipated power."""
+    return ["    chunks = bounds.shape[0] - 1",
+            f"    for t in {loop}(chunks):",
+            "        cf = force if t == 0 else chunk_force[t - 1]",
+            "        ct = torque if t == 0 else chunk_torque[t - 1]",
+            f"        chunk_power[t] = {call}",
+            "    if chunks > 1:",
+            "        sum_chunks(force, chunk_force, chunks - 1)",
+            "        if torque_on:",
+            "            sum_chunks(torque, chunk_torque, chunks - 1)",
+            "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
+            "    return power"]
+
+
 def deep_wall_overlap(index):
     """Lines flagging a sphere pushed deeper than DEEP_OVERLAP_FRACTION of its radius into wall ``index``."""
     return [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
@@ -483,7 +502,10 @@ class _Source:
                     + self.blocked_loop(group, indent, first, last, force, torque, out, gather))
         return self.force_loop(group, indent, first, last, force, torque)
 
-    def group_forces(self, g, group, name=None):
+    def group_forces(self, g, group, name=None, chunk=True):
+        """Group g's pair loop (or the part of it ``name``); a chunked loop calls ``<name>_chunk`` for
+        each chunk (:meth:`group_chunk`, written here unless ``chunk`` is False: the thread pieces
+        import the serial ones), on prange in the thread module."""
         name = name or f"group_{g}"
         signature = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         if not group.parallel:
@@ -493,32 +515,16 @@ class _Source:
             lines += self.loop(group, 4, 0, "n", "force", "torque", "out", "gat")
             lines.append("    return power")
             return lines
-        # chunked: the same text runs on threads (prange, the thread module) or chunk after chunk
+        # chunked: the same chunks run on threads (prange, the thread module) or one after the other
         # (range, the serial module), so both give the same bits
-        loop = "prange" if self.threads else "range"
-        lines = ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
-                 f"def {name}_forces_chunked({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
-                 '    """Owners cut into fixed chunks: chunk 0 adds into force/torque, the others into buffers',
-                 '    of their own (zero on entry), summed in chunk order and zeroed again by sum_chunks (the',
-                 '    same result for any number of threads, and in the serial module, where the chunks run',
-                 '    one after the other)."""']
-        lines += self.prelude(group)
-        lines += ["    chunks = bounds.shape[0] - 1",
-                  f"    for t in {loop}(chunks):",
-                  "        cf = force if t == 0 else chunk_force[t - 1]",
-                  "        ct = torque if t == 0 else chunk_torque[t - 1]",
-                  "        co = scratch[t]",
-                  "        cg = gather[t]",
-                  "        power = 0.0"]  # the buffers are zero: sum_chunks leaves them so
-        lines += self.loop(group, 8, "bounds[t]", "bounds[t + 1]", "cf", "ct", "co", "cg")
-        lines += ["        chunk_power[t] = power",
-                  "    if chunks > 1:",
-                  "        sum_chunks(force, chunk_force, chunks - 1)"]
-        if group.torque:
-            lines += ["        sum_chunks(torque, chunk_torque, chunks - 1)"]
-        lines += ["    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
-                  "    return power"]
-        return lines
+        lines = self.group_chunk(name, group) if chunk else []
+        lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
+                  f"def {name}_forces_chunked({signature}, bounds, chunk_force, chunk_torque, chunk_power):",
+                  f'    """Group {g}\'s owners cut into fixed chunks (see chunks_run)."""',
+                  f"    torque_on = {bool(group.torque)}"]
+        return lines + chunks_run("prange" if self.threads else "range",
+                                  f"{name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
+                                  "bounds[t], bounds[t + 1])")
 
     def energy_statements(self, group, target):
         body = []
@@ -577,7 +583,7 @@ class _Source:
 
     def effect_runs(self):
         """The effects in runs (first, last) of consecutive effects of one law: the same functions,
-        parameter count and history size, their parameters and history side by side, no table. A
+        parameters, history size and table size, their parameters, history and tables side by side. A
         run's effects share one call site in a loop (a box of five walls: one copy of the wall law,
         not five, for numba and LLVM to compile), in the scene's order."""
         plan, runs = self.plan, []
@@ -917,8 +923,8 @@ class _Source:
         (:data:`demkit.generic.PIECE_ARGUMENTS`), which pick a pair loop by the program row's group and
         speed (``columns``: their columns in a row, :data:`demkit.generic.G_GROUP` and
         :data:`demkit.generic.G_SPEED`). Each chunk of a chunked loop is one call of a serial function,
-        ``<loop>_chunk``; the thread pieces (``self.threads``) are the same dispatcher on prange, around
-        the serial module's (``serial_name``) chunk calls."""
+        ``<loop>_chunk``; the thread pieces (``self.threads``) run the serial module's (``serial_name``)
+        chunks on prange."""
         G_GROUP, G_SPEED = columns
         plan = self.plan
         lines = self.head()
@@ -931,39 +937,32 @@ class _Source:
                     continue  # no member of this speed: the program row is empty, never called
                 name, sub = split.get((g, speed), (f"group_{g}", group))
                 loops[g, sp] = (name, sub)
-        chunked = sorted({name for name, sub in loops.values() if sub.parallel})
-        if self.threads:
-            lines.append(f"from {serial_name} import " + ", ".join(f"{name}_chunk" for name in chunked))
+        once = {name: sub for name, sub in loops.values()}
+        if self.threads:  # the chunks and the loops not chunked are the serial module's
+            lines.append(f"from {serial_name} import " + ", ".join(
+                f"{name}_chunk" if sub.parallel else f"{name}_forces" for name, sub in once.items()))
+            for name, sub in once.items():
+                if sub.parallel:
+                    lines += self.group_forces(0, sub, name, chunk=False)
         else:
-            for name, sub in {name: sub for name, sub in loops.values()}.items():
-                lines += self.group_chunk(name, sub) if sub.parallel else self.group_forces(0, sub, name)
+            for name, sub in once.items():
+                lines += self.group_forces(0, sub, name)
             for g, group in enumerate(plan.groups):
                 lines += self.group_energies(g, group)
             lines += self.sphere_functions()
         arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
-        lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)",
-                  f"def piece_pairs_forces({arrays}, bounds, chunk_force, chunk_torque, chunk_power, program):",
+        chunks = "bounds, chunk_force, chunk_torque, chunk_power"
+        lines += ["", "", "@njit(**INNER)", f"def piece_pairs_forces({arrays}, {chunks}, program):",
                   '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""',
-                  f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]",
-                  "    chunks = bounds.shape[0] - 1", "    torque_on = False"]
-        rows = {}  # each loop once, with the speeds whose rows ask for it
+                  f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]"]
+        speeds = {}  # each loop once, with the speeds whose rows ask for it
         for (g, sp), (name, sub) in loops.items():
-            rows.setdefault(name, (g, sub, []))[2].append(sp)
-        for name, (g, sub, speeds) in rows.items():
-            lines.append(f"    if g == {g} and ({' or '.join(f'speed == {sp}' for sp in speeds)}):")
-            if not sub.parallel:
-                lines.append(f"        return {name}_forces({arrays})")
-                continue
-            lines += [f"        torque_on = {bool(sub.torque)}",
-                      f"        for t in {'prange' if self.threads else 'range'}(chunks):",
-                      "            cf = force if t == 0 else chunk_force[t - 1]",
-                      "            ct = torque if t == 0 else chunk_torque[t - 1]",
-                      f"            chunk_power[t] = {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], "
-                      "commit, bounds[t], bounds[t + 1])"]
-        lines += ["    if chunks > 1:", "        sum_chunks(force, chunk_force, chunks - 1)",
-                  "        if torque_on:", "            sum_chunks(torque, chunk_torque, chunks - 1)",
-                  "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
-                  "    return power",
+            speeds.setdefault(name, (g, sub, []))[2].append(sp)
+        for name, (g, sub, sps) in speeds.items():
+            call = f"{name}_forces_chunked({arrays}, {chunks})" if sub.parallel else f"{name}_forces({arrays})"
+            lines += [f"    if g == {g} and ({' or '.join(f'speed == {sp}' for sp in sps)}):",
+                      f"        return {call}"]
+        lines += ["    return 0.0",
                   "", "", "piece_pairs_forces_blocked = piece_pairs_forces  # a group's own loop knows it is blocked"]
         if self.threads:
             return "\n".join(lines) + "\n"
@@ -981,8 +980,8 @@ class _Source:
         return "\n".join(lines) + "\n"
 
     def group_chunk(self, name, group):
-        """The owners first..last-1 of a chunked pair loop, their forces into cf/ct (the loop of
-        :meth:`group_forces`' chunks, as a function of its own); returns the dissipated power."""
+        """The owners first..last-1 of a chunked pair loop, their forces into cf/ct (the buffers are
+        zero: sum_chunks leaves them so); returns the dissipated power."""
         lines = ["", "", "@njit(**INNER)",
                  f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last):"]
         lines += self.prelude(group) + ["    power = 0.0"]
