@@ -674,7 +674,7 @@ class _Generic:
             lines += ["", "", "@njit(**OUTER)", f"def {speed}_forces_of(calls, s, force, torque, commit):",
                       f'    """The {speed} forces and torques only into force/torque."""']
             lines += self.forces_body(speed, "force", "torque", "True")
-        lines += ["", "", "@njit(**LOOP)", "def next_contact_event(s, force, horizon):",
+        lines += ["", "", "@njit(**LOOP)", "def next_contact_event(calls, s, force, horizon):",
                   '    """Earliest time in (0, horizon] at which a contact starts or stops (see demkit.events)."""',
                   "    earliest = math.inf"]
         args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
@@ -814,10 +814,15 @@ class _Generic:
             lines += ["", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
                       "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
                       "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
+        # passed in steps for the functions a time loop never calls
+        lines += ["", "", "@njit(**LOOP)", "def no_fast_forces_of(calls, s, force, torque, commit):", "    return 0.0",
+                  "", "", "@njit(**LOOP)", "def no_slow_forces_of(calls, s, force, torque, commit):", "    return 0.0",
+                  "", "", "@njit(**LOOP)", "def no_next_contact_event(calls, s, force, horizon):", "    return 0.0"]
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
-            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, ", 1)
-            src = re.sub(r"\b(forces_of|fast_forces_of|slow_forces_of|end_step)\(", r"\1(calls, ", src)
+            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
+            src = re.sub(r"\b(forces_of|fast_forces_of|slow_forces_of|end_step|next_contact_event)\(",
+                         lambda m: f"steps[{STEPS.index(m.group(1))}](calls, ", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         return "\n".join(lines) + "\n"
 
@@ -825,6 +830,9 @@ class _Generic:
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
 PIECES = ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies")
 THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
+#: the scene-level functions the time loops call, passed to them in the tuple ``steps`` (compiled once
+#: per variant and state type instead of inlined into each of the seven time loops)
+STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_contact_event")
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
 SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now")
@@ -976,6 +984,7 @@ class GenericKernels:
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
         self.tier = 1 if pieces is None else 2
         self._calls = {}
+        self._steps = {}
         self._bound = {}
 
     def calls_for(self, state_type):
@@ -1000,6 +1009,33 @@ class GenericKernels:
             self._calls[state_type] = tuple(calls)
         return self._calls[state_type]
 
+    def steps_for(self, state_type, record_type, split, events):
+        """The tuple of first-class functions the time loops take second (:data:`STEPS`), for this
+        state and record type; ``split``: the loop calls the fast and slow forces, ``events``: the
+        contact-event search (else stubs, never compiled)."""
+        key = (state_type, record_type, split, events)
+        if key not in self._steps:
+            from numba import types
+            from numba.core.types.function_type import CompileResultWAP
+            calls = self.calls_for(state_type)
+            import numba
+            calls_type = numba.typeof(calls)
+            stage = _fields(state_type)["stage"]
+            vector = types.Array(stage.dtype, stage.ndim - 1, "C" if stage.layout == "C" else "A")
+            arguments = {"forces_of": (calls_type, state_type, types.boolean),
+                         "end_step": (calls_type, types.int64, types.int64, types.int64, state_type, record_type),
+                         "fast_forces_of": (calls_type, state_type, vector, vector, types.boolean)}
+            arguments["slow_forces_of"] = arguments["fast_forces_of"]
+            arguments["next_contact_event"] = (calls_type, state_type, vector, types.float64)
+            steps = []
+            for name in STEPS:
+                stub = {"fast_forces_of": not split, "slow_forces_of": not split, "next_contact_event": not events}
+                function = getattr(self.module, f"no_{name}" if stub.get(name) else name)
+                function.compile(arguments[name])
+                steps.append(CompileResultWAP(function.overloads[arguments[name]]))
+            self._steps[key] = tuple(steps)
+        return self._steps[key]
+
     def __getattr__(self, name):
         for kind in ("pair_energies", "pair_forces"):
             if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
@@ -1014,22 +1050,37 @@ class GenericKernels:
 
 
 class _Bound:
-    """A scene-level function of the generic module with its first argument, the pieces, supplied
-    (for the type of the state among the arguments); ``signatures`` and ``compile`` without it."""
+    """A scene-level function of the generic module with its first arguments, the pieces (and for the
+    time loops the scene-level functions they call), supplied for the types of the state and record
+    among the arguments; ``signatures`` and ``compile`` without them."""
 
     def __init__(self, kernels, function):
         self.kernels, self.function = kernels, function
-        self.position = list(inspect.signature(function.py_func).parameters).index("s") - 1
+        names = list(inspect.signature(function.py_func).parameters)
+        self.steps = "steps" in names
+        self.position = names.index("s") - (2 if self.steps else 1)
+        source = inspect.getsource(function.py_func) if self.steps else ""
+        self.split = f"steps[{STEPS.index('fast_forces_of')}]" in source
+        self.events = f"steps[{STEPS.index('next_contact_event')}]" in source
+
+    def _first(self, state_type, record_type):
+        calls = self.kernels.calls_for(state_type)
+        if not self.steps:
+            return (calls,)
+        return calls, self.kernels.steps_for(state_type, record_type, self.split, self.events)
 
     def __call__(self, *args):
         import numba
-        return self.function(self.kernels.calls_for(numba.typeof(args[self.position])), *args)
+        p = self.position
+        record = numba.typeof(args[p + 1]) if self.steps else None
+        return self.function(*self._first(numba.typeof(args[p]), record), *args)
 
     @property
     def signatures(self):
-        return [signature[1:] for signature in self.function.signatures]
+        return [signature[2 if self.steps else 1:] for signature in self.function.signatures]
 
     def compile(self, signature):
         import numba
-        calls = self.kernels.calls_for(signature[self.position])
-        return self.function.compile((numba.typeof(calls), *signature))
+        p = self.position
+        first = self._first(signature[p], signature[p + 1] if self.steps else None)
+        return self.function.compile((*(numba.typeof(f) for f in first), *signature))
