@@ -146,6 +146,10 @@ class Law:
 
 
 _CATALOGUE = None
+#: the families of pieces modules, each holding the laws and effects it accepts (with their catalogue
+#: kind numbers): a scene runs on the smallest family holding its laws, so that a scene without
+#: contact history never compiles the friction, rolling and twisting laws (two thirds of the pieces)
+FAMILIES = {"light": lambda law: not law.history, "full": lambda law: True}
 
 
 def catalogue():
@@ -300,9 +304,11 @@ class _Generic:
     """Builds the text of a generic module (``growing``: the scenes with neighbour lists, a structref
     state; ``threads``: chunked loops on prange)."""
 
-    def __init__(self, growing, threads, nrt):
-        self.growing, self.threads, self.nrt = growing, threads, nrt
-        self.laws, self.effects = catalogue()
+    def __init__(self, growing, threads, nrt, family="full"):
+        self.growing, self.threads, self.nrt, self.family = growing, threads, nrt, family
+        laws, effects = catalogue()
+        self.laws = [law for law in laws if FAMILIES[family](law)]
+        self.effects = [law for law in effects if FAMILIES[family](law)]
 
     # ---- pair loops ---------------------------------------------------------------------------
     def header(self):
@@ -710,14 +716,6 @@ class _Generic:
             lines += ["    if s.program[0, H_INDUCTION] != 0:",
                       "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
                       "s.program[0, H_INDUCTION_SLOT])"]
-        for kind in ("pair_energies", "pair_forces"):
-            lines += ["", "", "@njit(**OUTER)", f"def {kind}_of(s, g, owners, partners, out):"]
-            if self.growing:
-                lines.append("    maintain_lists(s, False != False)")
-            for g in range(MAX_GROUPS):
-                lines += [f"    if g == {g}:",
-                          f"        pairs_{kind}({fields}, {self.list_args(g)}, owners, partners, out, "
-                          f"s.program[{group_row(g, 0)}])"]
         lines += [line.replace("def record_frame(k,", "def record_frame(calls, k,")
                   .replace("energies_of(s,", "energies_of(calls, s,")
                   .replace("def end_step(step,", "def end_step(calls, step,") for line in RECORD_FRAME]
@@ -785,7 +783,8 @@ class _Generic:
                 lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
                           f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
         if self.threads:
-            lines.append(f"from {_pieces_name(False)[1]} import pairs_forces_chunk, pairs_forces_blocked_chunk")
+            lines.append(f"from {_pieces_name(False, self.family)[1]} import pairs_forces_chunk, "
+                         "pairs_forces_blocked_chunk")
         lines += self.pair_functions()
         if not self.threads:
             lines += self.sphere_functions()
@@ -808,22 +807,21 @@ class _Generic:
             from .motion import CALLED_PASSES
             lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
                       + ")"]
-        lines.append(f"from {_pieces_name(False)[1]} import pairs_pair_energies, pairs_pair_forces")
         lines += self.scene_functions()
         if self.nrt:  # stubs passed for the sums and the induction solve to scenes without them
             lines += ["", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
                       "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
                       "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
-        # passed in steps for the functions a time loop never calls
-        lines += ["", "", "@njit(**LOOP)", "def no_fast_forces_of(calls, s, force, torque, commit):", "    return 0.0",
-                  "", "", "@njit(**LOOP)", "def no_slow_forces_of(calls, s, force, torque, commit):", "    return 0.0",
-                  "", "", "@njit(**LOOP)", "def no_next_contact_event(calls, s, force, horizon):", "    return 0.0"]
+        steps_of = {}  # each time loop: the functions in its tuple steps, in order
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
             src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
+            used = [step for step in STEPS if re.search(rf"\b{step}\(", src)]
+            steps_of[f"{name}_steps"] = tuple(used)
             src = re.sub(r"\b(forces_of|fast_forces_of|slow_forces_of|end_step|next_contact_event)\(",
-                         lambda m: f"steps[{STEPS.index(m.group(1))}](calls, ", src)
+                         lambda m: f"steps[{used.index(m.group(1))}](calls, ", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
+        lines += ["", "", f"STEPS_OF = {steps_of!r}"]
         return "\n".join(lines) + "\n"
 
 
@@ -875,10 +873,11 @@ def _name(growing, threads, nrt=None):
     return source, f"demkit_generic_{_fingerprint(source, [])}"
 
 
-def _pieces_name(threads):
+def _pieces_name(threads, family):
     from .kernels import _fingerprint
-    source = _Generic(False, threads, False).pieces_text()
-    return source, f"demkit_generic_pieces_{'threads_' if threads else ''}{_fingerprint(source, [])}"
+    source = _Generic(False, threads, False, family).pieces_text()
+    return source, (f"demkit_generic_pieces_{family}_{'threads_' if threads else ''}"
+                    f"{_fingerprint(source, [])}")
 
 
 _MODULES = {}
@@ -897,26 +896,34 @@ def _load(key, source_and_name):
     return _MODULES[key]
 
 
-def _pieces(threads):
-    """The pieces module (serial, or the thread pieces: the chunked loops on prange)."""
-    if not threads:
-        _load(("pieces", False), lambda: _pieces_name(False))
-    return _load(("pieces", threads), lambda: _pieces_name(threads))
+def _pieces(threads, family):
+    """The pieces module of a family (serial, or the thread pieces: the chunked loops on prange)."""
+    _load(("pieces", False, family), lambda: _pieces_name(False, family))
+    return _load(("pieces", threads, family), lambda: _pieces_name(threads, family))
 
 
-def build_generic(growing, threads=False, nrt=None, needs=PIECES, pieces=None):
+def family_of(program):
+    """The smallest family of pieces (:data:`FAMILIES`) holding every law and effect of the program."""
+    laws, effects = catalogue()
+    used = [laws[program[row, G_MEMBERS + M_COLUMNS * m + M_KIND]]
+            for row in (group_row(g, 0) for g in range(MAX_GROUPS)) for m in range(program[row, G_COUNT])]
+    used += [effects[program[effect_row(e), E_KIND]] for e in range(program[0, H_EFFECTS])]
+    return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
+
+
+def build_generic(growing, threads=False, nrt=None, needs=PIECES, pieces=None, family="full"):
     """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
     threads, with or without reference counting (see :func:`needs_nrt`), compiled function by
     function as called and cached on disk like the fused modules; seen by a scene that calls the
-    pieces ``needs`` (see :func:`needs_of`: the others are never compiled for it). ``pieces``: a
-    scene's own pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones."""
+    pieces ``needs`` (see :func:`needs_of`: the others are never compiled for it) of ``family`` (see
+    :func:`family_of`). ``pieces``: a scene's own pieces (tier 2, :func:`demkit.kernels.build_pieces`)
+    in place of the generic ones."""
     nrt = bool(growing) if nrt is None else bool(nrt or growing)
     key = (bool(growing), bool(threads), nrt)
-    view = key + (tuple(needs), pieces and pieces.__name__)
+    view = key + (tuple(needs), pieces and pieces.__name__, family)
     if view not in _MODULES:
-        _pieces(False)
         module = _load(key, lambda: _name(growing, threads, nrt))
-        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), nrt, tuple(needs), pieces)
+        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), nrt, tuple(needs), pieces, family)
     return _MODULES[view]
 
 
@@ -979,8 +986,9 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    def __init__(self, module, growing, threads, nrt, needs, pieces=None):
+    def __init__(self, module, growing, threads, nrt, needs, pieces=None, family="full"):
         self.module, self.growing, self.threads, self.nrt, self.needs = module, growing, threads, nrt, needs
+        self.family = family
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
         self.tier = 1 if pieces is None else 2
         self._calls = {}
@@ -994,7 +1002,8 @@ class GenericKernels:
             arguments = piece_arguments(state_type)
             calls = []
             for name in calls_of(self.growing, self.nrt):
-                module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES)
+                module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES,
+                                                                          self.family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
                 if self.pieces is not None and name in PIECES and not stubbed:
@@ -1009,17 +1018,32 @@ class GenericKernels:
             self._calls[state_type] = tuple(calls)
         return self._calls[state_type]
 
-    def steps_for(self, state_type, record_type, split, events):
-        """The tuple of first-class functions the time loops take second (:data:`STEPS`), for this
-        state and record type; ``split``: the loop calls the fast and slow forces, ``events``: the
-        contact-event search (else stubs, never compiled)."""
-        key = (state_type, record_type, split, events)
+    def _diagnostic(self, kind, g):
+        """pair_energies_<g> / pair_forces_<g>(s, owners, partners, out): every entry of pair loop g and
+        its energies or forces (the serial pieces' ``pairs_pair_*``, called from Python: diagnostics
+        run once, and a compiled wrapper would link the family's whole catalogue once more)."""
+        function = getattr(_pieces(False, self.family), f"pairs_{kind}")
+
+        def run(s, owners, partners, out):
+            if self.growing:
+                from .state import pair_loop_arrays
+                self.module.maintain_lists(s, False)
+                *arrays, program = pair_loop_arrays(s, g)
+            else:
+                arrays = (*(getattr(s, name) for name in ARRAYS.split(", ")),
+                          *(getattr(s.lists[g], name) for name in LIST_ARRAYS.split(", ")))
+                program = s.program
+            return function(*arrays, owners, partners, out, program[group_row(g, 0)])
+        return run
+
+    def steps_for(self, state_type, record_type, uses):
+        """The tuple of first-class functions ``uses`` (of :data:`STEPS`, a time loop's ``STEPS_OF``)
+        a time loop takes second, for this state and record type."""
+        key = (state_type, record_type, uses)
         if key not in self._steps:
-            from numba import types
-            from numba.core.types.function_type import CompileResultWAP
-            calls = self.calls_for(state_type)
             import numba
-            calls_type = numba.typeof(calls)
+            from numba import types
+            calls_type = numba.typeof(self.calls_for(state_type))
             stage = _fields(state_type)["stage"]
             vector = types.Array(stage.dtype, stage.ndim - 1, "C" if stage.layout == "C" else "A")
             arguments = {"forces_of": (calls_type, state_type, types.boolean),
@@ -1027,21 +1051,20 @@ class GenericKernels:
                          "fast_forces_of": (calls_type, state_type, vector, vector, types.boolean)}
             arguments["slow_forces_of"] = arguments["fast_forces_of"]
             arguments["next_contact_event"] = (calls_type, state_type, vector, types.float64)
-            steps = []
-            for name in STEPS:
-                stub = {"fast_forces_of": not split, "slow_forces_of": not split, "next_contact_event": not events}
-                function = getattr(self.module, f"no_{name}" if stub.get(name) else name)
-                function.compile(arguments[name])
-                steps.append(CompileResultWAP(function.overloads[arguments[name]]))
-            self._steps[key] = tuple(steps)
+            self._steps[key] = tuple(self._wrapped(getattr(self.module, name), arguments[name]) for name in uses)
         return self._steps[key]
+
+    @staticmethod
+    def _wrapped(function, arguments):
+        """``function`` compiled for ``arguments``, as a first-class function value."""
+        from numba.core.types.function_type import CompileResultWAP
+        function.compile(arguments)
+        return CompileResultWAP(function.overloads[arguments])
 
     def __getattr__(self, name):
         for kind in ("pair_energies", "pair_forces"):
             if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
-                g = int(name[len(kind) + 1:])
-                function = getattr(self.module, f"{kind}_of")
-                return lambda s, owners, partners, out: function(s, g, owners, partners, out)
+                return self._diagnostic(kind, int(name[len(kind) + 1:]))
         if name not in self._bound:  # the module's function, or it bound to the pieces when it takes them
             function = getattr(self.module, name)
             takes = "calls" in inspect.signature(function.py_func).parameters
@@ -1059,15 +1082,13 @@ class _Bound:
         names = list(inspect.signature(function.py_func).parameters)
         self.steps = "steps" in names
         self.position = names.index("s") - (2 if self.steps else 1)
-        source = inspect.getsource(function.py_func) if self.steps else ""
-        self.split = f"steps[{STEPS.index('fast_forces_of')}]" in source
-        self.events = f"steps[{STEPS.index('next_contact_event')}]" in source
+        self.uses = kernels.module.STEPS_OF[function.__name__] if self.steps else ()
 
     def _first(self, state_type, record_type):
         calls = self.kernels.calls_for(state_type)
         if not self.steps:
             return (calls,)
-        return calls, self.kernels.steps_for(state_type, record_type, self.split, self.events)
+        return calls, self.kernels.steps_for(state_type, record_type, self.uses)
 
     def __call__(self, *args):
         import numba

@@ -181,7 +181,7 @@ class Scene:
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
             return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan),
-                                         generic.needs_of(self.program), pieces)
+                                         generic.needs_of(self.program), pieces, generic.family_of(self.program))
         return build_module(self.plan, TEMPLATES, threads=threads)
 
     #: where a program row holds its group and speed (read by the scene's own pieces)

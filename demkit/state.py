@@ -150,6 +150,15 @@ def _get_lists(s):
     return s.lists
 
 
+@njit(cache=True)
+def pair_loop_arrays(s, g):
+    """The arrays a pair loop's diagnostics read (demkit.generic.ARRAYS, then pair list g's
+    demkit.generic.LIST_ARRAYS), and the program, from a state with neighbour lists."""
+    pl = s.lists[g]
+    return (s.position, s.velocity, s.angular_velocity, s.dipole, s.radius, s.mass, s.box, s.params, s.status,
+            pl.start, pl.end, pl.partner, pl.history, s.program)
+
+
 def touch_getters(state):
     """Read every list field of ``state`` through the proxies once, so that their compiled getters
     exist for its types before a run starts. Compiled (or loaded from the cache) later, in the
