@@ -65,13 +65,16 @@ G_MEMBERS = 11
 M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX = range(7)
 M_COLUMNS = 7
 # effect rows
-E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE = range(6)
+E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE = range(7)
 # long-range sum rows
 S_KIND, S_SLOT, S_ENERGY = range(3)
 # ... and after the members, the row's own group and speed (read by a scene's own pieces, tier 2)
 G_GROUP = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
 G_SPEED = G_GROUP + 1
 COLUMNS = G_SPEED + 1
+#: the kind of a pair law or effect not in the catalogue (your own functions): the program describes the
+#: scene, but only the scene's own pieces (tier 2) can run it
+OWN = -1
 
 #: the shipped pair laws: (module, force function, energy function, torque, dissipative, branch_free)
 PAIR_LAWS = (
@@ -187,10 +190,11 @@ def _law_of(inter, laws):
 
 
 def program_of(plan, slots, kinds):
-    """(program, None): the scene's program (int64 table, see the module docstring), or (None, why)
-    when tier 1 cannot run the scene. ``slots``: the parameter slots (``param_slot``,
-    ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.kernels._Source` gives them);
-    ``kinds``: the energy kinds."""
+    """(program, None): the scene's program (int64 table, see the module docstring); (program, why)
+    when the scene has laws or effects of your own (kind :data:`OWN`: its own pieces run it, tier 1
+    cannot); (None, why) when the table cannot describe the scene. ``slots``: the parameter slots
+    (``param_slot``, ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.kernels._Source`
+    gives them); ``kinds``: the energy kinds."""
     laws, effect_laws = catalogue()
     if len(plan.sums) > MAX_SUMS:
         return None, f"{len(plan.sums)} long-range sums, more than {MAX_SUMS}"
@@ -219,6 +223,7 @@ def program_of(plan, slots, kinds):
     program[0, H_EFFECTS] = len(plan.effects)
     program[0, H_SHORTEST] = plan.lists[0] if plan.lists else 0
     from .kernels import Group
+    own = []  # the names of the laws and effects of your own
     for g, group in enumerate(plan.groups):
         if len(group.members) > MAX_MEMBERS:
             return None, f"{len(group.members)} interactions in one pair loop, more than {MAX_MEMBERS}"
@@ -242,10 +247,12 @@ def program_of(plan, slots, kinds):
                 row[G_PX + a] = plan.periodic[a] and group.kind == "list"
             for m, (k, inter) in enumerate(members):
                 law = _law_of(inter, laws)
-                if law is None or (sub.blocked and law.reads != ("dipole",)):
-                    return None, f"{type(inter).__name__}'s pair functions are not in the generic module's catalogue"
+                if law is not None and sub.blocked and law.reads != ("dipole",):
+                    law = None  # the generic blocked loops gather the moments alone
+                if law is None:
+                    own.append(type(inter).__name__)
                 base = G_MEMBERS + M_COLUMNS * m
-                row[base + M_KIND] = law.kind
+                row[base + M_KIND] = OWN if law is None else law.kind
                 row[base + M_SLOT] = slots.param_slot[k]
                 row[base + M_CUT] = slots.cutoff_slot[k] if inter.cutoff_distance is not None else -1
                 row[base + M_OFFSET] = group.offsets[k]
@@ -256,14 +263,18 @@ def program_of(plan, slots, kinds):
     for e, effect in enumerate(plan.effects):
         law = _law_of(effect, effect_laws)
         if law is None:
-            return None, f"{type(effect).__name__}'s functions are not in the generic module's catalogue"
+            own.append(type(effect).__name__)
         row = program[effect_row(e)]
-        row[E_KIND] = law.kind
+        row[E_KIND] = OWN if law is None else law.kind
+        row[E_PLANE] = bool(getattr(effect, "plane_contact", False))
         row[E_SLOT] = slots.effect_slot[e]
         row[E_TABLE] = slots.table_slot.get(e, -1)
         row[E_OFFSET] = offsets[e]
         row[E_ENERGY] = 2 + kinds.index(effect.energy_kind)
         row[E_SIZE] = effect.history_size
+    if own:
+        names = ", ".join(dict.fromkeys(own))
+        return program, f"{names}: functions of your own, not in the generic module's catalogue"
     return program, None
 
 
@@ -693,7 +704,7 @@ class _Generic:
                       "        else:",
                       f"            earliest = min(earliest, earliest_crossing_all({args}, horizon))"]
         lines += ["    for e in range(s.program[0, H_EFFECTS]):",
-                  "        if PLANE_CONTACT[s.program[EFFECT_ROW + e, E_KIND]]:",
+                  "        if s.program[EFFECT_ROW + e, E_PLANE] != 0:",
                   "            q = s.program[EFFECT_ROW + e, E_SLOT]",
                   "            earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, force, s.mass, "
                   "s.radius, s.params[q], s.params[q + 1], s.params[q + 2], s.params[q + 3], horizon))",
@@ -748,10 +759,9 @@ class _Generic:
                  "from demkit.generic import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
                  "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
-                 "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE)",
+                 "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE)",
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",
-                 f"PLANE_CONTACT = ({', '.join(str(bool(law.plane_contact)) for law in self.effects)},)",
                  ""]
         if self.threads:
             lines += ["from demkit.motion import sum_chunks_threads as sum_chunks",
@@ -905,9 +915,11 @@ def _pieces(threads, family):
 def family_of(program):
     """The smallest family of pieces (:data:`FAMILIES`) holding every law and effect of the program."""
     laws, effects = catalogue()
-    used = [laws[program[row, G_MEMBERS + M_COLUMNS * m + M_KIND]]
-            for row in (group_row(g, 0) for g in range(MAX_GROUPS)) for m in range(program[row, G_COUNT])]
-    used += [effects[program[effect_row(e), E_KIND]] for e in range(program[0, H_EFFECTS])]
+    kinds = [program[row, G_MEMBERS + M_COLUMNS * m + M_KIND]
+             for row in (group_row(g, 0) for g in range(MAX_GROUPS)) for m in range(program[row, G_COUNT])]
+    used = [laws[kind] for kind in kinds if kind != OWN]
+    used += [effects[kind] for kind in (program[effect_row(e), E_KIND] for e in range(program[0, H_EFFECTS]))
+             if kind != OWN]
     return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
 
 
@@ -1022,7 +1034,11 @@ class GenericKernels:
         """pair_energies_<g> / pair_forces_<g>(s, owners, partners, out): every entry of pair loop g and
         its energies or forces (the serial pieces' ``pairs_pair_*``, called from Python: diagnostics
         run once, and a compiled wrapper would link the family's whole catalogue once more)."""
-        function = getattr(_pieces(False, self.family), f"pairs_{kind}")
+        if self.pieces is not None:  # tier 2: the scene's own loop of group g
+            function = getattr(getattr(self.pieces, "serial", self.pieces), f"group_{g}_{kind}")
+        else:
+            function = getattr(_pieces(False, self.family), f"pairs_{kind}")
+        row = () if self.pieces is not None else (group_row(g, 0),)
 
         def run(s, owners, partners, out):
             if self.growing:
@@ -1033,7 +1049,7 @@ class GenericKernels:
                 arrays = (*(getattr(s, name) for name in ARRAYS.split(", ")),
                           *(getattr(s.lists[g], name) for name in LIST_ARRAYS.split(", ")))
                 program = s.program
-            return function(*arrays, owners, partners, out, program[group_row(g, 0)])
+            return function(*arrays, owners, partners, out, *(program[r] for r in row))
         return run
 
     def steps_for(self, state_type, record_type, uses):

@@ -948,7 +948,7 @@ class _Source:
             for name, sub in once.items():
                 lines += self.group_forces(0, sub, name)
             for g, group in enumerate(plan.groups):
-                lines += self.group_energies(g, group)
+                lines += self.group_energies(g, group) + self.group_pair_forces(g, group)
             lines += self.sphere_functions()
         arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         chunks = "bounds, chunk_force, chunk_torque, chunk_power"
@@ -1039,12 +1039,17 @@ def cached_function(module, function):
     return bool(root) and any(Path(root).glob(f"*/{pattern}"))
 
 
+def importable(plan):
+    """Can a generated file import every function of the plan by name, and may it be cached on disk
+    (not with DEMKIT_NO_CACHE)? Else its fused module is compiled in memory."""
+    interactions = plan.interactions + plan.effects
+    return (all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
+            and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0"))
+
+
 def fused_source(plan, templates, threads=False):
     """The text of the fused module (tier 2) of this plan, as :func:`build_module` would compile it."""
-    interactions = plan.interactions + plan.effects
-    importable = all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
-    importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
-    return generate_source(plan, templates, importable, threads)
+    return generate_source(plan, templates, importable(plan), threads)
 
 
 def build_module(plan, templates, threads=False):
@@ -1055,16 +1060,15 @@ def build_module(plan, templates, threads=False):
         for fn in inter.pair_functions():
             if not hasattr(fn, "py_func"):
                 raise TypeError(f"{type(inter).__name__}: pair functions must be numba @njit functions")
-    importable = all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
-    importable = importable and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
-    source = generate_source(plan, templates, importable, threads)
+    on_disk = importable(plan)
+    source = generate_source(plan, templates, on_disk, threads)
     key = _fingerprint(source, interactions)
     name = f"demkit_kernel_{key}"
-    if not importable:  # in memory: bind to these very function objects, not look-alikes
+    if not on_disk:  # in memory: bind to these very function objects, not look-alikes
         key += "".join(f"-{id(fn)}" for inter in interactions for fn in inter.pair_functions())
     if key in _MODULES:
         return _MODULES[key]
-    if importable:
+    if on_disk:
         module = _load_from_file(name, source)
     else:
         module = _load_in_memory(name, source, plan)

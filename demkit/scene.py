@@ -175,8 +175,9 @@ class Scene:
 
     def _kernels(self, threads, tier=None):
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``).
-        Tier 2 of a scene with neighbour lists that tier 1 can run is the generic time loops calling
-        the scene's own pieces (:func:`demkit.kernels.build_pieces`); else its fused module."""
+        Tier 2 of a scene that the program describes, with neighbour lists or functions of your own,
+        is the generic time loops calling the scene's own pieces (:func:`demkit.kernels.build_pieces`);
+        else its fused module."""
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
@@ -189,11 +190,16 @@ class Scene:
 
     def _pieces_tier_2(self):
         """Is this scene's tier 2 its own pieces called by the generic loops (not a fused module)?"""
-        return self.program is not None and self.plan.growing
+        if self.program is None:
+            return False
+        if self.program_refusal is None:
+            return self.plan.growing
+        from .kernels import importable  # functions of your own: on disk, or in a fused module in memory
+        return importable(self.plan)
 
     def _choose_tier(self):
         """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""
-        if self.program is None:
+        if self.program is None or self.program_refusal is not None:
             if self.tier_requested == 1:
                 raise ValueError(f"tier=1: the generic module cannot run this scene ({self.program_refusal}); "
                                  f"use tier=None or 2")

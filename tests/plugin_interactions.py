@@ -4,6 +4,8 @@ import math
 from numba import njit
 
 import demkit as dk
+from demkit.interactions.contact import kelvin_voigt_energy, kelvin_voigt_force
+from demkit.interactions.fields import gravity_energy, gravity_force
 
 
 @njit
@@ -107,3 +109,36 @@ class PullSmall(dk.SphereInteraction):
     def __init__(self, size, g):
         self.size = size
         self.gx, self.gy, self.gz = g
+
+
+@njit
+def own_kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension):
+    """The shipped spring-dashpot called from a function of your own (so: not in the generic catalogue)."""
+    return kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension)
+
+
+@njit
+def own_kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension):
+    return kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension)
+
+
+class OwnKelvinVoigt(dk.KelvinVoigt):
+    """dk.KelvinVoigt (frictionless) through functions of your own."""
+    force_function = own_kelvin_voigt_force
+    energy_function = own_kelvin_voigt_energy
+
+
+@njit
+def own_gravity_force(i, x, y, z, mass, gx, gy, gz):
+    return gravity_force(i, x, y, z, mass, gx, gy, gz)
+
+
+@njit
+def own_gravity_energy(i, x, y, z, mass, gx, gy, gz):
+    return gravity_energy(i, x, y, z, mass, gx, gy, gz)
+
+
+class OwnGravity(dk.Gravity):
+    """dk.Gravity through functions of your own."""
+    force_function = own_gravity_force
+    energy_function = own_gravity_energy

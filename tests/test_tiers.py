@@ -175,6 +175,33 @@ def test_switch_in_the_middle_same_bits():
     assert switched.tobytes() == plain.tobytes()
 
 
+def test_functions_of_your_own_run_on_their_own_pieces_with_the_catalogues_bits():
+    """A scene with pair and single-sphere functions of your own is described by the program (their
+    kind: generic.OWN) and runs on its own pieces under the generic time loops (seconds to compile,
+    not a fused module per integrator); the shipped laws behind them give the same bits on tier 1."""
+    from plugin_interactions import OwnGravity, OwnKelvinVoigt
+
+    def make(own):
+        rng = np.random.default_rng(7)
+        pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5]])
+        p = dk.Particles(position=pos, velocity=0.3 * rng.normal(size=(5, 3)), radius=0.5, mass=1.0,
+                         dipole=0.2 * rng.normal(size=(5, 3)))
+        contact, gravity = (OwnKelvinVoigt, OwnGravity) if own else (dk.KelvinVoigt, dk.Gravity)
+        return dk.Scene(p, [dk.Dipole(prefactor=0.05), contact(3000.0, 4.0), gravity((0, 0, -1.0)),
+                            dk.Wall((0, 0, 0), (0, 0, 1))])
+
+    shipped, own = make(False), make(True)
+    assert shipped.tier == 1 and own.tier == 2 and "OwnKelvinVoigt, OwnGravity" in own.program_refusal
+    row = own.program[generic.group_row(0, 0)]
+    assert row[generic.G_MEMBERS + generic.M_COLUMNS + generic.M_KIND] == generic.OWN
+    assert own.program[generic.effect_row(0), generic.E_KIND] == generic.OWN
+    assert own.kernels.pieces.__name__.startswith("demkit_pieces_")  # no fused module
+    for integrator in (dk.VelocityVerlet(2e-4), dk.RK4(2e-4)):
+        a = outcome(shipped, integrator, 0.05, diagnostics=True)[1]
+        b = outcome(own, integrator, 0.05, diagnostics=True)[1]
+        assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ"
+
+
 def test_tier_choice_and_refusals():
     scene = gas(None)
     assert scene.tier == 1 and scene.kernels.tier == 1

@@ -273,16 +273,17 @@ class Wall(SphereInteraction):
     def _adopt(self, law):
         """Take the contact law's functions and parameters (the wall itself is rigid)."""
         self.law = law
+        base = KelvinVoigt if isinstance(law, KelvinVoigt) else Hertz  # a subclass of yours acts as its base
         friction = law.friction is not None
-        self.force_function, self.energy_function = _FUNCTIONS[(type(law), friction)]
+        self.force_function, self.energy_function = _FUNCTIONS[(base, friction)]
         self.reads = law.reads
         self.torque = friction
         self.history_size = law.history_size
         names = list(law.parameters)
         self.table = np.zeros(0)
         if getattr(law, "twisting", None) is not None:
-            self.force_function, self.energy_function = _TWISTING[type(law)]
-            table = TWIST_TABLE[type(law)]
+            self.force_function, self.energy_function = _TWISTING[base]
+            table = TWIST_TABLE[base]
             self.table = np.array([getattr(law, name) for name in table], dtype=np.float64)
             names = [name for name in names if name not in table]
         self.parameters = _GEOMETRY + tuple(names)
