@@ -825,11 +825,15 @@ class _Generic:
         steps_of = {}  # each time loop: the functions in its tuple steps, in order
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
-            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
-            used = [step for step in STEPS if re.search(rf"\b{step}\(", src)]
-            steps_of[f"{name}_steps"] = tuple(used)
-            src = re.sub(r"\b(forces_of|fast_forces_of|slow_forces_of|end_step|next_contact_event)\(",
-                         lambda m: f"steps[{used.index(m.group(1))}](calls, ", src)
+            pattern = r"\b(forces_of|fast_forces_of|slow_forces_of|end_step|next_contact_event)\("
+            if self.growing:  # the scene-level functions through ``steps``
+                src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
+                used = [step for step in STEPS if re.search(rf"\b{step}\(", src)]
+                steps_of[f"{name}_steps"] = tuple(used)
+                src = re.sub(pattern, lambda m: f"steps[{used.index(m.group(1))}](calls, ", src)
+            else:  # inlined: in open space the state is a named tuple, copied whole into each indirect call
+                src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, ", 1)
+                src = re.sub(pattern, r"\1(calls, ", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         lines += ["", "", f"STEPS_OF = {steps_of!r}"]
         return "\n".join(lines) + "\n"
@@ -838,8 +842,10 @@ class _Generic:
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
 PIECES = ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies")
 THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
-#: the scene-level functions the time loops call, passed to them in the tuple ``steps`` (compiled once
-#: per variant and state type instead of inlined into each of the seven time loops)
+#: the scene-level functions the time loops of scenes with lists call, passed to them in the tuple
+#: ``steps`` (compiled once per variant and state type instead of inlined into each of the seven time
+#: loops; their state is a structref, one pointer: the open variant's, a named tuple of 28 arrays,
+#: would be copied into each call, which doubled the paper's step on tier 1, so it inlines them)
 STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_contact_event")
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
