@@ -29,7 +29,7 @@ Parts (all by default; name some to run only those):
   first step in a fresh process. ``tier2_first_step`` (the scenes with lists): then the same scene
   started on tier 2 (``DEMKIT_TIER=2``) in a fresh process, CPU s to its first step: what tier 2 of a
   new combination costs (its own pieces; the time loops are tier 1's). ``install_wide``: CPU s compiling every function of the generic
-  modules (serial and threads) as the integrators and diagnostics use them. ``speed``: steps per
+  modules (serial and threads, both families of pieces) as the integrators and diagnostics use them. ``speed``: steps per
   second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
 
 * ``long_range`` (only when named): the same two measurements for long-range dipole sums: the
@@ -457,14 +457,21 @@ n, R = 300, 0.5
 box = dk.build.box_for(n, R, 0.2)
 q = dk.Particles(position=dk.build.random_packing(n, R, box, seed=3), radius=R, mass=1.0, dipole=np.tile([1.0, 0, 0], (n, 1)))
 big = dk.Scene(q, [dk.Dipole(0.01, cutoff=3.0), dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1, parallel=True)
+# the same with friction, rolling and twisting resistance, walls and gravity: the full family of pieces
+full = [dk.KelvinVoigt(1000.0, 1.0, friction=dk.Friction(0.5), rolling=dk.RollingResistance(0.1), twisting=dk.TwistingResistance()),
+        dk.Wall((0, 0, -5.0), (0, 0, 1)), dk.Gravity((0, 0, -1.0))]
+small_full = dk.Scene(p, [dk.Dipole(0.01), *full], tier=1)
+big_full = dk.Scene(q, [dk.Dipole(0.01, cutoff=3.0), *full], box=dk.Box(box.size, periodic=[True, True, False]),
+                    tier=1, parallel=True)
 record = None
-for scene in (small, big):
+for scene in (small, big, small_full, big_full):
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
     sim.run(duration=1e-3, progress=False)  # record_frame and the lists
     scene.energy(); scene.forces(); scene.pair_energies(); scene.pair_forces()
-    loops = [scene.kernels.velocity_verlet_steps] + ([scene.thread_kernels.velocity_verlet_steps] if scene is big else [])
+    lists = scene in (big, big_full)
+    loops = [scene.kernels.velocity_verlet_steps] + ([scene.thread_kernels.velocity_verlet_steps] if lists else [])
     signature = next(loop.signatures[0] for loop in loops if loop.signatures)  # the loop that ran
-    for threads in ((False, True) if scene is big else (False,)):
+    for threads in ((False, True) if lists else (False,)):
         module = scene.thread_kernels if threads else scene.kernels
         for name in TEMPLATES:
             getattr(module, name + "_steps").compile(signature)
