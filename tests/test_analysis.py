@@ -14,6 +14,8 @@ import demkit as dk
 from demkit.two_magnets import analysis, capture, fits
 from demkit.two_magnets import BARBELL_BETA, POINT_MASS_BETA, TwoMagnets
 
+pytestmark = pytest.mark.usefixtures("paper_on_tier_2")  # many steps of the two spheres (conftest)
+
 R = 6.94
 
 

@@ -6,6 +6,8 @@ from conftest import R_PAPER, V_PAPER, two_magnets
 import demkit as dk
 from demkit.two_magnets.analysis import final_spin, settle_index
 
+pytestmark = pytest.mark.usefixtures("paper_on_tier_2")  # many steps of the two spheres (conftest)
+
 
 def collide(b_over_r, model, integrator=dk.EulerCromer, dt=0.01):
     beta_guess = 2.8 if model is dk.Dipole else 2.0

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.usefixtures("paper_on_tier_2")  # many steps of the two spheres (conftest)
+
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "two_magnets" / "replicate.py"
 
 
