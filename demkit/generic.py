@@ -1016,7 +1016,6 @@ class GenericKernels:
     def calls_for(self, state_type):
         """The tuple of first-class functions the scene-level functions take, for this state type."""
         if state_type not in self._calls:
-            from numba.core.types.function_type import CompileResultWAP
             arguments = piece_arguments(state_type)
             calls = []
             for name in calls_of(self.growing, self.nrt):
@@ -1031,8 +1030,7 @@ class GenericKernels:
                     function = getattr(own, f"piece_{name}")
                 else:
                     function = getattr(module, f"no_{name}" if stubbed else name)
-                function.compile(arguments[name])
-                calls.append(CompileResultWAP(function.overloads[arguments[name]]))
+                calls.append(self._wrapped(function, arguments[name]))
             self._calls[state_type] = tuple(calls)
         return self._calls[state_type]
 
