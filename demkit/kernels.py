@@ -1003,12 +1003,22 @@ def _cache_dir():
     return Path(base) / "demkit" / "kernels"
 
 
+def _source_of(inter, fn):
+    """The source text of one of an interaction's numba functions, or a clear error without it."""
+    try:
+        return inspect.getsource(fn.py_func)
+    except (OSError, TypeError):
+        raise ValueError(f"{type(inter).__name__}: the source of {fn.__name__} cannot be read (made with exec, or "
+                         f"typed into an interpreter?); demkit writes your functions into the code it compiles, "
+                         f"so define them in a .py file") from None
+
+
 def _fingerprint(source, interactions):
     h = hashlib.sha256(source.encode())
     h.update(numba.__version__.encode())
     for inter in interactions:
         for fn in inter.pair_functions():
-            h.update(inspect.getsource(fn.py_func).encode())
+            h.update(_source_of(inter, fn).encode())
     from . import motion, neighbours, state
     for module in (motion, neighbours, state):
         h.update(inspect.getsource(module).encode())

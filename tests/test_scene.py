@@ -121,3 +121,15 @@ def test_pair_energies_sum_to_the_energy_kinds():
     far = [k for k, (i, j) in enumerate(pairs) if 3 in (i, j)]
     assert not per_pair[far].any()  # beyond the dipole cutoff and out of contact
     assert (per_pair[:, 1] > 0).sum() == 2  # pairs (0,1) and (0,2) overlap
+
+
+def test_functions_without_source_are_refused_with_a_clear_error():
+    """demkit writes a plug-in's functions into generated code: one made with exec has no source file."""
+    ns = {"dk": dk}
+    exec(compile("import numba\n@numba.njit\ndef push(i, j, dx, dy, dz, r2, k):\n    return k * dx, k * dy, k * dz\n"
+                 "class Push(dk.PairInteraction):\n    energy_kind = 'push'\n    parameters = ('k',)\n"
+                 "    force_function = push\n    energy_function = push\n    def __init__(self):\n        self.k = 1.0\n",
+                 "<typed>", "exec"), ns)
+    p = dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=0.5, mass=1.0)
+    with pytest.raises(ValueError, match="Push: the source of push cannot be read.*define them in a .py file"):
+        dk.Scene(p, [ns["Push"]()])
