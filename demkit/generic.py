@@ -47,7 +47,7 @@ import numpy as np
 
 from .kernels import (END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME,
                       SPEEDS, chunks_run, deep_wall_overlap, effect_sums)
-from .state import DEEP_OVERLAP_FRACTION
+from .state import DEEP_OVERLAP_FRACTION, pair_loop_arrays
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
 # feature of numba, used here in its documented form: compiled results passed as arguments)
@@ -1038,22 +1038,23 @@ class GenericKernels:
         """pair_energies_<g> / pair_forces_<g>(s, owners, partners, out): every entry of pair loop g and
         its energies or forces (the serial pieces' ``pairs_pair_*``, called from Python: diagnostics
         run once, and a compiled wrapper would link the family's whole catalogue once more)."""
-        if self.pieces is not None:  # tier 2: the scene's own loop of group g
+        own = self.pieces is not None  # tier 2: the scene's own loop of group g (it takes no program row)
+        if own:
             function = getattr(getattr(self.pieces, "serial", self.pieces), f"group_{g}_{kind}")
         else:
             function = getattr(_pieces(False, self.family), f"pairs_{kind}")
-        row = () if self.pieces is not None else (group_row(g, 0),)
 
         def run(s, owners, partners, out):
             if self.growing:
-                from .state import pair_loop_arrays
                 self.module.maintain_lists(s, False)
                 *arrays, program = pair_loop_arrays(s, g)
             else:
                 arrays = (*(getattr(s, name) for name in ARRAYS.split(", ")),
                           *(getattr(s.lists[g], name) for name in LIST_ARRAYS.split(", ")))
                 program = s.program
-            return function(*arrays, owners, partners, out, *(program[r] for r in row))
+            if own:
+                return function(*arrays, owners, partners, out)
+            return function(*arrays, owners, partners, out, program[group_row(g, 0)])
         return run
 
     def steps_for(self, state_type, record_type, uses):

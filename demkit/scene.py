@@ -28,7 +28,7 @@ from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
 from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
 from . import generic
-from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds
+from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds, importable
 from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
@@ -194,8 +194,7 @@ class Scene:
             return False
         if self.program_refusal is None:
             return self.plan.growing
-        from .kernels import importable  # functions of your own: on disk, or in a fused module in memory
-        return importable(self.plan)
+        return importable(self.plan)  # functions of your own: on disk, or in a fused module in memory
 
     def _choose_tier(self):
         """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""
