@@ -373,7 +373,7 @@ WARM_GENERIC = {
 WARM_PIECES = """
 import numba
 from demkit import generic
-view = generic.build_generic(scene.plan.growing, False, generic.needs_nrt(scene.plan), generic.PIECES + generic.SCENE_PIECES)
+view = generic.build_generic(False, generic.CALLS)
 view.calls_for(numba.typeof(scene.state))
 """
 WARM_GENERIC["small_sums"] = """

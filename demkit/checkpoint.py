@@ -34,7 +34,7 @@ import numpy as np
 
 from . import checks
 from .outputs import check_writable, sync_folder
-from .state import PAIR_LIST_FIELDS, PairListTuple, make_pair_list
+from .state import PAIR_LIST_FIELDS
 
 #: bumped whenever the layout of the file changes
 FORMAT = 1
@@ -324,7 +324,7 @@ def restore(scene, arrays):
     for g in range(len(scene.plan.groups)):
         fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])
                                                         for name in PAIR_LIST_FIELDS[1:]]
-        lists.append(make_pair_list(*fields) if scene.plan.growing else PairListTuple(*fields))
+        lists.append(scene._pair_list(fields))
     scene.arrays["lists"] = scene.padded(lists)
     scene.state = scene._state_object()
     scene.pull()

@@ -30,10 +30,13 @@ Tier 2 of a scene with neighbour lists is these time loops given the scene's own
 (:func:`demkit.kernels.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
 
 The tier is compiled in pieces never linked into one another (docs/engine.md, "Tier 1 in pieces"):
-the pair and sphere loops in one *pieces* module (:meth:`_Generic.pieces_text`), the scene-level functions
-and time loops in four *variant* modules (:meth:`_Generic.text`), which take the pieces as numba
-first-class functions in a tuple ``calls`` (:data:`PIECES`, :data:`SCENE_PIECES`); numba would
-otherwise link and optimise the whole catalogue again in each of the seven time loops.
+the pair and sphere loops in a *pieces* module per family of laws (:meth:`_Generic.pieces_text`), the
+scene-level functions and time loops in one module (serial) and its twin on threads
+(:meth:`_Generic.text`), which take the pieces as numba first-class functions in a tuple ``calls``
+(:data:`CALLS`); numba would otherwise link and optimise the whole catalogue again in each of the
+seven time loops. Every scene on this tier, with neighbour lists or in open space, has a structref
+state (:class:`demkit.state.State`) and runs these same loops: an open scene's pair loops run over
+all pairs (``G_LIST`` 0) and it is given stubs for the list upkeep.
 """
 from __future__ import annotations
 
@@ -176,12 +179,6 @@ def sum_row(q):
     return 1 + 3 * MAX_GROUPS + MAX_EFFECTS + q
 
 
-def needs_nrt(plan):
-    """Does the scene need numba's reference counting in its outer loops (a long-range sum or the
-    induced-moment solve allocates)? Then it runs on the generic module compiled with it."""
-    return bool(plan.growing or plan.sums or plan.induction is not None)
-
-
 def _law_of(inter, laws):
     for law in laws:
         if law.fits(inter):
@@ -312,11 +309,11 @@ def _switch(entries, pad, body):
 
 
 class _Generic:
-    """Builds the text of a generic module (``growing``: the scenes with neighbour lists, a structref
-    state; ``threads``: chunked loops on prange)."""
+    """Builds the text of a generic module (``threads``: chunked loops on prange) or of a family's
+    pieces (:data:`FAMILIES`)."""
 
-    def __init__(self, growing, threads, nrt, family="full"):
-        self.growing, self.threads, self.nrt, self.family = growing, threads, nrt, family
+    def __init__(self, threads, family="full"):
+        self.threads, self.family = threads, family
         laws, effects = catalogue()
         self.laws = [law for law in laws if FAMILIES[family](law)]
         self.effects = [law for law in effects if FAMILIES[family](law)]
@@ -571,11 +568,10 @@ class _Generic:
         return lines
 
     # ---- scene-level functions --------------------------------------------------------------------
-    def call(self, name):
-        """How the scene-level functions call ``name``: through ``calls`` when this variant passes it
-        (:func:`calls_of`), else directly."""
-        names = calls_of(self.growing, self.nrt)
-        return f"calls[{names.index(name)}]" if name in names else name
+    @staticmethod
+    def call(name):
+        """How the scene-level functions call ``name`` (of :data:`CALLS`): through ``calls``."""
+        return f"calls[{CALLS.index(name)}]"
 
     def list_args(self, g=None):
         """The arrays of pair list g (None: of the list ``pl``)."""
@@ -583,9 +579,9 @@ class _Generic:
 
     def forces_body(self, speed, force, torque, strict):
         sp = SPEEDS.index(speed)
-        lines = [f"    {self.call('maintain_lists')}(s, {strict} != False)"] if self.growing else []
+        lines = [f"    {self.call('maintain_lists')}(s, {strict} != False)"]
         lines += ["    commit_flag = commit != False"]
-        if self.nrt and speed != "fast":  # induced moments first: the slow forces read them
+        if speed != "fast":  # induced moments first: the slow forces read them
             lines += ["    if s.program[0, H_INDUCTION] != 0:",
                       f"        if {self.call('induce_now')}(s, commit_flag) != 0 and s.status[0] == OK:",
                       "            s.status[0] = INDUCTION_FAILED"]
@@ -599,19 +595,16 @@ class _Generic:
                   f"        row = {group_row(0, sp)} + 3 * g",
                   "        if s.program[row, G_COUNT] > 0:",
                   "            pl = s.lists[g]"]
-        if self.growing:  # blocked loops run over neighbour lists only
-            lines += ["            if s.program[row, G_BLOCKED] != 0:",
-                      f"                power += calls[{PIECES.index('pairs_forces_blocked')}]({args})",
-                      "            else:",
-                      f"                power += calls[{PIECES.index('pairs_forces')}]({args})"]
-        else:
-            lines += [f"            power += calls[{PIECES.index('pairs_forces')}]({args})"]
+        lines += ["            if s.program[row, G_BLOCKED] != 0:",  # (blocked: over neighbour lists only)
+                  f"                power += calls[{PIECES.index('pairs_forces_blocked')}]({args})",
+                  "            else:",
+                  f"                power += calls[{PIECES.index('pairs_forces')}]({args})"]
         if speed != "slow":
             lines += ["    if s.program[0, H_EFFECTS] > 0:",
                       f"        power += calls[{PIECES.index('sphere_forces')}]({fields}, {force}, {torque}, "
                       "s.sphere_history, commit_flag, "
                       f"s.program)"]
-        if self.nrt and speed != "fast":
+        if speed != "fast":
             lines += [f"    {self.call('long_range')}(s, {force}, {torque})"]
         return lines + ["    return power"]
 
@@ -628,59 +621,56 @@ class _Generic:
     def scene_functions(self):
         fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         lines = []
-        if self.growing:
-            lines += MAINTAIN_LISTS_HEAD
-            for g in range(MAX_GROUPS):
-                lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                          f"        rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)"]
-            lines += MAINTAIN_LISTS_TAIL
-            lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
-                      '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""']
-            for g in range(MAX_GROUPS):
-                lines.append(f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)")
-            lines += ["    shortest = s.program[0, H_SHORTEST]",
-                      "    reach = s.lists[0].reach if shortest == 0 else (s.lists[1].reach if shortest == 1 else "
-                      "s.lists[2].reach)",
-                      "    order = cell_order(s.position, s.box, s.periodic, reach)"]
-            lines += PERMUTE_BY_ORDER
-            lines += ["    if s.sphere_history.shape[1] > 0:",
-                      "        permute_rows(s.sphere_history, order)"]
-            for g in range(MAX_GROUPS):
-                row = group_row(g, 0)
-                lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                          f"        build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)",
-                          f"        if s.program[{row}, G_WIDTH] > 0:",
-                          f"            restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})",
-                          f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
-            lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
-        if self.nrt:
-            # the sums are called as in the fused module, their flag written out (with_forces True for
-            # the forces, False for the energies): LLVM specialises them on it, and the bits follow
-            lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
-                      '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
-                      '    FMM); returns their energy."""',
-                      "    total = 0.0"]
-            lines += self.sum_switch("total", "force, torque, True") + ["    return total"]
-            lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
-                      '    """Add the energy of each long-range sum to its column of out."""']
-            lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, False")
-            lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
-                      '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
-                      "    g = s.program[0, H_INDUCTION_GROUP]",
-                      "    slot = s.program[0, H_INDUCTION_SLOT]",
-                      "    offset = s.program[0, H_INDUCTION_OFFSET]"]
-            for g in range(MAX_GROUPS):
-                lines += [f"    {'if' if g == 0 else 'elif'} g == {g}:",
-                          f"        return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
-                          f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.sphere_history, offset, commit)"]
-            lines += ["    return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
-                      "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32), "
-                      "s.sphere_history, offset, commit)"]
-            lines += ["", "", "@njit(**OUTER)", "def induce_of(s):",
-                      '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
-            if self.growing:
-                lines.append("    maintain_lists(s, False != False)")
-            lines += ["    return induce_now(s, False != False)"]
+        lines += MAINTAIN_LISTS_HEAD
+        for g in range(MAX_GROUPS):
+            lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)"]
+        lines += MAINTAIN_LISTS_TAIL
+        lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
+                  '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""']
+        for g in range(MAX_GROUPS):
+            lines.append(f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)")
+        lines += ["    shortest = s.program[0, H_SHORTEST]",
+                  "    reach = s.lists[0].reach if shortest == 0 else (s.lists[1].reach if shortest == 1 else "
+                  "s.lists[2].reach)",
+                  "    order = cell_order(s.position, s.box, s.periodic, reach)"]
+        lines += PERMUTE_BY_ORDER
+        lines += ["    if s.sphere_history.shape[1] > 0:",
+                  "        permute_rows(s.sphere_history, order)"]
+        for g in range(MAX_GROUPS):
+            row = group_row(g, 0)
+            lines += [f"    if s.program[{row}, G_LIST] != 0:",
+                      f"        build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)",
+                      f"        if s.program[{row}, G_WIDTH] > 0:",
+                      f"            restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})",
+                      f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
+        lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
+        # the sums are called as in the fused module, their flag written out (with_forces True for
+        # the forces, False for the energies): LLVM specialises them on it, and the bits follow
+        lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
+                  '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
+                  '    FMM); returns their energy."""',
+                  "    total = 0.0"]
+        lines += self.sum_switch("total", "force, torque, True") + ["    return total"]
+        lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
+                  '    """Add the energy of each long-range sum to its column of out."""']
+        lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, False")
+        lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
+                  '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
+                  "    g = s.program[0, H_INDUCTION_GROUP]",
+                  "    slot = s.program[0, H_INDUCTION_SLOT]",
+                  "    offset = s.program[0, H_INDUCTION_OFFSET]"]
+        for g in range(MAX_GROUPS):
+            lines += [f"    {'if' if g == 0 else 'elif'} g == {g}:",
+                      f"        return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
+                      f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.sphere_history, offset, commit)"]
+        lines += ["    return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
+                  "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32), "
+                  "s.sphere_history, offset, commit)"]
+        lines += ["", "", "@njit(**OUTER)", "def induce_of(calls, s):",
+                  '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
+        lines.append(f"    {self.call('maintain_lists')}(s, False != False)")
+        lines += [f"    return {self.call('induce_now')}(s, False != False)"]
         lines += ["", "", "@njit(**OUTER)", "def compute_forces(calls, s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
         lines += self.forces_body(None, "force", "torque", "strict")
@@ -695,14 +685,16 @@ class _Generic:
                   '    """Earliest time in (0, horizon] at which a contact starts or stops (see demkit.events)."""',
                   "    earliest = math.inf"]
         args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
-        for g in range(MAX_GROUPS):
-            row = group_row(g, 0)
-            lines += [f"    if s.program[{row}, G_COUNT] > 0 and s.program[{row}, G_CONTACT] != 0:",
-                      f"        if s.program[{row}, G_LIST] != 0:",
-                      f"            earliest = min(earliest, earliest_crossing_list({args}, s.lists[{g}].start, "
-                      f"s.lists[{g}].end, s.lists[{g}].partner, horizon))",
-                      "        else:",
-                      f"            earliest = min(earliest, earliest_crossing_all({args}, horizon))"]
+        # one call site per search, in a loop over the pair loops: each call site is optimised whole
+        lines += [f"    for g in range({MAX_GROUPS}):",
+                  f"        row = {group_row(0, 0)} + 3 * g",
+                  "        if s.program[row, G_COUNT] > 0 and s.program[row, G_CONTACT] != 0:",
+                  "            if s.program[row, G_LIST] != 0:",
+                  "                pl = s.lists[g]",
+                  f"                earliest = min(earliest, earliest_crossing_list({args}, pl.start, pl.end, "
+                  "pl.partner, horizon))",
+                  "            else:",
+                  f"                earliest = min(earliest, earliest_crossing_all({args}, horizon))"]
         lines += ["    for e in range(s.program[0, H_EFFECTS]):",
                   "        if s.program[EFFECT_ROW + e, E_PLANE] != 0:",
                   "            q = s.program[EFFECT_ROW + e, E_SLOT]",
@@ -711,8 +703,7 @@ class _Generic:
                   "    return earliest"]
         lines += ["", "", "@njit(**OUTER)", "def energies_of(calls, s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
-        if self.growing:
-            lines.append(f"    {self.call('maintain_lists')}(s, False != False)")
+        lines.append(f"    {self.call('maintain_lists')}(s, False != False)")
         lines += ["    for a in range(out.shape[0]):", "        out[a] = 0.0",
                   "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
         lines += [f"    for g in range({MAX_GROUPS}):",
@@ -722,23 +713,22 @@ class _Generic:
                   f"            calls[{PIECES.index('pairs_energies')}]({fields}, {self.list_args()}, out, s.program[row])"]
         lines += ["    if s.program[0, H_EFFECTS] > 0:",
                   f"        calls[{PIECES.index('sphere_energies')}]({fields}, s.sphere_history, out, s.program)"]
-        if self.nrt:  # in the fused module's order: the sums, then the induced moments' energy
-            lines += [f"    {self.call('sum_energies')}(s, out)"]
-            lines += ["    if s.program[0, H_INDUCTION] != 0:",
-                      "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
-                      "s.program[0, H_INDUCTION_SLOT])"]
+        # in the fused module's order: the sums, then the induced moments' energy
+        lines += [f"    {self.call('sum_energies')}(s, out)"]
+        lines += ["    if s.program[0, H_INDUCTION] != 0:",
+                  "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
+                  "s.program[0, H_INDUCTION_SLOT])"]
         lines += [line.replace("def record_frame(k,", "def record_frame(calls, k,")
                   .replace("energies_of(s,", "energies_of(calls, s,")
                   .replace("def end_step(step,", "def end_step(calls, step,") for line in RECORD_FRAME]
-        if self.growing:
-            lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
-                      "        s.counters[WRAP_DUE] = 0",
-                      "        if s.program[0, H_PERIODIC] != 0:",
-                      "            wrap(s.position, s.reference, s.image, s.box, s.periodic)",
-                      "        if s.program[0, H_SORTED] != 0:",
-                      "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
-                      f"                {self.call('sort_particles')}(s)",
-                      "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
+        lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
+                  "        s.counters[WRAP_DUE] = 0",
+                  "        if s.program[0, H_PERIODIC] != 0:",
+                  "            wrap(s.position, s.reference, s.image, s.box, s.periodic)",
+                  "        if s.program[0, H_SORTED] != 0:",
+                  "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
+                  f"                {self.call('sort_particles')}(s)",
+                  "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
         lines += [line.replace("record_frame(step", "record_frame(calls, step") for line in END_STEP_TAIL]
         return lines
 
@@ -775,12 +765,11 @@ class _Generic:
         # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
         # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
-        nrt = "" if self.nrt else ", _nrt=False"
         lines += [f"INNER = dict(cache=True, _nrt=False, {fast})",
                   f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
-                  f"OUTER = dict(cache=True, inline='always', {fast}{nrt})",
+                  f"OUTER = dict(cache=True, inline='always', {fast})",
                   "UPKEEP = dict(cache=True)",
-                  f"LOOP = dict(cache=True, nogil=True, {fast}{nrt})"]
+                  f"LOOP = dict(cache=True, nogil=True, {fast})"]
         return lines
 
     def pieces_text(self):
@@ -807,33 +796,30 @@ class _Generic:
         """The scene-level functions and the time loops: every function that reaches a piece takes the
         tuple ``calls`` (the pieces as first-class functions, :data:`PIECES` order) first."""
         lines = self.imports()
-        if self.nrt:
-            lines += ["from demkit.state import INDUCTION_FAILED",
-                      "from demkit.interactions.induction import induce, induction_energy",
-                      "from demkit.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
-                      "H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, S_KIND, S_SLOT, S_ENERGY)"]
-            lines += [f"from {module} import {name} as sum_{k}" for k, (module, name) in enumerate(SUMS)]
-        if self.growing:
-            from .motion import CALLED_PASSES
-            lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
-                      + ")"]
+        lines += ["from demkit.state import INDUCTION_FAILED",
+                  "from demkit.interactions.induction import induce, induction_energy",
+                  "from demkit.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
+                  "H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, S_KIND, S_SLOT, S_ENERGY)"]
+        lines += [f"from {module} import {name} as sum_{k}" for k, (module, name) in enumerate(SUMS)]
+        from .motion import CALLED_PASSES
+        lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
+                  + ")"]
         lines += self.scene_functions()
-        if self.nrt:  # stubs passed for the sums and the induction solve to scenes without them
-            lines += ["", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
-                      "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
-                      "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
+        # stubs passed for the list upkeep, the sums and the induction solve to scenes without them
+        lines += ["", "", "@njit(**LOOP)", "def no_maintain_lists(s, strict):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_sort_particles(s):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
+                  "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
         steps_of = {}  # each time loop: the functions in its tuple steps, in order
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
             pattern = r"\b(forces_of|fast_forces_of|slow_forces_of|end_step|next_contact_event)\("
-            if self.growing:  # the scene-level functions through ``steps``
-                src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
-                used = [step for step in STEPS if re.search(rf"\b{step}\(", src)]
-                steps_of[f"{name}_steps"] = tuple(used)
-                src = re.sub(pattern, lambda m: f"steps[{used.index(m.group(1))}](calls, ", src)
-            else:  # inlined: in open space the state is a named tuple, copied whole into each indirect call
-                src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, ", 1)
-                src = re.sub(pattern, r"\1(calls, ", src)
+            # the scene-level functions through ``steps``
+            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
+            used = [step for step in STEPS if re.search(rf"\b{step}\(", src)]
+            steps_of[f"{name}_steps"] = tuple(used)
+            src = re.sub(pattern, lambda m: f"steps[{used.index(m.group(1))}](calls, ", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         lines += ["", "", f"STEPS_OF = {steps_of!r}"]
         return "\n".join(lines) + "\n"
@@ -842,20 +828,17 @@ class _Generic:
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
 PIECES = ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies")
 THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
-#: the scene-level functions the time loops of scenes with lists call, passed to them in the tuple
-#: ``steps`` (compiled once per variant and state type instead of inlined into each of the seven time
-#: loops; their state is a structref, one pointer: the open variant's, a named tuple of 28 arrays,
-#: would be copied into each call, which doubled the paper's step on tier 1, so it inlines them)
+#: the scene-level functions the time loops call, passed to them in the tuple ``steps`` (compiled
+#: once per state type instead of inlined into each of the seven time loops; the state is a
+#: structref, one pointer, cheap to pass)
 STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_contact_event")
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
 SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now")
 
 
-def calls_of(growing, nrt):
-    """The names in a variant's ``calls`` tuple, in order (with lists: the list upkeep and the sums;
-    with reference counting: the sums)."""
-    return PIECES + (SCENE_PIECES if growing else SCENE_PIECES[2:] if nrt else ())
+#: the names in the ``calls`` tuple, in order
+CALLS = PIECES + SCENE_PIECES
 
 
 _CHUNKED = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, chunk_torque, "
@@ -876,22 +859,22 @@ def _layout_line():
 
 
 # ---- building and loading ---------------------------------------------------------------------------
-def generic_source(growing, threads=False, nrt=None):
-    """Python source of the generic module (``growing``: for scenes with neighbour lists; ``nrt``:
-    with numba's reference counting, long-range sums and induced moments; always with lists)."""
+def generic_source(threads=False):
+    """Python source of the generic module's scene-level functions and time loops (serial, or
+    calling the thread pieces and the threaded passes)."""
     from .integrators import TEMPLATES
-    return _Generic(growing, threads, growing if nrt is None else (nrt or growing)).text(TEMPLATES)
+    return _Generic(threads).text(TEMPLATES)
 
 
-def _name(growing, threads, nrt=None):
+def _name(threads):
     from .kernels import _fingerprint
-    source = generic_source(growing, threads, nrt)
+    source = generic_source(threads)
     return source, f"demkit_generic_{_fingerprint(source, [])}"
 
 
 def _pieces_name(threads, family):
     from .kernels import _fingerprint
-    source = _Generic(False, threads, False, family).pieces_text()
+    source = _Generic(threads, family).pieces_text()
     return source, (f"demkit_generic_pieces_{family}_{'threads_' if threads else ''}"
                     f"{_fingerprint(source, [])}")
 
@@ -929,24 +912,22 @@ def family_of(program):
     return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
 
 
-def build_generic(growing, threads=False, nrt=None, needs=PIECES, pieces=None, family="full"):
-    """The generic module for scenes with (``growing``) or without neighbour lists, serial or on
-    threads, with or without reference counting (see :func:`needs_nrt`), compiled function by
-    function as called and cached on disk like the fused modules; seen by a scene that calls the
-    pieces ``needs`` (see :func:`needs_of`: the others are never compiled for it) of ``family`` (see
-    :func:`family_of`). ``pieces``: a scene's own pieces (tier 2, :func:`demkit.kernels.build_pieces`)
-    in place of the generic ones."""
-    nrt = bool(growing) if nrt is None else bool(nrt or growing)
-    key = (bool(growing), bool(threads), nrt)
+def build_generic(threads=False, needs=CALLS, pieces=None, family="full"):
+    """The generic module (one for every scene, with neighbour lists or in open space; serial or on
+    threads), compiled function by function as called and cached on disk like the fused modules;
+    seen by a scene that calls ``needs`` of :data:`CALLS` (see :func:`needs_of`: the others are
+    stubbed, never compiled for it) of ``family`` (see :func:`family_of`). ``pieces``: a scene's own
+    pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones."""
+    key = ("generic", bool(threads))
     view = key + (tuple(needs), pieces and pieces.__name__, family)
     if view not in _MODULES:
-        module = _load(key, lambda: _name(growing, threads, nrt))
-        _MODULES[view] = GenericKernels(module, bool(growing), bool(threads), nrt, tuple(needs), pieces, family)
+        module = _load(key, lambda: _name(threads))
+        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family)
     return _MODULES[view]
 
 
 def needs_of(program):
-    """The pieces a scene of this program calls (:data:`PIECES`)."""
+    """What a scene of this program calls, of :data:`CALLS`."""
     rows = [group_row(g, sp) for g in range(MAX_GROUPS) for sp in range(len(SPEEDS))]
     needs = []
     if any(program[r, G_COUNT] > 0 and program[r, G_BLOCKED] == 0 for r in rows):
@@ -961,13 +942,17 @@ def needs_of(program):
         needs += ["long_range", "sum_energies"]
     if program[0, H_INDUCTION] != 0:
         needs += ["induce_now"]
+    if program[0, H_LISTS] != 0:
+        needs += ["maintain_lists"]
+    if program[0, H_SORTED] != 0:
+        needs += ["sort_particles"]
     return tuple(needs)
 
 
-def is_cached(growing, threads, function, nrt=None):
-    """Is ``function`` of this generic module in numba's disk cache already?"""
+def is_cached(threads, function):
+    """Is ``function`` of the generic module in numba's disk cache already?"""
     from .kernels import cached_function
-    return cached_function(_name(growing, threads, nrt)[1], function)
+    return cached_function(_name(threads)[1], function)
 
 
 def _fields(ty):
@@ -1004,8 +989,8 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    def __init__(self, module, growing, threads, nrt, needs, pieces=None, family="full"):
-        self.module, self.growing, self.threads, self.nrt, self.needs = module, growing, threads, nrt, needs
+    def __init__(self, module, threads, needs, pieces=None, family="full"):
+        self.module, self.threads, self.needs = module, threads, needs
         self.family = family
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
         self.tier = 1 if pieces is None else 2
@@ -1018,7 +1003,7 @@ class GenericKernels:
         if state_type not in self._calls:
             arguments = piece_arguments(state_type)
             calls = []
-            for name in calls_of(self.growing, self.nrt):
+            for name in CALLS:
                 module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES,
                                                                           self.family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
@@ -1045,13 +1030,9 @@ class GenericKernels:
             function = getattr(_pieces(False, self.family), f"pairs_{kind}")
 
         def run(s, owners, partners, out):
-            if self.growing:
+            if "maintain_lists" in self.needs:
                 self.module.maintain_lists(s, False)
-                *arrays, program = pair_loop_arrays(s, g)
-            else:
-                arrays = (*(getattr(s, name) for name in ARRAYS.split(", ")),
-                          *(getattr(s.lists[g], name) for name in LIST_ARRAYS.split(", ")))
-                program = s.program
+            *arrays, program = pair_loop_arrays(s, g)
             if own:
                 return function(*arrays, owners, partners, out)
             return function(*arrays, owners, partners, out, program[group_row(g, 0)])

@@ -364,8 +364,11 @@ def sum_chunks(target, buffers, count):
 # nothing next to a pair loop. Small scenes keep them inlined: a call costs there (two spheres step
 # at ~10^7 steps/s inlined, half that called).
 def _called(fn):
-    """``fn`` compiled as a function of its own (never inlined by numba)."""
-    return njit(**HELPER_OPTIONS)(fn.py_func)
+    """``fn`` compiled as a function of its own (never inlined by numba), without fast-math flags:
+    inlined by numba, a pass takes those of the generated module that inlines it (none), and a
+    scene must round the same whichever form its time loop calls (the open scenes' fused module
+    inlines, the generic module calls: demkit.tiers)."""
+    return njit(**dict(HELPER_OPTIONS, fastmath=False))(fn.py_func)
 
 
 #: the passes the integrators' templates and the generated modules call

@@ -32,8 +32,8 @@ from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, bui
 from .motion import empty_vectors
 from .particles import Particles
 from .progress import compile_estimate, compile_notice
-from .state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, make_pair_list, make_state,
-                    new_pair_list, touch_getters)
+from .state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, TupleStateModule,
+                    make_pair_list, make_state, new_pair_list, touch_getters)
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
 #: same limit stops a run, see demkit.state.DEEP_OVERLAP_FRACTION)
@@ -181,12 +181,22 @@ class Scene:
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
-            return generic.build_generic(self.plan.growing, threads, generic.needs_nrt(self.plan),
-                                         generic.needs_of(self.program), pieces, generic.family_of(self.program))
-        return build_module(self.plan, TEMPLATES, threads=threads)
+            # one module serves every scene, with lists or not (stubs for what a scene never calls)
+            return generic.build_generic(threads, generic.needs_of(self.program), pieces, generic.family_of(self.program))
+        module = build_module(self.plan, TEMPLATES, threads=threads)
+        return TupleStateModule(module, self) if self.structured and not self.plan.growing else module
 
     #: where a program row holds its group and speed (read by the scene's own pieces)
     program_columns = (generic.G_GROUP, generic.G_SPEED)
+
+    @property
+    def structured(self):
+        """Is the state a structref (demkit.state.State: with neighbour lists, or on the generic
+        module) rather than named tuples (the fused module of an open scene that starts on it)?"""
+        return self.plan.growing or self.tier == 1 or self._pieces_tier_2()
+
+    def _pair_list(self, fields):
+        return make_pair_list(*fields) if self.structured else PairListTuple(*fields)
 
     def _pieces_tier_2(self):
         """Is this scene's tier 2 its own pieces called by the generic loops (not a fused module)?"""
@@ -353,6 +363,8 @@ class Scene:
         p, plan = self.particles, self.plan
         n = len(p)
         growing = plan.growing
+        self.program, self.program_refusal = generic.program_of(plan, _Source(plan, True), self.energy_kinds)
+        self.tier = self._choose_tier()  # before the lists: the tier decides the state's form
         lists = []
         for group in plan.groups:
             bounds = np.zeros(self.chunks + 1, dtype=np.int64)
@@ -363,7 +375,7 @@ class Scene:
             history = np.zeros((n * (n - 1) // 2 if group.width else 0, group.width))
             fields = (math.inf, np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                       np.zeros(0, dtype=np.int32), history, bounds)
-            lists.append(make_pair_list(*fields) if growing else PairListTuple(*fields))
+            lists.append(self._pair_list(fields))
         lists = self.padded(lists)
         threads = self.chunks if any(g.parallel for g in plan.groups) else 0
         omega = p.angular_velocity if p.angular_velocity is not None else empty_vectors()
@@ -385,8 +397,6 @@ class Scene:
         for inter in self.interactions + self.effects:
             self.time_step_slots += [slot + m for m, name in enumerate(inter.parameters) if name == "dt"]
             slot += len(inter.parameters)
-        self.program, self.program_refusal = generic.program_of(plan, _Source(plan, True), self.energy_kinds)
-        self.tier = self._choose_tier()
         own = (lambda a: a.copy()) if plan.sorted else (lambda a: a)  # sorted: the kernels' own order
         mass, inertia = own(p.mass), own(p.inertia)
         if self.has_fixed:  # fixed spheres: infinite mass and inertia in the kernels' copies
@@ -416,13 +426,13 @@ class Scene:
         while len(lists) < generic.MAX_GROUPS:
             fields = (0.0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
                       np.zeros((0, 0)), np.zeros(2, dtype=np.int64))
-            lists.append(make_pair_list(*fields) if self.plan.growing else PairListTuple(*fields))
+            lists.append(self._pair_list(fields))
         return tuple(lists)
 
     def _state_object(self):
         """The named state the kernels take, over the arrays in ``self.arrays``."""
         values = [self.arrays[name] for name in STATE_FIELDS]
-        if not self.plan.growing:
+        if not self.structured:
             return StateTuple(*values)
         state = make_state(*values)
         touch_getters(state)

@@ -194,3 +194,42 @@ def new_pair_list(reach, n, history_width, chunks, capacity=None):
     return make_pair_list(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                           np.zeros(capacity, dtype=np.int32),
                           np.zeros((0, history_width)), np.zeros(chunks + 1, dtype=np.int64))
+
+
+def tuple_state(arrays):
+    """The named-tuple form (:data:`StateTuple`) over the arrays of a state (``Scene.arrays``, whose
+    lists may be :class:`PairList` proxies): the same arrays, seen as the fused module of a scene
+    without neighbour lists takes them."""
+    lists = tuple(PairListTuple(*(getattr(pl, name) for name in PAIR_LIST_FIELDS)) for pl in arrays["lists"])
+    return StateTuple(*(lists if name == "lists" else arrays[name] for name in STATE_FIELDS))
+
+
+class TupleStateModule:
+    """A fused module of a scene without neighbour lists (tier 2, named tuples, no reference counting)
+    called with the structref state of tier 1, which the scene keeps after a switch of tier: each call
+    is given :func:`tuple_state` of the scene's arrays (open scenes' arrays never change size, so both
+    forms see the same memory), and ``compile`` takes tier 1's signatures."""
+
+    def __init__(self, module, scene):
+        self.module, self.scene = module, scene
+
+    def __getattr__(self, name):
+        return _TupleStateFunction(getattr(self.module, name), self.scene)
+
+
+class _TupleStateFunction:
+    def __init__(self, function, scene):
+        self.function, self.scene = function, scene
+
+    def __call__(self, *args):
+        state = tuple_state(self.scene.arrays)
+        return self.function(*(state if isinstance(a, State) else a for a in args))
+
+    @property
+    def signatures(self):
+        return self.function.signatures
+
+    def compile(self, signature):
+        import numba
+        ty = numba.typeof(tuple_state(self.scene.arrays))
+        return self.function.compile(tuple(ty if isinstance(t, StateType) else t for t in signature))

@@ -235,8 +235,7 @@ class ThreadChoice:
             from .kernels import is_cached
             if self.serial_module is self.scene.kernels and self.scene.tier == 1:
                 from .generic import is_cached as generic_cached
-                from .generic import needs_nrt
-                self._cached = generic_cached(self.scene.plan.growing, True, self.name, needs_nrt(self.scene.plan))
+                self._cached = generic_cached(True, self.name)
             else:
                 self._cached = is_cached(self.scene.plan, TEMPLATES, self.name, threads=True)
         return 0.5 if self._cached else WORTH_COMPILING
