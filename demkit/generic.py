@@ -156,6 +156,9 @@ _CATALOGUE = None
 #: kind numbers): a scene runs on the smallest family holding its laws, so that a scene without
 #: contact history never compiles the friction, rolling and twisting laws (two thirds of the pieces)
 FAMILIES = {"light": lambda law: not law.history, "full": lambda law: True}
+#: the pieces module of the blocked pair loop, shared by the families: it holds the branch-free laws
+#: (dipoles) alone, which every family holds
+BLOCKED = "blocked"
 
 
 def catalogue():
@@ -315,8 +318,11 @@ class _Generic:
     def __init__(self, threads, family="full"):
         self.threads, self.family = threads, family
         laws, effects = catalogue()
-        self.laws = [law for law in laws if FAMILIES[family](law)]
-        self.effects = [law for law in effects if FAMILIES[family](law)]
+        if family == BLOCKED:
+            self.laws, self.effects = [law for law in laws if law.branch_free], []
+        else:
+            self.laws = [law for law in laws if FAMILIES[family](law)]
+            self.effects = [law for law in effects if FAMILIES[family](law)]
 
     # ---- pair loops ---------------------------------------------------------------------------
     def header(self):
@@ -488,9 +494,10 @@ class _Generic:
                                   "bounds[t], bounds[t + 1], program)")
 
     def pair_functions(self):
+        if self.family == BLOCKED:
+            return self.chunked("pairs_forces_blocked", self.blocked_loop)
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
-        lines += self.chunked("pairs_forces_blocked", self.blocked_loop)
-        if self.threads:  # the thread pieces: the two chunked loops on prange, the rest is serial
+        if self.threads:  # the thread pieces: the chunked loop on prange, the rest is serial
             return lines
         # energies, and per-entry energies and forces (diagnostics)
         for name, signature, doc in (
@@ -781,13 +788,15 @@ class _Generic:
             for law in entries:
                 lines += [f"from {law.module} import {law.force_name} as {prefix}_{law.kind}_force",
                           f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
+        blocked = self.family == BLOCKED
+        names = ("pairs_forces_blocked",) if blocked else PIECES[:1] + PIECES[2:]
         if self.threads:
-            lines.append(f"from {_pieces_name(False, self.family)[1]} import pairs_forces_chunk, "
-                         "pairs_forces_blocked_chunk")
+            lines.append(f"from {_pieces_name(False, self.family)[1]} import {names[0]}_chunk")
         lines += self.pair_functions()
-        if not self.threads:
+        if not (self.threads or blocked):
             lines += self.sphere_functions()
-        for name, (params, result) in PIECE_ARGUMENTS.items():
+        for name in names:
+            params, result = PIECE_ARGUMENTS[name]
             if not self.threads or name in THREAD_PIECES:
                 lines += ["", "", "@njit(**INNER)", f"def no_{name}({params}):", f"    return {result}"]
         return "\n".join(lines) + "\n"
@@ -1004,8 +1013,9 @@ class GenericKernels:
             arguments = piece_arguments(state_type)
             calls = []
             for name in CALLS:
+                family = BLOCKED if name == "pairs_forces_blocked" else self.family
                 module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES,
-                                                                          self.family)
+                                                                          family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
                 if self.pieces is not None and name in PIECES and not stubbed:
