@@ -1095,6 +1095,7 @@ class _Bound:
         self.steps = "steps" in names
         self.position = names.index("s") - (2 if self.steps else 1)
         self.uses = kernels.module.STEPS_OF[function.__name__] if self.steps else ()
+        self._entries = {}  # argument types -> (compiled entry point, the pieces' tuples)
 
     def _first(self, state_type, record_type):
         calls = self.kernels.calls_for(state_type)
@@ -1103,10 +1104,23 @@ class _Bound:
         return calls, self.kernels.steps_for(state_type, record_type, self.uses)
 
     def __call__(self, *args):
+        """Call with the pieces supplied. The dispatcher would type the tuples of first-class
+        functions anew at every call (3 ms, more than a chunk of a small scene): after the first call
+        of a signature, its compiled entry point is called directly."""
         import numba
-        p = self.position
-        record = numba.typeof(args[p + 1]) if self.steps else None
-        return self.function(*self._first(numba.typeof(args[p]), record), *args)
+        key = tuple(_type_key(a) for a in args)
+        entry = self._entries.get(key)
+        if entry is None:
+            types = tuple(numba.typeof(a) for a in args)
+            p = self.position
+            first = self._first(types[p], types[p + 1] if self.steps else None)
+            result = self.function(*first, *args)
+            compiled = self.function.overloads.get((*(numba.typeof(f) for f in first), *types))
+            if compiled is not None:
+                self._entries[key] = (compiled.entry_point, first)
+            return result
+        function, first = entry
+        return function(*first, *args)
 
     @property
     def signatures(self):
@@ -1117,3 +1131,15 @@ class _Bound:
         p = self.position
         first = self._first(signature[p], signature[p + 1] if self.steps else None)
         return self.function.compile((*(numba.typeof(f) for f in first), *signature))
+
+
+def _type_key(value):
+    """What decides the numba type of an argument, read without numba's typeof (arrays: dtype,
+    dimensions, layout, writability; a state: its numba type; tuples: their items)."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned
+    if isinstance(value, tuple):
+        return tuple(_type_key(v) for v in value)
+    numba_type = getattr(value, "_numba_type_", None)
+    return numba_type if numba_type is not None else type(value)
