@@ -5,13 +5,14 @@ reads ``kick(s.velocity, s.force, s.mass, h)``. Absent optional fields are (0, 3
 
 Two forms with the same field names, so one template source compiles for both:
 
-* :data:`StateTuple` / :data:`PairListTuple`, named tuples, for scenes whose arrays never change
-  size (no neighbour lists: small open scenes such as the seed paper's pair). They need no numba
-  reference counting, which keeps a two-sphere step at tens of nanoseconds.
-* :class:`State` / :class:`PairList`, numba structrefs (mutable), for scenes with neighbour lists,
-  which grow inside the compiled loop. Fields that compiled code replaces (the arrays of a list)
-  are read back in Python through the proxies' properties; every other array is shared with
-  Python, which made it.
+* :data:`StateTuple` / :data:`PairListTuple`, named tuples, for the fused module of a scene whose
+  arrays never change size (tier 2 of an open scene, such as the seed paper's pair). They need no
+  numba reference counting, which keeps a two-sphere step at tens of nanoseconds.
+* :class:`State` / :class:`PairList`, numba structrefs (mutable, one pointer to pass), for every
+  scene on the generic module (tier 1, demkit.generic) and for scenes with neighbour lists, which
+  grow inside the compiled loop. Fields that compiled code replaces (the arrays of a list) are read
+  back in Python through the proxies' properties; every other array is shared with Python, which
+  made it. :func:`tuple_state` views the same arrays as named tuples.
 
 Hot loops never take these objects: they are compiled without reference counting and receive
 plain arrays (``s.position``, ...), because numba's counting of array references costs more than
