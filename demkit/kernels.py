@@ -364,7 +364,7 @@ class _Source:
             # contact laws only: a pair that does not touch and holds no history costs a distance
             # test, not calls and accumulations of zeros (a pair that held history goes through
             # its law once more, which releases the springs and books their energy)
-            test = f"r2 >= (radius[i] + radius[j]) * (radius[i] + radius[j])"
+            test = "r2 >= (radius[i] + radius[j]) * (radius[i] + radius[j])"
             test += "".join(f" and history[p, {h}] == 0.0" for h in range(group.width))
             body += [f"{pad}if {test}:", f"{pad}    continue"]
         if any(inter.contact_reach for _, inter in group.members):
@@ -1035,8 +1035,13 @@ def is_cached(plan, templates, function, threads=False):
     interactions = plan.interactions + plan.effects
     if not all(_importable(fn) for inter in interactions for fn in inter.pair_functions()):
         return False
-    key = _fingerprint(generate_source(plan, templates, True, threads), interactions)
-    return cached_function(f"demkit_kernel_{key}", function)
+    return cached_function(fused_name(plan, templates, threads), function)
+
+
+def fused_name(plan, templates, threads=False):
+    """The name of this plan's fused module (tier 2): ``demkit_kernel_<fingerprint of its text>``."""
+    interactions = plan.interactions + plan.effects
+    return f"demkit_kernel_{_fingerprint(generate_source(plan, templates, True, threads), interactions)}"
 
 
 def cached_function(module, function):

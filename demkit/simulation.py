@@ -12,7 +12,6 @@ import threading
 import time
 import warnings
 
-import numba
 import numpy as np
 
 from . import checks, guards
@@ -312,6 +311,7 @@ class Simulation:
                 done += chunk
                 self.step = start_step + done
                 seconds = time.perf_counter() - began
+                self._tiers.ran(seconds)
                 probe = self._threads.probing  # a probe's rate does not size the next chunks
                 self._threads.measured(chunk, seconds, first=self._rate is None)
                 if not probe:

@@ -8,6 +8,9 @@ faster but costs 3-30 CPU s to compile the first time a combination of interacti
 1. starts on tier 1;
 2. compiles tier 2 on another thread (or loads it, when numba's cache has it) once the run has at
    least :data:`WORTH_COMPILING` seconds left (:data:`WORTH_LOADING` when cached), while it goes on;
+   the seconds that earlier runs of the same combination spent on tier 1 in this process count too
+   (a sweep of many short runs, such as the paper's replication, pays for tier 2 as a long run does),
+   and once this process has tier 2 of a combination, every later run of it switches at once;
 3. switches to tier 2 between two compiled chunks as soon as it is ready.
 
 Both tiers do the same arithmetic in the same order, so a run gives the same bits whenever the
@@ -25,8 +28,15 @@ from .progress import BACKGROUND
 #: a run with at least this many seconds left on tier 1 compiles tier 2 in the background (a first
 #: compile of a combination costs 5-30 CPU s on the other core; tier 2 saves 0-25 % of the run)
 WORTH_COMPILING = 20.0
+#: ... and for a scene without neighbour lists, whose fused module steps many times faster than tier 1
+#: (two spheres: 11.7 M against 1.0 M steps/s) and compiles in about 5 CPU s
+WORTH_COMPILING_OPEN = 8.0
 #: ... and loads it from numba's cache with at least this many seconds left (about 1 s to load)
 WORTH_LOADING = 2.0
+#: per combination and time loop (tier 2's module name, loop name): seconds run on tier 1 by this
+#: process's runs, and the combinations whose tier 2 this process has compiled or loaded
+_SPENT = {}
+_READY = set()
 
 
 class TierChoice:
@@ -47,17 +57,41 @@ class TierChoice:
         self._work = None
         self._modules = None  # (serial, thread or None) of tier 2, once compiled
         self._cached = None
+        self._key = None  # (tier 2's module name, loop name), once asked for
 
     def _worth(self):
+        """Seconds of run on tier 1 that make tier 2 worth compiling or loading."""
+        key = self.key
+        if key in _READY:
+            return 0.0
         if self._cached is None:
             from .integrators import TEMPLATES
-            from .kernels import cached_function, is_cached, pieces_source
-            if self.scene._pieces_tier_2():
-                self._cached = cached_function(pieces_source(self.scene.plan, self.scene.program_columns)[1],
-                                               "piece_pairs_forces")
+            from .kernels import cached_function, importable, is_cached
+            scene = self.scene
+            if scene._pieces_tier_2():
+                self._cached = importable(scene.plan) and cached_function(key[0], "piece_pairs_forces")
             else:
-                self._cached = is_cached(self.scene.plan, TEMPLATES, self.name)
-        return WORTH_LOADING if self._cached else WORTH_COMPILING
+                self._cached = is_cached(scene.plan, TEMPLATES, self.name)
+        if self._cached:
+            return WORTH_LOADING
+        return WORTH_COMPILING if self.scene.plan.growing else WORTH_COMPILING_OPEN
+
+    @property
+    def key(self):
+        """(tier 2's module name, the run's loop): what runs of the same combination share."""
+        if self._key is None:
+            from .integrators import TEMPLATES
+            from .kernels import fused_name, pieces_source
+            scene = self.scene
+            name = (pieces_source(scene.plan, scene.program_columns)[1] if scene._pieces_tier_2() else
+                    fused_name(scene.plan, TEMPLATES))
+            self._key = (name, self.name)
+        return self._key
+
+    def ran(self, seconds):
+        """The run stepped ``seconds`` more on tier 1 (counted for later runs of the combination)."""
+        if self.tier == 1 and self.switchable:
+            _SPENT[self.key] = _SPENT.get(self.key, 0.0) + seconds
 
     def ready(self, seconds_left, busy=False):
         """Tier 2's (serial module, thread module or None) when the run should switch to it now, else
@@ -66,13 +100,14 @@ class TierChoice:
         if not self.switchable or seconds_left is None:
             return None
         if self._work is None:
-            if busy or seconds_left < self._worth():
+            if busy or seconds_left + _SPENT.get(self.key, 0.0) < self._worth():
                 return None
             self._start()
             return None
         if self._work.is_alive() or self._modules is None:
             return None
         self.switchable = False
+        _READY.add(self.key)
         return self._modules
 
     def switched(self, step):

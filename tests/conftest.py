@@ -7,7 +7,7 @@ import demkit as dk
 # runs of the suite stay on the tier they start on: a long test would otherwise compile its scene's
 # fused module in the background (tens of CPU s beside the other worker). tests/test_tiers.py
 # switches on purpose, and asks for tier 2 where it compares the tiers.
-dk.tiers.WORTH_COMPILING = dk.tiers.WORTH_LOADING = float("inf")
+dk.tiers.WORTH_COMPILING = dk.tiers.WORTH_COMPILING_OPEN = dk.tiers.WORTH_LOADING = float("inf")
 
 R_PAPER = 6.94
 V_PAPER = 5.78e-3

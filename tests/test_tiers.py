@@ -6,6 +6,8 @@ are chosen to cover every shipped pair law and effect, every integrator, open an
 lists and all pairs, blocked dipole loops, sorting, chunks on threads and multiple time stepping,
 with few tier-2 modules (each costs seconds to compile; the generic module is shared by the whole
 suite)."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -234,3 +236,30 @@ def test_program_layout():
     assert program[0, generic.H_EFFECTS] == 5
     names = [effects[program[generic.effect_row(e), generic.E_KIND]].force_name for e in range(5)]
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
+
+
+def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
+    """Short runs of one combination (a sweep, the paper's replication) pay for tier 2 together: the
+    seconds each spent on tier 1 in this process count for the next, and once one run has tier 2,
+    the later ones switch to it at once."""
+    from demkit import tiers
+    monkeypatch.setattr(tiers, "WORTH_COMPILING_OPEN", 1.0)
+    monkeypatch.setattr(tiers, "WORTH_LOADING", 1.0)
+    monkeypatch.setattr(tiers, "_SPENT", {})
+    monkeypatch.setattr(tiers, "_READY", set())
+    started = []
+    monkeypatch.setattr(tiers.TierChoice, "_start", lambda self: started.append(self))
+    p = dk.Particles(position=[[0, 0, 0], [3.0, 0, 0]], radius=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
+    runs = [tiers.TierChoice(dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(100.0)]), "euler_cromer_steps")
+            for _ in range(3)]
+    other = tiers.TierChoice(dk.Scene(p, [dk.Dipole(1.0)]), "euler_cromer_steps")  # another combination
+    assert len({run.key for run in runs}) == 1 and other.key != runs[0].key
+    runs[0].ran(0.6)
+    assert runs[0].ready(0.3) is None and not started  # 0.9 s of this combination: not worth it
+    runs[1].ran(0.3)
+    assert other.ready(0.2) is None and not started  # the other combination has run 0 s
+    assert runs[1].ready(0.2) is None and started == [runs[1]]  # 0.6 + 0.3 + 0.2 s: compiled now
+    runs[1]._work = SimpleNamespace(is_alive=lambda: False)
+    runs[1]._modules = ("tier 2", None)
+    assert runs[1].ready(0.1) == ("tier 2", None)
+    assert runs[2].ready(0.0) is None and started[-1] is runs[2]  # this process has it: at once
