@@ -152,10 +152,16 @@ class Law:
 
 
 _CATALOGUE = None
+#: the pair laws of the smallest family, "plain": the paper's magnets (dipoles, Kelvin-Voigt contacts)
+#: and power-law dipoles, no cutoff switch, no effects (its pair loop compiles in half the time of
+#: the light family's, which a new install's first scene waits for)
+PLAIN_LAWS = ("dipole_force", "power_law_force", "kelvin_voigt_force")
 #: the families of pieces modules, each holding the laws and effects it accepts (with their catalogue
-#: kind numbers): a scene runs on the smallest family holding its laws, so that a scene without
-#: contact history never compiles the friction, rolling and twisting laws (two thirds of the pieces)
-FAMILIES = {"light": lambda law: not law.history, "full": lambda law: True}
+#: kind numbers), from the smallest: a scene runs on the first family holding its laws, so that a
+#: scene without contact history never compiles the friction, rolling and twisting laws (two thirds
+#: of the pieces), and the paper's magnets compile three laws, not seven
+FAMILIES = {"plain": lambda law: law.pair and law.force_name in PLAIN_LAWS, "light": lambda law: not law.history,
+            "full": lambda law: True}
 #: the pieces module of the blocked pair loop, shared by the families: it holds the branch-free laws
 #: (dipoles) alone, which every family holds
 BLOCKED = "blocked"
@@ -727,7 +733,7 @@ class _Generic:
                   "s.program[0, H_INDUCTION_SLOT])"]
         lines += [line.replace("def record_frame(k,", "def record_frame(calls, k,")
                   .replace("energies_of(s,", "energies_of(calls, s,")
-                  .replace("def end_step(step,", "def end_step(calls, step,") for line in RECORD_FRAME]
+                  .replace("def end_step(step,", "def end_step(calls, frame, step,") for line in RECORD_FRAME]
         lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
                   "        s.counters[WRAP_DUE] = 0",
                   "        if s.program[0, H_PERIODIC] != 0:",
@@ -736,7 +742,9 @@ class _Generic:
                   "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                   f"                {self.call('sort_particles')}(s)",
                   "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += [line.replace("record_frame(step", "record_frame(calls, step") for line in END_STEP_TAIL]
+        # record_frame through ``frame`` (a time loop's steps[...]): called, it would be linked into
+        # end_step and optimised again there (2.5 CPU s at a scene's first step)
+        lines += [line.replace("record_frame(step", "frame(calls, step") for line in END_STEP_TAIL]
         return lines
 
     def imports(self):
@@ -827,8 +835,13 @@ class _Generic:
             # the scene-level functions through ``steps``
             src = src.replace(f"def {template.__name__}(", f"def {name}_steps(calls, steps, ", 1)
             used = [step for step in STEPS if re.search(rf"\b{step}\(", src)]
+            used += ["record_frame"] if "end_step" in used else []  # end_step's frame
             steps_of[f"{name}_steps"] = tuple(used)
-            src = re.sub(pattern, lambda m: f"steps[{used.index(m.group(1))}](calls, ", src)
+
+            def call(m, used=used):
+                frame = f"steps[{used.index('record_frame')}], " if m.group(1) == "end_step" else ""
+                return f"steps[{used.index(m.group(1))}](calls, {frame}"
+            src = re.sub(pattern, call, src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         lines += ["", "", f"STEPS_OF = {steps_of!r}"]
         return "\n".join(lines) + "\n"
@@ -1058,8 +1071,11 @@ class GenericKernels:
             calls_type = numba.typeof(self.calls_for(state_type))
             stage = _fields(state_type)["stage"]
             vector = types.Array(stage.dtype, stage.ndim - 1, "C" if stage.layout == "C" else "A")
-            arguments = {"forces_of": (calls_type, state_type, types.boolean),
-                         "end_step": (calls_type, types.int64, types.int64, types.int64, state_type, record_type),
+            frame = (calls_type, types.int64, state_type, record_type)
+            frame_type = numba.typeof(self._wrapped(self.module.record_frame, frame))
+            arguments = {"forces_of": (calls_type, state_type, types.boolean), "record_frame": frame,
+                         "end_step": (calls_type, frame_type, types.int64, types.int64, types.int64, state_type,
+                                      record_type),
                          "fast_forces_of": (calls_type, state_type, vector, vector, types.boolean)}
             arguments["slow_forces_of"] = arguments["fast_forces_of"]
             arguments["next_contact_event"] = (calls_type, state_type, vector, types.float64)
