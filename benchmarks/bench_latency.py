@@ -368,13 +368,13 @@ WARM_GENERIC = {
             return dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1), {integrator}
     """,
 }
-#: after a warm-up scene: every piece of tier 1 its kind of scene may call (the pieces a scene does not
-#: call are compiled only when a scene calls them: demkit.generic.needs_of)
+#: after a warm-up scene: every piece of tier 1, of every family, for its kind of state (the install-wide
+#: code; a scene compiles only the pieces it calls, demkit.generic.needs_of)
 WARM_PIECES = """
 import numba
 from demkit import generic
-view = generic.build_generic(False, generic.CALLS)
-view.calls_for(numba.typeof(scene.state))
+for family in generic.FAMILIES:
+    generic.build_generic(False, generic.CALLS, None, family).calls_for(numba.typeof(scene.state))
 """
 WARM_GENERIC["lists_sums"] = """
         def make():
@@ -497,9 +497,14 @@ def part_tiers(quick, rounds=3):
     env = dict(os.environ, DEMKIT_CACHE_DIR=str(cache), DEMKIT_QUIET="1")
     rows = []
     try:
-        _empty_caches(cache)
+        fresh = []
+        for _ in range(1 if quick else rounds):  # the spread is wide (15-20 CPU s): the median of three
+            _empty_caches(cache)
+            fresh.append(_child(COMPILE_CHILD.format(scene=_scene_source("two_magnets", tmp)), env))
         rows.append({"what": "fresh_install", "scene": "two_magnets",
-                     **_child(COMPILE_CHILD.format(scene=_scene_source("two_magnets", tmp)), env)})
+                     "cpu_s": statistics.median(r["cpu_s"] for r in fresh),
+                     "cpu_s_runs": [round(r["cpu_s"], 2) for r in fresh],
+                     "kernel_functions_compiled": fresh[0]["kernel_functions_compiled"]})
         print(json.dumps(rows[-1]), flush=True)
         for name, (source, kind, integrator) in TIER_SCENES.items():
             warm = COMPILE_CHILD.format(scene=textwrap.dedent(WARM_GENERIC[kind].format(integrator=integrator)))

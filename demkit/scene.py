@@ -196,7 +196,10 @@ class Scene:
         return self.plan.growing or self.tier == 1 or self._pieces_tier_2()
 
     def _pair_list(self, fields):
-        return make_pair_list(*fields) if self.structured else PairListTuple(*fields)
+        """A pair list of these fields: a structref with neighbour lists (compiled code grows it), else
+        a named tuple, read in Python as it is (the state object takes structref copies of it, over the
+        same arrays, when it is one: see _state_object)."""
+        return make_pair_list(*fields) if self.plan.growing else PairListTuple(*fields)
 
     def _pieces_tier_2(self):
         """Is this scene's tier 2 its own pieces called by the generic loops (not a fused module)?"""
@@ -434,8 +437,11 @@ class Scene:
         values = [self.arrays[name] for name in STATE_FIELDS]
         if not self.structured:
             return StateTuple(*values)
+        if not self.plan.growing:  # open space on the generic module: structref lists over the same arrays
+            values[STATE_FIELDS.index("lists")] = tuple(make_pair_list(*pl) for pl in self.arrays["lists"])
         state = make_state(*values)
-        touch_getters(state)
+        if self.plan.growing:
+            touch_getters(state)
         return state
 
     # ---- state -----------------------------------------------------------------------------

@@ -198,9 +198,8 @@ def new_pair_list(reach, n, history_width, chunks, capacity=None):
 
 
 def tuple_state(arrays):
-    """The named-tuple form (:data:`StateTuple`) over the arrays of a state (``Scene.arrays``, whose
-    lists may be :class:`PairList` proxies): the same arrays, seen as the fused module of a scene
-    without neighbour lists takes them."""
+    """The named-tuple form (:data:`StateTuple`) over the arrays of a state (``Scene.arrays``): the
+    same arrays, seen as the fused module of a scene without neighbour lists takes them."""
     lists = tuple(PairListTuple(*(getattr(pl, name) for name in PAIR_LIST_FIELDS)) for pl in arrays["lists"])
     return StateTuple(*(lists if name == "lists" else arrays[name] for name in STATE_FIELDS))
 
