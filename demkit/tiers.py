@@ -7,7 +7,8 @@ faster but costs 3-30 CPU s to compile the first time a combination of interacti
 
 1. starts on tier 1;
 2. compiles tier 2 on another thread (or loads it, when numba's cache has it) once the run has at
-   least :data:`WORTH_COMPILING` seconds left (:data:`WORTH_LOADING` when cached), while it goes on;
+   least :data:`WORTH_COMPILING` seconds left (:data:`WORTH_COMPILING_OPEN` in open space,
+   :data:`WORTH_LOADING` when cached), while it goes on;
    the seconds that earlier runs of the same combination spent on tier 1 in this process count too
    (a sweep of many short runs, such as the paper's replication, pays for tier 2 as a long run does),
    and once this process has tier 2 of a combination, every later run of it switches at once;
@@ -15,7 +16,8 @@ faster but costs 3-30 CPU s to compile the first time a combination of interacti
 
 Both tiers do the same arithmetic in the same order, so a run gives the same bits whenever the
 switch happens, or whether it happens at all (``tests/test_tiers.py``). A run that ends before
-tier 2 is ready never waits for it, and one shorter than :data:`WORTH_COMPILING` never compiles it.
+tier 2 is ready never waits for it, and one shorter than :data:`WORTH_COMPILING` (with what earlier
+runs of its combination spent) never compiles it.
 ``Scene(tier=1)`` never switches, ``Scene(tier=2)`` starts on tier 2; ``sim.statistics`` (``tier``,
 ``tier_reason``, ``tier_switch_step``), the progress bar and ``demkit info`` say which tier ran.
 """
@@ -147,9 +149,12 @@ class TierChoice:
     def describe(self):
         """One line for ``demkit info``: which tier runs this scene and why."""
         if self.switchable:
+            worth, faster = ((WORTH_COMPILING, "up to 25 % faster") if self.scene.plan.growing else
+                             (WORTH_COMPILING_OPEN, "several times faster in open space"))
             return (f"tier 1, the generic module (compiled once per install); the scene's own code (tier 2, "
-                    f"the same bits, up to 25 % faster) is compiled in the background by runs with more than "
-                    f"{WORTH_COMPILING:g} s to go, loaded by runs of more than {WORTH_LOADING:g} s once cached")
+                    f"the same bits, {faster}) is compiled in the background by runs with more than "
+                    f"{worth:g} s to go (counting earlier runs of the combination in the process), loaded by "
+                    f"runs of more than {WORTH_LOADING:g} s once cached")
         return f"tier {self.tier}: {self.reason}"
 
     @property
