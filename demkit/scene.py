@@ -177,11 +177,10 @@ class Scene:
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``).
         Tier 2 of a scene that the program describes, with neighbour lists or functions of your own,
         is the generic time loops calling the scene's own pieces (:func:`demkit.kernels.build_pieces`);
-        else its fused module."""
+        else its fused module (through named tuples over the arrays of a structref state)."""
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
-            # one module serves every scene, with lists or not (stubs for what a scene never calls)
             return generic.build_generic(threads, generic.needs_of(self.program), pieces, generic.family_of(self.program))
         module = build_module(self.plan, TEMPLATES, threads=threads)
         return TupleStateModule(module, self) if self.structured and not self.plan.growing else module
@@ -191,14 +190,11 @@ class Scene:
 
     @property
     def structured(self):
-        """Is the state a structref (demkit.state.State: with neighbour lists, or on the generic
-        module) rather than named tuples (the fused module of an open scene that starts on it)?"""
+        """Is the state a structref (lists, or the generic module), not named tuples (a fused open module)?"""
         return self.plan.growing or self.tier == 1 or self._pieces_tier_2()
 
     def _pair_list(self, fields):
-        """A pair list of these fields: a structref with neighbour lists (compiled code grows it), else
-        a named tuple, read in Python as it is (the state object takes structref copies of it, over the
-        same arrays, when it is one: see _state_object)."""
+        """A structref pair list with neighbour lists (compiled code grows it), else a named tuple."""
         return make_pair_list(*fields) if self.plan.growing else PairListTuple(*fields)
 
     def _pieces_tier_2(self):

@@ -68,10 +68,10 @@ class TierChoice:
             return 0.0
         if self._cached is None:
             from .integrators import TEMPLATES
-            from .kernels import cached_function, importable, is_cached
+            from .kernels import cached_function, is_cached
             scene = self.scene
             if scene._pieces_tier_2():
-                self._cached = importable(scene.plan) and cached_function(key[0], "piece_pairs_forces")
+                self._cached = cached_function(key[0], "piece_pairs_forces")
             else:
                 self._cached = is_cached(scene.plan, TEMPLATES, self.name)
         if self._cached:
