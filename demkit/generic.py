@@ -324,11 +324,9 @@ class _Generic:
     def __init__(self, threads, family="full"):
         self.threads, self.family = threads, family
         laws, effects = catalogue()
-        if family == BLOCKED:
-            self.laws, self.effects = [law for law in laws if law.branch_free], []
-        else:
-            self.laws = [law for law in laws if FAMILIES[family](law)]
-            self.effects = [law for law in effects if FAMILIES[family](law)]
+        accepts = (lambda law: law.branch_free) if family == BLOCKED else FAMILIES[family]  # (no effect is)
+        self.laws = [law for law in laws if accepts(law)]
+        self.effects = [law for law in effects if accepts(law)]
 
     # ---- pair loops ---------------------------------------------------------------------------
     def header(self):
@@ -1071,15 +1069,15 @@ class GenericKernels:
             calls_type = numba.typeof(self.calls_for(state_type))
             stage = _fields(state_type)["stage"]
             vector = types.Array(stage.dtype, stage.ndim - 1, "C" if stage.layout == "C" else "A")
-            frame = (calls_type, types.int64, state_type, record_type)
-            frame_type = numba.typeof(self._wrapped(self.module.record_frame, frame))
-            arguments = {"forces_of": (calls_type, state_type, types.boolean), "record_frame": frame,
-                         "end_step": (calls_type, frame_type, types.int64, types.int64, types.int64, state_type,
-                                      record_type),
+            frame = self._wrapped(self.module.record_frame, (calls_type, types.int64, state_type, record_type))
+            arguments = {"forces_of": (calls_type, state_type, types.boolean),
+                         "end_step": (calls_type, numba.typeof(frame), types.int64, types.int64, types.int64,
+                                      state_type, record_type),
                          "fast_forces_of": (calls_type, state_type, vector, vector, types.boolean)}
             arguments["slow_forces_of"] = arguments["fast_forces_of"]
             arguments["next_contact_event"] = (calls_type, state_type, vector, types.float64)
-            self._steps[key] = tuple(self._wrapped(getattr(self.module, name), arguments[name]) for name in uses)
+            self._steps[key] = tuple(frame if name == "record_frame" else
+                                     self._wrapped(getattr(self.module, name), arguments[name]) for name in uses)
         return self._steps[key]
 
     @staticmethod

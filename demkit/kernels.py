@@ -1032,10 +1032,12 @@ def _fingerprint(source, interactions):
 def is_cached(plan, templates, function, threads=False):
     """Is ``function`` of this plan's module (the thread module with ``threads``) in numba's disk
     cache already (loading it then takes a fraction of a second, compiling it many seconds)?"""
-    interactions = plan.interactions + plan.effects
-    if not all(_importable(fn) for inter in interactions for fn in inter.pair_functions()):
-        return False
-    return cached_function(fused_name(plan, templates, threads), function)
+    return functions_importable(plan) and cached_function(fused_name(plan, templates, threads), function)
+
+
+def functions_importable(plan):
+    """Can every pair and sphere function of the plan be imported by name (so its module is cached)?"""
+    return all(_importable(fn) for inter in plan.interactions + plan.effects for fn in inter.pair_functions())
 
 
 def fused_name(plan, templates, threads=False):
@@ -1057,9 +1059,7 @@ def cached_function(module, function):
 def importable(plan):
     """Can a generated file import every function of the plan by name, and may it be cached on disk
     (not with DEMKIT_NO_CACHE)? Else its fused module is compiled in memory."""
-    interactions = plan.interactions + plan.effects
-    return (all(_importable(fn) for inter in interactions for fn in inter.pair_functions())
-            and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0"))
+    return functions_importable(plan) and os.environ.get("DEMKIT_NO_CACHE", "") in ("", "0")
 
 
 def fused_source(plan, templates, threads=False):

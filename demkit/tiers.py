@@ -66,14 +66,12 @@ class TierChoice:
         key = self.key
         if key in _READY:
             return 0.0
-        if self._cached is None:
-            from .integrators import TEMPLATES
-            from .kernels import cached_function, is_cached
-            scene = self.scene
-            if scene._pieces_tier_2():
+        if self._cached is None:  # (key[0] names the module: its source is generated once)
+            from .kernels import cached_function, functions_importable
+            if self.scene._pieces_tier_2():
                 self._cached = cached_function(key[0], "piece_pairs_forces")
             else:
-                self._cached = is_cached(scene.plan, TEMPLATES, self.name)
+                self._cached = functions_importable(self.scene.plan) and cached_function(key[0], self.name)
         if self._cached:
             return WORTH_LOADING
         return WORTH_COMPILING if self.scene.plan.growing else WORTH_COMPILING_OPEN
