@@ -132,6 +132,8 @@ class Scene:
         self.parallel = self.chunks > 1  # may run on threads
         self._thread_kernels = None
         self.tier_requested = _tier(tier)
+        #: the tier came from DEMKIT_TIER, a default: 1 then means tier 1 wherever it can run the scene
+        self.tier_from_environment = tier is None and self.tier_requested is not None
         self.plan = self._plan()
         #: the induced-moment solve (demkit.interactions.induction.InducedMoments), or None
         self.induction = self._induction(polarisabilities)
@@ -150,7 +152,10 @@ class Scene:
             self.state = self._make_state()
             if self.induction is not None:
                 self._first_induction()
-            self.kernels = self._kernels(threads=False)
+            #: the module of forces(), energy() and every call made from Python: tier 1 whenever it
+            #: can run the scene (tier 2 then only runs time loops: nothing else of it is compiled)
+            self.kernels = self._kernels(threads=False, tier=1 if self.on_tier_1_possible else None)
+            self._loop_kernels = None
             self.validate()
         # the lists are built (and a sorted scene sorted by cell) at the first push, by the first
         # run or diagnostic: their code then compiles with the rest of the scene's, under one
@@ -160,9 +165,21 @@ class Scene:
             self.particles.image[...] = self.arrays["image"]
 
     @property
+    def on_tier_1_possible(self):
+        """Can the generic module (tier 1) run this scene (shipped interactions only)?"""
+        return self.program is not None and self.program_refusal is None
+
+    @property
+    def loop_kernels(self):
+        """The module whose time loops runs of this scene's tier call (``kernels`` on tier 1)."""
+        if self._loop_kernels is None:
+            self._loop_kernels = self._kernels(threads=False) if self.tier == 2 else self.kernels
+        return self._loop_kernels
+
+    @property
     def thread_kernels(self):
-        """The kernel module whose loops run on numba's threads (the same arithmetic as
-        ``kernels``; compiled when first asked for)."""
+        """The module whose loops run on numba's threads, of the scene's tier (the same arithmetic as
+        ``loop_kernels``; compiled when first asked for)."""
         if self._thread_kernels is None:
             self._thread_kernels = self._kernels(threads=True)
         return self._thread_kernels
@@ -191,7 +208,7 @@ class Scene:
     @property
     def structured(self):
         """Is the state a structref (lists, or the generic module), not named tuples (a fused open module)?"""
-        return self.plan.growing or self.tier == 1 or self._pieces_tier_2()
+        return self.plan.growing or self.on_tier_1_possible or self._pieces_tier_2()
 
     def _pair_list(self, fields):
         """A structref pair list with neighbour lists (compiled code grows it), else a named tuple."""
@@ -208,7 +225,7 @@ class Scene:
     def _choose_tier(self):
         """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""
         if self.program is None or self.program_refusal is not None:
-            if self.tier_requested == 1:
+            if self.tier_requested == 1 and not self.tier_from_environment:
                 raise ValueError(f"tier=1: the generic module cannot run this scene ({self.program_refusal}); "
                                  f"use tier=None or 2")
             return 2

@@ -89,9 +89,9 @@ class ThreadChoice:
     def __init__(self, scene, template):
         self.scene = scene
         self.name = f"{template}_steps"
-        self.serial_module = scene.kernels  # the tier's modules (demkit.tiers: tier 2 may replace them)
+        self.serial_module = scene.loop_kernels  # the tier's modules (demkit.tiers: tier 2 may replace them)
         self._thread_module = lambda: scene.thread_kernels
-        self.serial_loop = getattr(scene.kernels, self.name)
+        self.serial_loop = getattr(self.serial_module, self.name)
         self.thread_loop = None
         self.max_threads = numba.get_num_threads() if scene.parallel else 1
         self.rates = {1: None, self.max_threads: None}  # steps per second of wall time, last measured

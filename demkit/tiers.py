@@ -41,6 +41,11 @@ _SPENT = {}
 _READY = set()
 
 
+def _asked(scene, tier):
+    """How the scene asked for its tier: tier=1 or DEMKIT_TIER=1."""
+    return f"DEMKIT_TIER={tier}" if scene.tier_from_environment else f"tier={tier}"
+
+
 class TierChoice:
     """Chooses, between chunks, the tier whose loops one Simulation runs."""
 
@@ -50,10 +55,10 @@ class TierChoice:
         self.switch_step = None
         self.switchable = scene.tier == 1 and scene.tier_requested is None
         if scene.tier == 2:
-            self.reason = ("tier=2 asked for" if scene.tier_requested == 2 else
+            self.reason = (f"{_asked(scene, 2)} asked for" if scene.tier_requested == 2 else
                            f"the generic module cannot run this scene ({scene.program_refusal})")
         elif scene.tier_requested == 1:
-            self.reason = "tier=1 asked for"
+            self.reason = f"{_asked(scene, 1)} asked for"
         else:
             self.reason = "the generic module (tier 1) until the scene's own code (tier 2) is worth compiling"
         self._work = None

@@ -4,9 +4,12 @@ import pytest
 
 import demkit as dk
 
-# runs of the suite stay on the tier they start on: a long test would otherwise compile its scene's
-# fused module in the background (tens of CPU s beside the other worker). tests/test_tiers.py
-# switches on purpose, and asks for tier 2 where it compares the tiers.
+# runs of the suite stay on tier 1 (the generic module, compiled once for the whole suite), in this
+# process and in the child processes the tests start (examples, the command line, kills): a long
+# test would otherwise compile its scene's own code in the background (tens of CPU s beside the
+# other worker). tests/test_tiers.py switches on purpose, and asks for tier 2 where it compares the
+# tiers; scenes with functions of your own run on tier 2 (DEMKIT_TIER=1 is a default, not a demand).
+__import__("os").environ["DEMKIT_TIER"] = "1"
 dk.tiers.WORTH_COMPILING = dk.tiers.WORTH_COMPILING_OPEN = dk.tiers.WORTH_LOADING = float("inf")
 
 R_PAPER = 6.94

@@ -1,7 +1,7 @@
 """The two tiers of compiled code (demkit.tiers): the generic module (tier 1) and a scene's own code
 (tier 2: its fused module in open space and on threads, its own pair and sphere loops called by the
-generic time loops with neighbour lists) give byte-equal trajectories, energies and diagnostics, and
-a run that switches from one to the other in its middle gives the same bits as either. The scenes
+generic time loops with neighbour lists) give byte-equal trajectories and energies (and diagnostics,
+which tier 2 computes only for functions of your own), and a run that switches from one to the other in its middle gives the same bits as either. The scenes
 are chosen to cover every shipped pair law and effect, every integrator, open and periodic boxes,
 lists and all pairs, blocked dipole loops, sorting, chunks on threads and multiple time stepping,
 with few tier-2 modules (each costs seconds to compile; the generic module is shared by the whole
@@ -13,6 +13,12 @@ import pytest
 
 import demkit as dk
 from demkit import generic
+
+
+@pytest.fixture(autouse=True)
+def automatic_tier(monkeypatch):
+    """Scenes here choose their tier themselves (the suite's conftest sets DEMKIT_TIER=1)."""
+    monkeypatch.delenv("DEMKIT_TIER", raising=False)
 
 
 def small_scene(tier, laws="kelvin_voigt"):
@@ -56,10 +62,9 @@ def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_vo
 
 def outcome(scene, integrator, duration, switch=False, diagnostics=False):
     """Everything a run records (and with ``diagnostics`` the forces, per-pair energies and forces
-    after it), as one array of bits. The diagnostics are functions of their own in each fused module
-    (5-20 CPU s to compile in each): the cases that ask for them cover all pairs in open space, lists
-    in periodic boxes, blocked dipole loops and the real-space Ewald law; the trajectory itself
-    depends on every force of every step."""
+    after it), as one array of bits. Diagnostics run on tier 1 whenever it can run the scene (tier 2
+    compiles time loops only), so they differ between tiers only with functions of your own; the
+    trajectory itself depends on every force of every step."""
     sim = dk.Simulation(scene, integrator)
     if switch:  # compile tier 2 at once, switch when ready (here: at once, the module is in memory)
         sim._tiers._worth = lambda: 0.0
@@ -102,7 +107,7 @@ def test_periodic_gas_same_bits(integrator):
     # integrator is a time loop of its own in the fused module: seconds to compile for each)
     friction = type(integrator) is dk.VelocityVerlet and not integrator.resolve_contacts
     make = gas if friction else (lambda tier: gas(tier, kelvin_voigt=True))
-    same_bits(make, integrator, 0.2, diagnostics=friction)
+    same_bits(make, integrator, 0.2)
 
 
 def test_multiple_time_steps_with_lists_same_bits():
@@ -155,7 +160,7 @@ def long_range_gas(tier, method):
 
 def test_long_range_sum_same_bits():
     """An Ewald sum (P3M and FMM are called the same way, from the same switch)."""
-    same_bits(lambda tier: long_range_gas(tier, dk.Ewald), dk.VelocityVerlet(1e-3), 0.05, diagnostics=True)
+    same_bits(lambda tier: long_range_gas(tier, dk.Ewald), dk.VelocityVerlet(1e-3), 0.05)
 
 
 def test_magnetisable_spheres_same_bits():
@@ -165,7 +170,7 @@ def test_magnetisable_spheres_same_bits():
                      dipole=[[0, 0, 0], [0, 0, 0], [0, 0, 0.2], [0, 0, 0]])
     make = lambda tier: dk.Scene(p.copy(), [dk.Dipole(prefactor=1.0), dk.KelvinVoigt(1000.0, 1.0),
                                             dk.UniformField((0, 0, 0.5))], tier=tier)  # noqa: E731
-    same_bits(make, dk.VelocityVerlet(1e-3), 0.05, diagnostics=True)  # the open box's diagnostics
+    same_bits(make, dk.VelocityVerlet(1e-3), 0.05)
 
 
 def test_switch_in_the_middle_same_bits():
@@ -204,11 +209,17 @@ def test_functions_of_your_own_run_on_their_own_pieces_with_the_catalogues_bits(
         assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ"
 
 
-def test_tier_choice_and_refusals():
+def test_tier_choice_and_refusals(monkeypatch):
+    from demkit import tiers
+    monkeypatch.setattr(tiers, "_READY", set())  # as in a process that has not run this combination
+    monkeypatch.setattr(tiers, "_SPENT", {})
     scene = gas(None)
     assert scene.tier == 1 and scene.kernels.tier == 1
     # tier 2 of a scene with lists: the generic time loops calling the scene's own pieces
-    assert gas(2).kernels.tier == 2 and gas(2).kernels.pieces.__name__.startswith("demkit_pieces_")
+    assert gas(2).loop_kernels.tier == 2 and gas(2).loop_kernels.pieces.__name__.startswith("demkit_pieces_")
+    # ... whose diagnostics run on tier 1 (nothing of tier 2 compiled for them), open or with lists
+    for second in (gas(2), small_scene(2)):
+        assert second.tier == 2 and second.kernels.tier == 1 and second.loop_kernels is not second.kernels
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
     sim.run(duration=0.01, progress=False)
     assert sim.statistics["tier"] == 1 and sim.statistics["tier_switch_step"] is None  # too short to compile
