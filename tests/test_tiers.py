@@ -22,13 +22,16 @@ def automatic_tier(monkeypatch):
 
 
 def small_scene(tier, laws="kelvin_voigt"):
-    """Six spheres in open space (all pairs, no lists) above a floor, between walls."""
+    """Six spheres in open space (all pairs, no lists) above a floor, between walls; with Hertz
+    contacts two of them magnetisable (the induced moments solved before the forces of every step)."""
     rng = np.random.default_rng(4)
     pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5],
                     [1.6, 0.4, 1.4]])
     d = rng.normal(size=(6, 3))
+    magnetisable = {} if laws == "kelvin_voigt" else {"susceptibility": [2.0, 0, 0, 3.0, 0, 0]}
     p = dk.Particles(position=pos, velocity=0.3 * rng.normal(size=(6, 3)), radius=0.5, mass=1.0,
-                     angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None])
+                     angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None],
+                     **magnetisable)
     if laws == "kelvin_voigt":
         law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
                              twisting=dk.TwistingResistance())
@@ -37,8 +40,8 @@ def small_scene(tier, laws="kelvin_voigt"):
     else:
         law = dk.Hertz(young=5e4, poisson=0.3, restitution=0.6, friction=dk.Friction(0.3),
                        twisting=dk.TwistingResistance())
-        pair = [dk.PowerLawDipole(prefactor=0.05)]
-        more = [dk.Langevin(drag=0.5, temperature=0.01, seed=3)]
+        pair = [dk.Dipole(prefactor=0.05)]  # at every range (the power law: test_sorted_chunked_gas...)
+        more = [dk.Langevin(drag=0.5, temperature=0.01, seed=3), dk.UniformField((0.0, 0.0, 0.5))]
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0))]
     return dk.Scene(p, [*pair, law, dk.Gravity((0, 0, -1.0)), *more, *walls], tier=tier)
 
@@ -94,7 +97,9 @@ def test_small_scene_same_bits(integrator):
     same_bits(small_scene, integrator, 0.05)
 
 
-def test_hertz_power_law_langevin_same_bits():
+def test_hertz_magnetisable_langevin_same_bits():
+    """Hertz contacts, induced moments in a uniform field, a heat bath, in open space."""
+    assert small_scene(1, laws="hertz").induction is not None
     same_bits(lambda tier: small_scene(tier, laws="hertz"), dk.VelocityVerlet(2e-4), 0.05)
 
 
@@ -161,16 +166,6 @@ def long_range_gas(tier, method):
 def test_long_range_sum_same_bits():
     """An Ewald sum (P3M and FMM are called the same way, from the same switch)."""
     same_bits(lambda tier: long_range_gas(tier, dk.Ewald), dk.VelocityVerlet(1e-3), 0.05)
-
-
-def test_magnetisable_spheres_same_bits():
-    """Induced moments solved before the slow forces at every step, in a uniform field."""
-    pos = np.array([[0.0, 0.0, 0.0], [1.02, 0.0, 0.1], [0.0, 1.03, -0.1], [1.5, 1.5, 0.2]])
-    p = dk.Particles(pos, radius=0.5, mass=1.0, susceptibility=[2.0, 2.0, 0.0, 3.0],
-                     dipole=[[0, 0, 0], [0, 0, 0], [0, 0, 0.2], [0, 0, 0]])
-    make = lambda tier: dk.Scene(p.copy(), [dk.Dipole(prefactor=1.0), dk.KelvinVoigt(1000.0, 1.0),
-                                            dk.UniformField((0, 0, 0.5))], tier=tier)  # noqa: E731
-    same_bits(make, dk.VelocityVerlet(1e-3), 0.05)
 
 
 def test_switch_in_the_middle_same_bits():
