@@ -433,13 +433,21 @@ RENDER_VISIBILITY = """
             if np.min(np.linalg.norm(np.array(pos[:-1] + [x + 10 * L]) - x, axis=1)) > 2.2 and \\
                     np.all(np.abs(x - L / 2) < 6):
                 pos.append(x)
-        while len(pos) < n:
-            x = rng.uniform(0, L, 3)
-            d = np.array(pos) - x
+        placed, k = np.zeros((n, 3)), len(pos)
+        placed[:k] = pos
+        while k < n:  # candidates drawn as one at a time, tried in batches against those placed
+            batch = rng.uniform(0, L, (256, 3))
+            d = placed[:k, None, :] - batch[None]
             d -= L * np.round(d / L)
-            if np.min(np.linalg.norm(d, axis=1)) > 2.6:
-                pos.append(x)
-        pos = np.array(pos)[None]
+            free = np.sqrt((d * d).sum(axis=2)).min(axis=0) > 2.6
+            start = k
+            for x in batch[free]:
+                d = placed[start:k] - x  # and against those placed from this batch
+                d -= L * np.round(d / L)
+                if k < n and (k == start or np.sqrt((d * d).sum(axis=1)).min() > 2.6):
+                    placed[k] = x
+                    k += 1
+        pos = placed[None]
         return dk.Trajectory(np.zeros(1), pos, np.zeros_like(pos), None, None, {{}}, None, np.ones(n), np.ones(n),
                              np.full(n, 0.4), np.arange(n), box=dk.Box([L] * 3, periodic=True))
 
