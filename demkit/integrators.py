@@ -325,7 +325,7 @@ class Integrator:
                 raise ValueError(
                     f"{type(self).__name__} cannot integrate per-contact history, which {kept[0]!r} keeps "
                     f"(friction or rolling springs advance one step per force evaluation): use VelocityVerlet "
-                    f"or EulerCromer for this scene")
+                    f"(without resolve_contacts) or EulerCromer for this scene")
 
     def _resolving(self, resolve_contacts, template, stage_arrays):
         """Switch to the contact-event template ``template`` (see VelocityVerlet) when asked."""

@@ -136,10 +136,13 @@ class RunNotes:
                        f"results that depend on where spheres touch are off by as much; a stiffer law (larger "
                        f"stiffness or Young's modulus) keeps overlaps small (a smaller time step does not)")
         if f["energy_drift"] is not None and f["energy_drift"] > ENERGY_DRIFT:
+            # contact events need contacts without per-contact history (friction, rolling, twisting springs)
+            events = ("" if self.scene.history_keepers() else
+                      ", or step impacts exactly with VelocityVerlet(dt, resolve_contacts=True)")
             out.append(f"the energy balance (kinetic + rotational + potential + dissipated) drifted by "
                        f"{f['energy_drift']:.1%} of the energy scale {self.scale:.4g}: the time step dt = {dt:.4g} "
                        f"is too long for this accuracy; halve it (the drift of a dissipative run falls about as "
-                       f"dt), or step impacts exactly with VelocityVerlet(dt, resolve_contacts=True)")
+                       f"dt){events}")
         return out
 
 

@@ -41,6 +41,21 @@ def test_a_too_long_step_gets_an_energy_note_with_the_drift_of_the_trajectory(ca
     assert sim.statistics["energy_drift"] == pytest.approx(drift, rel=1e-12)
     assert any("energy balance" in n and "dt = 0.02" in n for n in sim.statistics["notes"])
     assert "demkit note: the energy balance" in capsys.readouterr().err
+    assert any("resolve_contacts=True" in n for n in sim.statistics["notes"])  # frictionless: events work
+
+
+def test_the_energy_note_of_a_frictional_run_advises_only_what_runs():
+    # friction keeps per-contact history, which contact events cannot integrate (refused): the
+    # note must not advise them
+    p = dk.Particles(position=[[-1.0, 0, 0], [1.0, 0.3, 0]], velocity=[[1.0, 0, 0], [-1.0, 0, 0]], radius=1.0,
+                     mass=1.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(100.0, 2.0, friction=dk.Friction(0.5))])
+    sim = dk.Simulation(scene, dk.VelocityVerlet(0.02))
+    sim.run(3.0, record_every=0.1)
+    energy = [n for n in sim.statistics["notes"] if "energy balance" in n]
+    assert energy and "halve it" in energy[0] and "resolve_contacts" not in energy[0]
+    with pytest.raises(ValueError, match=r"VelocityVerlet \(without resolve_contacts\) or EulerCromer"):
+        dk.Simulation(scene, dk.VelocityVerlet(0.02, resolve_contacts=True))
 
 
 def test_a_well_resolved_gentle_impact_is_quiet(capsys, monkeypatch):
