@@ -168,7 +168,8 @@ _CUTOFF = {"cutoff": _n("centre distance beyond which pairs are ignored (none: n
            "switch_width": _n("smooth switch-off over [cutoff - width, cutoff] (none: plain cut)", check="positive",
                               dim="length")}
 INTERACTIONS = Table({
-    "dipole": Table({"prefactor": _n("A = mu0/4pi in SI; 1/3 with unit moments is the paper's units",
+    "dipole": Table({"prefactor": _n("A = mu0/4pi in SI (the default there); required in plain units, where "
+                                     "1/3 with unit moments is the paper's units",
                                      default=1e-7, check="positive", dim="dipole_prefactor"), **_CUTOFF,
                      "ewald": Table({
                          "accuracy": _n("relative RMS force error the sum is tuned to", default=1e-6,
@@ -203,7 +204,7 @@ INTERACTIONS = Table({
                     one_of=((("ewald", "p3m", "fmm"), False),),
                     excludes=(("ewald", ("switch_width",)), ("p3m", ("switch_width",)),
                               ("fmm", ("cutoff", "switch_width")))),
-    "power_law_dipole": Table({"prefactor": _n("A, as for dipole", default=1e-7, check="positive",
+    "power_law_dipole": Table({"prefactor": _n("A, as for dipole (required in plain units)", default=1e-7, check="positive",
                                                dim="dipole_prefactor"), **_CUTOFF},
                               "the paper's central head-to-tail force, no torque (dk.PowerLawDipole)"),
     "kelvin_voigt": Table({
@@ -447,11 +448,24 @@ def parse_scene(text, source="<string>", overrides=None):
         raw = apply_overrides(raw, overrides, name)
         data = validate(SCHEMA, raw)
         _check_rules(data)
+        _check_prefactors(raw, data)
     except SchemaError as err:
         raise src.error(err.path, err.problem) from None
     except RecursionError:
         raise SceneFileError("nested too deeply", name) from None
     return _build(data, src, base)
+
+
+def _check_prefactors(raw, data):
+    """In plain units a dipole's prefactor is given: its default, mu0/4pi = 1e-7, is SI's constant."""
+    if data["units"] == "si":
+        return
+    for name in ("dipole", "power_law_dipole"):
+        table = (raw.get("interactions") or {}).get(name)
+        if isinstance(table, dict) and "prefactor" not in table:
+            raise SchemaError(("interactions", name, "prefactor"),
+                              "is required in plain units (A in F = A (...) m m / r^4: 1/3 with unit moments in "
+                              "the seed paper's units; mu0/4pi = 1e-7 only in SI, with units = \"si\")")
 
 
 def _check_rules(data):

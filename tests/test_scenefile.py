@@ -169,6 +169,16 @@ def test_scene_options_the_constructor_refuses_and_misplaced_ones():
         dk.parse_scene("skin = 0.2\n" + SMALL, source="s.toml")
 
 
+def test_a_dipole_without_its_prefactor_is_refused_in_plain_units():
+    """Plain units take numbers as given: mu0/4pi = 1e-7 (SI's constant) is no default there."""
+    text = GAS.replace("prefactor = 1.0\n", "")
+    assert text != GAS
+    with pytest.raises(dk.SceneFileError, match=r"^gas.toml:\d+: interactions.dipole.prefactor: is required in "
+                                                r"plain units .*1/3 with unit moments"):
+        dk.parse_scene(text, source="gas.toml")
+    assert dk.parse_scene(GAS).scene.interactions[0].prefactor == 1.0
+
+
 def test_inline_particles_and_defaults():
     loaded = dk.parse_scene(SMALL)
     p = loaded.scene.particles
