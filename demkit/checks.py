@@ -121,3 +121,17 @@ def integer_array(name, value):
     if not (np.isfinite(arr).all() and np.all(arr == np.round(arr))):
         raise ValueError(f"{name} must hold whole numbers, got {_show(value)}")
     return arr.astype(np.int64)
+
+
+#: the widest a scene may be, in radii of its smallest sphere: float64 positions there still resolve a
+#: radius to about 1e-4 (doubles near 1e12 R are 1.2e-4 R apart), and cell counts fit an int64
+WIDEST = 1e12
+
+
+def resolvable(what, extent, radius):
+    """Raise ValueError when a length ``extent`` spans more than :data:`WIDEST` times ``radius``."""
+    extent, radius = float(np.max(extent)), float(np.min(radius))
+    if not extent <= WIDEST * radius:
+        raise ValueError(f"{what} spans {extent:.6g}, more than {WIDEST:g} times the smallest radius {radius:.6g}: "
+                         f"float64 positions cannot resolve the spheres there (rescale the units or the box)")
+

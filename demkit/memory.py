@@ -60,10 +60,13 @@ def pairs_per_sphere(n, reach, radius, volume=None):
         return 0.0
     if not math.isfinite(reach):
         return (n - 1) / 2.0
-    if volume is not None and volume > 0.0:
-        count = 0.5 * n / volume * 4.0 / 3.0 * math.pi * reach**3
-    else:
-        count = 0.5 * max(DENSEST * ((reach + radius) / radius) ** 3 - 1.0, 0.0)
+    try:
+        if volume is not None and volume > 0.0:
+            count = 0.5 * n / volume * 4.0 / 3.0 * math.pi * reach**3
+        else:
+            count = 0.5 * max(DENSEST * ((reach + radius) / radius) ** 3 - 1.0, 0.0)
+    except OverflowError:  # a reach of 1e300 radii: every other sphere
+        count = math.inf
     return min(count, (n - 1) / 2.0)
 
 

@@ -336,6 +336,9 @@ class Scene:
     def _check_geometry(self):
         p = self.particles
         contact = 2.0 * float(np.max(p.radius))
+        if self.box is not None:
+            checks.resolvable(f"the box {self.box}", self.box.size, p.radius)
+        checks.resolvable("the spheres' positions", np.ptp(p.position, axis=0), p.radius)
         for inter, reach in zip(self.interactions, self.reaches):
             if ("dipole" in inter.reads and inter.cutoff_distance is not None and reach < contact
                     and getattr(inter, "tuned", None) is None):  # an Ewald sum's real space may end short of it

@@ -743,7 +743,8 @@ def _check_memory(data, box, interactions, src):
     lists = [(min(memory.pairs_per_sphere(n, r + skin, radius, volume), memory.pairs_per_sphere(n, r + skin, radius)),
               width) for r, width in reaches.items() if math.isfinite(r)]
     run = data["run"]
-    frames = int(run["duration"] / run["record_every"]) + 2 if run["record_every"] else 2
+    frames = run["duration"] / run["record_every"] + 2 if run["record_every"] else 2
+    frames = int(min(frames, 2.0**62))  # (for the estimate: more than any machine holds)
     torques = any(inter.torque or "angular_velocity" in inter.reads for inter in interactions)
     threads = int(numba.config.NUMBA_NUM_THREADS) if n >= PARALLEL_MIN and options.get("parallel") is not False else 1
     # (an upper bound: with parallel unset, only scenes whose force evaluation is estimated at 0.5 ms or

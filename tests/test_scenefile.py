@@ -179,6 +179,32 @@ def test_a_dipole_without_its_prefactor_is_refused_in_plain_units():
     assert dk.parse_scene(GAS).scene.interactions[0].prefactor == 1.0
 
 
+@pytest.mark.parametrize("text, value", [
+    ("size = [12.0, 12.0, 8.0]", "size = [1e300, 12.0, 8.0]"),  # crashed the interpreter (cell counts)
+    ("radius = 0.5", "radius = 1e300"), ("radius = 0.5", "radius = 1e-300"),  # OverflowError tracebacks
+    ("duration = 0.4", "duration = 1e308"),
+    ("[interactions.rolling_resistance]\ncoefficient = 0.05", "[interactions.rolling_resistance]\ncoefficient = 1e-300"),
+])
+def test_extreme_numbers_in_a_scene_file_are_one_error_or_a_scene(text, value):
+    """Found by substituting 1e300, 1e-300, 1e308, inf, nan and 2^63 - 1 for every number of two scene
+    files: each ends in a SceneFileError naming the key, or in a scene, never in another exception."""
+    assert text in GAS
+    try:
+        dk.parse_scene(GAS.replace(text, value), source="gas.toml")
+    except dk.SceneFileError as err:
+        assert str(err).startswith("gas.toml:")
+    p = dk.Particles(position=[[0.0, 0, 0], [1e300, 0, 0]], radius=0.5)
+    with pytest.raises(ValueError, match="more than 1e\\+12 times the smallest radius"):
+        dk.Scene(p, [dk.KelvinVoigt(1.0)])
+
+
+def test_an_infinitely_heavy_sphere_or_a_vanishing_spring_sets_no_time_step():
+    from demkit.interactions.contact import contact_duration
+    assert contact_duration(0.0, 1.0, 1.0) == math.inf and contact_duration(1.0, 0.0, math.inf) == math.inf
+    assert contact_duration(1e-300, 1.0, 1.0) > 1e149  # overdamped: over at pi / omega0
+    assert contact_duration(1.0, 0.0, 1.0) == pytest.approx(math.pi)
+
+
 def test_inline_particles_and_defaults():
     loaded = dk.parse_scene(SMALL)
     p = loaded.scene.particles

@@ -152,7 +152,10 @@ def kelvin_voigt_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocit
 def contact_duration(stiffness, damping, m_eff):
     """Duration of a two-body Kelvin-Voigt contact that ends when the overlap returns to zero."""
     omega0 = math.sqrt(stiffness / m_eff)
-    zeta = damping / (2.0 * math.sqrt(stiffness * m_eff))
+    root = math.sqrt(stiffness * m_eff)
+    if not (omega0 > 0.0 and root > 0.0):  # a vanishing spring, or an infinite mass: no end to set a step by
+        return math.inf
+    zeta = damping / (2.0 * root)
     if zeta < 1.0:
         return math.pi / (omega0 * math.sqrt(1.0 - zeta * zeta))
     return math.pi / omega0
