@@ -474,6 +474,15 @@ def _dask_client(scheduler, workers):
 
 
 # ---- the sweep -----------------------------------------------------------------------------------
+
+def usable_cpus():
+    """The CPUs this process may run on (its affinity, as set by taskset, cgroups or a batch system;
+    os.cpu_count() where the platform cannot say)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
 def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, scheduler=None, progress=None):
     """Run ``task(point)`` for every point not finished in ``results``; returns the table's rows
     (:func:`read_table`) in the points' order.
@@ -482,7 +491,7 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
     seeds : a count n (seeds 0..n-1) or a list; adds a ``seed`` parameter.
     results : the CSV table (created, or resumed when it exists). A copy as Parquet is written
         next to it if the name ends in '.parquet' (needs pyarrow; the CSV stays the working table).
-    workers : processes (default: the machine's cores; 1: in this process) or Dask workers of a
+    workers : processes (default: the cores this process may use; 1: in this process) or Dask workers of a
         LocalCluster. scheduler : None (local processes), 'local' (Dask LocalCluster), an address
         'tcp://host:8786', or a dask.distributed.Client.
     progress : a bar over the points (:class:`demkit.progress.Progress`): None on a terminal for a
@@ -511,7 +520,7 @@ def sweep(task, parameters, results="sweep.csv", seeds=None, workers=None, sched
     table = _Table(results, names)
     done = table.done()
     todo = [p for p, k in zip(points, keys) if k not in done]
-    workers = int(workers) if workers is not None else (os.cpu_count() or 1)
+    workers = int(workers) if workers is not None else usable_cpus()
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     rows = (_local_rows(task, todo, names, min(workers, len(todo))) if scheduler is None

@@ -80,6 +80,21 @@ def test_table_has_one_row_per_point_and_failures_are_recorded(tmp_path):
     assert all(r["wall_s"] >= 0 for r in rows)
 
 
+def test_the_default_workers_are_the_cpus_this_process_may_use(tmp_path, monkeypatch):
+    """Under a one-CPU affinity (taskset, a batch system) the default is one worker, not the machine's
+    cores."""
+    sweep_module = importlib.import_module("demkit.sweep")
+    used = []
+    real = sweep_module._local_rows
+    monkeypatch.setattr(sweep_module, "_local_rows", lambda task, todo, names, w: used.append(w) or real(task, todo, names, 1))
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 8)
+    dk.sweep(square, {"x": [1.0, 2.0, 3.0]}, results=tmp_path / "a.csv", progress=False)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2}, raising=False)
+    dk.sweep(square, {"x": [1.0, 2.0, 3.0, 4.0]}, results=tmp_path / "b.csv", progress=False)
+    assert used == [1, 3] and sweep_module.usable_cpus() == 3
+
+
 def test_resume_skips_finished_points_and_reruns_failed_ones(tmp_path):
     out = tmp_path / "t.csv"
     CALLS.clear()
