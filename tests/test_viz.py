@@ -506,6 +506,15 @@ def test_a_cluster_framed_in_3d_is_seen_whole_and_nothing_covers_the_bar_or_the_
     assert drawn_as_before["visible"] < 0.8 and drawn_as_before["bar"] > 0
 
 
+def test_the_time_label_is_rounded_to_what_tells_frames_apart():
+    from demkit.viz.render import time_label
+    times = np.arange(31) * 0.01 - 2e-6  # frames of a step that does not divide their spacing
+    assert time_label(times, 30) == "t = 0.300" and time_label(times, 0) == "t = 0.000"
+    assert time_label(np.arange(5) * 0.025, 3) == "t = 0.075"
+    assert time_label(np.array([0.0, 250.0, 500.0]), 1) == "t = 250"
+    assert time_label(np.array([1.2345678]), 0) == "t = 1.23457"  # one frame: six digits
+
+
 def test_default_trails_leave_a_gas_readable():
     from demkit.viz.plan import TRAIL_RADII, default_trail
 

@@ -6,6 +6,7 @@ window class), never at ``import demkit``.
 """
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
@@ -155,7 +156,7 @@ class FrameDrawer:
             self._show("arrows", arrows, color="#202020")
         self._show("trails", self._trails(k, index), scalars="colour", rgb=True, line_width=3)
         if self.style.label:
-            text = f"t = {f.time[k]:.6g}" if np.isfinite(f.time[k]) else Path(f.files[k]).name
+            text = time_label(f.time, k) if np.isfinite(f.time[k]) else Path(f.files[k]).name
             if "label" not in self._actors:
                 self._actors["label"] = self.plotter.add_text(
                     text, position=(size, height - 2.6 * size), font_size=size, color=self.ink)
@@ -260,3 +261,16 @@ class FrameDrawer:
 
     def close(self):
         self.plotter.close()
+
+
+def time_label(times, k):
+    """"t = ..." for frame ``k`` of ``times``, with the decimals that tell frames apart (two significant
+    digits of their smallest spacing): 0.299998 of frames 0.01 apart reads "t = 0.300"."""
+    t = float(times[k])
+    steps = np.diff(np.asarray(times, dtype=np.float64))
+    steps = steps[np.isfinite(steps) & (steps > 0)]
+    if not len(steps) or abs(t) >= 1e7:
+        return f"t = {t:.6g}"
+    decimals = max(0, math.ceil(-math.log10(float(steps.min())) - 1e-6) + 1)  # (0.00999999 is 0.01)
+    return f"t = {round(t, decimals) + 0.0:.{decimals}f}" if decimals <= 12 else f"t = {t:.6g}"  # (+ 0.0: no -0)
+
