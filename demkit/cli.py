@@ -82,14 +82,17 @@ def load_scene_file(path):
     return namespace
 
 
-def scene_namespace(path):
+def scene_namespace(path, overrides=None):
     """What a scene file defines, as a dict: a Python file's names (:func:`load_scene_file`), or for a
-    TOML scene file (:func:`demkit.load_scene`) its ``scene``, ``integrator``, ``duration``,
-    ``record_every`` and ``time_unit`` (seconds per time unit with units = "si", else 1)."""
+    TOML scene file (:func:`demkit.load_scene`, with ``overrides`` {key path: value}) its ``scene``,
+    ``integrator``, ``duration``, ``record_every`` and ``time_unit`` (seconds per time unit with
+    units = "si", else 1)."""
     if Path(path).suffix == ".py":
+        if overrides:
+            raise ValueError(f"--set changes keys of TOML scene files; {path} is a Python file: change it there")
         return load_scene_file(path)
     from .scenefile import load_scene
-    loaded = load_scene(path)
+    loaded = load_scene(path, overrides=overrides)
     return {"scene": loaded.scene, "integrator": loaded.integrator, "duration": loaded.duration,
             "record_every": loaded.record_every,
             "time_unit": loaded.units.time if loaded.units is not None else 1.0}
@@ -117,11 +120,11 @@ def accuracy_command(args):
     return 0
 
 
-def load_run(path):
+def load_run(path, overrides=None):
     """(scene, integrator, duration, record_every) of a scene file for export-lammps: a TOML scene
-    file (:func:`demkit.load_scene`), or a Python file (``.py``) that defines ``scene`` (or
-    ``make_scene()``) and ``integrator``, and may define ``duration`` and ``record_every``."""
-    namespace = scene_namespace(path)
+    file (:func:`demkit.load_scene`, with ``overrides``), or a Python file (``.py``) that defines
+    ``scene`` (or ``make_scene()``) and ``integrator``, and may define ``duration`` and ``record_every``."""
+    namespace = scene_namespace(path, overrides)
     integrator = namespace.get("integrator")
     if integrator is None:
         raise ValueError(f"{path} must define `integrator` (e.g. demkit.VelocityVerlet(dt=1e-3))")
@@ -129,8 +132,9 @@ def load_run(path):
 
 
 def export_lammps_command(args):
+    from .commands import parse_sets
     from .lammps import export_lammps
-    scene, integrator, duration, record_every = load_run(args.scene)
+    scene, integrator, duration, record_every = load_run(args.scene, parse_sets(args.set))
     try:
         files = export_lammps(scene, integrator, args.out_dir, duration=duration, record_every=record_every,
                               strict=not args.allow_differences)
@@ -177,6 +181,9 @@ def main(argv=None):
     export.add_argument("scene", help="a TOML scene file (docs/scene_files.md), or a Python file defining `scene` "
                                       "and `integrator` (and optionally `duration`, `record_every`)")
     export.add_argument("out_dir", help="folder for scene.data, in.scene (created if needed)")
+    export.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
+                        help="change a key of a TOML scene file, e.g. --set interactions.friction.sliding=lammps "
+                             "(repeatable)")
     export.add_argument("--allow-differences", action="store_true",
                         help="export what LAMMPS runs differently from demkit (listed as notes) instead of refusing")
     export.set_defaults(handler=export_lammps_command)

@@ -199,7 +199,10 @@ class _Export:
                 if f.sliding != "lammps" or f.slip_radius != "full":
                     self.differs(f"{f!r}", "LAMMPS' friction uses the full radii in the slip velocity and, while "
                                  "sliding, keeps the spring at the Coulomb force minus the dashpot's part; use "
-                                 "Friction(..., slip_radius='full', sliding='lammps') for the same physics")
+                                 "Friction(..., slip_radius='full', sliding='lammps') for the same physics (in a "
+                                 "scene file: slip_radius = \"full\" and sliding = \"lammps\" in "
+                                 "[interactions.friction]; on the command line: --set interactions.friction."
+                                 "slip_radius=full --set interactions.friction.sliding=lammps)")
         self.check_history()
 
     def check_history(self):

@@ -243,6 +243,38 @@ def test_command_line_exports_a_python_scene_file(tmp_path):
     assert "variable    nsteps index 500" in deck and (tmp_path / "out" / "scene.data").exists()
 
 
+def test_command_line_export_follows_its_own_advice_with_set(tmp_path, capsys):
+    """A frictional scene file is refused with advice the command line can follow (--set)."""
+    from demkit.cli import main
+    scene = tmp_path / "pile.toml"
+    scene.write_text(textwrap.dedent("""
+        [particles]
+        position = [[0.0, 0.0, 0.5], [1.02, 0.0, 0.5]]
+        radius = 0.5
+        [interactions.kelvin_voigt]
+        stiffness = 1000.0
+        damping = 1.0
+        [interactions.friction]
+        coefficient = 0.5
+        [integrator]
+        method = "VelocityVerlet"
+        dt = 0.001
+        [run]
+        duration = 0.1
+    """))
+    with pytest.raises(SystemExit):
+        main(["export-lammps", str(scene), str(tmp_path / "out")])
+    assert ("--set interactions.friction.slip_radius=full --set interactions.friction.sliding=lammps"
+            in capsys.readouterr().err)
+    assert main(["export-lammps", str(scene), str(tmp_path / "out"), "--set", "interactions.friction.slip_radius=full",
+                 "--set", "interactions.friction.sliding=lammps"]) == 0
+    assert "pair_style  granular" in (tmp_path / "out" / "in.scene").read_text()
+    (tmp_path / "pile.py").write_text("raise RuntimeError('never run')\n")
+    with pytest.raises(SystemExit):
+        main(["export-lammps", str(tmp_path / "pile.py"), str(tmp_path / "out"), "--set", "run.duration=1"])
+    assert "--set changes keys of TOML scene files" in capsys.readouterr().err
+
+
 # ---- running LAMMPS ----------------------------------------------------------------------------
 
 @needs_lammps
