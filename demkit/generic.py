@@ -480,8 +480,6 @@ class _Generic:
         number of threads, and serially). Each chunk is one call of ``<name>_chunk``, a serial function
         of the serial pieces: the loop on threads (prange) is a few lines around it, not a second copy
         of the catalogue for numba's parallel compiler (which took 55 s over the whole loop)."""
-        signature = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, "
-                     f"chunk_torque, chunk_power, program")
         lines = []
         if not self.threads:
             lines += ["", "", "@njit(**INNER)",
@@ -491,7 +489,8 @@ class _Generic:
             lines += ["    g_dipole = cg[3:6].T", "    power = 0.0"]
             lines += loop("    ", "first", "last", "cf", "ct", "co", "cg")
             lines += ["    return power"]
-        lines += ["", "", "@njit(**PARALLEL)" if self.threads else "@njit(**INNER)", f"def {name}({signature}):",
+        lines += ["", "", "@njit(**ENTRY_PARALLEL)" if self.threads else "@njit(**ENTRY)",
+                  f"def {name}({PIECE_SIGNATURES[name]}):"] + piece_prelude(name) + [
                   "    torque_on = program[G_TORQUE] != 0"]
         return lines + chunks_run("prange" if self.threads else "range",
                                   f"{name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
@@ -510,8 +509,12 @@ class _Generic:
                                                                   "and its energy under interaction k."),
                 ("pairs_pair_forces", "owners, partners, out", "owners[e], partners[e], out[e, :3] the separation, "
                                                                 "out[e, 3 + 3 m:] member m's force on j.")):
-            lines += ["", "", "@njit(**INNER)", f"def {name}({ARRAYS}, {LIST_ARRAYS}, {signature}, program):",
-                      f'    """{doc}"""']
+            if name == "pairs_energies":  # a piece (through calls): it takes the state
+                lines += ["", "", "@njit(**ENTRY)", f"def {name}({PIECE_SIGNATURES[name]}):", f'    """{doc}"""']
+                lines += piece_prelude(name)
+            else:  # diagnostics, called from Python with the arrays
+                lines += ["", "", "@njit(**INNER)", f"def {name}({ARRAYS}, {LIST_ARRAYS}, {signature}, program):",
+                          f'    """{doc}"""']
             lines += self.header() + ["    e = 0", "    commit = False"]
             lines += self.rows("    ", 0, "n if is_list else n - 1") + self.entries("        ")
             pad = " " * 12
@@ -547,9 +550,9 @@ class _Generic:
                 "            er = EFFECT_ROW + e", "            kind = program[er, E_KIND]",
                 "            slot = program[er, E_SLOT]", "            table = program[er, E_TABLE]",
                 "            off = program[er, E_OFFSET]"]
-        lines = ["", "", "@njit(**INNER)", f"def sphere_forces({ARRAYS}, force, torque, history, commit, program):",
-                 '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
-                 "    power = 0.0"] + head
+        lines = ["", "", "@njit(**ENTRY)", f"def sphere_forces({PIECE_SIGNATURES['sphere_forces']}):",
+                 '    """Forces and torques of the single-sphere effects; returns the dissipated power."""']
+        lines += piece_prelude("sphere_forces") + ["    power = 0.0"] + head
 
         def branch(law):
             outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if law.torque else []) + (["w"] if law.dissipative else [])
@@ -572,8 +575,9 @@ class _Generic:
             return lines + [pad + line for line in body]
         lines += _switch(self.effects, " " * 12, branch)
         lines.append("    return power")
-        lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out, program):",
-                  '    """Add the potential energies of the single-sphere effects to out[kind]."""'] + head
+        lines += ["", "", "@njit(**ENTRY)", f"def sphere_energies({PIECE_SIGNATURES['sphere_energies']}):",
+                  '    """Add the potential energies of the single-sphere effects to out[kind]."""']
+        lines += piece_prelude("sphere_energies") + head
         lines += _switch(self.effects, " " * 12,
                          lambda law: [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
         return lines
@@ -584,10 +588,6 @@ class _Generic:
         """How the scene-level functions call ``name`` (of :data:`CALLS`): through ``calls``."""
         return f"calls[{CALLS.index(name)}]"
 
-    def list_args(self, g=None):
-        """The arrays of pair list g (None: of the list ``pl``)."""
-        return ", ".join(f"s.lists[{g}].{name}" if g is not None else f"pl.{name}" for name in LIST_ARRAYS.split(", "))
-
     def forces_body(self, speed, force, torque, strict):
         sp = SPEEDS.index(speed)
         lines = [f"    {self.call('maintain_lists')}(s, {strict} != False)"]
@@ -597,11 +597,9 @@ class _Generic:
                       f"        if {self.call('induce_now')}(s, commit_flag) != 0 and s.status[0] == OK:",
                       "            s.status[0] = INDUCTION_FAILED"]
         lines += [f"    clear({force}, {torque})", "    power = 0.0"]
-        fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         # one call site per piece, in a loop over the pair loops (each call site of a first-class
         # function is lowered whole, and every time loop holds these lines)
-        args = (f"{fields}, {force}, {torque}, {self.list_args()}, s.scratch, s.gather, commit_flag, "
-                f"pl.bounds, s.thread_force, s.thread_torque, s.thread_power, s.program[row]")
+        args = f"s, {force}, {torque}, pl, commit_flag, row"
         lines += [f"    for g in range({MAX_GROUPS}):",
                   f"        row = {group_row(0, sp)} + 3 * g",
                   "        if s.program[row, G_COUNT] > 0:",
@@ -612,9 +610,7 @@ class _Generic:
                   f"                power += calls[{PIECES.index('pairs_forces')}]({args})"]
         if speed != "slow":
             lines += ["    if s.program[0, H_EFFECTS] > 0:",
-                      f"        power += calls[{PIECES.index('sphere_forces')}]({fields}, {force}, {torque}, "
-                      "s.sphere_history, commit_flag, "
-                      f"s.program)"]
+                      f"        power += calls[{PIECES.index('sphere_forces')}](s, {force}, {torque}, commit_flag)"]
         if speed != "fast":
             lines += [f"    {self.call('long_range')}(s, {force}, {torque})"]
         return lines + ["    return power"]
@@ -630,7 +626,6 @@ class _Generic:
         return lines
 
     def scene_functions(self):
-        fields = ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
         lines = []
         lines += MAINTAIN_LISTS_HEAD
         for g in range(MAX_GROUPS):
@@ -721,9 +716,9 @@ class _Generic:
                   f"        row = {group_row(0, 0)} + 3 * g",
                   "        if s.program[row, G_COUNT] > 0:",
                   "            pl = s.lists[g]",
-                  f"            calls[{PIECES.index('pairs_energies')}]({fields}, {self.list_args()}, out, s.program[row])"]
+                  f"            calls[{PIECES.index('pairs_energies')}](s, pl, out, row)"]
         lines += ["    if s.program[0, H_EFFECTS] > 0:",
-                  f"        calls[{PIECES.index('sphere_energies')}]({fields}, s.sphere_history, out, s.program)"]
+                  f"        calls[{PIECES.index('sphere_energies')}](s, out)"]
         # in the fused module's order: the sums, then the induced moments' energy
         lines += [f"    {self.call('sum_energies')}(s, out)"]
         lines += ["    if s.program[0, H_INDUCTION] != 0:",
@@ -779,6 +774,8 @@ class _Generic:
         # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
         lines += [f"INNER = dict(cache=True, _nrt=False, {fast})",
+                  f"ENTRY = dict(cache=True, {fast})",  # a piece's entry: it reads the state's fields
+                  f"ENTRY_PARALLEL = dict(cache=True, parallel=True, {fast})",
                   f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache=True, inline='always', {fast})",
                   "UPKEEP = dict(cache=True)",
@@ -861,13 +858,30 @@ SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies"
 CALLS = PIECES + SCENE_PIECES
 
 
-_CHUNKED = (f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit, bounds, chunk_force, chunk_torque, "
-            f"chunk_power, program")
-#: each piece's parameters and what its stub returns
-PIECE_ARGUMENTS = {"pairs_forces": (_CHUNKED, "0.0"), "pairs_forces_blocked": (_CHUNKED, "0.0"),
-                   "sphere_forces": (f"{ARRAYS}, force, torque, history, commit, program", "0.0"),
-                   "pairs_energies": (f"{ARRAYS}, {LIST_ARRAYS}, out, program", "None"),
-                   "sphere_energies": (f"{ARRAYS}, history, out, program", "None")}
+#: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
+#: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
+#: buffers, the commit flag and the program row r of the pair loop
+PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r",
+                    "pairs_forces_blocked": "s, force, torque, pl, commit, r",
+                    "sphere_forces": "s, force, torque, commit", "pairs_energies": "s, pl, out, r",
+                    "sphere_energies": "s, out"}
+#: ... and what each stub returns
+PIECE_ARGUMENTS = {name: (params, "0.0" if "force" in name else "None") for name, params in PIECE_SIGNATURES.items()}
+
+
+def piece_prelude(name):
+    """The first lines of piece ``name`` (also of a scene's own, tier 2): its arrays, by the names its
+    loops use, from the state s, the pair list pl and the program row r."""
+    lines = [f"    {a} = s.{a}" for a in ARRAYS.split(", ")]
+    if name.startswith("pairs_"):
+        lines += [f"    {a} = pl.{a}" for a in LIST_ARRAYS.split(", ")] + ["    program = s.program[r]"]
+    else:
+        lines += ["    history = s.sphere_history", "    program = s.program"]
+    if name.startswith("pairs_forces"):
+        lines += ["    scratch = s.scratch", "    gather = s.gather", "    bounds = pl.bounds",
+                  "    chunk_force = s.thread_force", "    chunk_torque = s.thread_torque",
+                  "    chunk_power = s.thread_power"]
+    return lines
 
 
 def _layout_line():
@@ -987,21 +1001,17 @@ def piece_arguments(state_type):
     the scene-level functions, :meth:`_Generic.forces_body`)."""
     from numba import types
     f = _fields(state_type)
-    pl = _fields(f["lists"][0])
-    arrays = [f[name] for name in ARRAYS.split(", ")]
-    lists = [pl[name] for name in LIST_ARRAYS.split(", ")]
-    row = types.Array(f["program"].dtype, 1, "C")
-    chunked = (*arrays, f["force"], f["torque"], *lists, f["scratch"], f["gather"], types.boolean, pl["bounds"],
-               f["thread_force"], f["thread_torque"], f["thread_power"], row)
+    pair_list = f["lists"][0]
+    chunked = (state_type, f["force"], f["torque"], pair_list, types.boolean, types.int64)
     out = types.Array(types.float64, 1, "C")
     return {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
             "long_range": (state_type, f["force"], f["torque"]),
             "sum_energies": (state_type, out),
             "induce_now": (state_type, types.boolean),
             "pairs_forces": chunked, "pairs_forces_blocked": chunked,
-            "sphere_forces": (*arrays, f["force"], f["torque"], f["sphere_history"], types.boolean, f["program"]),
-            "pairs_energies": (*arrays, *lists, out, row),
-            "sphere_energies": (*arrays, f["sphere_history"], out, f["program"])}
+            "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
+            "pairs_energies": (state_type, pair_list, out, types.int64),
+            "sphere_energies": (state_type, out)}
 
 
 class GenericKernels:

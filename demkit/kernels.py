@@ -897,7 +897,8 @@ class _Source:
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop
             lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache}, fastmath=False)")
-        lines += [f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
+        lines += [f"ENTRY = dict(cache={cache}, {fast})",  # a piece's entry (tier 2 with lists): reads the state
+                  f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
                   f"LOOP = dict(cache={cache}, nogil=True, {fast}{nrt})"]  # time loops let other threads run (threads.py)
@@ -925,6 +926,7 @@ class _Source:
         :data:`demkit.generic.G_SPEED`). Each chunk of a chunked loop is one call of a serial function,
         ``<loop>_chunk``; the thread pieces (``self.threads``) run the serial module's (``serial_name``)
         chunks on prange."""
+        from .generic import PIECE_SIGNATURES, piece_prelude
         G_GROUP, G_SPEED = columns
         plan = self.plan
         lines = self.head()
@@ -952,9 +954,9 @@ class _Source:
             lines += self.sphere_functions()
         arrays = f"{ARRAYS}, force, torque, {LIST_ARRAYS}, scratch, gather, commit"
         chunks = "bounds, chunk_force, chunk_torque, chunk_power"
-        lines += ["", "", "@njit(**INNER)", f"def piece_pairs_forces({arrays}, {chunks}, program):",
-                  '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""',
-                  f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]"]
+        lines += ["", "", "@njit(**ENTRY)", f"def piece_pairs_forces({PIECE_SIGNATURES['pairs_forces']}):",
+                  '    """The pair loop of the program row\'s group and speed; returns the dissipated power."""']
+        lines += piece_prelude("pairs_forces") + [f"    g = program[{G_GROUP}]", f"    speed = program[{G_SPEED}]"]
         speeds = {}  # each loop once, with the speeds whose rows ask for it
         for (g, sp), (name, sub) in loops.items():
             speeds.setdefault(name, (g, sub, []))[2].append(sp)
@@ -966,17 +968,16 @@ class _Source:
                   "", "", "piece_pairs_forces_blocked = piece_pairs_forces  # a group's own loop knows it is blocked"]
         if self.threads:
             return "\n".join(lines) + "\n"
-        lines += ["", "", "@njit(**INNER)", f"def piece_pairs_energies({ARRAYS}, {LIST_ARRAYS}, out, program):",
-                  '    """Add the potential energies of the program row\'s group to out[kind]."""',
-                  f"    g = program[{G_GROUP}]"]
+        lines += ["", "", "@njit(**ENTRY)", f"def piece_pairs_energies({PIECE_SIGNATURES['pairs_energies']}):",
+                  '    """Add the potential energies of the program row\'s group to out[kind]."""']
+        lines += piece_prelude("pairs_energies") + [f"    g = program[{G_GROUP}]"]
         for g in range(len(plan.groups)):
             lines += [f"    if g == {g}:", f"        group_{g}_energies({ARRAYS}, {LIST_ARRAYS}, out)"]
         if plan.effects:
-            lines += ["", "", "@njit(**INNER)",
-                      f"def piece_sphere_forces({ARRAYS}, force, torque, history, commit, program):",
-                      f"    return sphere_forces({ARRAYS}, force, torque, history, commit)",
-                      "", "", "@njit(**INNER)", f"def piece_sphere_energies({ARRAYS}, history, out, program):",
-                      f"    sphere_energies({ARRAYS}, history, out)"]
+            lines += ["", "", "@njit(**ENTRY)", f"def piece_sphere_forces({PIECE_SIGNATURES['sphere_forces']}):"]
+            lines += piece_prelude("sphere_forces") + [f"    return sphere_forces({ARRAYS}, force, torque, history, commit)"]
+            lines += ["", "", "@njit(**ENTRY)", f"def piece_sphere_energies({PIECE_SIGNATURES['sphere_energies']}):"]
+            lines += piece_prelude("sphere_energies") + [f"    sphere_energies({ARRAYS}, history, out)"]
         return "\n".join(lines) + "\n"
 
     def group_chunk(self, name, group):
