@@ -48,8 +48,9 @@ import warnings
 
 import numpy as np
 
-from .kernels import (END_STEP_TAIL, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER, RECORD_FRAME,
-                      SPEEDS, chunks_run, deep_wall_overlap, effect_sums)
+from .kernels import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
+                      PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, chunks_run, deep_wall_overlap, effect_sums,
+                      piece_prelude)
 from .state import DEEP_OVERLAP_FRACTION, pair_loop_arrays
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -285,8 +286,6 @@ def program_of(plan, slots, kinds):
 
 
 # ---- the generic module's source -------------------------------------------------------------------
-ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status"
-LIST_ARRAYS = "start, end, partner, history"
 TORQUES = ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")
 
 
@@ -858,30 +857,8 @@ SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies"
 CALLS = PIECES + SCENE_PIECES
 
 
-#: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
-#: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
-#: buffers, the commit flag and the program row r of the pair loop
-PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r",
-                    "pairs_forces_blocked": "s, force, torque, pl, commit, r",
-                    "sphere_forces": "s, force, torque, commit", "pairs_energies": "s, pl, out, r",
-                    "sphere_energies": "s, out"}
 #: ... and what each stub returns
 PIECE_ARGUMENTS = {name: (params, "0.0" if "force" in name else "None") for name, params in PIECE_SIGNATURES.items()}
-
-
-def piece_prelude(name):
-    """The first lines of piece ``name`` (also of a scene's own, tier 2): its arrays, by the names its
-    loops use, from the state s, the pair list pl and the program row r."""
-    lines = [f"    {a} = s.{a}" for a in ARRAYS.split(", ")]
-    if name.startswith("pairs_"):
-        lines += [f"    {a} = pl.{a}" for a in LIST_ARRAYS.split(", ")] + ["    program = s.program[r]"]
-    else:
-        lines += ["    history = s.sphere_history", "    program = s.program"]
-    if name.startswith("pairs_forces"):
-        lines += ["    scratch = s.scratch", "    gather = s.gather", "    bounds = pl.bounds",
-                  "    chunk_force = s.thread_force", "    chunk_torque = s.thread_torque",
-                  "    chunk_power = s.thread_power"]
-    return lines
 
 
 def _layout_line():

@@ -136,6 +136,29 @@ def _importable(fn):
 ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status"
 LIST_ARRAYS = "start, end, partner, history"
 
+#: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
+#: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
+#: buffers, the commit flag and the program row r of the pair loop
+PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r",
+                    "pairs_forces_blocked": "s, force, torque, pl, commit, r",
+                    "sphere_forces": "s, force, torque, commit", "pairs_energies": "s, pl, out, r",
+                    "sphere_energies": "s, out"}
+
+
+def piece_prelude(name):
+    """The first lines of piece ``name`` (also of a scene's own, tier 2): its arrays, by the names its
+    loops use, from the state s, the pair list pl and the program row r."""
+    lines = [f"    {a} = s.{a}" for a in ARRAYS.split(", ")]
+    if name.startswith("pairs_"):
+        lines += [f"    {a} = pl.{a}" for a in LIST_ARRAYS.split(", ")] + ["    program = s.program[r]"]
+    else:
+        lines += ["    history = s.sphere_history", "    program = s.program"]
+    if name.startswith("pairs_forces"):
+        lines += ["    scratch = s.scratch", "    gather = s.gather", "    bounds = pl.bounds",
+                  "    chunk_force = s.thread_force", "    chunk_torque = s.thread_torque",
+                  "    chunk_power = s.thread_power"]
+    return lines
+
 
 def _state_fields():
     """Call arguments handing the ARRAYS over from the state ``s``."""
@@ -921,12 +944,11 @@ class _Source:
     def pieces_text(self, columns, serial_name=None):
         """Tier 2 of a scene with neighbour lists that tier 1 can run (see :func:`build_pieces`): its
         own pair and sphere loops, under the names and with the arguments of the generic pieces
-        (:data:`demkit.generic.PIECE_ARGUMENTS`), which pick a pair loop by the program row's group and
+        (:data:`PIECE_SIGNATURES`), which pick a pair loop by the program row's group and
         speed (``columns``: their columns in a row, :data:`demkit.generic.G_GROUP` and
         :data:`demkit.generic.G_SPEED`). Each chunk of a chunked loop is one call of a serial function,
         ``<loop>_chunk``; the thread pieces (``self.threads``) run the serial module's (``serial_name``)
         chunks on prange."""
-        from .generic import PIECE_SIGNATURES, piece_prelude
         G_GROUP, G_SPEED = columns
         plan = self.plan
         lines = self.head()
