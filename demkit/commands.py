@@ -107,6 +107,13 @@ def run_command(args):
         return 130 if isinstance(err, KeyboardInterrupt) else 1
     seconds = time.perf_counter() - clock
     frames = len(trajectory) if trajectory is not None else 0
+    if loaded.complete:  # a rerun of a finished run: nothing ran, nothing was written
+        print(f"already complete: {checkpoint} holds the end of the run (t = {loaded.duration:g}); nothing ran "
+              f"and the outputs are as they were (delete the checkpoint to run again)")
+        for name, where in outputs.items():
+            if name != "checkpoint" and where.exists():
+                print(f"kept {name}: {where}")
+        return 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")
     for name, where in outputs.items():
         rescued = loaded.rescued.get(name)

@@ -984,6 +984,9 @@ class LoadedScene:
     ``data`` (the whole validated file as plain values, defaults filled in, in the units simulated)
     and ``units`` (dk.units.PaperUnits for units = "si", else None)."""
 
+    #: set by :meth:`run`: the checkpoint held the run's end already (nothing ran)
+    complete = False
+
     scene: object
     integrator: object
     duration: float
@@ -1069,15 +1072,19 @@ class LoadedScene:
         one holds the frames from the resume on, and a line says why. When the file cannot be
         written at the end (a full disk), it is saved elsewhere
         (:func:`demkit.outputs.write_or_rescue`) and a line says where. ``on_resume(path)`` is
-        called once the checkpoint has been checked and loaded. Returns the Trajectory written (the
-        whole run), or without a trajectory file the frames of this call (from where it started)."""
+        called once the checkpoint has been checked and loaded (not when it holds the run's end:
+        then nothing runs, ``self.complete`` is True and the files are left as they are). Returns the
+        Trajectory written (the whole run), or without a trajectory file the frames of this call
+        (from where it started)."""
         from .simulation import SimulationError
         sim = self.simulation(out_dir)
-        if getattr(sim, "resumed_meta", None) is not None and on_resume is not None:
-            on_resume(sim.checkpoint.path)
         dt = self.integrator.dt
         end = round(self.duration / dt)
         start = sim.step
+        #: the checkpoint already held the end of the run: nothing ran, the outputs are as they were
+        self.complete = start >= end
+        if getattr(sim, "resumed_meta", None) is not None and on_resume is not None and not self.complete:
+            on_resume(sim.checkpoint.path)
         with _At(self.source, "run", "record_every"):
             stride = end if self.record_every is None else sim._steps(self.record_every, "record_every")
         target = self.output_path(self.outputs["trajectory"], out_dir) if self.outputs.get("trajectory") else None

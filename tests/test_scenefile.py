@@ -453,6 +453,20 @@ def test_run_writes_outputs_and_a_rerun_resumes_from_the_checkpoint(tmp_path):
     assert len(dk.read_series(tmp_path / "out" / "vtk" / "particles.pvd").time) == 6
 
 
+def test_rerunning_a_finished_run_says_it_is_complete_and_changes_nothing(tmp_path, capsys):
+    from demkit.cli import main
+    (tmp_path / "s.toml").write_text(SMALL + RESUMABLE)
+    assert main(["run", str(tmp_path / "s.toml"), "--no-progress"]) == 0
+    first = capsys.readouterr().out
+    assert "done in" in first and "resuming" not in first
+    before = {f: f.read_bytes() for f in (tmp_path / "out").rglob("*") if f.is_file()}
+    assert main(["run", str(tmp_path / "s.toml"), "--no-progress"]) == 0
+    again = capsys.readouterr().out
+    assert "already complete" in again and "nothing ran" in again and "kept trajectory" in again
+    assert "resuming" not in again and "done in" not in again and "wrote" not in again
+    assert {f: f.read_bytes() for f in (tmp_path / "out").rglob("*") if f.is_file()} == before  # byte for byte
+
+
 RESUMABLE = textwrap.dedent("""\
     [outputs]
     trajectory = "out/traj.npz"
