@@ -467,6 +467,16 @@ def test_rerunning_a_finished_run_says_it_is_complete_and_changes_nothing(tmp_pa
     assert {f: f.read_bytes() for f in (tmp_path / "out").rglob("*") if f.is_file()} == before  # byte for byte
 
 
+def test_a_rerun_without_a_checkpoint_says_it_replaces_the_earlier_outputs(tmp_path, capsys):
+    from demkit.cli import main
+    (tmp_path / "s.toml").write_text(SMALL + '[outputs]\ntrajectory = "out/traj.npz"\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--no-progress"]) == 0
+    assert "replacing" not in capsys.readouterr().out
+    assert main(["run", str(tmp_path / "s.toml"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "replacing the outputs of an earlier run: " in out and "traj.npz" in out and "done in" in out
+
+
 RESUMABLE = textwrap.dedent("""\
     [outputs]
     trajectory = "out/traj.npz"
