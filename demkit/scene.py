@@ -75,6 +75,10 @@ class Scene:
         memory locality; None: every 1000 steps in scenes with lists and at least 1000 spheres, 0:
         never. Invisible to the user: ``particles`` keeps its order, compiled code works on its
         own copies, synchronised at the start and end of every run and for every diagnostic.
+    tier : None (default: the generic module, tier 1, and the scene's own code, tier 2, compiled in
+        the background once a run makes it pay; ``DEMKIT_TIER=1`` or ``2`` sets this default), 1 (the
+        generic module only) or 2 (the scene's own time loops from the start); the same bits on
+        either. Diagnostics always run on tier 1 where it can run the scene (docs/engine.md).
     """
 
     def __init__(self, particles, interactions, box=None, skin=None, parallel=None, sort_every=None, tier=None):
