@@ -136,7 +136,7 @@ def box_for(n, radius, volume_fraction, periodic=True):
 
 def _grid(size, width_min, n):
     """Cells at least ``width_min`` wide, at most about _MAX_CELLS_PER_SPHERE per sphere."""
-    checks.resolvable("the box", size, 0.5 * width_min)
+    checks.resolvable("the box", size, 0.5 * width_min, "half the narrowest cell")  # (cells of a diameter)
     width = width_min
     while True:
         ncell = np.maximum(1, np.floor(size / width)).astype(np.int64)

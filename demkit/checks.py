@@ -128,10 +128,10 @@ def integer_array(name, value):
 WIDEST = 1e12
 
 
-def resolvable(what, extent, radius):
-    """Raise ValueError when a length ``extent`` spans more than :data:`WIDEST` times ``radius``."""
+def resolvable(what, extent, radius, unit="the smallest radius"):
+    """Raise ValueError when a length ``extent`` spans more than :data:`WIDEST` times ``radius`` (the
+    smallest of them, named ``unit`` in the message)."""
     extent, radius = float(np.max(extent)), float(np.min(radius))
     if not extent <= WIDEST * radius:
-        raise ValueError(f"{what} spans {extent:.6g}, more than {WIDEST:g} times the smallest radius {radius:.6g}: "
+        raise ValueError(f"{what} spans {extent:.6g}, more than {WIDEST:g} times {unit} {radius:.6g}: "
                          f"float64 positions cannot resolve the spheres there (rescale the units or the box)")
-

@@ -88,8 +88,8 @@ def run_command(args):
     if not outputs:
         print(NO_OUTPUTS)
     checkpoint = outputs.get("checkpoint")
-    earlier = [str(where) for where in outputs.values() if where.exists()]
-    if checkpoint is None and earlier:  # nothing to resume from: the run starts over and replaces them
+    earlier = [str(where) for where in outputs.values() if where.exists()] if checkpoint is None else []
+    if earlier:  # nothing to resume from: the run starts over and replaces them
         print(f"replacing the outputs of an earlier run: {', '.join(earlier)} (without [outputs.checkpoint] a "
               f"rerun starts over; --out DIR writes elsewhere)")
     clock = time.perf_counter()

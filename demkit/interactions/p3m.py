@@ -211,7 +211,7 @@ def terms(position, dipole, box, table, force, field, with_forces):
     prefactor, alpha, vacuum = table[0], table[1], table[2] != 0.0
     mesh = np.array([int(x) for x in table[3:6]], dtype=np.int64)
     p = int(table[6])
-    size = mesh[0] * mesh[1] * (mesh[2] // 2 + 1)
+    size = mesh[0] * mesh[1] * (mesh[2] // 2 + 1)  # (a table read from params may go on: other terms)
     c = table[HEAD:HEAD + size].reshape(mesh[0], mesh[1], mesh[2] // 2 + 1)
     energy = mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces)
     energy -= prefactor * 2.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * float(np.einsum("ij,ij->", dipole, dipole))
@@ -235,13 +235,12 @@ def evaluate(position, dipole, box, table, force, torque, with_forces):
 @njit(cache=True)
 def p3m_sum(position, dipole, box, params, start, force, torque, with_forces):
     """The mesh part of a P3M sum with its table at params[start:] (scipy's FFT, in object mode): HEAD
-    values, then the influence function on the mesh (what follows the table belongs to others, such
-    as the induced moments' solve)."""
+    values, then the influence function on the mesh, whose size :func:`terms` reads from the mesh
+    (what follows belongs to others, such as the induced moments' solve)."""
     # fresh arrays into object mode (a view would be boxed as its parent: see fmm.fmm_sum)
     f = np.zeros(force.shape)
     t = np.zeros(torque.shape)
-    mx, my, mz = int(params[start + 3]), int(params[start + 4]), int(params[start + 5])
-    table = params[start:start + HEAD + mx * my * (mz // 2 + 1)].copy()
+    table = params[start:].copy()
     with objmode(energy="float64"):
         energy = evaluate(position, dipole, box, table, f, t, with_forces)
     if with_forces:
