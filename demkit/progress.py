@@ -244,7 +244,7 @@ _NOTICE = _Notice()
 
 def _is_demkit(dispatcher):
     module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
-    return module == "demkit" or module.startswith(("demkit.", "demkit_kernel_", "demkit_generic_"))
+    return module == "demkit" or module.startswith(("demkit.", "demkit_kernel_", "demkit_generic_", "demkit_pieces_"))
 
 
 def _cached(dispatcher):

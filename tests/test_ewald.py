@@ -132,13 +132,13 @@ def test_energy_does_not_depend_on_the_splitting():
 def test_a_run_conserves_energy_to_the_integrators_order():
     # velocity Verlet runs of a magnetic gas with elastic contacts, free rotation and an Ewald sum:
     # the total energy's swings are the integrator's, O(dt^2): halving dt divides them by 4 (measured
-    # 3.99; forces that were not the energy's gradient would leave a part that does not shrink)
+    # 3.83; forces that were not the energy's gradient would leave a part that does not shrink)
     swings = []
     for dt in (1e-3, 5e-4):
         pos, dip = random_gas(n=40, side=6.0, seed=11)
         scene = ewald_scene(pos, 0.3 * dip, 6.0, accuracy=1e-7, radius=0.4,
                             velocity=np.random.default_rng(2).normal(size=(40, 3)), angular_velocity=np.zeros((40, 3)))
-        energy = dk.Simulation(scene, dk.VelocityVerlet(dt)).run(duration=4.0, record_every=0.2, progress=False).energy
+        energy = dk.Simulation(scene, dk.VelocityVerlet(dt)).run(duration=2.0, record_every=0.2, progress=False).energy
         assert np.ptp(energy["magnetic"]) > 0.02 * energy["kinetic"].mean()  # the dipoles do work
         swings.append(np.ptp(energy["total"]))
     assert swings[0] < 1e-4 * energy["kinetic"].mean()
@@ -276,3 +276,25 @@ def test_one_dipole_object_in_two_boxes():
         two = dk.Particles(position=[[0.5, 0.5, 0.5], [1.5, 0.5, 0.5]], radius=0.4, mass=1.0,
                            dipole=[[0, 0, 1.0], [0, 0, 1.0]])
         dk.Scene(two, [dk.Dipole(1.0, cutoff=0.05, long_range=dk.Ewald(1e-6))], box=dk.Box(3.0, periodic=True))
+
+
+def test_a_scene_built_again_is_not_tuned_again(monkeypatch):
+    """The tuning reads the moments, radii, count, box and settings, not the positions: the same spheres
+    moved, in a second scene, reuse the first tuning; other moments or another box tune again."""
+    from demkit.interactions import ewald
+    calls = []
+    tune = ewald.Ewald.tune
+    monkeypatch.setattr(ewald.Ewald, "tune", lambda self, *a: calls.append(1) or tune(self, *a))
+    pos, dip = random_gas(n=20, side=5.0, seed=11)
+    first = ewald_scene(pos, dip, 5.0, accuracy=3e-5)
+    again = ewald_scene(np.roll(pos, 1, axis=0), dip, 5.0, accuracy=3e-5)
+    assert len(calls) == 1 and again.long_range[0] is first.long_range[0]
+    ewald_scene(pos, 1.1 * dip, 5.0, accuracy=3e-5)
+    ewald_scene(pos, dip, 5.5, accuracy=3e-5)
+    ewald_scene(pos, dip, 5.0, accuracy=1e-5)
+    assert len(calls) == 4
+    # the tuning reused is the tuning the scene would get: the same energy as a freshly tuned one's
+    from demkit.interactions import dipole
+    dipole._TUNINGS.clear()
+    fresh = ewald_scene(np.roll(pos, 1, axis=0), dip, 5.0, accuracy=3e-5)
+    assert len(calls) == 5 and fresh.energy()["magnetic"] == again.energy()["magnetic"]

@@ -61,7 +61,7 @@ def test_a_run_conserves_energy_to_the_integrators_order():
 
 def test_local_field_and_scene_file():
     pos, dip = random_gas(n=30, side=6.0, seed=4)
-    scene = scene_of(pos, dip, 6.0, dk.P3M(1e-6, surface="vacuum"))
+    scene = scene_of(pos, dip, 6.0, dk.P3M(1e-6, surface="vacuum", order=7))
     field = dk.measure.local_field(scene)
     np.testing.assert_allclose(np.cross(dip, field), scene.forces()[1], atol=1e-10)
     assert -0.5 * np.einsum("ij,ij->", dip, field) == pytest.approx(scene.energy()["magnetic"], rel=1e-9)
@@ -78,7 +78,7 @@ prefactor = 1.0
 [interactions.dipole.p3m]
 accuracy = 1e-6
 surface = "vacuum"
-order = 5
+order = 7
 [interactions.kelvin_voigt]
 stiffness = 1e5
 [integrator]
@@ -87,7 +87,7 @@ dt = 0.0005
 duration = 0.01
 """
     loaded = dk.parse_scene(text).scene
-    assert loaded.long_range[0].order == 5
+    assert loaded.long_range[0].order == 7
     assert loaded.energy()["magnetic"] == pytest.approx(scene.energy()["magnetic"], abs=1e-4)
 
 

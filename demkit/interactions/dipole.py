@@ -288,7 +288,7 @@ class Dipole(PairInteraction):
         self.check(particles)
         bound = copy.copy(self)
         bound.original = self
-        bound.tuned = self.long_range.tune(self.prefactor, particles, box, self.user_cutoff)
+        bound.tuned = _tune(self.long_range, self.prefactor, particles, box, self.user_cutoff)
         if bound.tuned is not None:  # (None: an FMM below its crossover keeps the exact pair loop)
             bound.tuned.adapt(bound)
         note = getattr(self.long_range, "note", None)
@@ -353,3 +353,30 @@ class PowerLawDipole(Dipole):
     force_function = power_law_force
     energy_function = power_law_energy
     switched_functions = (switched_power_law_force, switched_power_law_energy)
+
+
+#: tuned Ewald-split sums of this process by what their tuning reads (TUNINGS_KEPT at most): a scene
+#: built again (a scene file and its Python twin, a sweep's points, a rerun) is not tuned again
+_TUNINGS = {}
+TUNINGS_KEPT = 16
+
+
+def _tune(long_range, prefactor, particles, box, cutoff):
+    """``long_range.tune(...)``, remembered for Ewald and P3M sums. Their tuning reads the settings,
+    the prefactor, the cutoff asked, the box, the count, the moments (the error sample draws from
+    them) and the radii (the shortest cutoff, the touching pull), never the positions; an FMM's
+    tuning measures the scene itself and is not remembered."""
+    import hashlib
+
+    from .ewald import Ewald
+    if not isinstance(long_range, Ewald) or box is None:
+        return long_range.tune(prefactor, particles, box, cutoff)
+    moments = np.ascontiguousarray(particles.dipole, dtype=np.float64)
+    key = (type(long_range), repr(long_range), float(prefactor), cutoff, tuple(map(float, box.size)),
+           tuple(map(bool, box.periodic)), len(particles), hashlib.sha1(moments.tobytes()).hexdigest(),
+           float(np.mean(particles.radius)), float(np.max(particles.radius)))
+    if key not in _TUNINGS:
+        if len(_TUNINGS) >= TUNINGS_KEPT:
+            del _TUNINGS[next(iter(_TUNINGS))]
+        _TUNINGS[key] = long_range.tune(prefactor, particles, box, cutoff)
+    return _TUNINGS[key]

@@ -455,18 +455,14 @@ class Ewald:
         target, measured = goal / math.sqrt(2.0), None
         for _ in range(MEASURED_TRIES):
             rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, box, cutoff, n, squares, volume, half)
+            _refuse_too_many_wave_vectors(rc, kcut, volume, n, self.accuracy)  # before measuring with them
             if not sample.ready:
                 break
             measured = sample.error_of(sample.real_forces(alpha, rc) + sample.reciprocal_forces(alpha, kmax, kcut))
             if measured <= MARGIN * goal:
                 break
             target *= TIGHTEN * MARGIN * goal / measured
-        vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3
-        if vectors > MAX_WAVE_VECTORS:
-            raise ValueError(f"an Ewald sum with real-space cutoff {rc:.6g} needs about {vectors:.3g} wave vectors "
-                             f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {self.accuracy:g}: each force "
-                             f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
-                             f"tuning, make it longer, or ask for a lower accuracy")
+        _refuse_too_many_wave_vectors(rc, kcut, volume, n, self.accuracy)
         return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut,
                           tuple(float(x) for x in box.size),
                           real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
@@ -505,6 +501,16 @@ class Ewald:
     def __repr__(self):
         extra = "" if self.alpha is None else f", alpha={self.alpha!r}"
         return f"Ewald(accuracy={self.accuracy!r}, surface={self.surface!r}{extra})"
+
+
+def _refuse_too_many_wave_vectors(rc, kcut, volume, n, accuracy):
+    """ValueError when the wave vectors within ``kcut`` (half of the k-sphere) exceed MAX_WAVE_VECTORS."""
+    vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3
+    if vectors > MAX_WAVE_VECTORS:
+        raise ValueError(f"an Ewald sum with real-space cutoff {rc:.6g} needs about {vectors:.3g} wave vectors "
+                         f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {accuracy:g}: each force "
+                         f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
+                         f"tuning, make it longer, or ask for a lower accuracy")
 
 
 class TunedEwald:
