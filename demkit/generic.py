@@ -923,17 +923,19 @@ def family_of(program):
     return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
 
 
-def build_generic(threads=False, needs=CALLS, pieces=None, family="full"):
+def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_energies=True):
     """The generic module (one for every scene, with neighbour lists or in open space; serial or on
     threads), compiled function by function as called and cached on disk like the fused modules;
     seen by a scene that calls ``needs`` of :data:`CALLS` (see :func:`needs_of`: the others are
     stubbed, never compiled for it) of ``family`` (see :func:`family_of`). ``pieces``: a scene's own
-    pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones."""
+    pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones; without
+    ``own_energies`` (a scene tier 1 can run) only their forces: the energies, computed once a
+    frame, are the family's (the same bits), so that tier 2 compiles what makes steps faster alone."""
     key = ("generic", bool(threads))
-    view = key + (tuple(needs), pieces and pieces.__name__, family)
+    view = key + (tuple(needs), pieces and pieces.__name__, family, bool(own_energies))
     if view not in _MODULES:
         module = _load(key, lambda: _name(threads))
-        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family)
+        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies)
     return _MODULES[view]
 
 
@@ -996,9 +998,9 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    def __init__(self, module, threads, needs, pieces=None, family="full"):
+    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True):
         self.module, self.threads, self.needs = module, threads, needs
-        self.family = family
+        self.family, self.own_energies = family, own_energies
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
         self.tier = 1 if pieces is None else 2
         self._calls = {}
@@ -1016,7 +1018,8 @@ class GenericKernels:
                                                                           family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
-                if self.pieces is not None and name in PIECES and not stubbed:
+                own_piece = name in PIECES and (self.own_energies or "energies" not in name)
+                if self.pieces is not None and own_piece and not stubbed:
                     own = self.pieces  # the scene's own; its thread pieces hold the chunked loops alone
                     if not (self.threads and name in THREAD_PIECES):
                         own = getattr(own, "serial", own)

@@ -202,7 +202,8 @@ class Scene:
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
-            return generic.build_generic(threads, generic.needs_of(self.program), pieces, generic.family_of(self.program))
+            return generic.build_generic(threads, generic.needs_of(self.program), pieces,
+                                         generic.family_of(self.program), own_energies=not self.on_tier_1_possible)
         module = build_module(self.plan, TEMPLATES, threads=threads)
         return TupleStateModule(module, self) if self.structured and not self.plan.growing else module
 
