@@ -282,9 +282,12 @@ SCHEMA = Table({
         "stiffness": _n("contact stiffness, N/m", check="positive"),
         "young_modulus": _n("or Young's modulus, Pa (k = pi Y R / 2)", check="positive"),
         "dipole_moment": _n("its dipole moment, A m^2", check="positive"),
-        "magnetisation": _n("or its magnetisation, A/m", check="positive")},
+        "magnetisation": _n("or its magnetisation, A/m", check="positive"),
+        "field": _n("or, for magnetisable spheres, a field B (T) that induces its moment 4 pi R^3 chi/(chi + 3) B / "
+                    "mu0 (with susceptibility)", check="positive"),
+        "susceptibility": _n("its susceptibility chi (with field)", check="positive")},
         'with units = "si": the reference sphere that sets the scales (dk.units.PaperUnits.from_si)',
-        one_of=((("stiffness", "young_modulus"), True), (("dipole_moment", "magnetisation"), True))),
+        one_of=((("stiffness", "young_modulus"), True), (("dipole_moment", "magnetisation", "field"), True))),
     "particles": PARTICLES,
     "box": Table({
         "size": Key("size", REQUIRED, "side lengths [Lx, Ly, Lz] (or one for a cube); corner at the origin",
@@ -474,6 +477,13 @@ def _check_rules(data):
         raise SchemaError(("units",), 'units = "si" needs a [scales] table (the reference sphere)')
     if data["units"] != "si" and data["scales"] is not None:
         raise SchemaError(("scales",), 'is used only with units = "si"')
+    scales = data["scales"] or {}
+    if scales.get("field") is not None and scales.get("susceptibility") is None:
+        raise SchemaError(("scales", "field"), "needs susceptibility: the reference sphere's moment is the one the "
+                                               "field induces in it")
+    if scales.get("susceptibility") is not None and scales.get("field") is None:
+        raise SchemaError(("scales", "susceptibility"), "goes with field (the field that induces the reference "
+                                                        "moment)")
     inter = data["interactions"] or {}
     contact = inter.get("kelvin_voigt") or inter.get("hertz")
     for name in ("friction", "rolling_resistance", "twisting_resistance"):
@@ -504,11 +514,14 @@ def _check_rules(data):
 # ---- SI input -------------------------------------------------------------------------------------
 def si_scales(scales):
     """(PaperUnits, {dimension: SI value of one dimensionless unit}) for a validated [scales] table."""
-    from .units import PaperUnits, dipole_from_magnetisation
+    from .units import PaperUnits, dipole_from_magnetisation, induced_dipole
+    moment = scales["dipole_moment"]
+    if scales["field"] is not None:
+        moment = induced_dipole(scales["susceptibility"], scales["radius"], scales["field"])
     units = PaperUnits.from_si(mass=scales["mass"], radius=scales["radius"], stiffness=scales["stiffness"],
-                               young_modulus=scales["young_modulus"], dipole_moment=scales["dipole_moment"],
+                               young_modulus=scales["young_modulus"], dipole_moment=moment,
                                magnetisation=scales["magnetisation"])
-    mu = scales["dipole_moment"] or dipole_from_magnetisation(scales["magnetisation"], scales["radius"])
+    mu = moment or dipole_from_magnetisation(scales["magnetisation"], scales["radius"])
     m, length, t = units.mass, units.length, units.time
     k = m / t**2
     return units, {"length": length, "time": t, "mass": m, "velocity": length / t, "angular_velocity": 1 / t,

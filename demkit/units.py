@@ -36,6 +36,13 @@ def dipole_from_magnetisation(magnetisation, radius):
     return _positive("magnetisation", magnetisation) * 4.0 / 3.0 * math.pi * _positive("radius", radius) ** 3
 
 
+def induced_dipole(susceptibility, radius, field, mu0=MU0):
+    """Dipole moment a field B (T) induces in a lone linear sphere of susceptibility chi,
+    mu = 4 pi R^3 chi/(chi + 3) B / mu0 (A m^2; Clausius-Mossotti: M = 3 chi/(chi + 3) B / mu0)."""
+    chi = _positive("susceptibility", susceptibility)
+    return 4.0 * math.pi * _positive("radius", radius) ** 3 * chi / (chi + 3.0) * _positive("field", field) / mu0
+
+
 def _positive(name, value):
     value = float(value)
     if not math.isfinite(value) or value <= 0:

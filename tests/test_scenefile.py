@@ -608,3 +608,53 @@ def test_demkit_info_and_errors(tmp_path):
 def test_the_docs_reference_is_generated_from_the_schema():
     text = (ROOT / "docs" / "scene_files.md").read_text()
     assert text.rstrip().endswith(dk.scenefile.reference().rstrip())
+
+
+def test_si_input_of_magnetisable_spheres_takes_its_scales_from_the_inducing_field():
+    """Steel balls have no moment of their own: [scales] gives the field and susceptibility instead, and
+    the reference moment is the one the field induces in a lone ball, 4 pi R^3 chi/(chi + 3) B / mu0."""
+    chi, radius, field = 1000.0, 2e-3, 0.02
+    text = textwrap.dedent(f"""\
+        units = "si"
+        [scales]
+        mass = 3.3e-4
+        radius = {radius}
+        young_modulus = 2e11
+        field = {field}
+        susceptibility = {chi}
+        [particles]
+        position = [[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]]
+        radius = {radius}
+        mass = 3.3e-4
+        susceptibility = {chi}
+        [interactions.dipole]
+        prefactor = 1e-7
+        [interactions.hertz]
+        young = 2e11
+        poisson = 0.28
+        restitution = 0.5
+        [interactions.uniform_field]
+        field = [0.0, 0.0, {field}]
+        [integrator]
+        dt = 1e-7
+        [run]
+        duration = 1e-6
+        """)
+    loaded = dk.parse_scene(text)
+    scene = loaded.scene
+    lone = dk.units.induced_dipole(chi, radius, field)
+    assert lone == pytest.approx(4 * math.pi * radius ** 3 * chi / (chi + 3) * field / dk.units.MU0, rel=1e-15)
+    # the reference moment is one unit; the two spheres, side by side across the field, weaken each other:
+    # m = 1 / (1 + beta (R/r)^3) units (mutual induction of two point dipoles), beta = chi/(chi + 3)
+    moments = np.linalg.norm(scene.particles.dipole, axis=1)
+    beta = chi / (chi + 3)
+    np.testing.assert_allclose(moments, 1.0 / (1.0 + beta * (radius / 0.05) ** 3), rtol=1e-6)  # the solve's tolerance
+    sim = dk.Simulation(scene, loaded.integrator)
+    sim.run(loaded.duration)  # runs in the paper's units (the prefactor 1e-7 became 1/3)
+    assert scene.interactions[0].prefactor == pytest.approx(1 / 3, rel=1e-9)
+    for wrong, message in ((f"susceptibility = {chi}\n[particles]", "[particles]"),
+                           (f"field = {field}\nsusceptibility", "magnetisation = 1e5\nsusceptibility")):
+        bad = text.replace(wrong, message, 1)
+        with pytest.raises(dk.SceneFileError, match="scales.(field: needs susceptibility|susceptibility: goes with "
+                                                    "field)"):
+            dk.parse_scene(bad)
