@@ -109,3 +109,30 @@ def paper_on_tier_2(monkeypatch):
     module, about 4x faster than tier 1 for two spheres, compiled once for the suite and then loaded
     from the cache; the same bits, tests/test_tiers.py)."""
     monkeypatch.setenv("DEMKIT_TIER", "2")
+
+
+def demkit_in_process(*args, cwd):
+    """``python -m demkit *args`` run in this process, as ``subprocess.run`` reports it (exit code,
+    stdout, stderr): a child spends ~2 CPU-s importing demkit and loading numba's caches. What only a
+    process shows (Ctrl-C, signals, the entry point itself) is tested with real children."""
+    import contextlib
+    import io
+    import os
+    import subprocess
+
+    from demkit.cli import main
+    out, err = io.StringIO(), io.StringIO()
+    here = os.getcwd()
+    os.chdir(cwd)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main(list(args))
+            except SystemExit as stop:  # argparse's refusals (2), sys.exit(...)
+                code = stop.code
+                if isinstance(code, str):
+                    print(code, file=err)
+                    code = 1
+    finally:
+        os.chdir(here)
+    return subprocess.CompletedProcess(["demkit", *args], code or 0, out.getvalue(), err.getvalue())

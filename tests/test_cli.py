@@ -1,9 +1,8 @@
 """The demkit command: `demkit accuracy scene.py` prints a work-precision table and writes its figure."""
-import subprocess
-import sys
 import textwrap
 
 import pytest
+from conftest import demkit_in_process
 
 from demkit.cli import parse_method
 
@@ -16,8 +15,7 @@ SCENE = textwrap.dedent("""
 
 
 def demkit(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "demkit", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=600)
+    return demkit_in_process(*args, cwd=cwd)  # conftest: the command in this process (children cost seconds)
 
 
 def test_accuracy_prints_the_table_and_writes_the_figure(tmp_path):

@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import demkit_in_process
+
 import demkit as dk
 from demkit.schema import key_lines
 
@@ -532,9 +534,7 @@ def test_a_resume_without_the_earlier_frames_says_which_times_the_file_holds(tmp
 
 
 def demkit(*args, cwd):
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    return subprocess.run([sys.executable, "-m", "demkit", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=600, env=env)
+    return demkit_in_process(*args, cwd=cwd)  # conftest: the command in this process (children cost seconds)
 
 
 def test_ctrl_c_in_demkit_run_says_what_is_kept_and_the_same_command_resumes(tmp_path):
