@@ -170,7 +170,8 @@ def save(simulation, path, extra=None):
             "integrator": repr(simulation.integrator), "step": int(simulation.step),
             "time": float(simulation.time), "particles": len(scene.particles),
             "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin,
-            "forces_valid": bool(simulation.forces_valid), "constants": constants(scene), **(extra or {})}
+            "forces_valid": bool(simulation.forces_valid), "constants": constants(scene),
+            "notes": simulation.notes_so_far(), **(extra or {})}
     arrays = state_arrays(scene)
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     folder = path.parent if str(path.parent) else Path(".")

@@ -18,6 +18,9 @@ depend only on the run, never on the machine's speed:
   spheres or a thermostat exchanges energy with its bath (the balance then has a term demkit does
   not book).
 
+A run resumed from a checkpoint goes on from the figures the checkpoint kept
+(:meth:`RunNotes.state`, read from the frames recorded before it): its notes cover the whole run.
+
 A note is due when the largest overlap exceeds :data:`LARGEST_OVERLAP`, the typical one
 :data:`TYPICAL_OVERLAP`, or the drift :data:`ENERGY_DRIFT`. The notes go into
 ``Simulation.statistics["notes"]`` (with the figures under ``"overlap_largest"``,
@@ -86,25 +89,42 @@ def _relative(position, radius, box, pairs, walls):
 class RunNotes:
     """The figures and notes of one run, from its recorded frames (see the module docstring)."""
 
-    def __init__(self, scene):
+    #: what a checkpoint keeps of the notes of the run that wrote it (:meth:`state`)
+    STATE = ("largest", "typical_sum", "typical_frames", "origin", "drift", "scale", "read")
+
+    def __init__(self, scene, state=None):
         self.scene = scene
         self.pairs = any(inter.contact_reach for inter in scene.interactions)
         self.walls = [e for e in scene.effects if isinstance(e, Wall)]
         # a moving wall's work and a thermostat's bath are not booked
         self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls) and not scene.heat_baths
-        self.largest = self.typical = self.drift = self.scale = 0.0
+        self.largest = self.drift = self.scale = 0.0
+        self.typical_sum, self.typical_frames = 0.0, 0  # frames' mean overlaps summed; frames with contacts
+        self.origin = None  # the balance at the run's first frame
         self.read = 0  # frames whose overlaps were read
+        if state:  # a run resumed from a checkpoint: its notes go on from the figures saved there
+            for name in self.STATE:
+                setattr(self, name, state[name])
+
+    @property
+    def typical(self):
+        return self.typical_sum / self.typical_frames if self.typical_frames else 0.0
+
+    def state(self):
+        """The figures so far (JSON numbers), from which :class:`RunNotes` goes on after a resume."""
+        return {name: getattr(self, name) for name in self.STATE}
 
     def frames(self, position, energy, steps):
-        """Read the frames of a run of ``steps`` steps: ``position`` (F, N, 3) as recorded,
-        ``energy`` (F, K) rows [kinetic, rotational, potentials..., dissipated]."""
+        """Read frames covering ``steps`` steps of the run (all its frames at once, or the frames
+        recorded since the last call): ``position`` (F, N, 3) as recorded, ``energy`` (F, K) rows
+        [kinetic, rotational, potentials..., dissipated]."""
         count, n = position.shape[:2]
         taken = min(SPHERE_FRAMES // max(n, 1), steps // STEPS_PER_FRAME)
         if (self.pairs or self.walls) and count and n and taken > 0:
             radius = np.asarray(self.scene.particles.radius, dtype=np.float64)
             if count > taken:
                 position = position[np.unique(np.linspace(0, count - 1, max(taken, 2)).round().astype(np.int64))]
-            self.read = len(position)
+            self.read += len(position)
             total, touching = np.zeros(len(position)), np.zeros(len(position))  # per frame
             for frames, rel in _relative(position, radius, self.scene.box, self.pairs, self.walls):
                 positive = np.maximum(rel, 0.0)
@@ -112,11 +132,14 @@ class RunNotes:
                 total[frames] += positive.sum(axis=-1)
                 touching[frames] += (rel > 0.0).sum(axis=-1)
             seen = touching > 0
-            self.typical = float(np.mean(total[seen] / touching[seen])) if seen.any() else 0.0
+            self.typical_sum += float(np.sum(total[seen] / touching[seen]))
+            self.typical_frames += int(seen.sum())
         if self.balance and len(energy):
             total = energy.sum(axis=1)
-            self.drift = float(np.max(np.abs(total - total[0])))
-            self.scale = float(np.max(np.abs(energy[:, :-1]).sum(axis=1)))
+            if self.origin is None:
+                self.origin = float(total[0])
+            self.drift = max(self.drift, float(np.max(np.abs(total - self.origin))))
+            self.scale = max(self.scale, float(np.max(np.abs(energy[:, :-1]).sum(axis=1))))
 
     def figures(self):
         """The run's figures: largest and typical relative overlap, energy drift / scale (None: not measured)."""

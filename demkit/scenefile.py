@@ -1124,16 +1124,21 @@ class LoadedScene:
                 kept = _kept(np.rint(so_far.time / dt).astype(np.int64), stride, s.step)
                 return {"trajectory": {"sha256": frames_digest(so_far, kept), "frames": int(kept.sum())}}
             sim.checkpoint.before_save = before_checkpoint
+        told = sim.notes
         try:
-            for until, every in plan:
+            for k, (until, every) in enumerate(plan):
                 before = sim.trajectory
+                sim.notes = told and k == len(plan) - 1  # one set of notes, at the end, for the whole run
                 try:
                     parts.append(sim.run(until=until, record_every=every, progress=progress))
                 except (KeyboardInterrupt, SimulationError):
                     if sim.trajectory is not before and sim.trajectory is not None:
                         parts.append(sim.trajectory)  # the frames of the run that stopped (last: where)
                     raise
+                if k < len(plan) - 1:
+                    sim.continue_notes()
         finally:
+            sim.notes = told
             if sim.checkpoint is not None:
                 sim.checkpoint.before_save = None
             sim.close()

@@ -184,6 +184,7 @@ class Simulation:
         self.notes = notes
         self.energy_origin = None  # (total + dissipated, scale) at the start, for max_energy_growth
         self.resumed_meta = None  # what a resumed checkpoint says about the run that wrote it
+        self._notes = self._notes_seed = None  # the running run's notes; a resumed run's saved figures
         self._opened = False
         self._last_frame = None  # the last recorded frame, reused as the first of a continuing run
         self._rate = None  # measured steps per second of wall time (sizes the compiled chunks)
@@ -270,6 +271,10 @@ class Simulation:
         else:
             kern.record_frame(0, state, record)
         self._recording = (record, self.step, stride)  # the frames so far, for Checkpoint.before_save
+        # the run's notes (from the checkpoint's figures after a resume: they cover the whole run),
+        # and how many of its frames they have read (a checkpoint reads those recorded since)
+        self._notes = [RunNotes(scene, self._notes_seed), 0]
+        self._notes_seed = None
         writer_steps = [self._steps(w.every, "writer interval") for w in self.writers]
         self._warn_large_output(nsteps, writer_steps)
         if not self._opened and self.checkpoint is not None:
@@ -339,14 +344,16 @@ class Simulation:
         if extra_final:
             steps = np.append(steps, nsteps)
         self._keep(record, start_step, steps)
-        notes = RunNotes(scene)
-        notes.frames(record[0][:len(steps)], record[4][:len(steps)], nsteps)
+        notes, read = self._notes
+        notes.frames(record[0][read:len(steps)], record[4][read:len(steps)], max(nsteps - read * stride, 0))
+        self._notes[1] = len(steps)
         self.statistics.update(notes.figures(), notes=notes.notes(dt))
         if self.notes:
             say_notes(self.statistics["notes"])
         self._last_frame = _frame_of(record, len(steps) - 1)
         if self.checkpoint is not None and self.checkpoint.saved_step != self.step:
             self._save_checkpoint()
+        self._notes, self._last_notes = None, notes.state()
         if interrupt.caught:  # Ctrl-C during the last chunk: the run is complete, still honour it
             self._close_on_interrupt()
             raise KeyboardInterrupt(f"run interrupted at its end (step {self.step}, t = {self.time:.6g})")
@@ -371,6 +378,7 @@ class Simulation:
         ckpt.check_compatible(meta, arrays, self, path)
         ckpt.restore(scene, arrays)
         self.resumed_meta = meta  # what the checkpoint says about the run that wrote it
+        self._notes_seed = meta.get("notes")  # the next run's notes go on from the saved figures
         scene.set_time_step(self.integrator.contact_step)
         scene.counters[INNER_STEPS] = self.integrator.inner
         self.step = meta["step"]
@@ -503,6 +511,25 @@ class Simulation:
         self._close_on_interrupt()
         raise KeyboardInterrupt(f"run interrupted at step {self.step} (t = {self.time:.6g}): the {len(steps)} frames "
                                 f"so far are in simulation.trajectory{saved}")
+
+    def continue_notes(self):
+        """Let the next :meth:`run` go on with the notes of the last one (one set of notes for a run
+        made of several calls, as ``demkit run`` makes it)."""
+        self._notes_seed = getattr(self, "_last_notes", None)
+
+    def notes_so_far(self):
+        """The figures of the running run's notes (:meth:`demkit.notes.RunNotes.state`), after reading
+        the frames it recorded since they were last read; None outside a run. A checkpoint keeps
+        them: the notes of a run resumed from it cover the whole run, not the part after the resume."""
+        if getattr(self, "_notes", None) is None or self._recording is None:
+            return None
+        notes, read = self._notes
+        record, first, stride = self._recording
+        count = min((self.step - first) // stride + 1, len(record[0]))
+        if count > read:
+            notes.frames(record[0][read:count], record[4][read:count], (count - read) * stride)
+            self._notes[1] = count
+        return notes.state()
 
     def _save_checkpoint(self):
         """Save the checkpoint; a failure to write it (a full disk, ...) must not cost the run: the

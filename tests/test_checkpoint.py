@@ -329,3 +329,33 @@ def test_the_checkpoint_script_run_again_after_it_finished_runs_nothing_and_chan
     assert {f.name: f.read_bytes() for f in sorted(out.iterdir())} == files and path.read_bytes() == saved
     with pytest.raises(ValueError, match="not after"):  # before the end: still refused
         sim.run(until=4e-3)
+
+
+def test_the_notes_of_a_resumed_run_cover_the_whole_run(tmp_path):
+    """The end-of-run figures (largest overlap, energy drift) of a run stopped and resumed in a new
+    simulation are those of the uninterrupted run: the checkpoint keeps the figures of the frames before
+    it. (Every recorded frame is read here: at most one frame per 1000 steps, the notes' sampling
+    limit, the resume on a frame of the record)."""
+    dt, until, middle = 1e-3, 8.0, 4.0
+    figures, trajectories = [], []
+    for ends in ([until], [middle, until]):
+        path = tmp_path / f"notes{len(ends)}.ckpt"
+        for k, end in enumerate(ends):
+            sim = dk.Simulation(gas(friction=True), dk.VelocityVerlet(dt), checkpoint=dk.Checkpoint(path),
+                                notes=False)
+            if k:
+                sim.resume()
+            last = sim.run(until=end, record_every=2.0)
+        figures.append({key: sim.statistics[key] for key in ("overlap_largest", "overlap_typical", "energy_drift")})
+        trajectories.append(last)
+    whole, resumed = figures
+    assert whole["overlap_largest"] > 0.01 and whole["energy_drift"] > 0
+    assert resumed["overlap_largest"] == whole["overlap_largest"] and resumed["energy_drift"] == whole["energy_drift"]
+    # the typical overlap averages the frames' means (the frame at the resume is read twice)
+    assert resumed["overlap_typical"] == pytest.approx(whole["overlap_typical"], rel=0.2)
+    # the part after the resume alone (what the notes covered before) drifts otherwise
+    drifts = []
+    for trajectory in trajectories:
+        total = trajectory.energy["total"]
+        drifts.append(np.max(np.abs(total - total[0])))
+    assert abs(drifts[1] / drifts[0] - 1.0) > 0.01
