@@ -27,14 +27,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .schema import REQUIRED, Key, SchemaError, Table, Tables, Variant, dotted, key_lines, line_of, validate
+from .schema import (REQUIRED, Key, SchemaError, SchemaErrors, Table, Tables, Variant, dotted, key_lines, line_of,
+                     validate)
 
 #: scene files larger than this are refused before parsing (bytes)
 MAX_FILE_BYTES = 64 * 2**20
 
 
 class SceneFileError(ValueError):
-    """A scene file that cannot be used: one message with the file, line and key path."""
+    """A scene file that cannot be used: one message with the file, line and key path (several, one
+    a line, when the file's keys hold several problems: ``errors`` lists them)."""
 
     def __init__(self, message, source=None, path=(), line=None):
         where = str(source) if source is not None else "<scene>"
@@ -42,6 +44,17 @@ class SceneFileError(ValueError):
             where += f":{line}"
         super().__init__(f"{where}: {dotted(path)}: {message}" if path else f"{where}: {message}")
         self.source, self.path, self.line = source, tuple(path), line
+        self.errors = [self]
+
+    @classmethod
+    def several(cls, errors):
+        """One error saying all of ``errors`` (SceneFileErrors), a line each, in the file's order."""
+        errors = sorted(errors, key=lambda e: (e.line is None, e.line or 0))
+        first = errors[0]
+        combined = cls.__new__(cls)
+        ValueError.__init__(combined, "\n".join(str(e) for e in errors))
+        combined.source, combined.path, combined.line, combined.errors = first.source, first.path, first.line, errors
+        return combined
 
 
 # ---- the format -----------------------------------------------------------------------------------
@@ -452,6 +465,8 @@ def parse_scene(text, source="<string>", overrides=None):
         data = validate(SCHEMA, raw)
         _check_rules(data)
         _check_prefactors(raw, data)
+    except SchemaErrors as err:  # every problem of the keys, found in one pass
+        raise SceneFileError.several([src.error(e.path, e.problem) for e in err.errors]) from None
     except SchemaError as err:
         raise src.error(err.path, err.problem) from None
     except RecursionError:

@@ -111,39 +111,68 @@ def type_name(value):
 
 
 def validate(schema, data, path=()):
-    """``data`` (a dict from tomllib) checked against the Table ``schema``: a new dict with defaults."""
+    """``data`` (a dict from tomllib) checked against the Table ``schema``: a new dict with defaults.
+    Every problem found in one pass is reported: one SchemaError, or :class:`SchemaErrors` for several."""
+    found = []
+    out = _validate(schema, data, path, found)
+    if len(found) == 1:
+        raise found[0]
+    if found:
+        raise SchemaErrors(found)
+    return out
+
+
+class SchemaErrors(SchemaError):
+    """Several values that do not fit the schema, found in one pass (``errors``: a SchemaError each)."""
+
+    def __init__(self, errors):
+        super().__init__(errors[0].path, errors[0].problem)
+        self.errors = list(errors)
+
+
+def _validate(schema, data, path, found):
+    """:func:`validate`'s pass: problems go into ``found`` and the check goes on with what remains (a
+    value in error is left out of the result)."""
     if not isinstance(data, dict):
-        raise SchemaError(path, f"must be a table, got {quote(data)}")
+        found.append(SchemaError(path, f"must be a table, got {quote(data)}"))
+        return None
     if isinstance(schema, Variant):
-        return _variant(schema, data, path)
-    unknown = [k for k in data if k not in schema.keys]
-    if unknown:
-        key = unknown[0]
+        return _variant(schema, data, path, found)
+    meant = set()  # keys an unknown one was taken for: not also reported missing
+    for key in (k for k in data if k not in schema.keys):
         near = difflib.get_close_matches(key, list(schema.keys), n=1, cutoff=0.6)
+        meant.update(near)
         home = [name for name, entry in schema.keys.items() if isinstance(entry, Table) and key in entry.keys]
         hint = (f"; did you mean {near[0]!r}?" if near else
                 f"; it belongs in [{dotted(path + (home[0],))}]" if home else f"; known keys: {', '.join(schema.keys)}")
-        raise SchemaError(path + (key,), f"unknown key{hint}")
+        found.append(SchemaError(path + (key,), f"unknown key{hint}"))
     for group in schema.one_of:
         names, required = group
         given = [k for k in names if k in data]
         if len(given) > 1:
-            raise SchemaError(path + (given[1],), f"give only one of {', '.join(names)} (also given: {given[0]})")
-        if required and not given:
-            raise SchemaError(path, f"give one of {', '.join(names)}")
+            found.append(SchemaError(path + (given[1],), f"give only one of {', '.join(names)} (also given: "
+                                                         f"{given[0]})"))
+        if required and not given and not meant & set(names):
+            found.append(SchemaError(path, f"give one of {', '.join(names)}"))
     for key, others in schema.excludes:
         if key in data:
             clash = [k for k in others if k in data]
             if clash:
-                raise SchemaError(path + (clash[0],), f"cannot be given together with {key}")
+                found.append(SchemaError(path + (clash[0],), f"cannot be given together with {key}"))
     out = {}
     for name, entry in schema.keys.items():
         where = path + (name,)
         if isinstance(entry, Key):
             if name in data:
-                out[name] = value(entry, data[name], where)
+                try:
+                    out[name] = value(entry, data[name], where)
+                except SchemaError as err:
+                    found.append(err)
+                    out[name] = None
             elif entry.default is REQUIRED:
-                raise SchemaError(where, f"missing: give {name} ({entry.doc})")
+                if name not in meant:
+                    found.append(SchemaError(where, f"missing: give {name} ({entry.doc})"))
+                out[name] = None
             else:
                 out[name] = entry.default
         elif isinstance(entry, Tables):
@@ -151,31 +180,38 @@ def validate(schema, data, path=()):
             if isinstance(items, dict):
                 items = [items]
             if not isinstance(items, list):
-                raise SchemaError(where, f"must be tables ([[{dotted(where)}]]), got {quote(items)}")
-            out[name] = [validate(entry.table, item, where + (k,)) for k, item in enumerate(items)]
+                found.append(SchemaError(where, f"must be tables ([[{dotted(where)}]]), got {quote(items)}"))
+                items = []
+            out[name] = [_validate(entry.table, item, where + (k,), found) for k, item in enumerate(items)]
         elif name in data:
-            out[name] = validate(entry, data[name], where)
+            out[name] = _validate(entry, data[name], where, found)
         elif entry.required:
-            raise SchemaError(where, f"missing: add a [{dotted(where)}] table ({entry.doc})")
+            if name not in meant:
+                found.append(SchemaError(where, f"missing: add a [{dotted(where)}] table ({entry.doc})"))
+            out[name] = None
         else:
             out[name] = None
     return out
 
 
-def _variant(schema, data, path):
+def _variant(schema, data, path, found):
     kind = data.get(schema.key)
     where = path + (schema.key,)
     if kind is None:
-        raise SchemaError(where, f"missing: give {schema.key} = one of {', '.join(map(repr, schema.variants))}")
+        found.append(SchemaError(where, f"missing: give {schema.key} = one of "
+                                        f"{', '.join(map(repr, schema.variants))}"))
+        return None
     if not isinstance(kind, str) or kind not in schema.variants:
         near = [] if not isinstance(kind, str) else (
             [schema.aliases[kind.lower()]] if kind.lower() in schema.aliases
             else difflib.get_close_matches(kind, list(schema.variants), n=1))
         hint = f"; did you mean {near[0]!r}?" if near else ""
-        raise SchemaError(where, f"must be one of {', '.join(map(repr, schema.variants))}, got {quote(kind)}{hint}")
+        found.append(SchemaError(where, f"must be one of {', '.join(map(repr, schema.variants))}, got "
+                                        f"{quote(kind)}{hint}"))
+        return None
     table = schema.variants[kind]
     rest = {k: v for k, v in data.items() if k != schema.key}
-    out = validate(table, rest, path)
+    out = _validate(table, rest, path, found)
     out[schema.key] = kind
     return out
 
