@@ -6,7 +6,9 @@
     M = dk.measure.magnetisation(scene) # total moment per volume
     c = dk.measure.clusters(scene)      # touching groups: c.labels, c.sizes, c.largest
 
-**Pressure tensor** (the virial theorem; the convention of LAMMPS' ``compute pressure``)::
+**Pressure tensor** (the virial theorem; the convention of LAMMPS' ``compute pressure``; with an
+Ewald or P3M dipole sum its reciprocal and surface terms are added to the Dipole's virial,
+:mod:`demkit.interactions.ewald_virial`)::
 
     P_ab = (1/V) [ sum_i m_i v_ia v_ib + sum_(i<j) r_ij,a F_ij,b ],    p = (P_xx + P_yy + P_zz) / 3
 
@@ -78,16 +80,19 @@ def stress(scene, volume=None):
     """The pressure tensor of ``scene`` now and its parts (a :class:`Stress`; module docstring).
     ``volume``: the volume to divide by (default: the box's; required for open scenes)."""
     volume = _volume(scene, volume)
-    if scene.long_range:
-        raise ValueError("the stress of a scene with a long-range dipole sum (Dipole(long_range=Ewald(...))) "
-                         "needs the virial of its reciprocal part, which demkit does not compute yet; measure "
-                         "the stress on the same spheres with a cut-off Dipole, or leave dipoles out of it")
     kinetic, virial, per_sphere = _virials(scene)
     return Stress(volume=volume, kinetic=kinetic, virial=virial, per_sphere=per_sphere)
 
 
 def _virials(scene):
-    """(sum m v v, {interaction name: sum r F}, per-sphere shares (N, 3, 3)) of ``scene`` now."""
+    """(sum m v v, {interaction name: sum r F}, per-sphere shares (N, 3, 3)) of ``scene`` now: the pair
+    interactions', and the reciprocal and surface terms of Ewald and P3M sums with their real-space
+    pairs under "Dipole" (:mod:`demkit.interactions.ewald_virial`)."""
+    sums = list(scene.long_range)
+    if any(not hasattr(tuned, "virial") for tuned in sums):
+        raise ValueError("the stress of a scene with a fast multipole sum (Dipole(long_range=FMM(...))) is not "
+                         "computed yet (the virial of Ewald and P3M sums is): measure it on the same spheres with "
+                         "long_range=None (the exact sum over every pair, for a few thousand spheres)")
     p = scene.particles
     n = len(p)
     mass = np.broadcast_to(np.asarray(p.mass, dtype=float), (n,))
@@ -102,6 +107,10 @@ def _virials(scene):
         virial[name] = virial.get(name, np.zeros((3, 3))) + w.sum(axis=0)
         np.add.at(per_sphere, pairs[:, 0], 0.5 * w)
         np.add.at(per_sphere, pairs[:, 1], 0.5 * w)
+    for tuned in sums:
+        w, shares = tuned.virial(scene.particles, scene.box)
+        virial["Dipole"] = virial.get("Dipole", np.zeros((3, 3))) + w
+        per_sphere += shares
     return kinetic, virial, per_sphere
 
 

@@ -560,6 +560,13 @@ class TunedEwald:
         k2 = sum(np.meshgrid(*[a * a for a in axes], indexing="ij"))
         return int((np.count_nonzero(k2 <= self.kcut ** 2 * (1 + 1e-9)) - 1) // 2)
 
+    def virial(self, particles, box):
+        """(W (3, 3), each sphere's share (N, 3, 3)) of the reciprocal and surface terms, in the pair
+        virial's convention (:mod:`demkit.interactions.ewald_virial`); the real-space pairs are pair forces."""
+        from .ewald_virial import reciprocal_virial
+        return reciprocal_virial(particles.position, particles.dipole, box.size, self.prefactor, self.alpha,
+                                 self.settings.surface == "vacuum", self.kmax, self.kcut)
+
     def table_values(self):
         """The sum's run-time table in the scene's params (see :func:`reciprocal_sum`)."""
         return reciprocal_table(self.prefactor, self.alpha, self.settings.surface == "vacuum", self.kmax, self.kcut)

@@ -400,6 +400,18 @@ class TunedP3M:
               self.table_values(), np.zeros((n, 3)), field, True)
         return field + self_field(self.prefactor, self.alpha, particles.dipole)
 
+    def virial(self, particles, box):
+        """(W (3, 3), each sphere's share (N, 3, 3)) of the mesh and surface terms: the Ewald reciprocal
+        sum's at this splitting, with the wave vectors the accuracy asked needs (the mesh sum is that
+        sum to this accuracy; :mod:`demkit.interactions.ewald_virial`)."""
+        from .ewald import scales, wave_vector_limits
+        from .ewald_virial import reciprocal_virial
+        n, squares, volume, pull, _ = scales("a P3M sum", self.prefactor, particles, box, "")
+        kmax, kcut = wave_vector_limits(self.settings.accuracy * pull / math.sqrt(2.0), self.prefactor, squares, n,
+                                        volume, self.alpha, box.size)
+        return reciprocal_virial(particles.position, particles.dipole, box.size, self.prefactor, self.alpha,
+                                 self.settings.surface == "vacuum", kmax, kcut)
+
     def table_values(self):
         vacuum = 1.0 if self.settings.surface == "vacuum" else 0.0
         c = influence(np.asarray(self.box_size), self.mesh, self.alpha, self.order, self.prefactor)
