@@ -377,25 +377,51 @@ class Sample:
         self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
         self.prefactor = prefactor
         squares = float(np.einsum("ij,ij->", self.dipole, self.dipole))
-        fine = 0.1 * target / self.scale
+        # magnetisable spheres: their moments follow the field, whose error counts as much as the
+        # forces' (relative to the field of a touching neighbour, 2 A m/d^3, where the pull is 6 A m^2/d^4)
+        chi = getattr(particles, "susceptibility", None)
+        self.fields = chi is not None and bool(np.any(np.asarray(chi) > 0.0))
+        moment = math.sqrt(float(np.einsum("ij,ij->", particles.dipole, particles.dipole)) / n)
+        self.field_weight = 3.0 * moment / (2.0 * float(np.mean(particles.radius)))  # pull / touching field
+        # the reference converged ten times below the target; for fields a hundred times more (its
+        # parameters come from the forces' error estimates, which the field's error exceeds ~6-fold)
+        fine = (0.001 if self.fields else 0.1) * target / self.scale
         cutoff = 0.999 * 0.5 * float(size.min())
         alpha = _alpha_for(fine, prefactor, squares, m, box.volume, cutoff)
         self.ready = alpha is not None and squares > 0.0
         if not self.ready:
             return
         kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, box.volume, alpha, size)
-        self.exact = self.reciprocal_forces(alpha, kmax, kcut) + self.real_forces(alpha, cutoff)
+        force, field = self.reciprocal(alpha, kmax, kcut)
+        self.exact = force + self.real_forces(alpha, cutoff)
+        self.exact_field = field + self.real_field(alpha, cutoff) + self_field(prefactor, alpha, self.dipole)
 
-    def real_forces(self, alpha, cutoff):
-        """(m, 3) forces of the screened real-space pairs within ``cutoff`` (minimum image)."""
-        x, mu = self.position, self.dipole
-        d = x[None, :, :] - x[:, None, :]  # d[i, j] = x_j - x_i
+    def _pairs(self, alpha, cutoff):
+        """Minimum-image separations d[i, j] = x_j - x_i and the screening B, C, D within ``cutoff``."""
+        x = self.position
+        d = x[None, :, :] - x[:, None, :]
         d -= self.size * np.round(d / self.size)
         r2 = np.einsum("ijk,ijk->ij", d, d)
         np.fill_diagonal(r2, np.inf)
         inside = r2 < cutoff * cutoff
-        _, c, dd = screening(alpha, np.sqrt(np.where(inside, r2, 1.0)))
-        c, dd = np.where(inside, c, 0.0), np.where(inside, dd, 0.0)
+        b, c, dd = screening(alpha, np.sqrt(np.where(inside, r2, 1.0)))
+        return d, np.where(inside, b, 0.0), np.where(inside, c, 0.0), np.where(inside, dd, 0.0)
+
+    def real_field(self, alpha, cutoff):
+        """(m, 3) field of the screened real-space pairs within ``cutoff``: A [C (m_j.d) d - B m_j]."""
+        d, b, c, _ = self._pairs(alpha, cutoff)
+        bd = np.einsum("jk,ijk->ij", self.dipole, d)
+        return self.prefactor * ((c * bd)[:, :, None] * d - b[:, :, None] * self.dipole[None, :, :]).sum(axis=1)
+
+    def field_term(self, alpha, field):
+        """A candidate's whole field on the sample (its real-space part at ``field``'s splitting added
+        by the caller): ``field`` plus the self correction at ``alpha``."""
+        return field + self_field(self.prefactor, alpha, self.dipole)
+
+    def real_forces(self, alpha, cutoff):
+        """(m, 3) forces of the screened real-space pairs within ``cutoff`` (minimum image)."""
+        mu = self.dipole
+        d, _, c, dd = self._pairs(alpha, cutoff)
         ab = np.einsum("ik,jk->ij", mu, mu)
         ad = np.einsum("ik,ijk->ij", mu, d)   # m_i . d
         bd = np.einsum("jk,ijk->ij", mu, d)   # m_j . d
@@ -403,17 +429,26 @@ class Sample:
                                  * (bd[:, :, None] * mu[:, None, :] + ad[:, :, None] * mu[None, :, :]))
         return -on_j.sum(axis=1)  # the force on i of each pair (i, j) is minus that on j
 
+    def reciprocal(self, alpha, kmax, kcut):
+        """(forces, field), each (m, 3), of the wave-vector sum with these limits (metallic surroundings)."""
+        force, field = np.zeros((self.m, 3)), np.zeros((self.m, 3))
+        reciprocal_terms(self.position, self.dipole, self.size, reciprocal_table(self.prefactor, alpha, False, kmax,
+                                                                                 kcut), 0, force, field, True)
+        return force, field
+
     def reciprocal_forces(self, alpha, kmax, kcut):
         """(m, 3) forces of the wave-vector sum with these limits (metallic surroundings)."""
-        force = np.zeros((self.m, 3))
-        reciprocal_terms(self.position, self.dipole, self.size, reciprocal_table(self.prefactor, alpha, False, kmax,
-                                                                                 kcut), 0,
-                         force, np.zeros((self.m, 3)), True)
-        return force
+        return self.reciprocal(alpha, kmax, kcut)[0]
 
-    def error_of(self, force):
-        """RMS error of these (m, 3) sample forces against the exact ones, scaled to the scene's count."""
-        return math.sqrt(np.mean(((force - self.exact) ** 2).sum(1))) * self.scale
+    def error_of(self, force, field=None):
+        """RMS error of these (m, 3) sample forces against the exact ones, scaled to the scene's count;
+        for magnetisable spheres (``fields``) the larger of it and the RMS error of the ``field``, in
+        force units (times pull / touching field)."""
+        error = math.sqrt(np.mean(((force - self.exact) ** 2).sum(1))) * self.scale
+        if self.fields and field is not None:
+            error = max(error, math.sqrt(np.mean(((field - self.exact_field) ** 2).sum(1))) * self.scale
+                        * self.field_weight)
+        return error
 
 
 class Ewald:
@@ -458,7 +493,9 @@ class Ewald:
             _refuse_too_many_wave_vectors(rc, kcut, volume, n, self.accuracy)  # before measuring with them
             if not sample.ready:
                 break
-            measured = sample.error_of(sample.real_forces(alpha, rc) + sample.reciprocal_forces(alpha, kmax, kcut))
+            force, field = sample.reciprocal(alpha, kmax, kcut)
+            measured = sample.error_of(force + sample.real_forces(alpha, rc),
+                                       sample.field_term(alpha, field + sample.real_field(alpha, rc)))
             if measured <= MARGIN * goal:
                 break
             target *= TIGHTEN * MARGIN * goal / measured

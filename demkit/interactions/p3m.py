@@ -324,7 +324,8 @@ class P3M(Ewald):
         """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
         error is at most ``target`` and whose FFTs cost less than ``budget`` seconds (bisection: the
         error falls as the mesh grows), or None."""
-        real = sample.real_forces(alpha, cutoff)
+        field = sample.real_field(alpha, cutoff) if sample.fields else np.zeros((sample.m, 3))
+        real = sample.real_forces(alpha, cutoff), field
         if self.mesh is not None:
             return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order)
         size = sample.size
@@ -355,12 +356,13 @@ def _fft_seconds(mesh):
 
 def _mesh_error(sample, real, alpha, mesh, order):
     """Measured RMS force error of a candidate on an :class:`~demkit.interactions.ewald.Sample`
-    (its real-space forces ``real`` and this mesh), scaled to the scene's count."""
+    (``real``: its real-space forces and field, and this mesh), scaled to the scene's count (with
+    magnetisable spheres, or its field's error if larger: Sample.error_of)."""
     c = influence(sample.size, mesh, alpha, order, sample.prefactor)
-    force = real.copy()
-    mesh_terms(sample.position, sample.dipole, sample.size, np.array(mesh), order, c, force, np.zeros((sample.m, 3)),
-               True)
-    return sample.error_of(force)
+    force, field = real
+    force, field = force.copy(), field.copy()
+    mesh_terms(sample.position, sample.dipole, sample.size, np.array(mesh), order, c, force, field, True)
+    return sample.error_of(force, sample.field_term(alpha, field))
 
 
 class TunedP3M:
