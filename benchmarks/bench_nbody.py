@@ -96,7 +96,9 @@ def demkit_run(model, threads, n=N_REFERENCE, steps=STEPS, repeats=3, folder=Non
     code = CHILD.format(here=str(HERE), threads=threads, n=n, folder=folder, model=model, steps=steps,
                         repeats=repeats)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(max(2, threads)))
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    if out.returncode != 0:  # say why: the child's own error, not only its exit status
+        raise RuntimeError(f"demkit's {model} run on {threads} thread(s) failed:\n{out.stderr[-3000:]}")
     line = [ln for ln in out.stdout.splitlines() if ln.startswith("RESULT")][-1]
     return json.loads(line[len("RESULT "):])
 

@@ -261,6 +261,8 @@ class ThreadChoice:
         self._compiling, self._cached = None, None
         if self.thread_loop is None and self.fixed is None and self.threads > 1:
             self.threads = 1  # back to one thread until tier 2's thread module is ready
+        if self.thread_loop is not None and self.next_check is None:
+            self.next_check = time.perf_counter()  # threads never probed yet: probe them now
 
     def _start_compiling(self):
         """Compile (or load from the cache) the thread module on another thread while the run goes

@@ -501,3 +501,26 @@ def test_chunks_last_twenty_times_the_copying_and_checking_between_them():
     assert sim._next_chunk(1000, 1.0, 1000, between=0.1) == 2000  # 2 s of steps, not 0.2 s
     sim._rate = None
     assert sim._next_chunk(100, 0.1, 100, between=0.1) == 400  # at most 4x the last chunk
+
+
+def test_a_tier_switch_that_brings_a_thread_module_before_any_probe_gets_it_probed():
+    """Tier 2 handed in with its thread module while the run had not probed threads yet (no check
+    scheduled): the next chunk probes them; before, it compared the clock with None and stopped the run
+    (the N = 8000 reference scene on two cores, TypeError)."""
+    from demkit import threads
+
+    class Module:
+        velocity_verlet_steps = "serial loop"
+
+    class Threaded:
+        velocity_verlet_steps = "thread loop"
+
+    choice = threads.ThreadChoice.__new__(threads.ThreadChoice)  # the decision alone, no scene
+    choice.fixed, choice.max_threads, choice.threads, choice.probing = None, 2, 1, False
+    choice.name, choice.scene, choice.thread_loop, choice._compiling = "velocity_verlet_steps", None, None, None
+    choice.rates, choice.recheck, choice.next_check = {1: 500.0, 2: None}, threads.RECHECK_SECONDS, None
+    choice._warm, choice._after_probe, choice._spell, choice._key = True, False, [0, 0.0, 0], None
+    choice.use_modules(Module(), Threaded())
+    loop, steps = choice.loop(100, 10_000)
+    assert loop == "thread loop" and choice.probing and steps < 100  # a short probe on threads
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
