@@ -931,7 +931,8 @@ def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_en
     ``own_energies`` (a scene tier 1 can run) only their forces: the energies, computed once a
     frame, are the family's (the same bits), so that tier 2 compiles what makes steps faster alone."""
     key = ("generic", bool(threads))
-    view = key + (tuple(needs), pieces and pieces.__name__, family, bool(own_energies))
+    own_energies = bool(own_energies) or pieces is None  # (tier 1: the family's energies are its own)
+    view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies)
     if view not in _MODULES:
         module = _load(key, lambda: _name(threads))
         _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies)

@@ -344,9 +344,7 @@ class Simulation:
         if extra_final:
             steps = np.append(steps, nsteps)
         self._keep(record, start_step, steps)
-        notes, read = self._notes
-        notes.frames(record[0][read:len(steps)], record[4][read:len(steps)], max(nsteps - read * stride, 0))
-        self._notes[1] = len(steps)
+        notes = self._read_notes(len(steps), nsteps - self._notes[1] * stride)
         self.statistics.update(notes.figures(), notes=notes.notes(dt))
         if self.notes:
             say_notes(self.statistics["notes"])
@@ -523,13 +521,19 @@ class Simulation:
         them: the notes of a run resumed from it cover the whole run, not the part after the resume."""
         if getattr(self, "_notes", None) is None or self._recording is None:
             return None
-        notes, read = self._notes
         record, first, stride = self._recording
         count = min((self.step - first) // stride + 1, len(record[0]))
+        return self._read_notes(count, (count - self._notes[1]) * stride).state()
+
+    def _read_notes(self, count, steps):
+        """The running run's notes after reading its frames from the last read up to frame ``count``
+        (``steps`` of the run's steps: the notes' sampling budget)."""
+        notes, read = self._notes
         if count > read:
-            notes.frames(record[0][read:count], record[4][read:count], (count - read) * stride)
+            record = self._recording[0]
+            notes.frames(record[0][read:count], record[4][read:count], max(steps, 0))
             self._notes[1] = count
-        return notes.state()
+        return notes
 
     def _save_checkpoint(self):
         """Save the checkpoint; a failure to write it (a full disk, ...) must not cost the run: the

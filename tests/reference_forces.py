@@ -1,5 +1,7 @@
 """Independent brute-force references for the N-body tests: plain numpy over all pairs i < j,
 minimum image along periodic axes, formulas written out from docs/theory.md."""
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -69,3 +71,25 @@ def kelvin_voigt_forces(position, velocity, radius, stiffness, damping, box=None
     np.add.at(force, j, fn[:, None] * u)
     np.add.at(force, i, -fn[:, None] * u)
     return force, float((0.5 * stiffness * overlap**2).sum())
+
+
+def reciprocal_energy_strained(position, dipole, box, prefactor, alpha, vacuum, kmax, kcut, strain):
+    """The reciprocal and surface energy of the spheres and box deformed by (1 + strain) (any 3x3
+    strain, shears too: the box's wave vectors become (1 + strain)^-T k), for checking the virial by
+    finite differences; the wave vectors are those of the undeformed box (the same sum): a formula of
+    its own for the energy, beside demkit.interactions.ewald_virial's derivative of it."""
+    from demkit.interactions.ewald_virial import half_space
+    deform = np.eye(3) + np.asarray(strain, dtype=np.float64)
+    x = np.asarray(position, dtype=np.float64) @ deform.T
+    m = np.asarray(dipole, dtype=np.float64)
+    volume = float(np.prod(box)) * float(np.linalg.det(deform))
+    k = half_space(box, kmax, kcut) @ np.linalg.inv(deform)   # rows: (F^-T k)^T
+    k2 = np.einsum("ij,ij->i", k, k)
+    phase = np.exp(1j * (k @ x.T))
+    big_s = np.einsum("ka,ka->k", k, phase @ m)
+    energy = 4.0 * math.pi * prefactor / volume * float(np.sum(np.exp(-k2 / (4.0 * alpha * alpha)) / k2
+                                                              * (big_s * big_s.conj()).real))
+    if vacuum:
+        total = m.sum(axis=0)
+        energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(total @ total)
+    return energy

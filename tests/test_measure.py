@@ -209,7 +209,9 @@ def test_the_stress_of_an_ewald_sum_is_minus_the_energy_derivative_under_a_strai
     surface terms) against central differences of the scene's magnetic energy under a stretch of each
     axis; the reciprocal part's whole tensor (shears too) against differences of its energy under any
     strain, that energy being the compiled sum's (to round-off) unstrained."""
-    from demkit.interactions.ewald_virial import reciprocal_energy_strained, reciprocal_virial
+    from reference_forces import reciprocal_energy_strained
+
+    from demkit.interactions.ewald_virial import reciprocal_virial
     for surface in ("metallic", "vacuum"):
         method = dk.Ewald(1e-6, surface=surface, alpha=1.8)
         scene = ewald_gas(method)

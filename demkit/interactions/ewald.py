@@ -394,7 +394,8 @@ class Sample:
         kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, box.volume, alpha, size)
         force, field = self.reciprocal(alpha, kmax, kcut)
         self.exact = force + self.real_forces(alpha, cutoff)
-        self.exact_field = field + self.real_field(alpha, cutoff) + self_field(prefactor, alpha, self.dipole)
+        if self.fields:
+            self.exact_field = self.field_term(alpha, field + self.real_field(alpha, cutoff))
 
     def _pairs(self, alpha, cutoff):
         """Minimum-image separations d[i, j] = x_j - x_i and the screening B, C, D within ``cutoff``."""
@@ -435,10 +436,6 @@ class Sample:
         reciprocal_terms(self.position, self.dipole, self.size, reciprocal_table(self.prefactor, alpha, False, kmax,
                                                                                  kcut), 0, force, field, True)
         return force, field
-
-    def reciprocal_forces(self, alpha, kmax, kcut):
-        """(m, 3) forces of the wave-vector sum with these limits (metallic surroundings)."""
-        return self.reciprocal(alpha, kmax, kcut)[0]
 
     def error_of(self, force, field=None):
         """RMS error of these (m, 3) sample forces against the exact ones, scaled to the scene's count;
@@ -494,8 +491,8 @@ class Ewald:
             if not sample.ready:
                 break
             force, field = sample.reciprocal(alpha, kmax, kcut)
-            measured = sample.error_of(force + sample.real_forces(alpha, rc),
-                                       sample.field_term(alpha, field + sample.real_field(alpha, rc)))
+            field = sample.field_term(alpha, field + sample.real_field(alpha, rc)) if sample.fields else None
+            measured = sample.error_of(force + sample.real_forces(alpha, rc), field)
             if measured <= MARGIN * goal:
                 break
             target *= TIGHTEN * MARGIN * goal / measured

@@ -56,9 +56,9 @@ def reciprocal_virial(position, dipole, box, prefactor, alpha, vacuum, kmax, kcu
         own = (big_s.conj()[:, None] * phase).real                 # Re(S* e^(ik.x_j)), (B, N)
         u = own * mk.T                                             # sphere j's part of |S|^2
         shape = gb * (1.0 / k2b + 0.25 / (alpha * alpha))
-        shares[:, 0, 0] += gb @ u
-        shares[:, 1, 1] += gb @ u
-        shares[:, 2, 2] += gb @ u
+        diagonal = gb @ u
+        for a in range(3):
+            shares[:, a, a] += diagonal
         shares -= 2.0 * np.einsum("kj,ka,kb->jab", shape[:, None] * u, kb, kb)
         shares += 2.0 * np.einsum("kj,ja,kb->jab", gb[:, None] * own, m, kb)
     shares *= 4.0 * math.pi * prefactor / volume
@@ -68,22 +68,3 @@ def reciprocal_virial(position, dipole, box, prefactor, alpha, vacuum, kmax, kcu
             shares[:, a, a] += surface
     return shares.sum(axis=0), shares
 
-
-def reciprocal_energy_strained(position, dipole, box, prefactor, alpha, vacuum, kmax, kcut, strain):
-    """The reciprocal and surface energy of the spheres and box deformed by (1 + strain) (any 3x3
-    strain, shears too: the box's wave vectors become (1 + strain)^-T k), for checking the virial by
-    finite differences; the wave vectors are those of the undeformed box (the same sum)."""
-    deform = np.eye(3) + np.asarray(strain, dtype=np.float64)
-    x = np.asarray(position, dtype=np.float64) @ deform.T
-    m = np.asarray(dipole, dtype=np.float64)
-    volume = float(np.prod(box)) * float(np.linalg.det(deform))
-    k = half_space(box, kmax, kcut) @ np.linalg.inv(deform)   # rows: (F^-T k)^T
-    k2 = np.einsum("ij,ij->i", k, k)
-    phase = np.exp(1j * (k @ x.T))
-    big_s = np.einsum("ka,ka->k", k, phase @ m)
-    energy = 4.0 * math.pi * prefactor / volume * float(np.sum(np.exp(-k2 / (4.0 * alpha * alpha)) / k2
-                                                              * (big_s * big_s.conj()).real))
-    if vacuum:
-        total = m.sum(axis=0)
-        energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(total @ total)
-    return energy

@@ -324,8 +324,7 @@ class P3M(Ewald):
         """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
         error is at most ``target`` and whose FFTs cost less than ``budget`` seconds (bisection: the
         error falls as the mesh grows), or None."""
-        field = sample.real_field(alpha, cutoff) if sample.fields else np.zeros((sample.m, 3))
-        real = sample.real_forces(alpha, cutoff), field
+        real = sample.real_forces(alpha, cutoff), sample.real_field(alpha, cutoff) if sample.fields else None
         if self.mesh is not None:
             return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order)
         size = sample.size
@@ -359,10 +358,9 @@ def _mesh_error(sample, real, alpha, mesh, order):
     (``real``: its real-space forces and field, and this mesh), scaled to the scene's count (with
     magnetisable spheres, or its field's error if larger: Sample.error_of)."""
     c = influence(sample.size, mesh, alpha, order, sample.prefactor)
-    force, field = real
-    force, field = force.copy(), field.copy()
+    force, field = real[0].copy(), (real[1] if sample.fields else np.zeros((sample.m, 3))).copy()
     mesh_terms(sample.position, sample.dipole, sample.size, np.array(mesh), order, c, force, field, True)
-    return sample.error_of(force, sample.field_term(alpha, field))
+    return sample.error_of(force, sample.field_term(alpha, field) if sample.fields else None)
 
 
 class TunedP3M:
