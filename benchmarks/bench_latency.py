@@ -57,6 +57,10 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 RESULTS = HERE / "results" / "latency.json"
+# Users' Python writes bytecode: an installed demkit has its .pyc files, and the kernel modules demkit
+# generates get theirs on first import. With PYTHONDONTWRITEBYTECODE set (some shells and containers
+# set it), every child would compile ~65 modules' source again: 0.3-0.4 CPU s counted as start-up.
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 
 def reference_scene(n, dipole):
