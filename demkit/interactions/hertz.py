@@ -12,8 +12,9 @@ Tsuji, Tanaka & Ishida (Powder Technol. 71, 239 (1992)), eta ~ delta^(1/4): the 
 equation of a collision, x'' = -x^(3/2) - gamma sqrt(3/2) x^(1/4) x' with the force clamped at
 zero (no attraction at the end of the contact), depends on gamma alone, so the restitution
 coefficient is the same for every pair, size, mass and impact speed. demkit finds gamma for the
-restitution asked for by solving that equation (scipy, relative tolerance 1e-11) instead of using
-a fitted formula: the restitution that comes out is the one that goes in.
+restitution asked for from its own solution of that equation (scipy, relative tolerance 1e-11,
+fitted to that accuracy once: :mod:`demkit.interactions.hertz_restitution`), not a published
+fitted formula: the restitution that comes out is the one that goes in.
 
 With :class:`Friction` and no friction stiffness the tangential spring is Mindlin's no-slip
 stiffness k_t = 8 G* a; the tangential dashpot has the normal damping ratio,
@@ -24,7 +25,6 @@ delta_max = (15 m* v^2 / (16 E* sqrt(R*)))^(2/5), contact time t_c = 2.94328 del
 """
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -35,6 +35,7 @@ from ..motion import KERNEL_OPTIONS
 from .base import PairInteraction, number, positive
 from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
                       twisting_time_step)
+from .hertz_restitution import damping_for_restitution
 from .friction import HISTORY, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR
 from .twisting import twist_energy, twist_release, twisting_on_i
@@ -42,43 +43,6 @@ from .twisting import twist_energy, twist_release, twisting_on_i
 #: t_c = HERTZ_TIME * delta_max / v for an elastic Hertz impact (2 (2/5) B(2/5, 1/2))
 HERTZ_TIME = 2.9432812
 
-_ROOT_3_2 = math.sqrt(1.5)
-
-
-def restitution_of_damping(gamma):
-    """Restitution coefficient of a Hertz impact with Tsuji damping constant ``gamma`` (see module)."""
-    from scipy.integrate import solve_ivp
-    if gamma == 0.0:
-        return 1.0
-
-    def rhs(t, y):
-        x = max(y[0], 0.0)
-        f = x ** 1.5 + gamma * _ROOT_3_2 * x ** 0.25 * y[1]
-        return [y[1], -max(f, 0.0)]
-
-    def ended(t, y):
-        return y[0] if t > 1e-9 else 1.0
-
-    ended.terminal, ended.direction = True, -1
-    span = 50.0 * (1.0 + gamma)
-    sol = solve_ivp(rhs, (0.0, span), [0.0, 1.0], events=ended, method="DOP853", rtol=1e-11, atol=1e-13)
-    if not sol.t_events[0].size:  # the sphere came to rest inside the contact
-        return 0.0
-    return -float(sol.y_events[0][0][1])
-
-
-@functools.lru_cache(maxsize=256)
-def damping_for_restitution(restitution):
-    """The Tsuji damping constant gamma that gives this restitution coefficient (0 < e <= 1)."""
-    from scipy.optimize import brentq
-    if restitution == 1.0:
-        return 0.0
-    high = 1.0
-    while restitution_of_damping(high) > restitution:
-        high *= 2.0
-        if high > 1e4:
-            raise ValueError(f"restitution {restitution} is too small to calibrate (needs gamma > 1e4)")
-    return brentq(lambda g: restitution_of_damping(g) - restitution, 0.0, high, xtol=1e-13, rtol=1e-13)
 
 
 def hertz_impact(young_eff, radius_eff, mass_eff, speed):
