@@ -374,6 +374,7 @@ class Sample:
         self.scale = math.sqrt(n / m)  # errors of random sums grow as the square root of the count
         self.size = size = np.asarray(box.size, dtype=np.float64)
         self.position = rng.uniform(0.0, 1.0, (m, 3)) * size
+        self._separations = None  # (d, r2) of _pairs
         self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
         self.prefactor = prefactor
         squares = float(np.einsum("ij,ij->", self.dipole, self.dipole))
@@ -398,12 +399,16 @@ class Sample:
             self.exact_field = self.field_term(alpha, field + self.real_field(alpha, cutoff))
 
     def _pairs(self, alpha, cutoff):
-        """Minimum-image separations d[i, j] = x_j - x_i and the screening B, C, D within ``cutoff``."""
-        x = self.position
-        d = x[None, :, :] - x[:, None, :]
-        d -= self.size * np.round(d / self.size)
-        r2 = np.einsum("ijk,ijk->ij", d, d)
-        np.fill_diagonal(r2, np.inf)
+        """Minimum-image separations d[i, j] = x_j - x_i and the screening B, C, D within ``cutoff``
+        (the separations computed once: the tuning asks for many cutoffs and splittings)."""
+        if self._separations is None:
+            x = self.position
+            d = x[None, :, :] - x[:, None, :]
+            d -= self.size * np.round(d / self.size)
+            r2 = np.einsum("ijk,ijk->ij", d, d)
+            np.fill_diagonal(r2, np.inf)
+            self._separations = d, r2
+        d, r2 = self._separations
         inside = r2 < cutoff * cutoff
         b, c, dd = screening(alpha, np.sqrt(np.where(inside, r2, 1.0)))
         return d, np.where(inside, b, 0.0), np.where(inside, c, 0.0), np.where(inside, dd, 0.0)
