@@ -259,6 +259,21 @@ def test_default_framing_follows_the_cluster_the_box_or_everything():
     assert plan(two, subset=[1]).framing.bounds.tolist() == [49, 51, -1, 1, -1, 1]
 
 
+def test_a_pile_at_the_bottom_of_a_tall_box_fills_the_picture_with_the_box_outlined():
+    # 4 x 4 x 2 unit spheres on the floor of a 8 x 8 x 80 box: framing the box drew them as a strip
+    # a fortieth of its height; 'auto' frames the spheres and still outlines the box
+    g = np.arange(4) * 2.0 + 1.0
+    pile = np.stack(np.meshgrid(g, g, [1.0, 3.0], indexing="ij"), -1).reshape(-1, 3)
+    box = dk.Box([8.0, 8.0, 80.0], periodic=[True, True, False])
+    p = plan(trajectory(pile[None], box=box))
+    assert p.framing.kind == "all"
+    assert p.framing.bounds.tolist() == [0, 8, 0, 8, 0, 4]  # the pile (centres 1 .. 7), padded by a radius
+    assert p.framing.outline.tolist() == [0, 8, 0, 8, 0, 80]
+    assert not p.isolate  # the outline is drawn
+    gas = np.random.default_rng(2).uniform(0, 80, (40, 3)) * [0.1, 0.1, 1.0]
+    assert plan(trajectory(gas[None], box=box)).framing.kind == "box"  # spheres filling it: the box
+
+
 def test_a_cluster_across_a_periodic_side_is_drawn_in_one_piece():
     source = straddling()
     p = plan(source, frame="cluster")

@@ -40,9 +40,12 @@ def _select(frames, time_range):
 DRAWING = """
     frame : what the camera fits: 'all' (every sphere drawn), 'cluster' (the largest cluster:
         spheres whose surfaces are closer than 0.1 mean radii; in a periodic box drawn in one
-        piece), 'box' (the simulation box) or 'auto' (default: 'box' when the source has a box and
-        no subset is given, else 'cluster' when the largest cluster holds more than half the
-        spheres drawn and the others spread over more than 1.5 times its size, else 'all').
+        piece; in a 3-D view the box outline is left out, its lines would cross the cluster), 'box'
+        (the simulation box) or 'auto' (default: with a box and no subset, 'box' when the spheres
+        span at least half of it along every axis, else 'all' with the box outlined (a pile at the
+        bottom of a tall box fills the picture); without, 'cluster' when the largest cluster holds
+        more than half the spheres drawn and the others spread over more than 1.5 times its size,
+        else 'all').
     bounds : (xmin, xmax, ymin, ymax, zmin, zmax) to fit instead (length units; overrides frame).
     zoom : factor applied after framing (2: twice as close).
     color_by : 'id' (a colour per particle, cycled; the default up to 10 particles), 'speed' (the

@@ -21,6 +21,9 @@ VECTORS = ("velocity", "angular_velocity", "force", "torque")
 #: "auto" frames the largest cluster when it holds more than this fraction of the spheres drawn
 #: and everything drawn spans more than CLUSTER_SPREAD times its size
 CLUSTER_SHARE, CLUSTER_SPREAD = 0.5, 1.5
+#: "auto" frames the box when the spheres drawn span at least this fraction of it along every axis
+#: (else the spheres, drawn with the box's outline: a pile at the bottom of a tall box fills the picture)
+BOX_FILL = 0.5
 
 
 def check_bounds(bounds):
@@ -320,10 +323,15 @@ class Framing:
         return largest
 
     def _auto(self, k, members, subset):
-        """'box' with a box and no subset; else 'cluster' when the largest cluster holds most
-        spheres drawn and the rest would shrink it (or there is no rest); else 'all'."""
+        """'box' with a box and no subset when the spheres fill most of it (BOX_FILL); else 'cluster'
+        when the largest cluster holds most spheres drawn and the rest would shrink it (or there is
+        no rest); else 'all'."""
         if self.box is not None and subset is None:
-            return "box"
+            pos = self.frames.position[k][members]
+            span = np.ptp(pos, axis=0) + 2.0 * float(np.max(self.frames.radius)) if len(pos) else np.zeros(3)
+            if np.all(span >= BOX_FILL * self.box.size):
+                return "box"
+            return "all"
         largest = self._cluster(k, members)
         size, n = int(largest.sum()), int(members.sum())
         pos, r = self.place(self.frames.position[k]), float(np.max(self.frames.radius))
