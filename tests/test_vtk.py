@@ -282,6 +282,41 @@ def crossing_trajectory(frames=12):
     return traj, unwrapped
 
 
+def slowing_trajectory(n=20, frames=3):
+    """n spheres in a row (more than paraview_setup's ID_COLOURS_UP_TO: coloured by speed), their
+    speeds spread over 0.077 .. 2.9 in the first frame and 0.005 .. 0.5 in the last."""
+    t = np.arange(frames) * 1.0
+    position = np.zeros((frames, n, 3))
+    position[:, :, 0] = 2.5 * np.arange(n)
+    speed = np.linspace(np.linspace(0.077, 2.9, n), np.linspace(0.005, 0.5, n), frames)
+    velocity = np.zeros_like(position)
+    velocity[:, :, 1] = speed
+    return dk.Trajectory(t, position, velocity, None, None, {}, None, np.full(n, 1.0), np.ones(n), np.full(n, 0.4),
+                         np.arange(n))
+
+
+@pytest.mark.skipif(shutil.which("pvpython") is None or shutil.which("xvfb-run") is None,
+                    reason="needs ParaView's pvpython and xvfb-run (Debian packages 'paraview', 'xvfb')")
+def test_paraview_screenshot_colours_span_the_speeds_of_the_frame_drawn(tmp_path):
+    # the picture is of the last frame (speeds 0.005 .. 0.5); its colours were those of the first
+    # frame's range (0.077 .. 2.9): every sphere blue. Now the fastest are red (cool-to-warm map).
+    pvd = write_series(slowing_trajectory(), tmp_path / "series")
+    png = tmp_path / "shot.png"
+    for _ in range(3):  # xvfb-run -a can race another test's X server for a display number
+        done = subprocess.run(["xvfb-run", "-a", "pvpython", str(dk.io.paraview_script()), str(pvd), "--state",
+                               str(tmp_path / "view.pvsm"), "--screenshot", str(png)],
+                              capture_output=True, text=True, timeout=120)
+        if "bad X server connection" not in done.stderr:
+            break
+    assert done.returncode == 0, done.stdout + done.stderr
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(png).convert("RGB"), dtype=int)[:480]  # above the colour bar
+    red = (rgb[..., 0] > 150) & (rgb[..., 2] < 90)
+    blue = (rgb[..., 2] > 150) & (rgb[..., 0] < 110)
+    assert red.sum() > 500 and blue.sum() > 500, (red.sum(), blue.sum())
+
+
 def test_series_carries_the_box_and_image_counts_and_trails_do_not_jump(tmp_path):
     traj, unwrapped = crossing_trajectory()
     assert traj.image[:, 0, 0].tolist() == [0] * 4 + [1] * 8  # it does cross

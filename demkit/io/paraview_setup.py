@@ -216,6 +216,14 @@ def main(argv=None):
         times = reader.TimestepValues
         last = times[-1] if times else 0.0
         view.ViewTime = last
+        spheres = pvs.GetDisplayProperties(made["spheres"], view)
+        if args.colour_range == "frame" and spheres.ColorArrayName[1] == "velocity":
+            # "update every timestep" acts when the animation plays, not on a time set here: the
+            # colours of the picture span the speeds of the frame drawn
+            made["spheres"].UpdatePipeline(last)
+            spheres.RescaleTransferFunctionToDataRange(False, True)
+            values = pvs.GetColorTransferFunction("velocity").RGBPoints[0::4]
+            say(f"speed colours span the frame drawn: {values[0]:.3g} .. {values[-1]:.3g}")
         # the growing trails only grow while the animation plays: show the whole paths instead
         # (unwrapped, so not in a periodic box, where they leave it)
         pvs.Hide(made["growing trails"], view)
