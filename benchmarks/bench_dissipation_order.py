@@ -15,7 +15,10 @@ friction spring is kept) at 10 ... 320 steps per contact time t_c:
 * ``oblique_friction``: two spheres meeting off centre (impact parameter 0.6 R), Kelvin-Voigt with
   Coulomb friction (mu = 0.5). Truth: the same collision at 2560 steps per contact.
 
-For each: the balance |total + dissipated - initial| / dissipated at the end, the error of the
+And ``frictional_gas``: the issue's 200-sphere gas with friction (mu = 0.8), whose balance drifted
+by 20 % at half the largest safe step, against a run 64 times finer.
+
+For each impact: the balance |total + dissipated - initial| / dissipated at the end, the error of the
 observable against the truth, and the dissipated energy's error against the truth, relative to it;
 the orders are fitted between successive halvings. A balance that shrinks at the order of the true
 error and has its size measures the trajectory; one much larger than the true error measures the
@@ -80,6 +83,38 @@ def oblique_friction(integrator, steps, truth=None):
     return traj, float(np.abs(state - truth[0]).max()), truth[1]
 
 
+def frictional_gas(steps_down=(1, 2, 4, 8, 16), reference=64, n=200, mu=0.8, duration=5.0):
+    """The issue's frictional gas: 200 spheres (radius 0.5, mass 1) in a periodic box at volume
+    fraction 0.3, Maxwellian velocities, Kelvin-Voigt (1000, 1.5) with Coulomb friction mu = 0.8,
+    velocity Verlet at dt0 / k (dt0: half the largest safe step) against dt0 / 64: the run's balance
+    (as the end-of-run note measures it), and the end's kinetic + rotational energy and the booked
+    dissipated energy against the fine run's, over the energy scale. Many-body collisions are
+    chaotic: the kinetic energies of two fine runs differ too (the floor)."""
+    R = 0.5
+    box = dk.build.box_for(n, R, 0.3)
+    rng = np.random.default_rng(1)
+    start = dk.Particles(position=dk.build.random_packing(n, R, box, seed=2), velocity=rng.normal(size=(n, 3)),
+                         radius=R, mass=M)
+    law = dk.KelvinVoigt(K, 1.5, friction=dk.Friction(mu))
+    dt0 = 0.5 * dk.guards.largest_safe_step(dk.Scene(start.copy(), [law], box=box))[0]
+    out = {}
+    for k in (*steps_down, reference):
+        sim = dk.Simulation(dk.Scene(start.copy(), [law], box=box), dk.VelocityVerlet(dt0 / k), notes=False)
+        t = time.perf_counter()
+        traj = sim.run(duration, record_every=duration / 50, progress=False)
+        e = traj.energy
+        scale = float(np.max(e["kinetic"] + e["rotational"] + np.abs(e["contact"])))
+        out[k] = {"dt": dt0 / k, "balance": sim.statistics["energy_drift"], "motion": e["kinetic"][-1] + e["rotational"][-1],
+                  "dissipated": e["dissipated"][-1], "scale": scale, "wall_s": time.perf_counter() - t}
+    fine = out.pop(reference)
+    rows = []
+    for k, r in out.items():
+        rows.append({"dt_fraction_of_half_safe": 1.0 / k, "balance": r["balance"],
+                     "motion_error": abs(r["motion"] - fine["motion"]) / fine["scale"],
+                     "dissipated_error": abs(r["dissipated"] - fine["dissipated"]) / fine["scale"], "wall_s": r["wall_s"]})
+    return rows, fine["balance"]
+
+
 def measure(case, integrator):
     rows = []
     truth = None
@@ -118,6 +153,12 @@ def main():
                       "({o2}), dissipated {dissipated_error:.2e} ({o3})".format(
                           **r, o1=_fmt(r.get("order_balance")), o2=_fmt(r.get("order_observable_error")),
                           o3=_fmt(r.get("order_dissipated_error"))), flush=True)
+    rows, floor = frictional_gas()
+    out["cases"]["frictional_gas/VelocityVerlet"] = {"rows": rows, "reference_balance": floor}
+    print("frictional_gas VelocityVerlet (against dt0/64, whose own balance is %.2g)" % floor)
+    for r in rows:
+        print("  dt0 x {dt_fraction_of_half_safe:<7g}: balance {balance:.2e}, kinetic + rotational {motion_error:.2e}, "
+              "dissipated {dissipated_error:.2e} (of the energy scale)".format(**r), flush=True)
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps(out, indent=1))
     print("written", RESULTS)
