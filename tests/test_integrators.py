@@ -237,10 +237,11 @@ def test_multiple_time_stepping_follows_velocity_verlet_through_contacts_with_fr
     distance = np.linalg.norm(traj.position[:, 0] - traj.position[:, 1], axis=1)
     assert distance.min() < 1.06 and distance[-1] > 1.1
     np.testing.assert_allclose(traj.position, ref.position, atol=1e-3)
-    # total + dissipated misses by the same first-order error as velocity Verlet at the inner step
-    # (the dashpot's jumps at contact onset; measured 7.91e-3 and 7.92e-3)
+    # total + dissipated misses by about velocity Verlet's error at the inner step (the dashpot's
+    # jumps at contact onset; measured -1.43e-4 and -1.36e-4: the dipoles' slower sampling adds 5 %;
+    # 7.91e-3 and 7.92e-3 when friction's work was booked as dt x power)
     budget, ref_budget = (t.energy["total"] + t.energy["dissipated"] for t in (traj, ref))
-    assert budget[-1] - budget[0] == pytest.approx(ref_budget[-1] - ref_budget[0], rel=0.02)
+    assert budget[-1] - budget[0] == pytest.approx(ref_budget[-1] - ref_budget[0], rel=0.1)
     assert traj.energy["dissipated"][-1] == pytest.approx(ref.energy["dissipated"][-1], rel=0.01)
 
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import demkit as dk
+from demkit.interactions.spring import HISTORY
 
 R, M, G = 0.01, 1e-3, 9.81
 
@@ -126,10 +127,10 @@ def test_rolling_resistance_defaults_follow_the_normal_law():
     assert kv.kr == pytest.approx(2.25 * 0.01 * 2e3)
     assert kv.eta_r == pytest.approx(0.5 * math.sqrt(kv.kr / 2e3))
     assert kelvin_voigt(0.1, stiffness=7.0, damping=0.0).kr == 7.0
-    assert kv.history_size == 8
-    assert dk.KelvinVoigt(1.0, friction=dk.Friction(0.3)).history_size == 4
+    assert kv.history_size == 2 * HISTORY  # a friction spring and a rolling spring
+    assert dk.KelvinVoigt(1.0, friction=dk.Friction(0.3)).history_size == HISTORY
     assert kelvin_voigt(0.0).rolling is None  # a zero coefficient keeps no rolling history
-    assert kelvin_voigt(0.0).history_size == 4
+    assert kelvin_voigt(0.0).history_size == HISTORY
 
 
 @pytest.mark.parametrize("make, error, message", [

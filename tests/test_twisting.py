@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 import demkit as dk
+from demkit.interactions.spring import HISTORY
+from demkit.interactions.twisting import TWIST_HISTORY
 
 R, M, G = 0.01, 1e-3, 9.81
 I = 0.4 * M * R * R
@@ -60,7 +62,7 @@ def test_a_sphere_spinning_on_a_table_slows_linearly_and_stops_at_i_w0_over_tau_
     pivoting = (t > 0.1 * stop) & (t < 0.9 * stop)
     slope = np.polyfit(t[pivoting], w[pivoting], 1)[0]
     # 1e-4: while the contact pivots the spring holds exactly tau_max and F_n = m g (the sphere starts
-    # at its resting overlap); what remains is round-off and the dt x power bookkeeping
+    # at its resting overlap); what remains is round-off
     assert -slope == pytest.approx(tau / I, rel=1e-4)
     k = int(np.argmax(w <= 0.0))
     crossing = t[k - 1] + w[k - 1] / (w[k - 1] - w[k]) * (t[k] - t[k - 1])
@@ -166,8 +168,8 @@ def test_two_magnets_spinning_about_their_axis_keep_their_angular_momentum_while
     late = t > stop + 0.05
     assert np.abs(relative[late]).max() <= 1.01 * tau / math.sqrt(k_tw * inertia / 2)
     e = traj.energy
-    # 1e-4: the power is booked as dt x power, first order: while the spring winds up (0.06 s) each
-    # step books k_tw w^2 dt / 2 too much, 2.6e-5 of the dissipated work at dt = 1e-4 (3e-4 at 1e-3)
+    # 1e-4: the springs' work is booked through the kicks exactly; what remains is the dashpots'
+    # first-order booking (2.6e-5 of the dissipated work at dt = 1e-4 when the springs' was too)
     assert np.abs(e["total"] + e["dissipated"] - e["total"][0]).max() < 1e-4 * e["dissipated"][-1]
 
 
@@ -203,7 +205,7 @@ def test_unused_twisting_costs_nothing_and_used_adds_two_history_values():
         p = dk.Particles(position=[[0, 0, 0.5], [0.99, 0, 0.5]], radius=0.5, mass=1.0)
         return dk.Scene(p, [contact, dk.Wall((0, 0, 0), (0, 0, 1)), dk.Gravity((0, 0, -1))])
 
-    for rolling, width in ((None, 4), (dk.RollingResistance(0.1), 8)):
+    for rolling, width in ((None, HISTORY), (dk.RollingResistance(0.1), 2 * HISTORY)):
         plain = dk.KelvinVoigt(1e3, 1.0, friction=dk.Friction(0.3), rolling=rolling)
         assert plain.history_size == width and plain.twisting is None and "twisting" not in repr(plain)
         assert len(plain.parameters) == 11
@@ -212,17 +214,17 @@ def test_unused_twisting_costs_nothing_and_used_adds_two_history_values():
         assert s.effects[0].history_size == width and s.effects[0].table_values().size == 0
         twisted = dk.KelvinVoigt(1e3, 1.0, friction=dk.Friction(0.3), rolling=rolling,
                                  twisting=dk.TwistingResistance())
-        assert twisted.history_size == width + 2
+        assert twisted.history_size == width + TWIST_HISTORY
         assert twisted.parameters == plain.parameters[:-1] + ("k_tw", "eta_tw", "lever_tw", "dt")
         s = scene(twisted)
-        assert "kelvin_voigt_twisting_force" in s.fused_source() and s.effects[0].history_size == width + 2
+        assert "kelvin_voigt_twisting_force" in s.fused_source() and s.effects[0].history_size == width + TWIST_HISTORY
         # the wall's table: (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw), Marshall's as -1
         np.testing.assert_array_equal(s.effects[0].table_values()[3:], [-1.0, -1.0, -1.0])
     hertz = dk.Hertz(1e7, 0.3, friction=dk.Friction(0.3), twisting=dk.TwistingResistance(1.0, 0.0, 1e-3))
-    assert hertz.history_size == 6 and (hertz.k_tw, hertz.eta_tw, hertz.lever_tw) == (1.0, 0.0, 1e-3)
+    assert hertz.history_size == HISTORY + TWIST_HISTORY and (hertz.k_tw, hertz.eta_tw, hertz.lever_tw) == (1.0, 0.0, 1e-3)
     # no torque possible: no history kept (a zero lever, or Marshall's (2/3) mu a with mu = 0)
     assert dk.KelvinVoigt(1.0, friction=dk.Friction(0.3), twisting=dk.TwistingResistance(lever=0.0)).twisting is None
-    assert dk.KelvinVoigt(1.0, friction=dk.Friction(0.0), twisting=dk.TwistingResistance()).history_size == 4
+    assert dk.KelvinVoigt(1.0, friction=dk.Friction(0.0), twisting=dk.TwistingResistance()).history_size == HISTORY
 
 
 def test_a_given_twist_spring_limits_the_time_step():
@@ -275,8 +277,8 @@ def test_scene_files_give_the_contact_law_its_twisting_resistance():
     friction = "[interactions.friction]\ncoefficient = 0.5"
     loaded = dk.parse_scene(SCENE.format(friction=friction, twisting="[interactions.twisting_resistance]"))
     contact = loaded.scene.interactions[0]
-    assert contact.twisting.marshall and contact.history_size == 6
-    assert loaded.scene.effects[0].history_size == 6
+    assert contact.twisting.marshall and contact.history_size == HISTORY + TWIST_HISTORY
+    assert loaded.scene.effects[0].history_size == HISTORY + TWIST_HISTORY
     given = "[interactions.twisting_resistance]\nstiffness = 1e-5\ndamping = 0.0\nlever = 1e-3"
     contact = dk.parse_scene(SCENE.format(friction=friction, twisting=given)).scene.interactions[0]
     assert (contact.k_tw, contact.eta_tw, contact.lever_tw) == (1e-5, 0.0, 1e-3)

@@ -26,7 +26,8 @@ test 6 lost 13 % of its friction impulse that way). demkit's spring holds the wh
 ``Friction(sliding="lammps")`` keeps LAMMPS' rule for side-by-side comparisons.
 
 Energy: the spring stores U_t = k_t |xi|^2 / 2 (reported with the contact energy); the dissipated
-power booked is P = -F_t.v_t - dU_t/dt, so kinetic + potential + dissipated is conserved. Hertz-
+power booked is P = -F_t.v_t - dU_t/dt, with F_t.v_t the work of the forces through the kicks they
+act in (:mod:`.spring`), so kinetic + potential + dissipated is conserved. Hertz-
 Mindlin springs change k_t with the contact radius; the history's fourth value keeps the last k_t
 so that dU_t is exact.
 """
@@ -100,7 +101,7 @@ def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, style, norma
                   history, p, o, commit, dt):
     """:func:`friction_on_j` for two spheres: arms R - delta/2 (the slip uses the full radii when
     ``style`` is odd, as LAMMPS; LAMMPS' sliding rule when ``style`` >= 2, see :class:`Friction`),
-    and rolling resistance when mu_r > 0 (history o + 4 .. o + 8)."""
+    and rolling resistance when mu_r > 0 (history o + HISTORY .. o + 2 HISTORY)."""
     ai = radius[i] - 0.5 * overlap
     aj = radius[j] - 0.5 * overlap
     shift = 0.5 * overlap * (style % 2.0)

@@ -33,8 +33,9 @@ from ..motion import HELPER_OPTIONS
 
 from .base import non_negative, positive
 
-#: history values of the twist spring: the twist angle and the stiffness at its last update
-TWIST_HISTORY = 2
+#: history values of the twist spring: the twist angle, the stiffness at its last update and the
+#: torque of that update (the second half of its work is booked at the next update)
+TWIST_HISTORY = 3
 #: the sliding torque of Marshall's model is TORQUE_FACTOR mu a |F_n|
 TORQUE_FACTOR = 2.0 / 3.0
 
@@ -82,7 +83,7 @@ def twist_coefficients(k_fixed, eta_fixed, lever_fixed, kt, eta_t, mu, a):
 @njit(**HELPER_OPTIONS)
 def twist_torque(rate, limit, k, eta, share, history, p, o, commit, dt):
     """Twisting torque M (along n, on i) and dissipated power for twist rate ``rate`` and torque
-    limit ``limit``; reads history[p, o:o+2] and writes it when ``commit``; ``share`` 1: LAMMPS'
+    limit ``limit``; reads history[p, o:o+TWIST_HISTORY] and writes it when ``commit``; ``share`` 1: LAMMPS'
     sliding rule."""
     xi = history[p, o]
     old = 0.5 * history[p, o + 1] * xi * xi
@@ -99,9 +100,11 @@ def twist_torque(rate, limit, k, eta, share, history, p, o, commit, dt):
             torque = limit if torque > 0.0 else -limit
             xi = -torque / k if k > 0.0 else 0.0
     power = -torque * rate
-    if commit:
+    if commit:  # half this torque's work and half the last one's, at this rate (demkit.interactions.spring)
+        power = 0.5 * (power - history[p, o + 2] * rate)
         history[p, o] = xi
         history[p, o + 1] = k
+        history[p, o + 2] = torque
         if dt > 0.0:
             power -= (0.5 * k * xi * xi - old) / dt
     elif not sliding:
@@ -133,5 +136,6 @@ def twist_release(history, p, o, dt):
     energy = twist_energy(history, p, o)
     history[p, o] = 0.0
     history[p, o + 1] = 0.0
+    history[p, o + 2] = 0.0
     return energy / dt if dt > 0.0 else 0.0
 

@@ -89,7 +89,8 @@ def test_a_sphere_wedged_between_a_wall_and_another_comes_to_rest_in_the_wedge()
     assert np.all(np.linalg.norm(c.tangential_force, axis=1) < 0.5 * c.normal_force) and not c.sliding.any()
     assert np.abs(traj.position[-1, 1] - traj.position[-51, 1]).max() < 1e-9  # still over the last 0.5 s
     assert c.overlap.max() < 0.01 * R  # 0.0038 R (measured)
-    assert np.diff(traj.energy["dissipated"]).min() >= 0.0
+    # (a sticking spring books its loading's work exactly, zero dissipation up to round-off)
+    assert np.diff(traj.energy["dissipated"]).min() >= -1e-12 * max(traj.energy["dissipated"][-1], 1e-9)
 
 
 @pytest.mark.parametrize("offset", [0.0, 0.02])
@@ -114,7 +115,8 @@ def test_a_magnetic_chain_crushed_against_a_wall(offset):
     if offset == 0.0:
         assert np.all(np.diff(x[:, :, 2], axis=1) > 0)  # the order along the chain is kept
         assert np.abs(x[:, :, :2]).max() == 0.0
-    assert np.diff(traj.energy["dissipated"]).min() >= 0.0
+    # (a sticking spring books its loading's work exactly, zero dissipation up to round-off)
+    assert np.diff(traj.energy["dissipated"]).min() >= -1e-12 * max(traj.energy["dissipated"][-1], 1e-9)
     assert balance(traj) < 1.5 * law.damping * dt * traj.energy["dissipated"][-1]  # 0.17 and 0.45 of it
 
 
@@ -144,7 +146,8 @@ def test_friction_at_the_stick_slip_boundary(ratio):
     # no chattering: the normal contact stays still, the dissipated work never decreases
     z = traj.position[:, 0, 2]
     assert z.max() - z.min() < 1e-9
-    assert np.diff(traj.energy["dissipated"]).min() >= 0.0
+    # (a sticking spring books its loading's work exactly, zero dissipation up to round-off)
+    assert np.diff(traj.energy["dissipated"]).min() >= -1e-12 * max(traj.energy["dissipated"][-1], 1e-9)
     assert balance(traj) < 1e-5  # 5.7e-6 (measured) against up to 0.12 dissipated
 
 
