@@ -1,4 +1,6 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
+from . import numba_cache
+numba_cache.install()  # before any function is defined: caches stamped with the whole package's source
 from . import inlining  # noqa: F401 (numba's inliner in linear time: compiles 40 % faster)
 from . import units
 from .box import Box

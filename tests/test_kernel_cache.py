@@ -61,3 +61,40 @@ def test_a_new_scene_has_its_list_getters_compiled_before_any_run(tmp_path):
     run = subprocess.run([sys.executable, "-c", GETTERS], capture_output=True, text=True, env=env, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.strip().splitlines()[-1] == "[True, True, True, True, True, True, True]"
+
+
+def test_demkits_own_cached_functions_are_stamped_with_the_whole_package(tmp_path):
+    """numba stamps a cached function with its own file's hash only; a demkit function holds the code
+    of the helpers it calls from other files (a wall law, the friction spring), so its stamp must
+    change when any of demkit's files does (demkit.numba_cache). Functions of other packages keep
+    numba's own stamp."""
+    import numba
+
+    import demkit as dk
+    from demkit import numba_cache
+    from demkit.interactions import wall
+
+    law = wall.wall_kelvin_voigt_twisting_force
+    locator = law._cache._impl._locator
+    assert type(locator).__name__.startswith("Demkit")
+    stamp = locator.get_source_stamp()
+    assert stamp[1] == numba_cache.FINGERPRINT == numba_cache.package_fingerprint()
+    # the stamp changes with a file the function does not live in
+    source = {p: p.read_bytes() for p in sorted(numba_cache.PACKAGE.rglob("*.py"))}
+    spring = next(p for p in source if p.name == "spring.py")
+    h = __import__("hashlib").sha256()
+    for p, text in source.items():
+        h.update(str(p.relative_to(numba_cache.PACKAGE)).encode())
+        h.update(text + (b"\n# edited" if p == spring else b""))
+    assert h.hexdigest() != numba_cache.FINGERPRINT
+
+    def mine(x):
+        return x + 1
+
+    theirs = numba.njit(cache=True)(mine)
+    theirs(1)
+    assert not type(theirs._cache._impl._locator).__name__.startswith("Demkit")
+    dk.numba_cache.install()  # a second install adds nothing
+    impl = type(law._cache._impl)
+    assert sum(type(c).__name__.startswith("Demkit") if not isinstance(c, type) else c.__name__.startswith("Demkit")
+               for c in impl._locator_classes) == 3
