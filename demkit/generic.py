@@ -750,7 +750,7 @@ class _Generic:
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
-                 "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START)",
+                 "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
                  "from demkit.kernels import BLOCK",
                  "from demkit.generic import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
                  "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
@@ -772,7 +772,7 @@ class _Generic:
         # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
         lines += [f"INNER = dict(cache=True, _nrt=False, {fast})",
-                  f"ENTRY = dict(cache=True, {fast})",  # a piece's entry: it reads the state's fields
+                  f"ENTRY = dict(cache=True, _nrt=False, {fast})",  # a piece's entry: reads the state (borrowed)
                   f"ENTRY_PARALLEL = dict(cache=True, parallel=True, {fast})",
                   f"PARALLEL = dict(cache=True, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache=True, inline='always', {fast})",

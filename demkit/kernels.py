@@ -148,15 +148,15 @@ PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r",
 def piece_prelude(name):
     """The first lines of piece ``name`` (also of a scene's own, tier 2): its arrays, by the names its
     loops use, from the state s, the pair list pl and the program row r."""
-    lines = [f"    {a} = s.{a}" for a in ARRAYS.split(", ")]
+    lines = [f'    {a} = field(s, "{a}")' for a in ARRAYS.split(", ")]
     if name.startswith("pairs_"):
-        lines += [f"    {a} = pl.{a}" for a in LIST_ARRAYS.split(", ")] + ["    program = s.program[r]"]
+        lines += [f'    {a} = field(pl, "{a}")' for a in LIST_ARRAYS.split(", ")] + ['    program = field(s, "program")[r]']
     else:
-        lines += ["    history = s.sphere_history", "    program = s.program"]
+        lines += ['    history = field(s, "sphere_history")', '    program = field(s, "program")']
     if name.startswith("pairs_forces"):
-        lines += ["    scratch = s.scratch", "    gather = s.gather", "    bounds = pl.bounds",
-                  "    chunk_force = s.thread_force", "    chunk_torque = s.thread_torque",
-                  "    chunk_power = s.thread_power"]
+        lines += ['    scratch = field(s, "scratch")', '    gather = field(s, "gather")', '    bounds = field(pl, "bounds")',
+                  '    chunk_force = field(s, "thread_force")', '    chunk_torque = field(s, "thread_torque")',
+                  '    chunk_power = field(s, "thread_power")']
     return lines
 
 
@@ -880,7 +880,7 @@ class _Source:
                  "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
                  "                               restore_history)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
-                 "                          INNER_STEPS, RUN_START, INDUCTION_FAILED)",
+                 "                          INNER_STEPS, RUN_START, INDUCTION_FAILED, field)",
                  ""]
         if plan.induction is not None:
             lines += ["from demkit.interactions.induction import induce, induction_energy", ""]
@@ -920,7 +920,7 @@ class _Source:
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop
             lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache}, fastmath=False)")
-        lines += [f"ENTRY = dict(cache={cache}, {fast})",  # a piece's entry (tier 2 with lists): reads the state
+        lines += [f"ENTRY = dict(cache={cache}, _nrt=False, {fast})",  # a piece's entry (tier 2 with lists): reads the state (borrowed)
                   f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
