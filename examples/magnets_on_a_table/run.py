@@ -194,7 +194,7 @@ def main(argv=None):
           f"{c.normal_force[between].max(initial=0):.3g} N (weight of a ball {MASS * G:.2g} N)")
 
     # Energy: total + dissipated should keep its starting value. It does so to first order in dt:
-    # demkit sums the dashpots' and sliders' power with the velocities before each step's kick.
+    # the dashpots see the velocities of half a step before (friction's work is booked exactly).
     energy = traj.energy
     budget = energy["total"] + energy["dissipated"]
     closure = abs(budget[-1] - budget[0]) / energy["dissipated"][-1]
