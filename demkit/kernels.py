@@ -1037,18 +1037,17 @@ def _source_of(inter, fn):
 
 
 def _fingerprint(source, interactions):
+    """The module's text, numba's version, the source of the interactions' own functions (plug-ins
+    live outside demkit) and demkit's whole source (:data:`demkit.numba_cache.FINGERPRINT`): the
+    module inlines helpers from many of demkit's files (friction, events, motion, ...), and an edit
+    of any of them must give it a new name, not a stale cache."""
+    from .numba_cache import FINGERPRINT
     h = hashlib.sha256(source.encode())
     h.update(numba.__version__.encode())
     for inter in interactions:
         for fn in inter.pair_functions():
             h.update(_source_of(inter, fn).encode())
-    from . import motion, neighbours, state
-    for module in (motion, neighbours, state):
-        h.update(inspect.getsource(module).encode())
-    # demkit's pair functions call helpers of their package (friction, ...): a helper's edit must
-    # invalidate the cache too
-    for path in sorted((Path(__file__).parent / "interactions").glob("*.py")):
-        h.update(path.read_bytes())
+    h.update(FINGERPRINT.encode())
     return h.hexdigest()[:20]
 
 

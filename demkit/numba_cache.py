@@ -9,8 +9,8 @@ leaves numba's files behind (pip does not list them) would run such stale code s
 :func:`install` (called by ``import demkit``, before any of its functions is defined) puts locators
 in front of numba's that serve demkit's modules only: the same cache folders as numba's, but a
 stamp that adds a hash of every ``.py`` file of the package, so any change of demkit's source
-recompiles its functions. The kernel modules demkit generates carry such a fingerprint in their
-names already (:func:`demkit.kernels._fingerprint`). Hashing the package at import costs ~5 ms.
+recompiles its functions. The kernel modules demkit generates carry the same fingerprint in their
+names (:func:`demkit.kernels._fingerprint`). Hashing the package at import costs ~5 ms.
 """
 from __future__ import annotations
 
