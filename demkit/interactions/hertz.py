@@ -35,8 +35,8 @@ from ..motion import KERNEL_OPTIONS
 from .base import PairInteraction, number, positive
 from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
                       twisting_time_step)
-from .hertz_restitution import damping_for_restitution
 from .friction import HISTORY, pair_friction, release, springs_energy
+from .hertz_restitution import damping_for_restitution
 from .rolling import STIFFNESS_FACTOR
 from .twisting import twist_energy, twist_release, twisting_on_i
 

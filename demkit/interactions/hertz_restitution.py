@@ -61,10 +61,9 @@ def fit_table(pieces=24, degree=10):
 
 def _piece(u):
     """(index of the piece holding u, u mapped to [-1, 1] in it)."""
-    width = (U_HIGH - U_LOW) / len(TABLE)
-    k = min(max(int((u - U_LOW) / width), 0), len(TABLE) - 1)
-    a = U_LOW + k * width
-    return k, (2.0 * (u - a) - width) / width
+    k = min(max(int((u - U_LOW) / _WIDTH), 0), len(TABLE) - 1)
+    a = U_LOW + k * _WIDTH
+    return k, (2.0 * (u - a) - _WIDTH) / _WIDTH
 
 
 def fitted_restitution(gamma):
@@ -99,8 +98,7 @@ def damping_for_restitution(restitution):
         x = min(max(x - step, -1.0), 1.0)
         if abs(step) < 1e-15:
             break
-    width = (U_HIGH - U_LOW) / len(TABLE)
-    return math.exp(U_LOW + k * width + 0.5 * width * (x + 1.0))
+    return math.exp(U_LOW + k * _WIDTH + 0.5 * _WIDTH * (x + 1.0))
 
 
 #: Chebyshev coefficients of log e(u), u = log gamma, piece by piece (fit_table(24, 10))
@@ -178,6 +176,8 @@ TABLE = [
      -2.0440677913712192e-08, -1.5218331674465556e-08, 1.8365843932323633e-08, -7.182831858426576e-09,
      -4.441083201057669e-09, 1.5770239393199687e-08, -1.6522105917380848e-08),
 ]
+#: the width of a piece in u
+_WIDTH = (U_HIGH - U_LOW) / len(TABLE)
 #: log e at the pieces' edges (decreasing)
 _EDGE_VALUES = np.array([np.polynomial.chebyshev.chebval(-1.0, c) for c in TABLE]
                         + [np.polynomial.chebyshev.chebval(1.0, TABLE[-1])])
