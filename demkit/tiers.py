@@ -2,12 +2,13 @@
 
 A scene of shipped interactions starts on tier 1 (:mod:`demkit.generic`: compiled once per install,
 loaded in a fraction of a second). Its own code (:mod:`demkit.kernels`: with neighbour lists its own
-pair and sphere loops called by tier 1's time loops, in open space a fused module) runs 0-25 %
-faster but costs 3-30 CPU s to compile the first time a combination of interactions is run. So a run
+pair and sphere loops called by tier 1's time loops, in open space a fused module, or its pieces
+when it solves induced moments) runs 0-25 % faster but costs 3-30 CPU s to compile the first time a
+combination of interactions is run. So a run
 
 1. starts on tier 1;
 2. compiles tier 2 on another thread (or loads it, when numba's cache has it) once the run has at
-   least :data:`WORTH_COMPILING` seconds left (:data:`WORTH_COMPILING_OPEN` in open space,
+   least :data:`WORTH_COMPILING` seconds left (:data:`WORTH_COMPILING_OPEN` for a fused module,
    :data:`WORTH_LOADING` when cached), while it goes on;
    the seconds that earlier runs of the same combination spent on tier 1 in this process count too
    (a sweep of many short runs, such as the paper's replication, pays for tier 2 as a long run does),
@@ -30,8 +31,8 @@ from .progress import BACKGROUND
 #: a run with at least this many seconds left on tier 1 compiles tier 2 in the background (a first
 #: compile of a combination costs 5-30 CPU s on the other core; tier 2 saves 0-25 % of the run)
 WORTH_COMPILING = 20.0
-#: ... and for a scene without neighbour lists, whose fused module steps many times faster than tier 1
-#: (two spheres: 11.7 M against 1.0 M steps/s) and compiles in about 5 CPU s
+#: ... and for a scene without neighbour lists whose tier 2 is a fused module, which steps many times
+#: faster than tier 1 (two spheres: 11.7 M against 1.0 M steps/s) and compiles in about 5 CPU s
 WORTH_COMPILING_OPEN = 8.0
 #: ... and loads it from numba's cache with at least this many seconds left (about 1 s to load)
 WORTH_LOADING = 2.0
@@ -79,7 +80,7 @@ class TierChoice:
                 self._cached = functions_importable(self.scene.plan) and cached_function(key[0], self.name)
         if self._cached:
             return WORTH_LOADING
-        return WORTH_COMPILING if self.scene.plan.growing else WORTH_COMPILING_OPEN
+        return WORTH_COMPILING if self.scene._pieces_tier_2() else WORTH_COMPILING_OPEN
 
     @property
     def key(self):
@@ -152,7 +153,7 @@ class TierChoice:
     def describe(self):
         """One line for ``demkit info``: which tier runs this scene and why."""
         if self.switchable:
-            worth, faster = ((WORTH_COMPILING, "up to 25 % faster") if self.scene.plan.growing else
+            worth, faster = ((WORTH_COMPILING, "up to 25 % faster") if self.scene._pieces_tier_2() else
                              (WORTH_COMPILING_OPEN, "several times faster in open space"))
             return (f"tier 1, the generic module (compiled once per install); the scene's own code (tier 2, "
                     f"the same bits, {faster}) is compiled in the background by runs with more than "

@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numba
 import numpy as np
 import pytest
-from conftest import two_magnets
+from conftest import demkit_in_process, two_magnets
 from tqdm import tqdm
 
 import demkit as dk
@@ -252,11 +252,14 @@ def test_animate_shows_a_bar_over_the_frames_when_asked(series, tmp_path):
     (["-o", "run.gif", "--size", "big"], "--size must be WIDTHxHEIGHT"),
 ])
 def test_demkit_render_refuses_bad_options_in_one_line(series, tmp_path, args, message):
+    # refused before anything is drawn: the command runs in this process (a child costs ~1 s)
     args = [str(tmp_path / a) if a.startswith("run.") else a for a in args]
-    done = render_child(series, *args)
+    done = demkit_in_process("render", str(series), *args, cwd=tmp_path)
     assert done.returncode == 2 and message in done.stderr and "Traceback" not in done.stderr
-    done = render_child(tmp_path / "missing.pvd", "-o", tmp_path / "x.gif")
-    assert done.returncode == 2 and "does not exist" in done.stderr
+    assert not list(tmp_path.iterdir())  # nothing written
+    if "--size" in args:
+        done = demkit_in_process("render", str(tmp_path / "missing.pvd"), "-o", str(tmp_path / "x.gif"), cwd=tmp_path)
+        assert done.returncode == 2 and "does not exist" in done.stderr
 
 
 # ---- accuracy studies: one bar over the runs ---------------------------------------------------

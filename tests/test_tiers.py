@@ -91,15 +91,20 @@ def same_bits(make, integrator, duration, diagnostics=False):
     return a
 
 
-@pytest.mark.parametrize("integrator", [dk.VelocityVerlet(2e-4), dk.MultipleTimeStep(4e-4, inner=2)],
-                         ids=["verlet", "multiple_time_step"])
-def test_small_scene_same_bits(integrator):
-    same_bits(small_scene, integrator, 0.05)
+def test_small_scene_with_multiple_time_steps_same_bits():
+    """Kelvin-Voigt contacts with friction, rolling and twisting resistance, a switched dipole, walls,
+    gravity and a field, in open space, stepped by multiple time stepping: its time loop calls every
+    force of the scene, split into fast and slow (velocity Verlet's loop: the Hertz scene below; each
+    time loop of a fused module compiles for 20-30 CPU s, so each scene here runs one)."""
+    same_bits(small_scene, dk.MultipleTimeStep(4e-4, inner=2), 0.05)
 
 
 def test_hertz_magnetisable_langevin_same_bits():
-    """Hertz contacts, induced moments in a uniform field, a heat bath, in open space."""
+    """Hertz contacts, induced moments in a uniform field, a heat bath, in open space, stepped by
+    velocity Verlet."""
     assert small_scene(1, laws="hertz").induction is not None
+    # its tier 2: its own pieces under the generic loops (the solve takes most of a step; no fused module)
+    assert small_scene(2, laws="hertz").loop_kernels.pieces.__name__.startswith("demkit_pieces_")
     same_bits(lambda tier: small_scene(tier, laws="hertz"), dk.VelocityVerlet(2e-4), 0.05)
 
 
@@ -110,8 +115,9 @@ def test_periodic_gas_same_bits(integrator):
     # RK4 and Forest-Ruth integrate no contact history, contact events need frictionless contacts; the
     # integrators whose loops differ only in their arithmetic run the cheaper frictionless gas (each
     # integrator is a time loop of its own in the fused module: seconds to compile for each)
+    # (the frictionless gas is test_multiple_time_steps_with_lists_same_bits's: one module of pieces)
     friction = type(integrator) is dk.VelocityVerlet and not integrator.resolve_contacts
-    make = gas if friction else (lambda tier: gas(tier, kelvin_voigt=True))
+    make = gas if friction else (lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0))
     same_bits(make, integrator, 0.2)
 
 
