@@ -623,7 +623,8 @@ class _Generic:
                       f"            {target} += sum_{k}(s.position, s.dipole, s.box, s.params, slot, {rest})"]
         return lines
 
-    def scene_functions(self):
+    def upkeep_functions(self):
+        """maintain_lists and sort_particles: the list upkeep (on threads: the lists built on threads)."""
         lines = []
         lines += MAINTAIN_LISTS_HEAD
         for g in range(MAX_GROUPS):
@@ -649,6 +650,10 @@ class _Generic:
                       f"            restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})",
                       f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
+        return lines
+
+    def scene_functions(self):
+        lines = self.upkeep_functions()
         # the sums are called as in the fused module, their flag written out (with_forces True for
         # the forces, False for the energies): LLVM specialises them on it, and the bits follow
         lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
@@ -759,12 +764,8 @@ class _Generic:
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",
                  ""]
-        if self.threads:
-            lines += ["from demkit.motion import sum_chunks_threads as sum_chunks",
-                      "from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
-                      "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
-                      "                           state_is_finite_threads as state_is_finite)",
-                      "from demkit.neighbours import (max_displacement_threads as max_displacement,",
+        if self.threads:  # (the passes over spheres are the serial ones: memory-bound, they gain nothing)
+            lines += ["from demkit.neighbours import (max_displacement_threads as max_displacement,",
                       "                               rebuild_threads as rebuild, build_threads as build)"]
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules
@@ -804,8 +805,12 @@ class _Generic:
 
     def text(self, templates):
         """The scene-level functions and the time loops: every function that reaches a piece takes the
-        tuple ``calls`` (the pieces as first-class functions, :data:`PIECES` order) first."""
+        tuple ``calls`` (the pieces as first-class functions, :data:`PIECES` order) first. On threads,
+        the list upkeep alone: the time loops are the serial module's, given the upkeep on threads and
+        the thread pieces in ``calls`` (the same types, so the same compiled loops)."""
         lines = self.imports()
+        if self.threads:
+            return "\n".join(lines + self.upkeep_functions()) + "\n"
         lines += ["from demkit.state import INDUCTION_FAILED",
                   "from demkit.interactions.induction import induce, induction_energy",
                   "from demkit.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
@@ -850,6 +855,8 @@ STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_cont
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
 SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now")
+#: ... of which the list upkeep, which has a twin on threads
+UPKEEP = SCENE_PIECES[:2]
 
 
 #: the names in the ``calls`` tuple, in order
@@ -934,8 +941,9 @@ def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_en
     own_energies = bool(own_energies) or pieces is None  # (tier 1: the family's energies are its own)
     view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies)
     if view not in _MODULES:
-        module = _load(key, lambda: _name(threads))
-        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies)
+        module = _load(("generic", False), lambda: _name(False))
+        upkeep = _load(key, lambda: _name(True)) if threads else module
+        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies, upkeep)
     return _MODULES[view]
 
 
@@ -963,9 +971,11 @@ def needs_of(program):
 
 
 def is_cached(threads, function):
-    """Is ``function`` of the generic module in numba's disk cache already?"""
+    """Is ``function`` of the generic module in numba's disk cache already (on threads: and the list
+    upkeep on threads)?"""
     from .kernels import cached_function
-    return cached_function(_name(threads)[1], function)
+    return cached_function(_name(False)[1], function) and (not threads or
+                                                            cached_function(_name(True)[1], "maintain_lists"))
 
 
 def _fields(ty):
@@ -998,8 +1008,9 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True):
+    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, upkeep=None):
         self.module, self.threads, self.needs = module, threads, needs
+        self.upkeep = upkeep or module  # maintain_lists and sort_particles (on threads: the thread module's)
         self.family, self.own_energies = family, own_energies
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
         self.tier = 1 if pieces is None else 2
@@ -1018,6 +1029,8 @@ class GenericKernels:
                                                                           family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
+                if name in UPKEEP and not stubbed:
+                    module = self.upkeep
                 own_piece = name in PIECES and (self.own_energies or "energies" not in name)
                 if self.pieces is not None and own_piece and not stubbed:
                     own = self.pieces  # the scene's own; its thread pieces hold the chunked loops alone
@@ -1082,7 +1095,7 @@ class GenericKernels:
             if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
                 return self._diagnostic(kind, int(name[len(kind) + 1:]))
         if name not in self._bound:  # the module's function, or it bound to the pieces when it takes them
-            function = getattr(self.module, name)
+            function = getattr(self.upkeep if name in UPKEEP else self.module, name)
             takes = "calls" in inspect.signature(function.py_func).parameters
             self._bound[name] = _Bound(self, function) if takes else function
         return self._bound[name]

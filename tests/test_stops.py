@@ -55,14 +55,13 @@ def test_energy_growth_guard_stops_a_run_gaining_energy():
 @pytest.mark.parametrize("threads, n", [(False, 37), (True, 37), (False, 3)])
 def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads, n):
     """The check every step ends with (serial and on threads) against np.isfinite: NaN of either
-    sign and +-inf in each array at each place, among values of both signs (an unsigned maximum of
-    the raw bits would let a negative number hide an inf), and huge finite values (a sum of them
-    overflows: the earlier check called 1e308 + 1e308 non-finite)."""
+    sign and +-inf in each array at each place, among values of both signs, and huge finite values
+    (a sum of the values themselves would overflow: an earlier check called 1e308 + 1e308 non-finite)."""
     from demkit.motion import state_is_finite, state_is_finite_threads
     check = state_is_finite_threads if threads else state_is_finite
     rng = np.random.default_rng(5)
     arrays = [rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-300, 300, size=(n, 3)) for _ in range(3)]
-    arrays[0][n - 1] = 1e308  # few spheres: their values are checked one by one, many: as raw bits
+    arrays[0][n - 1] = 1e308
     arrays[1][n - 2] = -1e308
     assert check(*arrays) and check(arrays[0], arrays[1], np.zeros((0, 3)))
     for bad in (np.nan, -np.nan, np.inf, -np.inf):
