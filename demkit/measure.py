@@ -8,7 +8,7 @@
 
 **Pressure tensor** (the virial theorem; the convention of LAMMPS' ``compute pressure``; with an
 Ewald or P3M dipole sum its reciprocal and surface terms are added to the Dipole's virial,
-:mod:`demkit.interactions.ewald_virial`)::
+:mod:`demkit.interactions.ewald_virial`; an FMM sum's is sum_i (x_i - mean x) F_i from its forces)::
 
     P_ab = (1/V) [ sum_i m_i v_ia v_ib + sum_(i<j) r_ij,a F_ij,b ],    p = (P_xx + P_yy + P_zz) / 3
 
@@ -86,13 +86,10 @@ def stress(scene, volume=None):
 
 def _virials(scene):
     """(sum m v v, {interaction name: sum r F}, per-sphere shares (N, 3, 3)) of ``scene`` now: the pair
-    interactions', and the reciprocal and surface terms of Ewald and P3M sums with their real-space
-    pairs under "Dipole" (:mod:`demkit.interactions.ewald_virial`)."""
+    interactions', and the long-range sums' under "Dipole": the reciprocal and surface terms of Ewald
+    and P3M sums with their real-space pairs (:mod:`demkit.interactions.ewald_virial`), an FMM sum
+    from its forces (:meth:`demkit.interactions.fmm.TunedFMM.virial`)."""
     sums = list(scene.long_range)
-    if any(not hasattr(tuned, "virial") for tuned in sums):
-        raise ValueError("the stress of a scene with a fast multipole sum (Dipole(long_range=FMM(...))) is not "
-                         "computed yet (the virial of Ewald and P3M sums is): measure it on the same spheres with "
-                         "long_range=None (the exact sum over every pair, for a few thousand spheres)")
     p = scene.particles
     n = len(p)
     mass = np.broadcast_to(np.asarray(p.mass, dtype=float), (n,))

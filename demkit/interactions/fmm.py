@@ -190,6 +190,21 @@ class TunedFMM:
         """(N, 3) field at each sphere from all the others."""
         return field(particles.position, particles.dipole, self.prefactor, self.settings.accuracy)
 
+    def virial(self, particles, box):
+        """(W (3, 3), each sphere's share (N, 3, 3)) of the sum, in the pair virial's convention
+        W = sum over pairs of d_ij (x) f_ij (d_ij = x_j - x_i, f_ij the force on j), which for pair
+        forces is sum_i x_i (x) F_i: taken from FMM3D's forces as sum_i (x_i - xbar) (x) F_i, about
+        the mean position xbar (the same for exact forces, whose sum is zero; independent of the
+        origin for the sum's, whose total is zero only to its accuracy). Each sphere's share is its
+        own term (x_i - xbar) (x) F_i: half of each pair, the pair sums' convention, would need the
+        pair forces, which an FMM never forms."""
+        x = np.asarray(particles.position, dtype=np.float64)
+        force = np.zeros_like(x)
+        evaluate(x, np.asarray(particles.dipole, dtype=np.float64), self.prefactor, self.settings.accuracy, force,
+                 np.zeros_like(x), True)
+        shares = (x - x.mean(axis=0))[:, :, None] * force[:, None, :]
+        return shares.sum(axis=0), shares
+
     def table_values(self):
         return np.array([self.prefactor, self.settings.accuracy], dtype=np.float64)
 
