@@ -194,21 +194,37 @@ def kick_all(velocity, angular_velocity, dipole, force, torque, mass, inertia, h
     advance_spin(angular_velocity, dipole, torque, inertia, h, rotate_h)
 
 
+#: below this many spheres the finiteness check loops over the rows themselves: a flat view costs
+#: ~45 ns a call, which doubled the time of a step of the paper's two spheres
+FEW_SPHERES = 32
+
+
+@njit(**KERNEL_OPTIONS)
+def finite_sum(values):
+    """The sum of x - x over a C-contiguous array: 0 when every value is finite (x - x is 0 for any
+    finite x, however large: no overflow), NaN as soon as one is NaN or inf. Over a flat view, so
+    that where the sum may be reordered (:data:`FINITE_CHECK_MATH`) the compiler vectorises it."""
+    flat = values.reshape(-1)
+    s = 0.0
+    for k in range(flat.shape[0]):
+        s += flat[k] - flat[k]
+    return s
+
+
 @njit(**KERNEL_OPTIONS)
 def state_is_finite(position, velocity, angular_velocity):
-    """True if no position, velocity or angular velocity is NaN or inf: x - x is 0 for a finite x
-    (however large: no overflow) and NaN for NaN or inf, and a sum of them is NaN as soon as one is.
-    Called (demkit.kernels, generic) it may add in any order (:data:`FINITE_CHECK_MATH`): the
-    compiler then vectorises it (8000 spheres: 25 us a call)."""
-    s = 0.0
-    t = 0.0
-    for i in range(position.shape[0]):
-        s += (position[i, 0] - position[i, 0]) + (position[i, 1] - position[i, 1]) + (position[i, 2] - position[i, 2])
-        t += (velocity[i, 0] - velocity[i, 0]) + (velocity[i, 1] - velocity[i, 1]) + (velocity[i, 2] - velocity[i, 2])
-    for i in range(angular_velocity.shape[0]):
-        s += ((angular_velocity[i, 0] - angular_velocity[i, 0]) + (angular_velocity[i, 1] - angular_velocity[i, 1])
-              + (angular_velocity[i, 2] - angular_velocity[i, 2]))
-    return s + t == 0.0
+    """True if no position, velocity or angular velocity is NaN or inf (sums of x - x, see
+    :func:`finite_sum`; 8000 spheres: 9.5 us a call, called with :data:`FINITE_CHECK_MATH`)."""
+    if position.shape[0] < FEW_SPHERES:
+        s = 0.0
+        for i in range(position.shape[0]):
+            for a in range(3):
+                s += (position[i, a] - position[i, a]) + (velocity[i, a] - velocity[i, a])
+        for i in range(angular_velocity.shape[0]):
+            for a in range(3):
+                s += angular_velocity[i, a] - angular_velocity[i, a]
+        return s == 0.0
+    return finite_sum(position) + finite_sum(velocity) + finite_sum(angular_velocity) == 0.0
 
 
 @njit(**KERNEL_OPTIONS)

@@ -61,7 +61,7 @@ def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads, 
     check = state_is_finite_threads if threads else state_is_finite
     rng = np.random.default_rng(5)
     arrays = [rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-300, 300, size=(n, 3)) for _ in range(3)]
-    arrays[0][n - 1] = 1e308
+    arrays[0][n - 1] = 1e308  # few spheres: the rows are summed one by one, many: flat views
     arrays[1][n - 2] = -1e308
     assert check(*arrays) and check(arrays[0], arrays[1], np.zeros((0, 3)))
     for bad in (np.nan, -np.nan, np.inf, -np.inf):
