@@ -764,7 +764,7 @@ class _Generic:
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",
                  ""]
-        if self.threads:  # (the passes over spheres are the serial ones: memory-bound, they gain nothing)
+        if self.threads:  # the list upkeep alone (the time loops, and their passes over spheres, are serial)
             lines += ["from demkit.neighbours import (max_displacement_threads as max_displacement,",
                       "                               rebuild_threads as rebuild, build_threads as build)"]
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
