@@ -51,6 +51,7 @@ import numpy as np
 from .kernels import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                       PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, chunks_run, deep_wall_overlap, effect_sums,
                       piece_prelude)
+from . import neighbours
 from .state import DEEP_OVERLAP_FRACTION, pair_loop_arrays
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -403,7 +404,9 @@ class _Generic:
         def branch(law):
             outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
             outs += ["w"] if law.dissipative else []
-            lines = [f"{', '.join(outs)} = {_pair_call(law, 'force')}", "fx += ax", "fy += ay", "fz += az"]
+            lines = [f"{', '.join(outs)} = {_pair_call(law, 'force')}", "fx += ax", "fy += ay", "fz += az",
+                     "if record:", "    entries[p, 3 + 3 * mm] = ax", "    entries[p, 4 + 3 * mm] = ay",
+                     "    entries[p, 5 + 3 * mm] = az"]
             if law.torque:
                 lines += ["tix += bix", "tiy += biy", "tiz += biz", "tjx += bjx", "tjy += bjy", "tjz += bjz"]
             if law.dissipative:
@@ -426,8 +429,11 @@ class _Generic:
 
     def plain_loop(self, pad, first, last, force, torque):
         open_, close = self.owner_sums(pad + "    ", force, torque)
-        return (self.rows(pad, first, last) + open_ + self.entries(pad + "    ") + self.geometry(pad + " " * 8)
-                + self.force_body(pad + " " * 8, force, torque) + close)
+        inner = pad + " " * 8
+        separation = [f"{inner}if record:", f"{inner}    entries[p, 0] = dx", f"{inner}    entries[p, 1] = dy",
+                      f"{inner}    entries[p, 2] = dz"]
+        return (self.rows(pad, first, last) + open_ + self.entries(pad + "    ") + self.geometry(inner) + separation
+                + self.force_body(inner, force, torque) + close)
 
     def blocked_loop(self, pad, first, last, force, torque, out, gather):
         """Dipole-like members (branch-free, reading only the moments) over blocks of BLOCK entries
@@ -481,8 +487,11 @@ class _Generic:
         lines = []
         if not self.threads:
             lines += ["", "", "@njit(**INNER)",
-                      f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last, program):",
-                      '    """The owners first..last-1 of the loop, their forces into cf/ct; returns the power."""']
+                      f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last, program, "
+                      "record, entries):",
+                      '    """The owners first..last-1 of the loop, their forces into cf/ct; returns the power. With '
+                      'record (the\n    plain loop): entries[p, :3] the separation of entry p, entries[p, 3 + 3 m:] '
+                      'member m\'s force on j."""']
             lines += self.header()
             lines += ["    g_dipole = cg[3:6].T", "    power = 0.0"]
             lines += loop("    ", "first", "last", "cf", "ct", "co", "cg")
@@ -492,7 +501,7 @@ class _Generic:
                   "    torque_on = program[G_TORQUE] != 0"]
         return lines + chunks_run("prange" if self.threads else "range",
                                   f"{name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
-                                  "bounds[t], bounds[t + 1], program)")
+                                  "bounds[t], bounds[t + 1], program, np.False_, history)")
 
     def pair_functions(self):
         if self.family == BLOCKED:
@@ -500,44 +509,27 @@ class _Generic:
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
         if self.threads:  # the thread pieces: the chunked loop on prange, the rest is serial
             return lines
-        # energies, and per-entry energies and forces (diagnostics)
-        for name, signature, doc in (
-                ("pairs_energies", "out", "Add the potential energies of the loop to out[kind]."),
-                ("pairs_pair_energies", "owners, partners, out", "owners[e], partners[e], out[e, k]: every entry "
-                                                                  "and its energy under interaction k."),
-                ("pairs_pair_forces", "owners, partners, out", "owners[e], partners[e], out[e, :3] the separation, "
-                                                                "out[e, 3 + 3 m:] member m's force on j.")):
-            if name == "pairs_energies":  # a piece (through calls): it takes the state
-                lines += ["", "", "@njit(**ENTRY)", f"def {name}({PIECE_SIGNATURES[name]}):", f'    """{doc}"""']
-                lines += piece_prelude(name)
-            else:  # diagnostics, called from Python with the arrays
-                lines += ["", "", "@njit(**INNER)", f"def {name}({ARRAYS}, {LIST_ARRAYS}, {signature}, program):",
-                          f'    """{doc}"""']
-            lines += self.header() + ["    e = 0", "    commit = False"]
-            lines += self.rows("    ", 0, "n if is_list else n - 1") + self.entries("        ")
-            pad = " " * 12
-            lines += self.geometry(pad)
-            if name != "pairs_energies":
-                lines += [f"{pad}owners[e] = i", f"{pad}partners[e] = j"]
-            if name == "pairs_pair_forces":
-                lines += [f"{pad}out[e, 0] = dx", f"{pad}out[e, 1] = dy", f"{pad}out[e, 2] = dz"]
-            lines += [f"{pad}for mm in range(count):"]
-            inner = pad + "    "
-            lines += self.member(inner) + [f"{inner}if cut >= 0 and not r2 < params[cut]:", f"{inner}    continue"]
-            if name == "pairs_pair_forces":
-                def branch(law):
-                    outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
-                    outs += ["w"] if law.dissipative else []
-                    return [f"{', '.join(outs)} = {_pair_call(law, 'force')}",
-                            "out[e, 3 + 3 * mm] = ax", "out[e, 4 + 3 * mm] = ay", "out[e, 5 + 3 * mm] = az"]
-            else:
-                target = ("out[program[mb + M_ENERGY]]" if name == "pairs_energies"
-                          else "out[e, program[mb + M_INDEX]]")
-
-                def branch(law, target=target):
-                    return [f"{target} += {_pair_call(law, 'energy')}"]
-            lines += _switch(self.laws, inner, branch)
-            lines += [f"{pad}e += 1"]
+        # energies: the loop, which also records each entry's energies when asked (diagnostics, called from
+        # Python, as the force chunk is for each entry's forces: no second copy of the catalogue). The
+        # pieces pass record as np.False_, a bool numba does not type as the literal False: a literal
+        # would compile the loop a second time for the diagnostics' True.
+        lines += ["", "", "@njit(**INNER)", f"def pairs_energies_rows({ARRAYS}, {LIST_ARRAYS}, out, record, entries, program):",
+                  '    """Add the potential energies of the loop to out[kind]; with record, also entry p\'s energy under',
+                  '    interaction k to entries[p, k]."""']
+        lines += self.header() + ["    commit = False"]
+        lines += self.rows("    ", 0, "n if is_list else n - 1") + self.entries("        ")
+        pad = " " * 12
+        lines += self.geometry(pad)
+        lines += [f"{pad}for mm in range(count):"]
+        inner = pad + "    "
+        lines += self.member(inner) + [f"{inner}if cut >= 0 and not r2 < params[cut]:", f"{inner}    continue"]
+        lines += _switch(self.laws, inner, lambda law: [
+            f"energy = {_pair_call(law, 'energy')}", "out[program[mb + M_ENERGY]] += energy",
+            "if record:", "    entries[p, program[mb + M_INDEX]] += energy"])
+        lines += ["", "", "@njit(**ENTRY)", f"def pairs_energies({PIECE_SIGNATURES['pairs_energies']}):",
+                  '    """Add the potential energies of the loop to out[kind]."""']
+        lines += piece_prelude("pairs_energies")
+        lines += [f"    pairs_energies_rows({ARRAYS}, {LIST_ARRAYS}, out, np.False_, history, program)"]
         return lines
 
     # ---- single-sphere effects ------------------------------------------------------------------
@@ -1045,21 +1037,44 @@ class GenericKernels:
 
     def _diagnostic(self, kind, g):
         """pair_energies_<g> / pair_forces_<g>(s, owners, partners, out): every entry of pair loop g and
-        its energies or forces (the serial pieces' ``pairs_pair_*``, called from Python: diagnostics
-        run once, and a compiled wrapper would link the family's whole catalogue once more)."""
-        own = self.pieces is not None  # tier 2: the scene's own loop of group g (it takes no program row)
-        if own:
+        its energies or forces. Tier 1: the family's own loops (``pairs_energies_rows``, the serial
+        ``pairs_forces_chunk``) recording each entry, called from Python with the types the pieces
+        compiled them for, so nothing compiles for diagnostics; tier 2: the scene's own
+        ``group_<g>_<kind>``."""
+        if self.pieces is not None:  # the scene's own loop of group g (it takes no program row)
             function = getattr(getattr(self.pieces, "serial", self.pieces), f"group_{g}_{kind}")
         else:
-            function = getattr(_pieces(False, self.family), f"pairs_{kind}")
+            pieces = _pieces(False, self.family)
+            function = pieces.pairs_energies_rows if kind == "pair_energies" else pieces.pairs_forces_chunk
 
         def run(s, owners, partners, out):
             if "maintain_lists" in self.needs:
                 self.module.maintain_lists(s, False)
             *arrays, program = pair_loop_arrays(s, g)
-            if own:
+            if self.pieces is not None:
                 return function(*arrays, owners, partners, out)
-            return function(*arrays, owners, partners, out, program[group_row(g, 0)])
+            row = program[group_row(g, 0)]
+            n, (start, end, partner) = arrays[0].shape[0], arrays[9:12]
+            is_list = row[G_LIST] != 0
+            entries = np.zeros((int(start[-1]) if is_list else n * (n - 1) // 2, out.shape[1]))
+            position, velocity, spin, dipole, radius, mass, box, params, status, *lists = arrays
+            status = status.copy()  # a deep overlap seen by a diagnostic stops no run
+            if kind == "pair_energies":
+                members = G_MEMBERS + M_COLUMNS * np.arange(row[G_COUNT])
+                kinds = np.zeros(1 + int(row[members + M_ENERGY].max(initial=0)))  # the sums by kind, unused
+                function(position, velocity, spin, dipole, radius, mass, box, params, status, *lists, kinds, True,
+                         entries, row)
+            else:
+                force, unused = np.zeros((n, 3)), np.zeros((9, 1))  # (the blocked loop's scratch and gather)
+                function(position, velocity, spin, dipole, radius, mass, box, params, status, force, force.copy(),
+                         *lists, unused, unused, False, 0, n, row, True, entries)
+            if is_list:
+                owners[:], rows = neighbours.entry_owners(s.lists[g])
+                partners[:] = partner[rows]
+            else:
+                owners[:], partners[:] = np.triu_indices(n, k=1)
+                rows = slice(None)
+            out[:] = entries[rows]
         return run
 
     def steps_for(self, state_type, record_type, uses):

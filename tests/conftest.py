@@ -1,4 +1,6 @@
 """Shared builders for the tests."""
+import os
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,7 @@ import demkit as dk
 # test would otherwise compile its scene's own code in the background (tens of CPU s beside the
 # other worker). tests/test_tiers.py switches on purpose, and asks for tier 2 where it compares the
 # tiers; scenes with functions of your own run on tier 2 (DEMKIT_TIER=1 is a default, not a demand).
-__import__("os").environ["DEMKIT_TIER"] = "1"
+os.environ["DEMKIT_TIER"] = "1"
 dk.tiers.WORTH_COMPILING = dk.tiers.WORTH_COMPILING_OPEN = dk.tiers.WORTH_LOADING = float("inf")
 
 R_PAPER = 6.94
@@ -26,6 +28,42 @@ def two_magnets(b_over_r=4.0, v=V_PAPER, x0=150.0, model=dk.Dipole, damping=0.1,
     return dk.Scene(p, [model(prefactor=1 / 3), dk.KelvinVoigt(stiffness=1.0, damping=damping)])
 
 
+def _headless_probe():
+    """Probe off-screen rendering without a display once in this process (demkit.viz.backend), and
+    return what the probe sets in the environment; {} when nothing renders here."""
+    import os
+    from demkit.viz import backend
+    if _PROBED is None:
+        saved, chosen = dict(os.environ), backend._chosen
+        for key in ("DISPLAY", "WAYLAND_DISPLAY", backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE):
+            os.environ.pop(key, None)
+        backend._chosen = None
+        try:
+            backend.ensure_rendering()
+            globals()["_PROBED"] = {k: os.environ[k] for k in (backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE)
+                                    if k in os.environ}
+        except backend.RenderingUnavailable:
+            globals()["_PROBED"] = {}
+        finally:
+            os.environ.clear()
+            os.environ.update(saved)
+            backend._chosen = chosen
+    return dict(_PROBED)
+
+
+_PROBED = None
+
+
+def headless_env(probed=True):
+    """This process's environment without a display, for a child process that renders; with
+    ``probed``, with the result of one probe of this test process (demkit.viz.backend: the child
+    trusts it instead of probing again, 2-3 s a child)."""
+    from demkit.viz import backend
+    drop = ("DISPLAY", "WAYLAND_DISPLAY", backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE)
+    env = {k: v for k, v in os.environ.items() if k not in drop}
+    return {**env, **_headless_probe()} if probed else env
+
+
 def run_example_quick(script, out, timeout=600):
     """Run ``main(["--quick", "--output", out])`` of the example ``script`` in a child process
     without DISPLAY (it renders: a broken OpenGL stack could crash the interpreter); returns the
@@ -36,8 +74,8 @@ def run_example_quick(script, out, timeout=600):
     import sys
     code = (f"import json, runpy\nmain = runpy.run_path({str(script)!r})['main']\n"
             f"print('RESULT' + json.dumps(main(['--quick', '--output', {str(out)!r}])))\n")
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=timeout)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=headless_env(),
+                          timeout=timeout)
     assert done.returncode == 0, done.stdout + done.stderr
     return done, json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT"))[6:])
 

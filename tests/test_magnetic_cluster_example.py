@@ -2,7 +2,6 @@
 for t = 3, three animation frames. It renders, so it runs in a child process without DISPLAY (as
 the other rendering tests do: a broken OpenGL stack could crash the interpreter)."""
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -12,6 +11,7 @@ import numpy as np
 from PIL import Image
 
 import demkit as dk
+from conftest import headless_env
 
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "magnetic_cluster" / "run.py"
 
@@ -24,7 +24,7 @@ CHILD = """
 
 
 def test_quick_run_writes_everything_closes_the_energy_balance_and_forms_chains(tmp_path):
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env = headless_env()
     done = subprocess.run([sys.executable, "-c", textwrap.dedent(CHILD.format(script=str(SCRIPT), out=str(tmp_path)))],
                           capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr

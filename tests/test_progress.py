@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numba
 import numpy as np
 import pytest
-from conftest import demkit_in_process, two_magnets
+from conftest import demkit_in_process, headless_env, two_magnets
 from tqdm import tqdm
 
 import demkit as dk
@@ -201,7 +201,7 @@ def test_small_scenes_find_close_pairs_like_the_cell_list(rng):
 
 
 def render_child(*args, timeout=300):
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env = headless_env()
     return subprocess.run([sys.executable, "-m", "demkit", "render", *map(str, args)], capture_output=True,
                           text=True, env=env, timeout=timeout)
 
@@ -237,7 +237,7 @@ def test_animate_shows_a_bar_over_the_frames_when_asked(series, tmp_path):
         dk.viz.animate({str(series)!r}, {str(tmp_path / 'bar.gif')!r}, max_frames=4, window_size=(120, 90),
                        progress=True)
     """)
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env = headless_env()
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     if done.returncode != 0 and "RenderingUnavailable" in done.stderr:
         pytest.skip("no off-screen rendering here")
@@ -362,7 +362,7 @@ def long_series(tmp_path_factory):
 def test_ctrl_c_stops_a_render_with_one_line_and_no_partial_animation(long_series, tmp_path):
     out, partial = tmp_path / "run.mp4", tmp_path / "run.partial.mp4"
     out.write_bytes(b"an older animation")
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env = headless_env()
     child = subprocess.Popen([sys.executable, "-m", "demkit", "render", str(long_series), "-o", str(out),
                               "--max-frames", "400", "--size", "96x64"], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, env=env,

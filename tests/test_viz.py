@@ -2,22 +2,21 @@
 OpenGL stack can crash the interpreter), without DISPLAY, so no X server is involved."""
 import ctypes.util
 import json
-import os
 import subprocess
 import sys
 import textwrap
 
 import numpy as np
 import pytest
-from conftest import two_magnets
+from conftest import headless_env, two_magnets
 from PIL import Image, ImageSequence
 
 import demkit as dk
 
 
-def run_child(code, extra_env=None, timeout=300):
-    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY",
-                                                           "VTK_DEFAULT_OPENGL_WINDOW")}
+def run_child(code, extra_env=None, timeout=300, probed=True):
+    """Run ``code`` in a child Python without a display (``probed``: trusting this process's probe)."""
+    env = headless_env(probed)
     env.update(extra_env or {})
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
                           env=env, timeout=timeout)
@@ -111,7 +110,7 @@ CRASHING_PROBE = """
 
 def test_crashing_gl_stack_gives_a_clear_error(rendered, tmp_path):
     folder, _ = rendered
-    done = run_child(CRASHING_PROBE.format(series=str(folder / "series"), png=str(tmp_path / "x.png")))
+    done = run_child(CRASHING_PROBE.format(series=str(folder / "series"), png=str(tmp_path / "x.png")), probed=False)
     assert done.returncode == 0, done.stderr
     assert "CLEAR:" in done.stdout and "SIGSEGV" in done.stdout and "libegl1" in done.stdout
     assert not (tmp_path / "x.png").exists()
@@ -123,7 +122,7 @@ def test_missing_osmesa_gives_a_clear_error(rendered, tmp_path):
     folder, _ = rendered
     done = run_child(CRASHING_PROBE.replace("backend.PROBE_CODE", "# ").format(
         series=str(folder / "series"), png=str(tmp_path / "x.png")),
-        extra_env={"VTK_DEFAULT_OPENGL_WINDOW": "vtkOSOpenGLRenderWindow"})
+        extra_env={"VTK_DEFAULT_OPENGL_WINDOW": "vtkOSOpenGLRenderWindow"}, probed=False)
     assert done.returncode == 0, done.stderr
     assert "CLEAR:" in done.stdout and "vtkOSOpenGLRenderWindow" in done.stdout
 

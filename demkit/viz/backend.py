@@ -7,6 +7,10 @@ VTK (>= 9.4 wheels) picks its OpenGL window class at run time from the environme
 can abort or segfault the process, so each candidate is first tried in a child Python process that
 renders a small sphere; the first that yields a non-blank image is set for this process. When none
 works, :class:`RenderingUnavailable` (a RuntimeError) says what was tried and what to install.
+
+A probe that succeeded is written to the environment (:data:`PROBED_VARIABLE`), so the processes this
+one starts (a sweep's workers, a script run by the tests) trust it instead of probing again: each
+probe is a child Python that imports VTK and renders, 2-3 s.
 """
 from __future__ import annotations
 
@@ -18,6 +22,8 @@ import sys
 WINDOW_VARIABLE = "VTK_DEFAULT_OPENGL_WINDOW"
 #: candidate window classes, tried in order after the display's own (when there is a display)
 HEADLESS_WINDOWS = ("vtkEGLRenderWindow", "vtkOSOpenGLRenderWindow")
+#: set by a successful probe for this process and the processes it starts: "window|renderer|variable"
+PROBED_VARIABLE = "DEMKIT_RENDERING_PROBED"
 PROBE_TIMEOUT = 120.0  # seconds for one probe (first VTK import can be slow on a cold disk)
 
 PROBE_CODE = r"""
@@ -94,6 +100,8 @@ def ensure_rendering():
     for VTK_DEFAULT_OPENGL_WINDOW or None). Probes once per process. Raises RenderingUnavailable.
     """
     global _chosen
+    if _chosen is None:
+        _chosen = _inherited()
     if _chosen is not None:
         return dict(_chosen)
     failures = []
@@ -102,6 +110,7 @@ def ensure_rendering():
         if ok:
             if window:
                 os.environ[WINDOW_VARIABLE] = window
+            os.environ[PROBED_VARIABLE] = "|".join((detail["window"], detail["renderer"], window or ""))
             _chosen = detail
             return dict(detail)
         failures.append(f"{window or 'VTK default window'}: {detail}")
@@ -111,6 +120,22 @@ def ensure_rendering():
         + ". To render without a display install Mesa's EGL (Debian/Ubuntu: apt-get install libegl1 "
           "libgl1-mesa-dri) or OSMesa (apt-get install libosmesa6), or run under xvfb-run. The VTK "
           "series themselves need no rendering: open the .pvd in ParaView.")
+
+
+def _inherited():
+    """The probe of a parent process (PROBED_VARIABLE), if it chose what this environment would try
+    first (the same VTK_DEFAULT_OPENGL_WINDOW, or none with the same display); else None."""
+    text = os.environ.get(PROBED_VARIABLE, "")
+    if text.count("|") != 2:
+        return None
+    klass, renderer, variable = text.split("|")
+    first = candidates()[0] if candidates() else None
+    if variable and os.environ.get(WINDOW_VARIABLE) in (None, "", variable):
+        os.environ[WINDOW_VARIABLE] = variable
+        return {"window": klass, "renderer": renderer, "variable": variable}
+    if not variable and first is None:  # VTK's default window (a display), and there still is one
+        return {"window": klass, "renderer": renderer, "variable": None}
+    return None
 
 
 def rendering_info():
