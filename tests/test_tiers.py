@@ -275,3 +275,49 @@ def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
     runs[1]._modules = ("tier 2", None)
     assert runs[1].ready(0.1) == ("tier 2", None)
     assert runs[2].ready(0.0) is None and started[-1] is runs[2]  # this process has it: at once
+
+
+@pytest.mark.parametrize("open_space", [False, True], ids=["lists", "all_pairs"])
+def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_space):
+    """Tier 1's per-pair forces and energies come from the family's pair loops themselves, recording
+    each entry (called from Python with the types the run compiled them for: numba compiles nothing
+    more). Truths: the separations are the minimum images, each sphere's sum of its pairs' forces is
+    the scene's force (to round-off: the same terms in another order; the scenes have pair laws only,
+    friction and rolling with their history) and the pairs' energies add up to the scene's."""
+    from numba.core import event
+    if open_space:  # the six spheres of small_scene, their pair laws alone: all pairs
+        scene = small_scene(1)
+        laws = [inter for inter in scene.interactions if isinstance(inter, dk.PairInteraction)]
+        scene = dk.Scene(scene.particles, laws, tier=1)
+    else:
+        scene = gas(1, n=120)
+    assert scene.tier == 1 and scene.plan.growing != open_space
+    dk.Simulation(scene, dk.VelocityVerlet(2e-4 if open_space else 1e-3)).run(0.02, progress=False)
+    compiled = []
+
+    class Compiles(event.Listener):
+        def on_start(self, ev):
+            compiled.append(ev.data["dispatcher"].py_func.__name__)
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", Compiles()):
+        pairs, energies = scene.pair_energies()
+        per_pair = scene.pair_forces()
+    assert compiled == []
+    x = scene.particles.position
+    summed = np.zeros_like(x)
+    for inter, ij, separation, f in per_pair:
+        d = x[ij[:, 1]] - x[ij[:, 0]]
+        if scene.box is not None:
+            d -= scene.box.size * np.rint(d / scene.box.size)
+        np.testing.assert_allclose(separation, d, rtol=0, atol=1e-12)
+        np.add.at(summed, ij[:, 1], f)
+        np.add.at(summed, ij[:, 0], -f)
+    force, _ = scene.forces()
+    assert len(per_pair) == len(scene.interactions) and np.abs(summed - force).max() <= 1e-12 * np.abs(force).max()
+    energy = scene.energy()
+    for kind in {inter.energy_kind for inter in scene.interactions}:
+        columns = [k for k, inter in enumerate(scene.interactions) if inter.energy_kind == kind]
+        assert np.isclose(energies[:, columns].sum(), energy[kind], rtol=1e-12, atol=1e-14), kind

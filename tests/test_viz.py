@@ -547,3 +547,27 @@ def test_default_trails_leave_a_gas_readable():
     pair = trajectory(position[:, :2], velocity[:, :2], radius=0.5)
     assert default_trail(pair, np.arange(101)) == pytest.approx(25.0)
     assert default_trail(gas, np.array([40])) == pytest.approx(0.75)  # a snapshot: frames 0..40
+
+
+def test_a_child_trusts_its_parents_probe_only_for_the_same_window(monkeypatch):
+    """The probe's result is handed to child processes (a sweep's workers, the tests' scripts) through
+    DEMKIT_RENDERING_PROBED; a child trusts it only when it would try the same window first."""
+    from demkit.viz import backend
+    monkeypatch.setattr(backend, "_chosen", None)
+    for variable in ("DISPLAY", "WAYLAND_DISPLAY", backend.WINDOW_VARIABLE):
+        monkeypatch.delenv(variable, raising=False)
+    monkeypatch.setenv(backend.PROBED_VARIABLE, "vtkEGLRenderWindow|llvmpipe (LLVM 15.0.6)|vtkEGLRenderWindow")
+    assert backend._inherited() == {"window": "vtkEGLRenderWindow", "renderer": "llvmpipe (LLVM 15.0.6)",
+                                     "variable": "vtkEGLRenderWindow"}
+    assert __import__("os").environ[backend.WINDOW_VARIABLE] == "vtkEGLRenderWindow"
+    monkeypatch.setenv(backend.WINDOW_VARIABLE, "vtkOSOpenGLRenderWindow")  # the user asks for another
+    assert backend._inherited() is None
+    monkeypatch.delenv(backend.WINDOW_VARIABLE)
+    monkeypatch.setenv(backend.PROBED_VARIABLE, "vtkXOpenGLRenderWindow|some GPU|")  # the parent's display
+    assert backend._inherited() is None  # this process has none
+    monkeypatch.setenv(backend.PROBED_VARIABLE, "garbage")
+    assert backend._inherited() is None
+    monkeypatch.setenv(backend.PROBED_VARIABLE, "vtkEGLRenderWindow|llvmpipe|vtkEGLRenderWindow")
+    called = []
+    monkeypatch.setattr(backend, "probe", lambda window: called.append(window) or (False, "not here"))
+    assert backend.ensure_rendering()["window"] == "vtkEGLRenderWindow" and called == []
