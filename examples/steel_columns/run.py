@@ -244,10 +244,11 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--steps-per-contact", type=float, default=STEPS_PER_CONTACT,
                         help="time steps in a contact (sets dt)")
-    parser.add_argument("--quick", action="store_true", help="60 balls at volume fraction 0.05 for 0.12 s (for tests)")
+    parser.add_argument("--quick", action="store_true",
+                        help="60 balls at volume fraction 0.05 for 0.12 s, 15 steps in a contact (for tests)")
     args = parser.parse_args([] if argv is None else argv)
     if args.quick:
-        args.n, args.volume_fraction, args.duration = 60, 0.05, 0.12
+        args.n, args.volume_fraction, args.duration, args.steps_per_contact = 60, 0.05, 0.12, 15
     args.output.mkdir(parents=True, exist_ok=True)
     height = args.gap * D
 
