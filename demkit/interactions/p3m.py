@@ -292,7 +292,7 @@ class P3M(Ewald):
         if not sample.ready:
             raise ValueError(f"P3M accuracy {self.accuracy:g} is too close to round-off for its mesh error to be "
                              f"measured against a converged Ewald sum: ask for a lower accuracy")
-        best = None
+        best, smallest = None, 0
         density = n / volume
         for rc in sorted(candidates, reverse=True):  # long cutoffs need small meshes: a first cost, quickly
             alpha = self.alpha or _alpha_for(target, prefactor, squares, n, volume, rc)
@@ -302,10 +302,11 @@ class P3M(Ewald):
             budget = math.inf if best is None else best[0] - real
             if budget <= 0.0:
                 continue
-            found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, box, budget)
+            found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, box, budget, smallest)
             if found is None:
                 continue
             mesh, error = found
+            smallest = max(mesh)  # a shorter cutoff takes a larger alpha, whose mesh error is larger on any mesh
             cost = real + _fft_seconds(mesh)
             if best is None or cost < best[0]:
                 best = (cost, rc, alpha, mesh, error)
@@ -320,10 +321,10 @@ class P3M(Ewald):
         return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, tuple(float(x) for x in box.size),
                         real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull)
 
-    def _mesh_for(self, target, sample, alpha, cutoff, box, budget):
+    def _mesh_for(self, target, sample, alpha, cutoff, box, budget, smallest=0):
         """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
-        error is at most ``target`` and whose FFTs cost less than ``budget`` seconds (bisection: the
-        error falls as the mesh grows), or None."""
+        error is at most ``target``, whose FFTs cost less than ``budget`` seconds and whose longest axis
+        has at least ``smallest`` points (bisection: the error falls as the mesh grows), or None."""
         real = sample.real_forces(alpha, cutoff), sample.real_field(alpha, cutoff) if sample.fields else None
         if self.mesh is not None:
             return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order)
@@ -331,9 +332,22 @@ class P3M(Ewald):
         sizes = [tuple(int(next(s for s in MESH_SIZES if s >= k * length / size.max())) for length in size)
                  for k in MESH_SIZES if k >= 2 * self.order]
         room = memory.machine_memory()[0] or math.inf
-        sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget and MESH_BYTES * np.prod(mesh) < room]
-        lo, hi, found = 0, len(sizes) - 1, None
-        while lo <= hi:
+        sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget and MESH_BYTES * np.prod(mesh) < room
+                 and max(mesh) >= smallest]
+        # galloping up from the smallest (an evaluation costs its mesh's FFTs: the large meshes a plain
+        # bisection tries first cost most), then bisection between the last mesh too coarse and the first fine
+        last, lo, probe, step, found = len(sizes) - 1, 0, 0, 1, None
+        while sizes:
+            error = _mesh_error(sample, real, alpha, sizes[probe], self.order)
+            if error <= target:
+                found = sizes[probe], error
+                break
+            lo = probe + 1
+            if probe == last:
+                break
+            probe, step = min(probe + step, last), 2 * step
+        hi = probe - 1
+        while found is not None and lo <= hi:
             mid = (lo + hi) // 2
             error = _mesh_error(sample, real, alpha, sizes[mid], self.order)
             if error <= target:
