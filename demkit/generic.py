@@ -1056,7 +1056,7 @@ class GenericKernels:
             row = program[group_row(g, 0)]
             n, (start, end, partner) = arrays[0].shape[0], arrays[9:12]
             is_list = row[G_LIST] != 0
-            entries = np.zeros((int(start[-1]) if is_list else n * (n - 1) // 2, out.shape[1]))
+            entries = np.zeros((partner.shape[0] if is_list else n * (n - 1) // 2, out.shape[1]))
             position, velocity, spin, dipole, radius, mass, box, params, status, *lists = arrays
             status = status.copy()  # a deep overlap seen by a diagnostic stops no run
             if kind == "pair_energies":
@@ -1068,13 +1068,14 @@ class GenericKernels:
                 force, unused = np.zeros((n, 3)), np.zeros((9, 1))  # (the blocked loop's scratch and gather)
                 function(position, velocity, spin, dipole, radius, mass, box, params, status, force, force.copy(),
                          *lists, unused, unused, False, 0, n, row, True, entries)
+            # every entry, owner by owner (rows past the entries, if any, stay zero: the caller's size)
+            owner, rows = neighbours.entry_owners(s.lists[g]) if is_list else np.triu_indices(n, k=1)
             if is_list:
-                owners[:], rows = neighbours.entry_owners(s.lists[g])
-                partners[:] = partner[rows]
+                owners[:len(owner)], partners[:len(owner)] = owner, partner[rows]
             else:
-                owners[:], partners[:] = np.triu_indices(n, k=1)
+                owners[:], partners[:] = owner, rows
                 rows = slice(None)
-            out[:] = entries[rows]
+            out[:len(owner)] = entries[rows]
         return run
 
     def steps_for(self, state_type, record_type, uses):

@@ -277,20 +277,22 @@ def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
     assert runs[2].ready(0.0) is None and started[-1] is runs[2]  # this process has it: at once
 
 
-@pytest.mark.parametrize("open_space", [False, True], ids=["lists", "all_pairs"])
-def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_space):
+@pytest.mark.parametrize("open_space, parallel", [(False, False), (False, True), (True, False)],
+                         ids=["lists", "chunked_lists", "all_pairs"])
+def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_space, parallel):
     """Tier 1's per-pair forces and energies come from the family's pair loops themselves, recording
     each entry (called from Python with the types the run compiled them for: numba compiles nothing
     more). Truths: the separations are the minimum images, each sphere's sum of its pairs' forces is
     the scene's force (to round-off: the same terms in another order; the scenes have pair laws only,
-    friction and rolling with their history) and the pairs' energies add up to the scene's."""
+    friction and rolling with their history) and the pairs' energies add up to the scene's. A scene
+    that may run on threads has its lists in chunks, with room between them."""
     from numba.core import event
     if open_space:  # the six spheres of small_scene, their pair laws alone: all pairs
         scene = small_scene(1)
         laws = [inter for inter in scene.interactions if isinstance(inter, dk.PairInteraction)]
         scene = dk.Scene(scene.particles, laws, tier=1)
     else:
-        scene = gas(1, n=120)
+        scene = gas(1, n=240, parallel=parallel)
     assert scene.tier == 1 and scene.plan.growing != open_space
     dk.Simulation(scene, dk.VelocityVerlet(2e-4 if open_space else 1e-3)).run(0.02, progress=False)
     compiled = []
