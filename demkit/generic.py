@@ -652,10 +652,12 @@ class _Generic:
                   '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
                   '    FMM); returns their energy."""',
                   "    total = 0.0"]
-        lines += self.sum_switch("total", "force, torque, True") + ["    return total"]
+        # with_forces as np.True_ / np.False_: a bool, not a literal, so the sums compile once for both
+        # calls (P3M's object-mode block around scipy's FFTs is compiled in every process, per overload)
+        lines += self.sum_switch("total", "force, torque, np.True_") + ["    return total"]
         lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
                   '    """Add the energy of each long-range sum to its column of out."""']
-        lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, False")
+        lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, np.False_")
         lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
                   '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
                   "    g = s.program[0, H_INDUCTION_GROUP]",
