@@ -646,14 +646,13 @@ class _Generic:
 
     def scene_functions(self):
         lines = self.upkeep_functions()
-        # the sums are called as in the fused module, their flag written out (with_forces True for
-        # the forces, False for the energies): LLVM specialises them on it, and the bits follow
+        # the sums are called as in the fused module (the same bits), with_forces as np.True_ for the
+        # forces and np.False_ for the energies: a bool, not a literal, so each sum compiles once for
+        # both calls (P3M's object-mode block around scipy's FFTs is compiled in every process, per overload)
         lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
                   '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
                   '    FMM); returns their energy."""',
                   "    total = 0.0"]
-        # with_forces as np.True_ / np.False_: a bool, not a literal, so the sums compile once for both
-        # calls (P3M's object-mode block around scipy's FFTs is compiled in every process, per overload)
         lines += self.sum_switch("total", "force, torque, np.True_") + ["    return total"]
         lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
                   '    """Add the energy of each long-range sum to its column of out."""']
