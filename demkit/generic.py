@@ -1055,10 +1055,9 @@ class GenericKernels:
             if self.pieces is not None:
                 return function(*arrays, owners, partners, out)
             row = program[group_row(g, 0)]
-            n, (start, end, partner) = arrays[0].shape[0], arrays[9:12]
-            is_list = row[G_LIST] != 0
-            entries = np.zeros((partner.shape[0] if is_list else n * (n - 1) // 2, out.shape[1]))
             position, velocity, spin, dipole, radius, mass, box, params, status, *lists = arrays
+            n, partner, is_list = position.shape[0], lists[2], row[G_LIST] != 0
+            entries = np.zeros((partner.shape[0] if is_list else n * (n - 1) // 2, out.shape[1]))
             status = status.copy()  # a deep overlap seen by a diagnostic stops no run
             if kind == "pair_energies":
                 members = G_MEMBERS + M_COLUMNS * np.arange(row[G_COUNT])
@@ -1070,13 +1069,13 @@ class GenericKernels:
                 function(position, velocity, spin, dipole, radius, mass, box, params, status, force, force.copy(),
                          *lists, unused, unused, False, 0, n, row, True, entries)
             # every entry, owner by owner (rows past the entries, if any, stay zero: the caller's size)
-            owner, rows = neighbours.entry_owners(s.lists[g]) if is_list else np.triu_indices(n, k=1)
             if is_list:
-                owners[:len(owner)], partners[:len(owner)] = owner, partner[rows]
+                owner, rows = neighbours.entry_owners(s.lists[g])
+                other = partner[rows]
             else:
-                owners[:], partners[:] = owner, rows
-                rows = slice(None)
-            out[:len(owner)] = entries[rows]
+                (owner, other), rows = np.triu_indices(n, k=1), slice(None)
+            k = len(owner)
+            owners[:k], partners[:k], out[:k] = owner, other, entries[rows]
         return run
 
     def steps_for(self, state_type, record_type, uses):

@@ -1,4 +1,5 @@
 """Shared builders for the tests."""
+import functools
 import os
 
 import numpy as np
@@ -28,30 +29,24 @@ def two_magnets(b_over_r=4.0, v=V_PAPER, x0=150.0, model=dk.Dipole, damping=0.1,
     return dk.Scene(p, [model(prefactor=1 / 3), dk.KelvinVoigt(stiffness=1.0, damping=damping)])
 
 
+@functools.cache
 def _headless_probe():
     """Probe off-screen rendering without a display once in this process (demkit.viz.backend), and
     return what the probe sets in the environment; {} when nothing renders here."""
-    import os
     from demkit.viz import backend
-    if _PROBED is None:
-        saved, chosen = dict(os.environ), backend._chosen
-        for key in ("DISPLAY", "WAYLAND_DISPLAY", backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE):
-            os.environ.pop(key, None)
-        backend._chosen = None
-        try:
-            backend.ensure_rendering()
-            globals()["_PROBED"] = {k: os.environ[k] for k in (backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE)
-                                    if k in os.environ}
-        except backend.RenderingUnavailable:
-            globals()["_PROBED"] = {}
-        finally:
-            os.environ.clear()
-            os.environ.update(saved)
-            backend._chosen = chosen
-    return dict(_PROBED)
-
-
-_PROBED = None
+    saved, chosen = dict(os.environ), backend._chosen
+    for key in ("DISPLAY", "WAYLAND_DISPLAY", backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE):
+        os.environ.pop(key, None)
+    backend._chosen = None
+    try:
+        backend.ensure_rendering()
+        return {k: os.environ[k] for k in (backend.WINDOW_VARIABLE, backend.PROBED_VARIABLE) if k in os.environ}
+    except backend.RenderingUnavailable:
+        return {}
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+        backend._chosen = chosen
 
 
 def headless_env(probed=True):
