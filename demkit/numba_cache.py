@@ -11,10 +11,19 @@ in front of numba's that serve demkit's modules only: the same cache folders as 
 stamp that adds a hash of every ``.py`` file of the package, so any change of demkit's source
 recompiles its functions. The kernel modules demkit generates carry the same fingerprint in their
 names (:func:`demkit.kernels._fingerprint`). Hashing the package at import costs ~5 ms.
+
+One compile per machine, not per process (:func:`install_compile_lock`): processes started together
+on empty caches (the workers of a sweep, of the test suite) all missed numba's cache for the same
+functions and compiled each of them side by side. A miss of one of demkit's functions now takes a
+file lock for that function and signature; a process that finds it taken waits, then loads what the
+holder compiled and saved. The lock is released when the function is saved (or its compile fails),
+and by the system when a process dies; a wait longer than :data:`LOCK_WAIT` seconds compiles anyway.
 """
 from __future__ import annotations
 
 import hashlib
+import os
+import time
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
@@ -63,3 +72,97 @@ def install():
     bases = [getattr(caching, name, None) or getattr(caching, "_" + name) for name in
              ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
     impl._locator_classes = [_locator(base) for base in bases] + list(impl._locator_classes)
+    install_compile_lock()
+
+
+LOCK_WAIT = 600.0  # seconds a process waits for another's compile of a function before compiling it itself
+_HELD = {}  # (id of the function's cache, signature text) -> (open lock file, numba dispatcher's py_func)
+
+
+def _demkit_function(py_func):
+    """demkit's own functions and those of the modules it generates (``demkit_kernel_*``, ...)."""
+    module = getattr(py_func, "__module__", "") or ""
+    return module == "demkit" or module.startswith(("demkit.", "demkit_"))
+
+
+def _lock_path(cache, sig):
+    index = Path(cache._cache_file._index_path)
+    return index.with_name(f"{index.name}.{hashlib.sha1(str(sig).encode()).hexdigest()[:16]}.lock")
+
+
+def _acquire(path):
+    """An open file holding an exclusive lock on ``path`` (waiting up to LOCK_WAIT s), or None."""
+    import fcntl
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(path, "a")
+    except OSError:
+        return None  # a read-only cache: nothing is saved either, so nothing to wait for
+    deadline = time.monotonic() + LOCK_WAIT
+    while True:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return handle
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                handle.close()
+                return None
+            time.sleep(0.02)
+        except OSError:  # a file system without locks: compile as before
+            handle.close()
+            return None
+
+
+def _release(key):
+    held = _HELD.pop(key, None)
+    if held is not None:
+        held[0].close()  # closing the file releases its lock
+
+
+def install_compile_lock():
+    """Wrap numba's function cache so a miss of one of demkit's functions compiles once per machine."""
+    from numba.core import caching, event
+    cache_class = caching.FunctionCache
+    if getattr(cache_class, "_demkit_locked", False):
+        return
+    load, save = cache_class.load_overload, cache_class.save_overload
+
+    def load_overload(self, sig, target_context):
+        found = load(self, sig, target_context)
+        if found is not None or not _demkit_function(self._py_func) or not os.name == "posix":
+            return found
+        key = (id(self), str(sig))
+        if key in _HELD:  # (a second miss of the same signature in this process: already ours)
+            return found
+        handle = _acquire(_lock_path(self, sig))
+        if handle is None:
+            return found
+        found = load(self, sig, target_context)  # the holder we waited for may have saved it
+        if found is not None:
+            handle.close()
+            return found
+        _HELD[key] = handle, self._py_func  # compiled now by this process: released when saved
+        return None
+
+    def save_overload(self, sig, data):
+        try:
+            save(self, sig, data)
+        finally:
+            _release((id(self), str(sig)))
+
+    class _FailedCompiles(event.Listener):
+        """A compile that raised saves nothing: release the locks it held."""
+
+        def on_start(self, ev):
+            pass
+
+        def on_end(self, ev):
+            failure = getattr(ev, "_exc_details", None)  # (numba's is_failed reads it the wrong way round)
+            if failure is not None and failure[0] is not None:
+                py_func = ev.data["dispatcher"].py_func
+                for key in [k for k, (_, f) in _HELD.items() if f is py_func]:
+                    _release(key)
+
+    cache_class.load_overload, cache_class.save_overload = load_overload, save_overload
+    cache_class._demkit_locked = True
+    event.register("numba:compile", _FailedCompiles())

@@ -120,7 +120,7 @@ if __import__("os").environ.get("DEMKIT_COMPILE_LOG"):
                 f = ev.data["dispatcher"].py_func
                 self.rows.append({"test": self.test, "function": f.__name__, "module": f.__module__,
                                   "cpu": time.process_time() - self.start[1],
-                                  "thread": threading.current_thread().name})
+                                  "thread": threading.current_thread().name, "pid": os.getpid()})
                 self.start = None
 
     _LOG = _CompileLog()

@@ -97,3 +97,51 @@ def test_demkits_own_cached_functions_are_stamped_with_the_whole_package(tmp_pat
     dk.numba_cache.install()  # a second install adds nothing
     impl = type(law._cache._impl)
     assert sum(c.__name__.startswith("Demkit") for c in impl._locator_classes) == 3
+
+
+RACE = textwrap.dedent("""
+    import os, sys, time
+    import numpy as np
+    import demkit
+    from demkit import neighbours
+    go = sys.argv[1]
+    while not os.path.exists(go):  # both processes start compiling together
+        time.sleep(0.001)
+    neighbours.max_displacement(np.zeros((4, 3)), np.ones((4, 3)))
+    stats = neighbours.max_displacement.stats
+    print(sum(stats.cache_misses.values()), sum(stats.cache_hits.values()))
+""")
+
+
+def test_processes_starting_together_on_an_empty_cache_compile_each_function_once(tmp_path):
+    """Two processes (the workers of a sweep or of this suite) that need the same function of an
+    empty cache at the same moment: one compiles it, the other waits for it and loads it
+    (demkit.numba_cache's lock). Without the lock both missed the cache and both compiled."""
+    env = dict(os.environ, DEMKIT_CACHE_DIR=str(tmp_path / "cache"), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               DEMKIT_QUIET="1")
+    go = tmp_path / "go"
+    children = [subprocess.Popen([sys.executable, "-c", RACE, str(go)], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, env=env) for _ in range(2)]
+    import time
+    time.sleep(3.0)  # both have imported demkit and wait
+    go.touch()
+    results = []
+    for child in children:
+        out, err = child.communicate(timeout=300)
+        assert child.returncode == 0, err[-2000:]
+        results.append(tuple(int(v) for v in out.split()))
+    assert sorted(results) == [(0, 1), (1, 0)], f"(cache misses, hits) of the two processes: {results}"
+    assert list((tmp_path / "cache").rglob("*.lock")), "no lock file beside the cache"
+
+
+def test_a_compile_that_fails_releases_its_lock():
+    """A function called with types it cannot take fails to compile and saves nothing: the lock it
+    took is released at once (another process would otherwise wait LOCK_WAIT seconds for it)."""
+    import numba
+    import numpy as np
+    import pytest
+
+    from demkit import neighbours, numba_cache
+    with pytest.raises(numba.core.errors.TypingError):
+        neighbours.max_displacement(np.zeros((4, 3)), "not an array")
+    assert numba_cache._HELD == {}
