@@ -211,8 +211,7 @@ def info_command(args):
         per_step = seconds / count + est.later
         how = f"measured over {count:,} steps now"
         if est.later > 0.0:
-            how += (f", + {_short(est.later)} for the ~{est.touching[1] - est.touching[0]:,.0f} more touching pairs "
-                    f"of the model ({est.note})")
+            how += f", + {_short(est.later)} for {est.later_what} of the model ({est.note})"
     else:
         per_step = est.per_step
         biggest = sorted(est.parts.items(), key=lambda kv: -kv[1])[:3]

@@ -107,3 +107,83 @@ def test_a_plug_in_contact_law_is_priced_as_a_hertz_law():
     scene = dk.Scene(_two_spheres(-0.01).particles, [Soft()])
     est = cost.estimate(scene, dk.VelocityVerlet(0.01), duration=1.0)
     assert est.parts["touching pairs"] == pytest.approx(cost.TOUCHING[("Hertz", False)])
+
+
+def _walled_box(side):
+    return [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
+            dk.Wall((side, side, 0), (-1, 0, 0)), dk.Wall((side, side, 0), (0, -1, 0))]
+
+
+def _pour(position, side, susceptibility=None):
+    extra = {"dipole": np.tile([0.0, 0.0, 1.0], (len(position), 1))} if susceptibility is None else \
+        {"susceptibility": susceptibility}
+    p = dk.Particles(position=position, radius=0.5, mass=1.0, **extra)
+    interactions = [dk.Dipole(prefactor=1.0, cutoff=3.0, switch_width=0.5), dk.Hertz(young=2e4, poisson=0.3),
+                    dk.Gravity((0, 0, -1.0)), *_walled_box(side)]
+    if susceptibility is not None:
+        interactions.append(dk.UniformField((0, 0, 0.05)))
+    return dk.Scene(p, interactions, skin=0.3)
+
+
+def _long_reach(group):
+    return not all(inter.contact_reach for _, inter in group.members)
+
+
+def test_a_settled_pile_counts_the_pairs_a_pile_at_rest_has():
+    # a pile already at rest on the floor of an 8 x 8 box (300 spheres on a lattice of spacing 1.02,
+    # volume fraction 0.49): the dipoles' listed pairs of the model's pile (spread evenly at
+    # SETTLED_FRACTION) are those it has, to 20 % (a pile's structure matters little at 6 radii)
+    side, n = 8.0, 300
+    g = 0.51 + 1.02 * np.arange(7)
+    lattice = np.stack(np.meshgrid(g, g, 0.51 + 1.02 * np.arange(7), indexing="ij"), -1).reshape(-1, 3)
+    pile = lattice[np.argsort(lattice[:, 2], kind="stable")][:n]
+    scene = _pour(pile, side)
+    heights, _, _ = dk.guards.fall_heights(scene)
+    settled = dict(cost.settled_pairs(scene, heights))
+    dipoles = next((group, now) for group, _, now in cost.pair_counts(scene) if _long_reach(group))
+    assert settled[id(dipoles[0])] == pytest.approx(dipoles[1], rel=0.2)
+    # ... and the same spheres dropped from up to 24 high settle into about as many, far more than now
+    high = dk.build.random_packing(n, 0.5, dk.Box((side - 1.0, side - 1.0, 24.0)), seed=4) + 0.5
+    dropped = _pour(high, side)
+    heights, _, _ = dk.guards.fall_heights(dropped)
+    settled_dropped = dict(cost.settled_pairs(dropped, heights))
+    group, now = next((group, now) for group, _, now in cost.pair_counts(dropped) if _long_reach(group))
+    assert settled_dropped[id(group)] == pytest.approx(dipoles[1], rel=0.2)
+    assert settled_dropped[id(group)] > 2.5 * now
+
+
+def test_a_pour_of_magnetisable_spheres_follows_its_lists_and_solve_as_they_settle():
+    side, n = 8.0, 300
+    high = dk.build.random_packing(n, 0.5, dk.Box((side - 1.0, side - 1.0, 24.0)), seed=4) + 0.5
+    scene = _pour(high, side, susceptibility=20.0)
+    heights, g, _ = dk.guards.fall_heights(scene)
+    land = math.sqrt(2.0 * float(heights.max()) / g)
+    counts = cost.pair_counts(scene)
+    settled = dict(cost.settled_pairs(scene, heights))
+    dipoles = next((group, now) for group, _, now in counts if not group.members[0][1].contact_reach)
+    est = cost.estimate(scene, dk.VelocityVerlet(1e-3), duration=2 * land)
+    ramped = cost._ramp_mean(dipoles[1], settled[id(dipoles[0])], land, 2 * land)
+    assert est.parts["listed dipole pairs"] == pytest.approx(ramped * cost.DIPOLE_PAIR)
+    solve_now = cost._induction_seconds(scene, counts, 0.0)
+    solve_settled = cost._induction_seconds(scene, counts, 0.0, settled)
+    assert solve_settled > 3 * solve_now  # more pairs in the field, more iterations once piled up
+    assert est.parts["induction solve"] == pytest.approx(cost._ramp_mean(solve_now, solve_settled, land, 2 * land))
+    # what a timing of the first steps misses: the touching pairs, the lists and the solve growing
+    growth = (est.parts["listed dipole pairs"] - dipoles[1] * cost.DIPOLE_PAIR
+              + est.parts["induction solve"] - solve_now)
+    touching = est.parts["touching pairs"] - est.touching[0] * cost.TOUCHING[("Hertz", False)]
+    assert est.later == pytest.approx(touching + growth)
+    assert "listed pairs of the settling pile (with the solve of the induced moments)" in est.later_what
+
+
+def test_the_compile_notice_counts_the_induction_solve_when_it_is_not_cached(monkeypatch):
+    from demkit import progress
+    p = dk.Particles(position=[[0, 0, 0], [2.0, 0, 0]], radius=0.5, mass=1.0, susceptibility=5.0)
+    scene = dk.Scene(p, [dk.Dipole(prefactor=1.0), dk.UniformField((0, 0, 1.0))])
+    monkeypatch.setattr(progress, "induction_cached", lambda: False)
+    text = progress.compile_estimate(scene.plan, "scene", tier=2)
+    lo, hi = progress.ESTIMATES["small"]
+    extra = progress.ESTIMATES["induction"]
+    assert f"about {lo + extra}-{hi + extra} s" in text and "induced moments" in text
+    monkeypatch.setattr(progress, "induction_cached", lambda: True)
+    assert progress.compile_estimate(scene.plan, "scene", tier=2) == f"about {lo}-{hi} s on an idle machine"
