@@ -200,16 +200,19 @@ def info_command(args):
         from .simulation import Simulation
         sim = Simulation(scene, integ, notes=False)
         sim.run(duration=5 * integ.dt, progress=False)  # compiles (or loads the cache) and warms up
-        count = 50
-        while True:  # at least 50 steps and 0.2 s of wall time, so that tiny scenes are timed too
-            clock = time.perf_counter()
-            sim.run(duration=count * integ.dt, progress=False)
-            seconds = time.perf_counter() - clock
-            if seconds >= 0.2 or count >= 10**7:
-                break
-            count *= 8
-        per_step = seconds / count + est.later
+        per_step, count = _timed_steps(sim, integ)
         how = f"measured over {count:,} steps now"
+        tiers = sim._tiers
+        if tiers.switchable and per_step * round(loaded.duration / integ.dt) >= tiers._worth():
+            # the run goes over to the scene's own code (tier 2): time that, compiled or loaded now
+            tiers.hurry()
+            deadline = time.perf_counter() + 300.0
+            while tiers.tier == 1 and time.perf_counter() < deadline:
+                sim.run(duration=count * integ.dt, progress=False)
+            if tiers.tier == 2:
+                per_step, count = _timed_steps(sim, integ)
+                how = f"measured over {count:,} steps now on tier 2, the scene's own code a run this long switches to"
+        per_step += est.later
         if est.later > 0.0:
             how += f", + {_short(est.later)} for {est.later_what} of the model ({est.note})"
     else:
@@ -231,6 +234,19 @@ def info_command(args):
     print(f"threads       {ThreadChoice(scene, integ.template).describe()}")
     print(f"compiled code {TierChoice(scene, f'{integ.template}_steps').describe()}")
     return 0
+
+
+def _timed_steps(sim, integ):
+    """(seconds per step, steps timed) of ``sim`` going on: at least 50 steps and 0.2 s of wall
+    time, so that tiny scenes are timed too."""
+    count = 50
+    while True:
+        clock = time.perf_counter()
+        sim.run(duration=count * integ.dt, progress=False)
+        seconds = time.perf_counter() - clock
+        if seconds >= 0.2 or count >= 10**7:
+            return seconds / count, count
+        count *= 8
 
 
 def _short(seconds):
