@@ -210,6 +210,7 @@ def info_command(args):
             while tiers.tier == 1 and time.perf_counter() < deadline:
                 sim.run(duration=count * integ.dt, progress=False)
             if tiers.tier == 2:
+                sim.run(duration=5 * integ.dt, progress=False)  # its first chunk warms up, as above
                 per_step, count = _timed_steps(sim, integ)
                 how = f"measured over {count:,} steps now on tier 2, the scene's own code a run this long switches to"
         per_step += est.later
