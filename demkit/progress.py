@@ -358,9 +358,10 @@ def cell_lists_cached():
 
 
 def induction_cached():
-    """Is the solve of induced moments in numba's disk cache (compiled once per install)?"""
-    from .interactions import induction
-    return _on_disk(induction.induce, "induction.induce")
+    """Is the solve of induced moments in numba's disk cache (compiled once per install)? (Read from
+    the module a scene of magnetisable spheres has imported: progress sits below the physics.)"""
+    induction = sys.modules.get("demkit.interactions.induction")
+    return induction is not None and _on_disk(induction.induce, "induction.induce")
 
 
 def _say(text):
