@@ -203,7 +203,7 @@ def info_command(args):
         per_step, count = _timed_steps(sim, integ)
         how = f"measured over {count:,} steps now"
         tiers = sim._tiers
-        if tiers.switchable and per_step * round(loaded.duration / integ.dt) >= tiers._worth():
+        if tiers.worth_switching(per_step * round(loaded.duration / integ.dt)):
             # the run goes over to the scene's own code (tier 2): time that, compiled or loaded now
             tiers.hurry()
             deadline = time.perf_counter() + 300.0

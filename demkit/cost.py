@@ -200,7 +200,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
     land = math.sqrt(2.0 * float(np.max(heights)) / g) if pour else 0.0
     counts = pair_counts(scene, tree)
     # a pour: each list's pairs (and the induction's iterations) grow from now to the settled pile's
-    settled = dict(settled_pairs(scene, heights)) if pour else {}
+    pile = dict(settled_pairs(scene, heights)) if pour else {}
     ramp = (lambda now, end: _ramp_mean(now, end, land, duration)) if pour else (lambda now, end: float(now))
     growth = 0.0  # seconds per force evaluation the pairs add on average beyond those listed now
     for group, reach, count in counts:
@@ -213,7 +213,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
             key, each = "listed Ewald pairs", EWALD_PAIR
         else:
             key, each = "listed dipole pairs", DIPOLE_PAIR
-        mean_count = ramp(count, max(count, settled.get(id(group), count))) if not contact_only else count
+        mean_count = ramp(count, max(count, pile.get(id(group), count))) if not contact_only else count
         parts[key] = parts.get(key, 0.0) + mean_count * each
         growth += (mean_count - count) * each
     long_range = 0.0
@@ -223,7 +223,7 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
         long_range += seconds
     if scene.induction is not None:
         now_solve = _induction_seconds(scene, counts, long_range)
-        parts["induction solve"] = (ramp(now_solve, _induction_seconds(scene, counts, long_range, settled))
+        parts["induction solve"] = (ramp(now_solve, _induction_seconds(scene, counts, long_range, pile))
                                     if pour else now_solve)
         growth += parts["induction solve"] - now_solve
     now = touching_now(scene, tree) if law is not None else 0
@@ -287,8 +287,8 @@ def settled_pairs(scene, heights):
     from scipy.spatial import cKDTree
     p = scene.particles
     n = len(p)
-    field = [e for e in scene.effects + scene.interactions if type(e).__name__ == "Gravity"]
-    g = np.sum([e.acceleration for e in field], axis=0)
+    from .guards import gravity
+    g = gravity(scene)
     up = -g / np.linalg.norm(g)
     across = np.linalg.svd(np.eye(3) - np.outer(up, up))[0][:, :2]  # two axes across gravity
     height = p.position @ up

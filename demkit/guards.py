@@ -132,6 +132,12 @@ def fastest_impact(scene):
     return speed, why
 
 
+def gravity(scene):
+    """The scene's gravitational acceleration (3,): its Gravity effects summed (zeros without any)."""
+    field = [e for e in scene.effects + scene.interactions if isinstance(e, Gravity)]
+    return np.sum([e.acceleration for e in field], axis=0) if field else np.zeros(3)
+
+
 def fall_heights(scene):
     """(h (N,), |g|, note): how far each sphere's centre can fall along the scene's gravity before
     the walls stop it (length; 0 for a sphere already at its lowest place), or (None, |g|, note)
@@ -143,8 +149,7 @@ def fall_heights(scene):
     gives its height + R_min, a V-shaped trough the bottom of the V). h_i = max(0, lowest - x_i.g/|g|).
     An open box does not stop spheres (docs/stability.md), so only walls count."""
     p = scene.particles
-    field = [e for e in scene.effects + scene.interactions if isinstance(e, Gravity)]
-    g = np.sum([e.acceleration for e in field], axis=0) if field else np.zeros(3)
+    g = gravity(scene)
     size = float(np.linalg.norm(g))
     if size == 0.0 or not len(p):
         return None, size, ""

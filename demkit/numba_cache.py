@@ -80,9 +80,8 @@ _HELD = {}  # (id of the function's cache, signature text) -> (open lock file, n
 
 
 def _demkit_function(py_func):
-    """demkit's own functions and those of the modules it generates (``demkit_kernel_*``, ...)."""
-    module = getattr(py_func, "__module__", "") or ""
-    return module == "demkit" or module.startswith(("demkit.", "demkit_"))
+    """demkit's own functions (:func:`_ours`) and those of the modules it generates (``demkit_kernel_*``, ...)."""
+    return _ours(py_func) or (getattr(py_func, "__module__", "") or "").startswith("demkit_")
 
 
 def _lock_path(cache, sig):
@@ -129,7 +128,7 @@ def install_compile_lock():
 
     def load_overload(self, sig, target_context):
         found = load(self, sig, target_context)
-        if found is not None or not _demkit_function(self._py_func) or not os.name == "posix":
+        if found is not None or not _demkit_function(self._py_func) or os.name != "posix":
             return found
         key = (id(self), str(sig))
         if key in _HELD:  # (a second miss of the same signature in this process: already ours)

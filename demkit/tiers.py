@@ -66,16 +66,22 @@ class TierChoice:
         self._modules = None  # (serial, thread or None) of tier 2, once compiled
         self._cached = None
         self._key = None  # (tier 2's module name, loop name), once asked for
+        self._hurried = False  # hurry(): tier 2 at the next chunk
 
     def hurry(self):
         """Compile (or load) tier 2 at the next chunk, whatever the run has left (``demkit info
         --measure`` times the tier a long run will use)."""
         self._hurried = True
 
+    def worth_switching(self, seconds_left):
+        """Would a run with ``seconds_left`` on tier 1 compile (or load) tier 2? (What earlier runs of
+        the combination spent on tier 1 in this process counts too.)"""
+        return self.switchable and seconds_left + _SPENT.get(self.key, 0.0) >= self._worth()
+
     def _worth(self):
         """Seconds of run on tier 1 that make tier 2 worth compiling or loading."""
         key = self.key
-        if key in _READY or getattr(self, "_hurried", False):
+        if key in _READY or self._hurried:
             return 0.0
         if self._cached is None:  # (key[0] names the module: its source is generated once)
             from .kernels import cached_function, functions_importable
@@ -111,7 +117,7 @@ class TierChoice:
         if not self.switchable or seconds_left is None:
             return None
         if self._work is None:
-            if busy or seconds_left + _SPENT.get(self.key, 0.0) < self._worth():
+            if busy or not self.worth_switching(seconds_left):
                 return None
             self._start()
             return None
