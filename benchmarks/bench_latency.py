@@ -399,12 +399,45 @@ WARM_GENERIC["small_sums"] = """
                                 dk.UniformField((0, 0.2, 0))], tier=1), \
                 {integrator}
     """
+PLUGIN = """
+        def make():
+            # the guide's SoftRepulsion (docs/guide.md), defined in an importable module: functions of your own
+            import pathlib, sys
+            folder = pathlib.Path({tmp!r})
+            (folder / "latency_plugin.py").write_text(
+                "import math\\nfrom numba import njit\\nimport demkit as dk\\n\\n"
+                "@njit\\ndef soft_force(i, j, dx, dy, dz, r2, radius, strength):\\n"
+                "    reach = radius[i] + radius[j]\\n    if r2 >= reach * reach:\\n        return 0.0, 0.0, 0.0\\n"
+                "    r = math.sqrt(r2)\\n    s = strength * (reach - r) ** 2 / r\\n    return s * dx, s * dy, s * dz\\n\\n"
+                "@njit\\ndef soft_energy(i, j, dx, dy, dz, r2, radius, strength):\\n"
+                "    reach = radius[i] + radius[j]\\n    r = math.sqrt(r2)\\n"
+                "    return strength * (reach - r) ** 3 / 3 if r < reach else 0.0\\n\\n"
+                "class SoftRepulsion(dk.PairInteraction):\\n    reads = ('radius',)\\n    energy_kind = 'contact'\\n"
+                "    parameters = ('strength',)\\n    force_function = soft_force\\n    energy_function = soft_energy\\n"
+                "    def __init__(self, strength):\\n        self.strength = strength\\n")
+            sys.path.insert(0, str(folder))
+            from latency_plugin import SoftRepulsion
+            {body}
+    """
+SCENES["plugin"] = PLUGIN.replace("{body}", """p = dk.Particles(position=[[0, 0, 0], [1.05, 0, 0], [0, 1.05, 0]], radius=0.5, mass=1.0,
+                             dipole=[[0, 0, 1.0], [0, 0, 1.0], [0, 0, 1.0]])
+            return dk.Scene(p, [dk.Dipole(0.01), SoftRepulsion(100.0), dk.Gravity((0, 0, -1.0))]), \\
+                dk.VelocityVerlet(1e-3)""")
+SCENES["plugin_lists"] = PLUGIN.replace("{body}", """n, R = 600, 0.5
+            box = dk.build.box_for(n, R, 0.3)
+            p = dk.Particles(position=dk.build.random_packing(n, R, box, seed=3), radius=R, mass=1.0,
+                             velocity=np.random.default_rng(4).normal(size=(n, 3)),
+                             dipole=dk.build.random_directions(n, seed=4))
+            return dk.Scene(p, [dk.Dipole(0.5, cutoff=3.0), SoftRepulsion(2000.0)], box=box), \\
+                dk.VelocityVerlet(1e-3)""")
 TIER_SCENES = {  # name: (scene source, kind of state, integrator)
     "two_magnets": ("two_magnets", "small", "dk.EulerCromer(0.01)"),
     "gas600": ("gas600", "lists", "dk.VelocityVerlet(1e-3)"),
     "pour_twisting": ("pour_twisting", "lists", "dk.VelocityVerlet(1e-3)"),
     "p3m": ("p3m", "lists_sums", "dk.VelocityVerlet(1e-3)"),
     "magnetisable": ("magnetisable", "small_sums", "dk.VelocityVerlet(1e-3)"),
+    "plugin": ("plugin", "small", "dk.VelocityVerlet(1e-3)"),  # functions of your own (demkit.own_laws)
+    "plugin_lists": ("plugin_lists", "lists", "dk.VelocityVerlet(1e-3)"),
 }
 SCENES["p3m"] = """
         def make():
@@ -531,7 +564,7 @@ def part_tiers(quick, rounds=3):
             _empty_caches(cache)
             rows.append({"what": "install_wide", **_child(INSTALL_CHILD.format(), env)})
             print(json.dumps(rows[-1]), flush=True)
-        for name in ("two_magnets", "gas600"):
+        for name in ("two_magnets", "gas600", "plugin_lists"):
             row = {"what": "speed", "scene": name, "tier1_runs": [], "tier2_runs": []}
             for r in range(1 if quick else rounds):
                 for tier in ((1, 2) if r % 2 == 0 else (2, 1)):

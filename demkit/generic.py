@@ -23,8 +23,10 @@ Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
   :data:`MAX_MEMBERS` members of ``M_*`` columns each, then :data:`G_GROUP` and :data:`G_SPEED`;
 * row ``effect_row(e)`` for each single-sphere effect: ``E_*`` columns.
 
-Scenes this tier cannot run (your own pair functions, more groups, members or effects than the
-table holds) get ``None`` from :func:`program_of` and run on tier 2 only.
+Laws and effects of your own have the kind ``OWN``: the loops call the scene's adapters for them
+(:mod:`demkit.own_laws`, passed to the pieces as ``own``; :data:`OWN_CALLS`). Scenes this tier
+cannot run (more groups, members or effects than the table holds; functions of your own in a
+blocked loop or as a plane contact) run on tier 2 only.
 
 Tier 2 of a scene with neighbour lists is these time loops given the scene's own pieces
 (:func:`demkit.kernels.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
@@ -197,9 +199,10 @@ def _law_of(inter, laws):
 
 
 def program_of(plan, slots, kinds):
-    """(program, None): the scene's program (int64 table, see the module docstring); (program, why)
-    when the scene has laws or effects of your own (kind :data:`OWN`: its own pieces run it, tier 1
-    cannot); (None, why) when the table cannot describe the scene. ``slots``: the parameter slots
+    """(program, None): the scene's program (int64 table, see the module docstring; laws and effects of
+    your own have kind :data:`OWN`: tier 1 calls them through adapters, :mod:`demkit.own_laws`);
+    (program, why) when some of them cannot be adapted (in a blocked dipole loop, or a plane contact:
+    the scene's own pieces run it, tier 1 cannot); (None, why) when the table cannot describe the scene. ``slots``: the parameter slots
     (``param_slot``, ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.kernels._Source`
     gives them); ``kinds``: the energy kinds."""
     laws, effect_laws = catalogue()
@@ -256,8 +259,8 @@ def program_of(plan, slots, kinds):
                 law = _law_of(inter, laws)
                 if law is not None and sub.blocked and law.reads != ("dipole",):
                     law = None  # the generic blocked loops gather the moments alone
-                if law is None:
-                    own.append(type(inter).__name__)
+                if law is None and sub.blocked:
+                    own.append(type(inter).__name__)  # (the blocked loops call no adapter)
                 base = G_MEMBERS + M_COLUMNS * m
                 row[base + M_KIND] = OWN if law is None else law.kind
                 row[base + M_SLOT] = slots.param_slot[k]
@@ -269,8 +272,8 @@ def program_of(plan, slots, kinds):
     offsets = plan.effect_offsets
     for e, effect in enumerate(plan.effects):
         law = _law_of(effect, effect_laws)
-        if law is None:
-            own.append(type(effect).__name__)
+        if law is None and getattr(effect, "plane_contact", False):
+            own.append(type(effect).__name__)  # (a plane contact's guard is the shipped walls')
         row = program[effect_row(e)]
         row[E_KIND] = OWN if law is None else law.kind
         row[E_PLANE] = bool(getattr(effect, "plane_contact", False))
@@ -281,7 +284,8 @@ def program_of(plan, slots, kinds):
         row[E_SIZE] = effect.history_size
     if own:
         names = ", ".join(dict.fromkeys(own))
-        return program, f"{names}: functions of your own, not in the generic module's catalogue"
+        return program, (f"{names}: functions of your own in a blocked dipole loop or as a plane contact, which "
+                         "tier 1 does not call")
     return program, None
 
 
@@ -413,6 +417,15 @@ class _Generic:
                 lines.append("power += w")
             return lines
         body += _switch(self.laws, inner, branch)
+        body += [f"{inner}{'elif' if self.laws else 'if'} kind == OWN:",  # a function of your own, through its adapter (demkit.own_laws)
+                 f"{inner}    ax, ay, az, bix, biy, biz, bjx, bjy, bjz, w = own(program[mb + M_INDEX], i, j, dx, dy, "
+                 "dz, r2, s, history, p, off, commit, slot)",
+                 f"{inner}    fx += ax", f"{inner}    fy += ay", f"{inner}    fz += az",
+                 f"{inner}    if record:", f"{inner}        entries[p, 3 + 3 * mm] = ax",
+                 f"{inner}        entries[p, 4 + 3 * mm] = ay", f"{inner}        entries[p, 5 + 3 * mm] = az",
+                 f"{inner}    tix += bix", f"{inner}    tiy += biy", f"{inner}    tiz += biz",
+                 f"{inner}    tjx += bjx", f"{inner}    tjy += bjy", f"{inner}    tjz += bjz",
+                 f"{inner}    power += w"]
         body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
                  f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz",
                  f"{pad}if torque_on:",
@@ -488,7 +501,7 @@ class _Generic:
         if not self.threads:
             lines += ["", "", "@njit(**INNER)",
                       f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last, program, "
-                      "record, entries):",
+                      "record, entries, s, own):",
                       '    """The owners first..last-1 of the loop, their forces into cf/ct; returns the power. With '
                       'record (the\n    plain loop): entries[p, :3] the separation of entry p, entries[p, 3 + 3 m:] '
                       'member m\'s force on j."""']
@@ -501,7 +514,7 @@ class _Generic:
                   "    torque_on = program[G_TORQUE] != 0"]
         return lines + chunks_run("prange" if self.threads else "range",
                                   f"{name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
-                                  "bounds[t], bounds[t + 1], program, np.False_, history)")
+                                  "bounds[t], bounds[t + 1], program, np.False_, history, s, own)")
 
     def pair_functions(self):
         if self.family == BLOCKED:
@@ -513,7 +526,8 @@ class _Generic:
         # Python, as the force chunk is for each entry's forces: no second copy of the catalogue). The
         # pieces pass record as np.False_, a bool numba does not type as the literal False: a literal
         # would compile the loop a second time for the diagnostics' True.
-        lines += ["", "", "@njit(**INNER)", f"def pairs_energies_rows({ARRAYS}, {LIST_ARRAYS}, out, record, entries, program):",
+        lines += ["", "", "@njit(**INNER)",
+                  f"def pairs_energies_rows({ARRAYS}, {LIST_ARRAYS}, out, record, entries, program, s, own):",
                   '    """Add the potential energies of the loop to out[kind]; with record, also entry p\'s energy under',
                   '    interaction k to entries[p, k]."""']
         lines += self.header() + ["    commit = False"]
@@ -526,10 +540,14 @@ class _Generic:
         lines += _switch(self.laws, inner, lambda law: [
             f"energy = {_pair_call(law, 'energy')}", "out[program[mb + M_ENERGY]] += energy",
             "if record:", "    entries[p, program[mb + M_INDEX]] += energy"])
+        lines += [f"{inner}{'elif' if self.laws else 'if'} kind == OWN:",
+                  f"{inner}    energy = own(program[mb + M_INDEX], i, j, dx, dy, dz, r2, s, history, p, off, False, slot)[0]",
+                  f"{inner}    out[program[mb + M_ENERGY]] += energy",
+                  f"{inner}    if record:", f"{inner}        entries[p, program[mb + M_INDEX]] += energy"]
         lines += ["", "", "@njit(**ENTRY)", f"def pairs_energies({PIECE_SIGNATURES['pairs_energies']}):",
                   '    """Add the potential energies of the loop to out[kind]."""']
         lines += piece_prelude("pairs_energies")
-        lines += [f"    pairs_energies_rows({ARRAYS}, {LIST_ARRAYS}, out, np.False_, history, program)"]
+        lines += [f"    pairs_energies_rows({ARRAYS}, {LIST_ARRAYS}, out, np.False_, history, program, s, own)"]
         return lines
 
     # ---- single-sphere effects ------------------------------------------------------------------
@@ -564,12 +582,17 @@ class _Generic:
             body += effect_sums(law.torque, law.dissipative)
             return lines + [pad + line for line in body]
         lines += _switch(self.effects, " " * 12, branch)
+        lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",  # an effect of your own, through its adapter (demkit.own_laws)
+                  "                ax, ay, az, bx, by, bz, w = own(e, i, x, y, z, s, history, off, commit, slot, table)"]
+        lines += ["    " * 4 + line for line in effect_sums(True, True)]
         lines.append("    return power")
         lines += ["", "", "@njit(**ENTRY)", f"def sphere_energies({PIECE_SIGNATURES['sphere_energies']}):",
                   '    """Add the potential energies of the single-sphere effects to out[kind]."""']
         lines += piece_prelude("sphere_energies") + head
         lines += _switch(self.effects, " " * 12,
                          lambda law: [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
+        lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",
+                  "                out[program[er, E_ENERGY]] += own(e, i, x, y, z, s, history, off, False, slot, table)[0]"]
         return lines
 
     # ---- scene-level functions --------------------------------------------------------------------
@@ -589,7 +612,7 @@ class _Generic:
         lines += [f"    clear({force}, {torque})", "    power = 0.0"]
         # one call site per piece, in a loop over the pair loops (each call site of a first-class
         # function is lowered whole, and every time loop holds these lines)
-        args = f"s, {force}, {torque}, pl, commit_flag, row"
+        args = f"s, {force}, {torque}, pl, commit_flag, row, {self.call('own_pair_forces')}"
         lines += [f"    for g in range({MAX_GROUPS}):",
                   f"        row = {group_row(0, sp)} + 3 * g",
                   "        if s.program[row, G_COUNT] > 0:",
@@ -600,7 +623,8 @@ class _Generic:
                   f"                power += calls[{PIECES.index('pairs_forces')}]({args})"]
         if speed != "slow":
             lines += ["    if s.program[0, H_EFFECTS] > 0:",
-                      f"        power += calls[{PIECES.index('sphere_forces')}](s, {force}, {torque}, commit_flag)"]
+                      f"        power += calls[{PIECES.index('sphere_forces')}](s, {force}, {torque}, commit_flag, "
+                      f"{self.call('own_sphere_forces')})"]
         if speed != "fast":
             lines += [f"    {self.call('long_range')}(s, {force}, {torque})"]
         return lines + ["    return power"]
@@ -712,9 +736,9 @@ class _Generic:
                   f"        row = {group_row(0, 0)} + 3 * g",
                   "        if s.program[row, G_COUNT] > 0:",
                   "            pl = s.lists[g]",
-                  f"            calls[{PIECES.index('pairs_energies')}](s, pl, out, row)"]
+                  f"            calls[{PIECES.index('pairs_energies')}](s, pl, out, row, {self.call('own_pair_energies')})"]
         lines += ["    if s.program[0, H_EFFECTS] > 0:",
-                  f"        calls[{PIECES.index('sphere_energies')}](s, out)"]
+                  f"        calls[{PIECES.index('sphere_energies')}](s, out, {self.call('own_sphere_energies')})"]
         # in the fused module's order: the sums, then the induced moments' energy
         lines += [f"    {self.call('sum_energies')}(s, out)"]
         lines += ["    if s.program[0, H_INDUCTION] != 0:",
@@ -754,6 +778,7 @@ class _Generic:
                  "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
                  "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE)",
+                 f"OWN = {OWN}",
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",
                  ""]
@@ -821,7 +846,15 @@ class _Generic:
                   "", "", "@njit(**LOOP)", "def no_sort_particles(s):", "    return",
                   "", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
                   "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
-                  "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0"]
+                  "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0",
+                  "", "", "@njit(**INNER)",
+                  "def no_own_pair_forces(k, i, j, dx, dy, dz, r2, s, history, p, off, commit, slot):",
+                  "    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0",
+                  "", "", "no_own_pair_energies = no_own_pair_forces",
+                  "", "", "@njit(**INNER)",
+                  "def no_own_sphere_forces(e, i, x, y, z, s, history, off, commit, slot, table):",
+                  "    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0",
+                  "", "", "no_own_sphere_energies = no_own_sphere_forces"]
         steps_of = {}  # each time loop: the functions in its tuple steps, in order
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
@@ -876,8 +909,14 @@ SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies"
 UPKEEP = SCENE_PIECES[:2]
 
 
+#: the adapters of a scene's functions of your own (:mod:`demkit.own_laws`), given to the pieces
+#: (stubs for a scene of shipped interactions): a pair force's and energy's take
+#: (k, i, j, dx, dy, dz, r2, s, history, p, offset, commit, slot) and return 10 floats (force, torques on
+#: i and j, power; an energy in the first), a single-sphere effect's (e, i, x, y, z, s, history,
+#: offset, commit, slot, table) and 7 (force, torque, power)
+OWN_CALLS = ("own_pair_forces", "own_pair_energies", "own_sphere_forces", "own_sphere_energies")
 #: the names in the ``calls`` tuple, in order
-CALLS = PIECES + SCENE_PIECES
+CALLS = PIECES + SCENE_PIECES + OWN_CALLS
 
 
 #: ... and what each stub returns
@@ -946,21 +985,23 @@ def family_of(program):
     return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
 
 
-def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_energies=True):
+def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_energies=True, own=None):
     """The generic module (one for every scene, with neighbour lists or in open space; serial or on
     threads), compiled function by function as called and cached on disk like the fused modules;
     seen by a scene that calls ``needs`` of :data:`CALLS` (see :func:`needs_of`: the others are
     stubbed, never compiled for it) of ``family`` (see :func:`family_of`). ``pieces``: a scene's own
     pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones; without
     ``own_energies`` (a scene tier 1 can run) only their forces: the energies, computed once a
-    frame, are the family's (the same bits), so that tier 2 compiles what makes steps faster alone."""
+    frame, are the family's (the same bits), so that tier 2 compiles what makes steps faster alone.
+    ``own``: the adapters of the scene's functions of your own (:func:`demkit.own_laws.build_adapters`)."""
     key = ("generic", bool(threads))
     own_energies = bool(own_energies) or pieces is None  # (tier 1: the family's energies are its own)
-    view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies)
+    view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies, own and own.__name__)
     if view not in _MODULES:
         module = _load(("generic", False), lambda: _name(False))
         upkeep = _load(key, lambda: _name(True)) if threads else module
-        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies, upkeep)
+        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies, upkeep,
+                                        own)
     return _MODULES[view]
 
 
@@ -984,6 +1025,10 @@ def needs_of(program):
         needs += ["maintain_lists"]
     if program[0, H_SORTED] != 0:
         needs += ["sort_particles"]
+    if any(program[r, G_MEMBERS + M_COLUMNS * m + M_KIND] == OWN for r in rows for m in range(program[r, G_COUNT])):
+        needs += ["own_pair_forces", "own_pair_energies"]
+    if any(program[effect_row(e), E_KIND] == OWN for e in range(program[0, H_EFFECTS])):
+        needs += ["own_sphere_forces", "own_sphere_energies"]
     return tuple(needs)
 
 
@@ -1010,14 +1055,33 @@ def piece_arguments(state_type):
     pair_list = f["lists"][0]
     chunked = (state_type, f["force"], f["torque"], pair_list, types.boolean, types.int64)
     out = types.Array(types.float64, 1, "C")
-    return {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
-            "long_range": (state_type, f["force"], f["torque"]),
-            "sum_energies": (state_type, out),
-            "induce_now": (state_type, types.boolean),
-            "pairs_forces": chunked, "pairs_forces_blocked": chunked,
-            "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
-            "pairs_energies": (state_type, pair_list, out, types.int64),
-            "sphere_energies": (state_type, out)}
+    arguments = {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
+                 "long_range": (state_type, f["force"], f["torque"]),
+                 "sum_energies": (state_type, out),
+                 "induce_now": (state_type, types.boolean),
+                 "pairs_forces": chunked, "pairs_forces_blocked": chunked,
+                 "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
+                 "pairs_energies": (state_type, pair_list, out, types.int64),
+                 "sphere_energies": (state_type, out)}
+    for name in ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies"):
+        kind = "pair" if name.startswith("pairs") else "sphere"
+        arguments[name] += (types.FunctionType(own_signature(kind, state_type)),)
+    arguments["own_pair_forces"] = arguments["own_pair_energies"] = own_signature("pair", state_type).args
+    arguments["own_sphere_forces"] = arguments["own_sphere_energies"] = own_signature("sphere", state_type).args
+    return arguments
+
+
+def own_signature(kind, state_type):
+    """The numba signature of the adapters of functions of your own (see :data:`OWN_CALLS`)."""
+    from numba import types
+    i64, f64 = types.int64, types.float64
+    f = _fields(state_type)
+    if kind == "pair":
+        history = _fields(f["lists"][0])["history"]
+        return types.UniTuple(f64, 10)(i64, i64, i64, f64, f64, f64, f64, state_type, history, i64, i64,
+                                       types.boolean, i64)
+    return types.UniTuple(f64, 7)(i64, i64, f64, f64, f64, state_type, f["sphere_history"], i64, types.boolean,
+                                  i64, i64)
 
 
 class GenericKernels:
@@ -1025,8 +1089,9 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, upkeep=None):
+    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, upkeep=None, own=None):
         self.module, self.threads, self.needs = module, threads, needs
+        self.own = own  # the adapters of the scene's functions of your own (demkit.own_laws), or None
         self.upkeep = upkeep or module  # maintain_lists and sort_particles (on threads: the thread module's)
         self.family, self.own_energies = family, own_energies
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
@@ -1042,8 +1107,8 @@ class GenericKernels:
             calls = []
             for name in CALLS:
                 family = BLOCKED if name == "pairs_forces_blocked" else self.family
-                module = self.module if name in SCENE_PIECES else _pieces(self.threads and name in THREAD_PIECES,
-                                                                          family)
+                module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(
+                    self.threads and name in THREAD_PIECES, family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = name not in self.needs and hasattr(module, f"no_{name}")
                 if name in UPKEEP and not stubbed:
@@ -1054,6 +1119,8 @@ class GenericKernels:
                     if not (self.threads and name in THREAD_PIECES):
                         own = getattr(own, "serial", own)
                     function = getattr(own, f"piece_{name}")
+                elif name in OWN_CALLS and not stubbed:
+                    function = getattr(self.own, name)
                 else:
                     function = getattr(module, f"no_{name}" if stubbed else name)
                 calls.append(self._wrapped(function, arguments[name]))
@@ -1073,6 +1140,7 @@ class GenericKernels:
             function = pieces.pairs_energies_rows if kind == "pair_energies" else pieces.pairs_forces_chunk
 
         def run(s, owners, partners, out):
+            import numba
             if "maintain_lists" in self.needs:
                 self.module.maintain_lists(s, False)
             *arrays, program = pair_loop_arrays(s, g)
@@ -1086,12 +1154,14 @@ class GenericKernels:
             if kind == "pair_energies":
                 members = G_MEMBERS + M_COLUMNS * np.arange(row[G_COUNT])
                 kinds = np.zeros(1 + int(row[members + M_ENERGY].max(initial=0)))  # the sums by kind, unused
+                own = self.calls_for(numba.typeof(s))[CALLS.index("own_pair_energies")]
                 function(position, velocity, spin, dipole, radius, mass, box, params, status, *lists, kinds, True,
-                         entries, row)
+                         entries, row, s, own)
             else:
                 force, unused = np.zeros((n, 3)), np.zeros((9, 1))  # (the blocked loop's scratch and gather)
+                own = self.calls_for(numba.typeof(s))[CALLS.index("own_pair_forces")]
                 function(position, velocity, spin, dipole, radius, mass, box, params, status, force, force.copy(),
-                         *lists, unused, unused, False, 0, n, row, True, entries)
+                         *lists, unused, unused, False, 0, n, row, True, entries, s, own)
             # every entry, owner by owner (rows past the entries, if any, stay zero: the caller's size)
             if is_list:
                 owner, rows = neighbours.entry_owners(s.lists[g])

@@ -138,11 +138,12 @@ LIST_ARRAYS = "start, end, partner, history"
 
 #: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
 #: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
-#: buffers, the commit flag and the program row r of the pair loop
-PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r",
-                    "pairs_forces_blocked": "s, force, torque, pl, commit, r",
-                    "sphere_forces": "s, force, torque, commit", "pairs_energies": "s, pl, out, r",
-                    "sphere_energies": "s, out"}
+#: buffers, the commit flag, the program row r of the pair loop, and ``own``: the scene's functions
+#: of your own behind one first-class function (demkit.own_laws; tier 1's loops call it for kind OWN)
+PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r, own",
+                    "pairs_forces_blocked": "s, force, torque, pl, commit, r, own",
+                    "sphere_forces": "s, force, torque, commit, own", "pairs_energies": "s, pl, out, r, own",
+                    "sphere_energies": "s, out, own"}
 
 
 def piece_prelude(name):

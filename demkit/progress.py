@@ -244,7 +244,8 @@ _NOTICE = _Notice()
 
 def _is_demkit(dispatcher):
     module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
-    return module == "demkit" or module.startswith(("demkit.", "demkit_kernel_", "demkit_generic_", "demkit_pieces_"))
+    return module == "demkit" or module.startswith(("demkit.", "demkit_kernel_", "demkit_generic_", "demkit_pieces_",
+                                                                     "demkit_own_"))
 
 
 def _cached(dispatcher):
@@ -317,7 +318,7 @@ def _listener():
 #: (a 600-sphere magnetic gas with Hertz contacts and friction: 13-18 s) and building it (2-8 s);
 #: the cell-list code, compiled once per install when the first scene with lists is built (~15 s)
 ESTIMATES = {"small": (5, 15), "lists": (10, 25), "lists_scene": (0, 2), "cell_lists": 15, "generic": (15, 45),
-             "induction": 9}
+             "induction": 9, "own": (1, 3)}
 
 
 def compile_estimate(plan, phase, tier=2):
@@ -325,6 +326,10 @@ def compile_estimate(plan, phase, tier=2):
     its first run): the expected seconds, from :data:`ESTIMATES`; on ``tier`` 1 (the generic module)
     a one-time compile for this machine."""
     if tier == 1:
+        from . import generic, own_laws
+        if any(own_laws.own_members(plan)) and generic.is_cached(False, "forces_of"):
+            lo, hi = ESTIMATES["own"]
+            return f"about {lo}-{hi} s on an idle machine: the adapters of your own functions (demkit.own_laws)"
         lo, hi = ESTIMATES["generic"]
         return (f"once for this machine: demkit's generic kernels, which then serve every scene of shipped "
                 f"interactions; about {lo}-{hi} s on an idle machine")

@@ -203,7 +203,8 @@ class Scene:
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
             return generic.build_generic(threads, generic.needs_of(self.program), pieces,
-                                         generic.family_of(self.program), own_energies=not self.on_tier_1_possible)
+                                         generic.family_of(self.program), own_energies=not self.on_tier_1_possible,
+                                         own=self._adapters())
         module = build_module(self.plan, TEMPLATES, threads=threads)
         return TupleStateModule(module, self) if self.structured and not self.plan.growing else module
 
@@ -219,6 +220,14 @@ class Scene:
         """A structref pair list with neighbour lists (compiled code grows it), else a named tuple."""
         return make_pair_list(*fields) if self.plan.growing else PairListTuple(*fields)
 
+    def _adapters(self):
+        """The adapters of the scene's functions of your own on tier 1 (demkit.own_laws), or None."""
+        if not self.on_tier_1_possible:
+            return None
+        from .own_laws import build_adapters
+        tables = {e for e, effect in enumerate(self.plan.effects) if np.size(effect.table_values())}
+        return build_adapters(self.plan, tables)
+
     def _pieces_tier_2(self):
         """Is this scene's tier 2 its own pieces called by the generic loops (not a fused module)?
         With neighbour lists, and in open space when it solves induced moments: the solve, the
@@ -226,9 +235,11 @@ class Scene:
         at 0.93 of a fused module's speed, which compiles in 35-40 CPU s against their 11)."""
         if self.program is None:
             return False
-        if self.program_refusal is None:
-            return self.plan.growing or self.induction is not None
-        return importable(self.plan)  # functions of your own: on disk, or in a fused module in memory
+        own = self.program_refusal is not None or "own_pair_forces" in generic.needs_of(self.program) or \
+            "own_sphere_forces" in generic.needs_of(self.program)
+        if own:  # functions of your own: their own pieces on disk, or a fused module in memory
+            return importable(self.plan)
+        return self.plan.growing or self.induction is not None
 
     def _choose_tier(self):
         """1 when the generic module can run this scene and tier 2 is not asked for, else 2."""

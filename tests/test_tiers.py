@@ -183,31 +183,54 @@ def test_switch_in_the_middle_same_bits():
     assert switched.tobytes() == plain.tobytes()
 
 
-def test_functions_of_your_own_run_on_their_own_pieces_with_the_catalogues_bits():
+def test_functions_of_your_own_run_on_tier_1_through_adapters_with_the_catalogues_bits():
     """A scene with pair and single-sphere functions of your own is described by the program (their
-    kind: generic.OWN) and runs on its own pieces under the generic time loops (seconds to compile,
-    not a fused module per integrator); the shipped laws behind them give the same bits on tier 1."""
+    kind: generic.OWN): tier 1 calls them through the scene's adapters (demkit.own_laws, all it
+    compiles), tier 2 runs its own pieces under the generic time loops; both give the bits of the
+    shipped laws behind them on tier 1."""
+    from numba.core import event
     from plugin_interactions import OwnGravity, OwnKelvinVoigt
 
-    def make(own):
+    def make(own, tier=None):
         rng = np.random.default_rng(7)
         pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5]])
         p = dk.Particles(position=pos, velocity=0.3 * rng.normal(size=(5, 3)), radius=0.5, mass=1.0,
                          dipole=0.2 * rng.normal(size=(5, 3)))
         contact, gravity = (OwnKelvinVoigt, OwnGravity) if own else (dk.KelvinVoigt, dk.Gravity)
         return dk.Scene(p, [dk.Dipole(prefactor=0.05), contact(3000.0, 4.0), gravity((0, 0, -1.0)),
-                            dk.Wall((0, 0, 0), (0, 0, 1))])
+                            dk.Wall((0, 0, 0), (0, 0, 1))], tier=tier)
 
-    shipped, own = make(False), make(True)
-    assert shipped.tier == 1 and own.tier == 2 and "OwnKelvinVoigt, OwnGravity" in own.program_refusal
-    row = own.program[generic.group_row(0, 0)]
-    assert row[generic.G_MEMBERS + generic.M_COLUMNS + generic.M_KIND] == generic.OWN
-    assert own.program[generic.effect_row(0), generic.E_KIND] == generic.OWN
-    assert own.kernels.pieces.__name__.startswith("demkit_pieces_")  # no fused module
     for integrator in (dk.VelocityVerlet(2e-4), dk.RK4(2e-4)):
-        a = outcome(shipped, integrator, 0.05, diagnostics=True)[1]
-        b = outcome(own, integrator, 0.05, diagnostics=True)[1]
-        assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ"
+        expected = outcome(make(False), integrator, 0.05, diagnostics=True)[1]
+
+        class Compiled(event.Listener):  # the modules of the functions compiled at the top level
+            modules, depth = set(), 0
+
+            def on_start(self, ev):
+                self.depth += 1
+
+            def on_end(self, ev):
+                self.depth -= 1
+                if self.depth == 0:
+                    self.modules.add(ev.data["dispatcher"].py_func.__module__.split("_")[1])
+
+        compiled = Compiled()
+        event.register("numba:compile", compiled)
+        try:
+            own = make(True)
+            a = outcome(own, integrator, 0.05, diagnostics=True)[1]
+        finally:
+            event.unregister("numba:compile", compiled)
+        assert own.tier == 1 and own.program_refusal is None
+        assert compiled.modules <= {"own"}, compiled.modules  # the adapters alone (if not cached)
+        row = own.program[generic.group_row(0, 0)]
+        assert row[generic.G_MEMBERS + generic.M_COLUMNS + generic.M_KIND] == generic.OWN
+        assert own.program[generic.effect_row(0), generic.E_KIND] == generic.OWN
+        second = make(True, tier=2)
+        assert second.loop_kernels.pieces.__name__.startswith("demkit_pieces_")  # no fused module
+        b = outcome(second, integrator, 0.05, diagnostics=True)[1]
+        for got in (a, b):
+            assert got.tobytes() == expected.tobytes(), f"{np.sum(got != expected)} of {got.size} values differ"
 
 
 def test_tier_choice_and_refusals(monkeypatch):
@@ -227,11 +250,18 @@ def test_tier_choice_and_refusals(monkeypatch):
     assert "generic" in sim.statistics["tier_reason"]
     with pytest.raises(ValueError, match="tier must be"):
         gas(3)
-    from plugin_interactions import ContactCounter
+    from plugin_interactions import ContactCounter, Poison
     p = dk.Particles(position=[[0, 0, 0], [3, 0, 0]], radius=0.5, mass=1.0)
-    assert dk.Scene(p, [ContactCounter()]).tier == 2  # your own pair functions: tier 2
-    with pytest.raises(ValueError, match="ContactCounter.*catalogue"):
-        dk.Scene(p, [ContactCounter()], tier=1)
+    assert dk.Scene(p, [ContactCounter()]).tier == 1  # your own pair functions: tier 1, through adapters
+
+    class BranchFree(Poison):  # evaluated in blocks of 64 pairs over neighbour lists: no adapter there
+        branch_free = True
+        cutoff_distance = 1.0
+
+    box = dk.Box(10.0, periodic=True)
+    assert dk.Scene(p, [BranchFree(0.1)], box=box).tier == 2
+    with pytest.raises(ValueError, match="BranchFree.*blocked"):
+        dk.Scene(p, [BranchFree(0.1)], box=box, tier=1)
 
 
 def test_program_layout():
