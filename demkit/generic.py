@@ -1110,7 +1110,8 @@ class GenericKernels:
                 module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(
                     self.threads and name in THREAD_PIECES, family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
-                stubbed = name not in self.needs and hasattr(module, f"no_{name}")
+                stubbed = (name not in self.needs or (name in OWN_CALLS and self.own is None)) and \
+                    hasattr(module, f"no_{name}")
                 if name in UPKEEP and not stubbed:
                     module = self.upkeep
                 own_piece = name in PIECES and (self.own_energies or "energies" not in name)
