@@ -414,7 +414,8 @@ PLUGIN = """
                 "    return strength * (reach - r) ** 3 / 3 if r < reach else 0.0\\n\\n"
                 "class SoftRepulsion(dk.PairInteraction):\\n    reads = ('radius',)\\n    energy_kind = 'contact'\\n"
                 "    parameters = ('strength',)\\n    force_function = soft_force\\n    energy_function = soft_energy\\n"
-                "    def __init__(self, strength):\\n        self.strength = strength\\n")
+                "    def __init__(self, strength):\\n        self.strength = strength\\n"
+                "    def cutoff(self, particles):\\n        return 2.0 * float(particles.radius.max())\\n")
             sys.path.insert(0, str(folder))
             from latency_plugin import SoftRepulsion
             {body}

@@ -233,6 +233,29 @@ def test_functions_of_your_own_run_on_tier_1_through_adapters_with_the_catalogue
             assert got.tobytes() == expected.tobytes(), f"{np.sum(got != expected)} of {got.size} values differ"
 
 
+def test_functions_of_your_own_with_history_over_lists_on_threads_same_bits():
+    """A pair function of your own with per-contact history (a touch counter) beside the gas's
+    frictional Hertz contacts and dipoles, and a single-sphere function of your own, over neighbour
+    lists sorted by cell, in chunks on threads: tier 1 (the adapters, called inside the threads' chunks)
+    and tier 2 (the scene's own pieces) give the same bits, history and diagnostics included."""
+    from plugin_interactions import PullSmall, TouchCounter
+
+    def make(tier):
+        scene = gas(tier, n=240, parallel=True, sort_every=20)
+        counter = TouchCounter(cutoff=1.0)
+        return dk.Scene(scene.particles, [*scene.interactions, counter, PullSmall(0.6, (0.0, 0.0, -0.5))],
+                        box=scene.box, tier=tier, parallel=True, sort_every=20), counter
+
+    first, counter = make(1)
+    assert first.tier == 1 and "own_pair_forces" in generic.needs_of(first.program)
+    a = outcome(first, dk.VelocityVerlet(1e-3), 0.1, diagnostics=True)[1]
+    second, counter_2 = make(2)
+    b = outcome(second, dk.VelocityVerlet(1e-3), 0.1, diagnostics=True)[1]
+    assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ between the tiers"
+    touches = first.history(counter)[1]
+    assert touches.max() > 0 and touches.tobytes() == second.history(counter_2)[1].tobytes()
+
+
 def test_tier_choice_and_refusals(monkeypatch):
     from demkit import tiers
     monkeypatch.setattr(tiers, "_READY", set())  # as in a process that has not run this combination
