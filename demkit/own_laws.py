@@ -66,6 +66,15 @@ def _effect_branch(e, effect, kind, tabled):
             f"        return ax, ay, az, {torques}, {'w' if effect.dissipative else '0.0'}"]
 
 
+def _adapter(header, options, index, members, branch, outputs):
+    """One adapter: a switch over the members by ``index``, each branch's lines from ``branch``,
+    ``outputs`` zeros when no member matches."""
+    lines = ["", "", f"@njit({options})", f"def {header}:", '    params = field(s, "params")']
+    for n, (k, inter) in enumerate(members):
+        lines += [f"    {'if' if n == 0 else 'elif'} {index} == {k}:"] + _reads(inter, "        ") + branch(k, inter)
+    return lines + ["    return " + ", ".join(["0.0"] * outputs)]
+
+
 def adapters_source(plan, importable, tables=()):
     """The adapters' module text for the scene's functions of your own (``tables``: the indices of
     the effects that carry a table)."""
@@ -81,23 +90,10 @@ def adapters_source(plan, importable, tables=()):
                 lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
     options = f'cache={importable}, _nrt=False, error_model="numpy"'
     for kind in ("force", "energy"):
-        lines += ["", "", f"@njit({options})",
-                  f"def own_pair_{PLURAL[kind]}(k, i, j, dx, dy, dz, r2, s, history, p, off, "
-                  "commit, slot):",
-                  '    params = field(s, "params")']
-        for n, (k, inter) in enumerate(pairs):
-            lines += [f"    {'if' if n == 0 else 'elif'} k == {k}:"] + _reads(inter, "        ")
-            lines += _pair_branch(k, inter, kind)
-        lines += ["    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0"]
-    for kind in ("force", "energy"):
-        lines += ["", "", f"@njit({options})",
-                  f"def own_sphere_{PLURAL[kind]}(e, i, x, y, z, s, history, off, commit, "
-                  "slot, table):",
-                  '    params = field(s, "params")']
-        for n, (e, effect) in enumerate(effects):
-            lines += [f"    {'if' if n == 0 else 'elif'} e == {e}:"] + _reads(effect, "        ")
-            lines += _effect_branch(e, effect, kind, e in tables)
-        lines += ["    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0"]
+        lines += _adapter(f"own_pair_{PLURAL[kind]}(k, i, j, dx, dy, dz, r2, s, history, p, off, commit, slot)",
+                          options, "k", pairs, lambda k, inter: _pair_branch(k, inter, kind), 10)
+        lines += _adapter(f"own_sphere_{PLURAL[kind]}(e, i, x, y, z, s, history, off, commit, slot, table)",
+                          options, "e", effects, lambda e, effect: _effect_branch(e, effect, kind, e in tables), 7)
     return "\n".join(lines) + "\n"
 
 
