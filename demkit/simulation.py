@@ -316,9 +316,11 @@ class Simulation:
                 done += chunk
                 self.step = start_step + done
                 seconds = time.perf_counter() - began
-                self._tiers.ran(seconds)
+                first = self._rate is None  # the first chunk compiles (or loads) the code: not run time
+                if not first:  # (counted, a cold install's compile made a short run compile tier 2 too)
+                    self._tiers.ran(seconds)
                 probe = self._threads.probing  # a probe's rate does not size the next chunks
-                self._threads.measured(chunk, seconds, first=self._rate is None)
+                self._threads.measured(chunk, seconds, first=first)
                 if not probe:
                     chunk_steps = self._next_chunk(chunk, seconds, chunk_steps, between)
                 notice.end()

@@ -330,6 +330,19 @@ def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
     assert runs[2].ready(0.0) is None and started[-1] is runs[2]  # this process has it: at once
 
 
+def test_the_first_chunk_which_compiles_is_not_counted_as_time_on_tier_1(monkeypatch):
+    """A run's first chunk compiles or loads tier 1's code: on a new install that took 20 s, which
+    counted as time on tier 1 made a 1000-step run of two spheres start compiling tier 2."""
+    from demkit import tiers
+    monkeypatch.setattr(tiers, "_SPENT", {})
+    p = dk.Particles(position=[[0, 0, 0], [3.0, 0, 0]], radius=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
+    sim = dk.Simulation(dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(100.0)]), dk.EulerCromer(1e-3))
+    sim.run(duration=16e-3, progress=False)  # one chunk: the first
+    assert tiers._SPENT.get(sim._tiers.key, 0.0) == 0.0
+    sim.run(duration=0.2, progress=False)
+    assert tiers._SPENT[sim._tiers.key] > 0.0
+
+
 @pytest.mark.parametrize("open_space, parallel", [(False, False), (False, True), (True, False)],
                          ids=["lists", "chunked_lists", "all_pairs"])
 def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_space, parallel):
