@@ -1063,11 +1063,11 @@ def piece_arguments(state_type):
                  "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
                  "pairs_energies": (state_type, pair_list, out, types.int64),
                  "sphere_energies": (state_type, out)}
-    for name in ("pairs_forces", "pairs_forces_blocked", "sphere_forces", "pairs_energies", "sphere_energies"):
-        kind = "pair" if name.startswith("pairs") else "sphere"
-        arguments[name] += (types.FunctionType(own_signature(kind, state_type)),)
-    arguments["own_pair_forces"] = arguments["own_pair_energies"] = own_signature("pair", state_type).args
-    arguments["own_sphere_forces"] = arguments["own_sphere_energies"] = own_signature("sphere", state_type).args
+    own = {kind: own_signature(kind, state_type) for kind in ("pair", "sphere")}
+    for name in PIECES:  # each piece takes its kind's adapter last
+        arguments[name] += (types.FunctionType(own["pair" if name.startswith("pairs") else "sphere"]),)
+    for name in OWN_CALLS:
+        arguments[name] = own["pair" if name.startswith("own_pair") else "sphere"].args
     return arguments
 
 

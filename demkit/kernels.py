@@ -183,6 +183,17 @@ def _pair_call(k, inter, offset, kind, owner="i", fields=""):
     return f"{kind}_{k}({', '.join(_callable_arguments(inter, args))})"
 
 
+def function_imports(pairs, effects):
+    """Import lines binding the pair functions of ``pairs`` and ``effects`` ((index, interaction)
+    pairs) to the names generated code calls: ``force_<k>``/``energy_<k>``, ``sforce_<e>``/``senergy_<e>``."""
+    lines = []
+    for prefix, members in (("", pairs), ("s", effects)):
+        for k, inter in members:
+            for kind, fn in zip(("force", "energy"), inter.pair_functions()):
+                lines.append(f"from {fn.__module__} import {fn.__name__} as {prefix}{kind}_{k}")
+    return lines
+
+
 #: Python 3.11 compiles a call with more arguments than this into a form numba cannot inline
 MAX_ARGUMENTS = 30
 
@@ -903,12 +914,7 @@ class _Source:
                       "from demkit.neighbours import (max_displacement_threads as max_displacement,",
                       "                               rebuild_threads as rebuild, build_threads as build)", ""]
         if self.importable:
-            for k, inter in enumerate(plan.interactions):
-                for kind, fn in zip(("force", "energy"), inter.pair_functions()):
-                    lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
-            for e, effect in enumerate(plan.effects):
-                for kind, fn in zip(("force", "energy"), effect.pair_functions()):
-                    lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
+            lines += function_imports(enumerate(plan.interactions), enumerate(plan.effects))
         cache = self.importable
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules

@@ -17,7 +17,8 @@ Pair functions called from a blocked dipole loop, and effects that are plane con
 from __future__ import annotations
 
 from . import generic
-from .kernels import _callable_arguments, _fingerprint, _importable, _load_from_file, _load_in_memory
+from .kernels import (_callable_arguments, _fingerprint, _importable, _load_from_file, _load_in_memory,
+                      function_imports)
 
 _MODULES = {}
 PLURAL = {"force": "forces", "energy": "energies"}
@@ -82,12 +83,7 @@ def adapters_source(plan, importable, tables=()):
     lines = ['"""Adapters of a scene\'s functions of your own (written by demkit.own_laws, do not edit)."""',
              "from numba import njit", "from demkit.state import field"]
     if importable:
-        for k, inter in pairs:
-            for kind, fn in zip(("force", "energy"), inter.pair_functions()):
-                lines.append(f"from {fn.__module__} import {fn.__name__} as {kind}_{k}")
-        for e, effect in effects:
-            for kind, fn in zip(("force", "energy"), effect.pair_functions()):
-                lines.append(f"from {fn.__module__} import {fn.__name__} as s{kind}_{e}")
+        lines += function_imports(pairs, effects)
     options = f'cache={importable}, _nrt=False, error_model="numpy"'
     for kind in ("force", "energy"):
         lines += _adapter(f"own_pair_{PLURAL[kind]}(k, i, j, dx, dy, dz, r2, s, history, p, off, commit, slot)",

@@ -235,8 +235,7 @@ class Scene:
         at 0.93 of a fused module's speed, which compiles in 35-40 CPU s against their 11)."""
         if self.program is None:
             return False
-        own = self.program_refusal is not None or "own_pair_forces" in generic.needs_of(self.program) or \
-            "own_sphere_forces" in generic.needs_of(self.program)
+        own = self.program_refusal is not None or bool(set(generic.OWN_CALLS) & set(generic.needs_of(self.program)))
         if own:  # functions of your own: their own pieces on disk, or a fused module in memory
             return importable(self.plan)
         return self.plan.growing or self.induction is not None
