@@ -23,6 +23,7 @@ from . import build  # starting scenes: random packings, lattices, chains, rings
 from . import accuracy  # adaptive reference solutions and work-precision reports
 from .dipole_sums import compare_dipole_sums  # which dipole sum for my scene: error against time
 from . import guards  # checks before and during runs: time steps, spins, contacts that hold magnets
+from .step_choice import choose_time_step  # a time step for an accuracy of the energy balance (dt = "auto")
 from . import cost  # what a run will cost in time, estimated before it runs (demkit info)
 from . import measure  # what papers report: pressure tensor, coordination, local fields, magnetisation
 from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # TOML scene files
@@ -36,5 +37,5 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
            "PairInteraction", "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "compare_dipole_sums", "guards",
+           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "compare_dipole_sums", "guards", "choose_time_step",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

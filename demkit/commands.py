@@ -174,7 +174,15 @@ def info_command(args):
         print("checks        the checks before a run pass (dk.guards.before_stepping)")
     except ValueError as err:
         print(f"checks        refused: {err}")
-    print("              (a time step for a target accuracy: dk.accuracy.suggest_dt, or `demkit accuracy`)")
+    choice = loaded.step_choice
+    if choice is not None:
+        pilots = (f"{len(choice.pilots)} pilot run{'s' if len(choice.pilots) != 1 else ''} of "
+                  f"{sum(p['steps'] for p in choice.pilots):,} steps in all" if choice.pilots else "no pilot run")
+        print(f'chosen        dt = "auto" for an energy balance within {choice.accuracy:.3g} of the energy scale '
+              f"(integrator.accuracy): {choice.why}; {pilots}, {choice.seconds:.2f} s")
+    else:
+        print('              (a step chosen for an accuracy: dt = "auto" with integrator.accuracy, dk.choose_time_step; '
+              'errors against a reference: `demkit accuracy`)')
     # memory
     from . import cost, memory
     tree = cost.centres_tree(scene)  # for the pairs counted here and in the cost estimate

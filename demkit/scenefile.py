@@ -321,8 +321,11 @@ SCHEMA = Table({
     "integrator": Table({
         "method": Key("string", "VelocityVerlet", "EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep "
                                                   "(or a name as `demkit accuracy --methods` takes)"),
-        "dt": Key("number_or_auto", REQUIRED, 'time step, or "auto": half the largest safe step (dk.guards.largest_safe_step)',
+        "dt": Key("number_or_auto", REQUIRED, 'time step, or "auto": chosen for the accuracy below '
+                                             '(dk.choose_time_step: stability, dashpots, a pilot run)',
                   check="positive", dim="time"),
+        "accuracy": _n('with dt = "auto": the energy balance the run keeps, a fraction of its energy scale (default '
+                       '0.01, the end-of-run note\'s limit)', check="positive"),
         "inner": Key("integer", doc="MultipleTimeStep: inner steps per step (default 4)", check="at_least_one"),
         "resolve_contacts": Key("bool", False, "VelocityVerlet, MultipleTimeStep: resolve contact events")},
         "how to step", required=True),
@@ -956,14 +959,19 @@ def _integrator(d, scene, src):
     with _At(src, "integrator", "method"):
         make = parse_method(text)
     dt = integ["dt"]
+    if integ["accuracy"] is not None and dt != "auto":
+        raise src.error(("integrator", "accuracy"), 'accuracy chooses the step of dt = "auto"; with dt given as a '
+                                                     'number it has no effect: remove it, or set dt = "auto"')
     if dt == "auto":
-        from .guards import largest_safe_step
-        limit, why = largest_safe_step(scene)
-        if not math.isfinite(limit):
-            raise src.error(("integrator", "dt"), f'"auto" found no largest safe step ({why}); give dt as a '
-                                                  f'number (for an impact at speed v: a tenth of the contact time '
-                                                  f'at v, docs/contacts.md)')
-        dt = 0.5 * limit
+        from .step_choice import ACCURACY, choose_time_step
+        accuracy = ACCURACY if integ["accuracy"] is None else integ["accuracy"]
+        if accuracy >= 1.0:
+            raise src.error(("integrator", "accuracy"), f"accuracy is a fraction of the energy scale, below 1; got "
+                                                         f"{accuracy!r}")
+        with _At(src, "integrator", "dt"):
+            choice = choose_time_step(scene, make, d["run"]["duration"], accuracy)
+        src.step_choice = choice
+        dt = choice.dt
     with _At(src, "integrator"):
         return make(dt)
 
@@ -1001,7 +1009,8 @@ def _build(data, src, base):
     outputs = data["outputs"] or {"trajectory": None, "vtk": None, "animation": None, "checkpoint": None}
     return LoadedScene(scene=scene, integrator=integrator, duration=run["duration"], record_every=run["record_every"],
                        outputs=outputs, path=None if str(src.name) == "<string>" else Path(src.name), data=data,
-                       units=units, max_energy_growth=run["max_energy_growth"], base=base, source=src)
+                       units=units, max_energy_growth=run["max_energy_growth"], base=base, source=src,
+                       step_choice=getattr(src, "step_choice", None))
 
 
 # ---- running --------------------------------------------------------------------------------------
@@ -1024,6 +1033,8 @@ class LoadedScene:
     data: dict
     units: object = None
     max_energy_growth: float | None = None
+    #: with dt = "auto": how the step was chosen (dk.step_choice.StepChoice), else None
+    step_choice: object = None
     base: Path = Path(".")
     source: object = None
     #: outputs that could not be written where asked and were saved elsewhere: {name: path}

@@ -278,7 +278,9 @@ def test_overrides_apply_before_validation_and_unknown_ones_are_errors():
     loaded = dk.parse_scene(GAS, overrides={"interactions.dipole.prefactor": 0.5, "interactions.wall.1.velocity": [0.0, 0.2, 0.0],
                                             "integrator.dt": "auto"})
     assert loaded.scene.interactions[0].prefactor == 0.5 and loaded.scene.effects[2].velocity.tolist() == [0, 0.2, 0]
-    assert loaded.integrator.dt == 0.5 * dk.guards.largest_safe_step(loaded.scene)[0]
+    choice = loaded.step_choice  # "auto": at most half the largest safe step (demkit.step_choice)
+    assert choice.stable == 0.5 * dk.guards.largest_safe_step(loaded.scene)[0]
+    assert loaded.integrator.dt == choice.dt <= choice.stable
     with pytest.raises(dk.SceneFileError, match=r"interactions.dipole.prefator: unknown key; did you mean 'prefactor'\? "
                                                 r"\(set by override"):
         dk.parse_scene(GAS, overrides={"interactions.dipole.prefator": 0.5})
@@ -359,11 +361,11 @@ def test_auto_time_step_resolves_magnets_snapping_together_from_rest_and_says_wh
     loaded = dk.parse_scene(AT_REST)
     limit, why = dk.guards.largest_safe_step(loaded.scene)
     assert loaded.scene.max_time_step() == math.inf and math.isfinite(limit) and "snapping together" in why
-    assert loaded.integrator.dt == 0.5 * limit
+    assert loaded.step_choice.stable == 0.5 * limit and loaded.integrator.dt <= 0.5 * limit
     dk.guards.before_stepping(loaded.scene, loaded.integrator)  # raises if refused
     alone = AT_REST.replace("[[0.0, 0.0, 1.0], [2.0, 0.0, 1.0]]", "[[0.0, 0.0, 1.0]]").replace(
         "[[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]", "[[1.0, 0.0, 0.0]]")
-    with pytest.raises(dk.SceneFileError, match=r'integrator.dt: "auto" found no largest safe step \(the stiffest '
+    with pytest.raises(dk.SceneFileError, match=r'integrator.dt: dt = "auto" found no largest safe step \(the stiffest '
                                                 r'contact .* every sphere is at rest.*give dt as a number'):
         dk.parse_scene(alone)
 

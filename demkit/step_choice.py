@@ -1,0 +1,192 @@
+"""A time step chosen for an accuracy: what ``dt = "auto"`` means.
+
+:func:`choose_time_step` picks the step of a run so that its energy balance (kinetic + rotational +
+potential + dissipated, the figure the end-of-run notes check, :mod:`demkit.notes`) stays within
+``accuracy`` of the run's energy scale (default :data:`ACCURACY`, the notes' own limit). It aims
+at :data:`MARGIN` of it, in three stages:
+
+1. **stability**: half the largest step the guards accept (:func:`demkit.guards.largest_safe_step`);
+2. **dashpots**, known before any step: a fixed step applies a dashpot's force with the velocity
+   half a step old, which strengthens its damping by c dt / 2 m* (docs/accuracy.md: measured on a
+   Kelvin-Voigt impact, 0.27 % of the dissipated energy at 80 steps per contact for the predicted
+   0.26 %): a run that dissipates up to its energy scale ends rate * dt of it off, rate = c / 2 m*
+   of the fastest dashpot (Kelvin-Voigt: its damping over the lightest pair; Hertz: eta_n =
+   gamma sqrt(m* S_n) at the deepest overlap of the fastest impact the guards foresee; a wall: the
+   lightest sphere). On the way, each contact's onset takes c dt / m* = 2 rate dt of the impact's
+   kinetic energy before the dashpot's work is booked (:data:`ONSET`; measured: 1.00 % at
+   c dt / m* = 0.01, the largest departure of a head-on impact's balance, which the notes read).
+   So dt <= MARGIN accuracy / ((ONSET + 1) rate). Skipped by resolved contacts
+   (``resolve_contacts=True``: their dashpots are second order);
+3. **a pilot**, measured: the scene's start is run (on a copy: nothing of the scene changes) for
+   :data:`PILOT_FRACTION` of the run (at least :data:`PILOT_STEPS` steps) at that step, and its
+   balance read: its largest departure, plus, when the pilot dissipates over :data:`DISSIPATING`
+   of the energy scale, its departure at the end extrapolated to a run that dissipates its whole
+   energy scale (the part that accumulates). When this prediction
+   exceeds :data:`ACCEPT` of the accuracy the step shrinks to aim at MARGIN of it (at first order when
+   the pilot dissipates: dashpots; else at the method's order) and the pilot runs again at it, over
+   the same time (at most :data:`PILOTS` pilots).
+
+What a pilot cannot see (an event after its window: the seed paper's impact, 24000 time units into
+its run) is covered by stage 2 alone. The balance is not checked in scenes with a heat bath or a
+moving wall (their work is not booked, :mod:`demkit.notes`): stages 1 and 2 choose their step.
+Overlaps depend on the contact law's stiffness, not on the step: no step choice removes their note.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import checks
+from .guards import _approach_speed, largest_safe_step
+from .interactions.contact import KelvinVoigt
+from .interactions.hertz import Hertz, hertz_impact
+from .interactions.wall import Wall
+from .notes import ENERGY_DRIFT
+
+#: the energy balance a run with dt = "auto" keeps by default (fraction of its energy scale): the
+#: end-of-run note's limit
+ACCURACY = ENERGY_DRIFT
+#: the step aims at this fraction of the accuracy asked (a margin for what a pilot extrapolates)
+MARGIN = 0.5
+#: a pilot runs this fraction of the run ...
+PILOT_FRACTION = 0.02
+#: ... and at least this many steps (or the whole run when it is shorter)
+PILOT_STEPS = 300
+#: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
+ONSET = 2.0
+#: at most this many pilots (each at a shorter step than the last)
+PILOTS = 3
+#: a pilot's prediction is accepted up to this fraction of the accuracy (it aims at MARGIN when it
+#: shrinks the step: a prediction within 20 % of the aim is not worth another pilot)
+ACCEPT = 0.6
+#: a pilot that dissipates more than this fraction of the energy scale measures the dashpots' drift
+DISSIPATING = 0.01
+
+
+@dataclass
+class StepChoice:
+    """The step chosen (``dt``, of the method's whole step; ``contact_step`` its inner step) and why:
+    ``stable`` half the largest safe step, ``dashpot`` the bound of stage 2 (inf: none), ``pilots``
+    one dict per pilot run (dt, steps, drift and dissipated energy as fractions of the energy
+    scale, predicted drift of the run), ``seconds`` what choosing cost (wall), ``why`` one line."""
+
+    dt: float
+    accuracy: float
+    stable: float
+    dashpot: float
+    why: str
+    pilots: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    def __str__(self):
+        return f"dt = {self.dt:.4g}: {self.why}"
+
+
+def dashpot_rate(scene):
+    """(rate, what): the largest c / 2 m* of the scene's contact dashpots (1/time; 0.0 when none), and
+    which law sets it. A Hertz law's at the deepest overlap of the fastest impact the guards foresee
+    (0.0 while nothing moves: no impact speed is known yet)."""
+    p = scene.particles
+    if not len(p):
+        return 0.0, "no spheres"
+    m = np.sort(np.asarray(p.mass, dtype=float))
+    pair_mass = m[0] * m[1] / (m[0] + m[1]) if len(m) > 1 else 0.5 * m[0]
+    speed = None
+    best, what = 0.0, "no contact dashpot"
+    for inter in scene.interactions + scene.effects:
+        wall = isinstance(inter, Wall)
+        law = inter.law if wall else inter
+        mass = m[0] if wall else pair_mass
+        if isinstance(law, KelvinVoigt):
+            rate = law.damping / (2.0 * mass)
+        elif isinstance(law, Hertz):
+            if speed is None:
+                speed = _approach_speed(scene)[0]
+            if not speed > 0.0:
+                continue
+            r = np.sort(np.asarray(p.radius, dtype=float))
+            other = r[min(1, len(r) - 1)]
+            radius = r[0] if wall else r[0] * other / (r[0] + other)
+            young = 2.0 * law.young_eff if wall else law.young_eff  # a rigid plane: E/(1 - nu^2)
+            depth = hertz_impact(young, radius, mass, speed)[0]
+            stiffness = 2.0 * young * math.sqrt(radius * depth)
+            rate = 0.5 * law.gamma * math.sqrt(stiffness / mass)
+        else:
+            continue
+        if rate > best:
+            best, what = rate, f"{'a wall of ' if wall else ''}{law!r}"
+    return best, what
+
+
+def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
+    """A step for ``method`` (an Integrator class or a callable dt -> Integrator, e.g. ``lambda dt:
+    dk.MultipleTimeStep(dt, inner=4)``) to run ``scene`` for ``duration`` with its energy balance
+    within ``accuracy`` of its energy scale (see the module docstring). ``pilot=False``: stages 1
+    and 2 only (no run). Returns a :class:`StepChoice`; raises ValueError when no stability limit
+    is known yet (nothing moves or pulls) or a pilot fails."""
+    from .accuracy import copy_scene
+    from .notes import RunNotes
+    from .simulation import Simulation, SimulationError
+    clock = time.perf_counter()
+    duration = checks.positive("duration", duration)
+    accuracy = checks.positive("accuracy", accuracy)
+    if accuracy >= 1.0:
+        raise ValueError(f"accuracy is a fraction of the energy scale, below 1; got {accuracy!r}")
+    probe = method(1.0)
+    probe.check(scene)  # what the method refuses in this scene (e.g. a heat bath without velocity Verlet)
+    inner = probe.dt / probe.contact_step  # the contact step is dt / inner
+    limit, why = largest_safe_step(scene)
+    if not math.isfinite(limit):
+        raise ValueError(f'dt = "auto" found no largest safe step ({why}); give dt as a number (for an impact '
+                         f'at speed v: a tenth of the contact time at v, docs/contacts.md)')
+    stable = 0.5 * limit * inner
+    aim = MARGIN * accuracy
+    rate, what = dashpot_rate(scene)
+    resolved = bool(getattr(probe, "resolve_contacts", False))
+    dashpot = aim / ((ONSET + 1.0) * rate) * inner if rate > 0.0 and not resolved else math.inf
+    dt = min(stable, dashpot)
+    reason = (f"half the largest safe step ({why})" if dt == stable else
+              f"the dashpots of {what} (rate c/2m* = {rate:.4g}) keep the balance within {aim:.3g}: "
+              f"{rate * dt / inner:.3g} of the energy dissipated, {ONSET * rate * dt / inner:.3g} of an impact's "
+              f"at its onset")
+    pilots = []
+    balance = RunNotes(scene).balance
+    if pilot and balance:
+        window = min(max(PILOT_STEPS * dt, PILOT_FRACTION * duration), duration)  # the same for every pilot
+        for _ in range(PILOTS):
+            steps = math.ceil(window / dt)
+            sim = Simulation(copy_scene(scene), method(dt), notes=False)
+            try:
+                traj = sim.run(duration=steps * dt, record_every=max(1, steps // 100) * dt, progress=False)
+            except SimulationError as error:
+                raise ValueError(f'dt = "auto": a pilot run at dt = {dt:.4g} failed ({error}); give dt as a '
+                                 f'number') from error
+            parts = np.column_stack([v for k, v in traj.energy.items() if k not in ("total", "dissipated")])
+            lost = traj.energy["dissipated"]
+            total = parts.sum(axis=1) + lost
+            scale = float(np.max(np.abs(parts).sum(axis=1)))  # as the notes' (demkit.notes)
+            if not scale > 0.0:
+                break
+            drift = float(np.max(np.abs(total - total[0]))) / scale
+            dissipated = float(lost[-1] - lost[0]) / scale
+            dissipating = dissipated > DISSIPATING
+            predicted = drift
+            if dissipating and dissipated < 1.0:  # the rest of the scale dissipated as the pilot did
+                predicted += abs(total[-1] - total[0]) / scale * (1.0 / dissipated - 1.0)
+            pilots.append({"dt": dt, "steps": steps, "drift": drift, "dissipated": dissipated,
+                           "predicted": predicted})
+            if predicted <= ACCEPT * accuracy:
+                break
+            order = 1.0 if dissipating else float(probe.order or 1)
+            dt *= 0.9 * (aim / predicted) ** (1.0 / order)
+            reason = (f"a pilot of {steps} steps predicted a drift of {predicted:.3g} of the energy scale at "
+                      f"dt = {pilots[-1]['dt']:.4g} ({'extrapolated to the whole scale dissipated' if dissipating else 'as measured'}"
+                      f"); shrunk at order {order:g} to aim at {aim:.3g}")
+        else:
+            reason += f" (after {PILOTS} pilots; the last predicted {pilots[-1]['predicted']:.3g})"
+    elif pilot:
+        reason += "; no pilot: a heat bath or a moving wall does work the balance does not book"
+    return StepChoice(dt, accuracy, stable, dashpot, reason, pilots, time.perf_counter() - clock)
