@@ -6,30 +6,37 @@ potential + dissipated, the figure the end-of-run notes check, :mod:`demkit.note
 at :data:`MARGIN` of it, in three stages:
 
 1. **stability**: half the largest step the guards accept (:func:`demkit.guards.largest_safe_step`);
-2. **dashpots**, known before any step: a fixed step applies a dashpot's force with the velocity
-   half a step old, which strengthens its damping by c dt / 2 m* (docs/accuracy.md: measured on a
-   Kelvin-Voigt impact, 0.27 % of the dissipated energy at 80 steps per contact for the predicted
-   0.26 %): a run that dissipates up to its energy scale ends rate * dt of it off, rate = c / 2 m*
-   of the fastest dashpot (Kelvin-Voigt: its damping over the lightest pair; Hertz: eta_n =
-   gamma sqrt(m* S_n) at the deepest overlap of the fastest impact the guards foresee; a wall: the
-   lightest sphere). On the way, each contact's onset takes c dt / m* = 2 rate dt of the impact's
-   kinetic energy before the dashpot's work is booked (:data:`ONSET`; measured: 1.00 % at
-   c dt / m* = 0.01, the largest departure of a head-on impact's balance, which the notes read).
-   So dt <= MARGIN accuracy / ((ONSET + 1) rate). Skipped by resolved contacts
-   (``resolve_contacts=True``: their dashpots are second order);
-3. **a pilot**, measured: the scene's start is run (on a copy: nothing of the scene changes) for
-   :data:`PILOT_FRACTION` of the run (at least :data:`PILOT_STEPS` steps) at that step, and its
-   balance read: its largest departure, plus, when the pilot dissipates over :data:`DISSIPATING`
-   of the energy scale, its departure at the end extrapolated to a run that dissipates its whole
-   energy scale (the part that accumulates). When this prediction
-   exceeds :data:`ACCEPT` of the accuracy the step shrinks to aim at MARGIN of it (at first order when
-   the pilot dissipates: dashpots; else at the method's order) and the pilot runs again at it, over
-   the same time (at most :data:`PILOTS` pilots).
+2. **a pilot**, measured: the scene's start is run (on a copy: nothing of the scene changes) for
+   :data:`PILOT_FRACTION` of the run (at least :data:`PILOT_STEPS` steps) at that step; in a scene
+   with dashpots, a pilot that dissipates less than :data:`DISSIPATING` of the energy scale runs
+   again over :data:`GROWTH` times its window, up to the whole run (its impacts come later: the
+   seed paper's pair meets 37 % into its run; a pilot at this longest step costs at most what a
+   run at it does). Its balance
+   is read: the largest departure, plus, when the pilot dissipates, the departure per energy
+   dissipated at its end times the energy the run would dissipate beyond the pilot's at the
+   pilot's rate (at most the whole scale: the part that accumulates). When this prediction
+   exceeds :data:`ACCEPT` of the accuracy, the step shrinks to aim at MARGIN of it (at first order
+   when the pilot dissipates: dashpots; else at the method's order); a pilot of the first window
+   runs again at the new step (at most :data:`PILOTS` in all), a longer one is trusted (running it
+   again would cost more than the run).
+3. **dashpots**, a law, only with ``pilot=False`` (the worst case, no run): a fixed step applies a
+   dashpot's force with the velocity half a step old, which strengthens its damping by
+   c dt / 2 m* (docs/accuracy.md: measured on a Kelvin-Voigt impact, 0.27 % of the dissipated
+   energy at 80 steps per contact for the predicted 0.26 %): a run that dissipates its energy
+   scale ends rate * dt of it off, rate = c / 2 m* of the fastest dashpot (Kelvin-Voigt: its
+   damping over the lightest pair; Hertz: eta_n = gamma sqrt(m* S_n) at the deepest overlap of the
+   fastest impact the guards foresee; a wall: the lightest sphere). On the way, each contact's
+   onset takes c dt / m* = 2 rate dt of the impact's kinetic energy before the dashpot's work is
+   booked (:data:`ONSET`; measured: 1.00 % at c dt / m* = 0.01, the largest departure of a
+   head-on impact's balance). So dt <= MARGIN accuracy / ((ONSET + 1) rate): right for a pair
+   (the seed paper's: 0.22 % at the aim 0.5 %), 10-20 times too strict for scenes of many spheres,
+   whose impacts each carry a sliver of the scale and which dissipate a part of it (60 steel balls
+   chaining in a field: 0.13 % at half the largest safe step, where the law says 2.7 %). Skipped by
+   resolved contacts (``resolve_contacts=True``: their dashpots are second order).
 
-What a pilot cannot see (an event after its window: the seed paper's impact, 24000 time units into
-its run) is covered by stage 2 alone. The balance is not checked in scenes with a heat bath or a
-moving wall (their work is not booked, :mod:`demkit.notes`): stages 1 and 2 choose their step.
-Overlaps depend on the contact law's stiffness, not on the step: no step choice removes their note.
+The balance is not checked in scenes with a heat bath or a moving wall (their work is not booked,
+:mod:`demkit.notes`): they take stage 1 alone. Overlaps depend on the contact law's
+stiffness, not on the step: no step choice removes their note.
 """
 from __future__ import annotations
 
@@ -49,19 +56,22 @@ from .notes import ENERGY_DRIFT
 #: the energy balance a run with dt = "auto" keeps by default (fraction of its energy scale): the
 #: end-of-run note's limit
 ACCURACY = ENERGY_DRIFT
-#: the step aims at this fraction of the accuracy asked (a margin for what a pilot extrapolates)
-MARGIN = 0.5
+#: the step aims at this fraction of the accuracy asked: a margin for what a pilot extrapolates
+#: (its predictions were 1.5 and 1.9 times the drift of the runs, benchmarks/results/auto_step.json)
+MARGIN = 0.6
 #: a pilot runs this fraction of the run ...
 PILOT_FRACTION = 0.02
 #: ... and at least this many steps (or the whole run when it is shorter)
 PILOT_STEPS = 300
 #: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
 ONSET = 2.0
-#: at most this many pilots (each at a shorter step than the last)
+#: a pilot that dissipated nothing runs again over this many times its window (up to the whole run)
+GROWTH = 4.0
+#: at most this many pilots at shorter steps (each over the first pilot's window)
 PILOTS = 3
 #: a pilot's prediction is accepted up to this fraction of the accuracy (it aims at MARGIN when it
-#: shrinks the step: a prediction within 20 % of the aim is not worth another pilot)
-ACCEPT = 0.6
+#: shrinks the step: a prediction within 25 % of the aim is not worth another pilot)
+ACCEPT = 0.75
 #: a pilot that dissipates more than this fraction of the energy scale measures the dashpots' drift
 DISSIPATING = 0.01
 
@@ -129,7 +139,6 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
     is known yet (nothing moves or pulls) or a pilot fails."""
     from .accuracy import copy_scene
     from .notes import RunNotes
-    from .simulation import Simulation, SimulationError
     clock = time.perf_counter()
     duration = checks.positive("duration", duration)
     accuracy = checks.positive("accuracy", accuracy)
@@ -147,46 +156,71 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
     rate, what = dashpot_rate(scene)
     resolved = bool(getattr(probe, "resolve_contacts", False))
     dashpot = aim / ((ONSET + 1.0) * rate) * inner if rate > 0.0 and not resolved else math.inf
-    dt = min(stable, dashpot)
-    reason = (f"half the largest safe step ({why})" if dt == stable else
-              f"the dashpots of {what} (rate c/2m* = {rate:.4g}) keep the balance within {aim:.3g}: "
-              f"{rate * dt / inner:.3g} of the energy dissipated, {ONSET * rate * dt / inner:.3g} of an impact's "
-              f"at its onset")
-    pilots = []
-    balance = RunNotes(scene).balance
-    if pilot and balance:
-        window = min(max(PILOT_STEPS * dt, PILOT_FRACTION * duration), duration)  # the same for every pilot
-        for _ in range(PILOTS):
-            steps = math.ceil(window / dt)
-            sim = Simulation(copy_scene(scene), method(dt), notes=False)
-            try:
-                traj = sim.run(duration=steps * dt, record_every=max(1, steps // 100) * dt, progress=False)
-            except SimulationError as error:
-                raise ValueError(f'dt = "auto": a pilot run at dt = {dt:.4g} failed ({error}); give dt as a '
-                                 f'number') from error
-            parts = np.column_stack([v for k, v in traj.energy.items() if k not in ("total", "dissipated")])
-            lost = traj.energy["dissipated"]
-            total = parts.sum(axis=1) + lost
-            scale = float(np.max(np.abs(parts).sum(axis=1)))  # as the notes' (demkit.notes)
-            if not scale > 0.0:
+    dt, reason, pilots = stable, f"half the largest safe step ({why})", []
+    if pilot and RunNotes(scene).balance:
+        first = min(max(PILOT_STEPS * dt, PILOT_FRACTION * duration), duration)
+        window = first
+        while True:  # until it dissipates (impacts later in the run: the seed paper's pair meets at 37 %)
+            figures = _pilot(copy_scene(scene), method(dt), window, duration)
+            if figures is None:  # no energy at all: nothing to measure
                 break
-            drift = float(np.max(np.abs(total - total[0]))) / scale
-            dissipated = float(lost[-1] - lost[0]) / scale
-            dissipating = dissipated > DISSIPATING
-            predicted = drift
-            if dissipating and dissipated < 1.0:  # the rest of the scale dissipated as the pilot did
-                predicted += abs(total[-1] - total[0]) / scale * (1.0 / dissipated - 1.0)
-            pilots.append({"dt": dt, "steps": steps, "drift": drift, "dissipated": dissipated,
-                           "predicted": predicted})
-            if predicted <= ACCEPT * accuracy:
+            pilots.append(figures)
+            if figures["dissipated"] > DISSIPATING or window >= duration or rate == 0.0:  # (no dashpot: none)
                 break
+            window = min(GROWTH * window, duration)
+        tries = 1
+        while figures is not None and figures["predicted"] > ACCEPT * accuracy:
+            dissipating = figures["dissipated"] > DISSIPATING
             order = 1.0 if dissipating else float(probe.order or 1)
-            dt *= 0.9 * (aim / predicted) ** (1.0 / order)
-            reason = (f"a pilot of {steps} steps predicted a drift of {predicted:.3g} of the energy scale at "
-                      f"dt = {pilots[-1]['dt']:.4g} ({'extrapolated to the whole scale dissipated' if dissipating else 'as measured'}"
-                      f"); shrunk at order {order:g} to aim at {aim:.3g}")
-        else:
-            reason += f" (after {PILOTS} pilots; the last predicted {pilots[-1]['predicted']:.3g})"
+            dt *= 0.9 * (aim / figures["predicted"]) ** (1.0 / order)
+            reason = (f"a pilot of {figures['steps']:,} steps at dt = {figures['dt']:.4g} "
+                      f"({figures['steps'] * figures['dt'] / duration:.0%} of the run) predicted a drift of "
+                      f"{figures['predicted']:.3g} of the energy scale ("
+                      f"{'its dissipation extrapolated to the run' if dissipating else 'as measured'}); shrunk at "
+                      f"order {order:g} to aim at {aim:.3g}")
+            if window > first:  # a long pilot is not run again (it would cost more than the run saves)
+                break
+            if tries == PILOTS:
+                reason += f" (after {PILOTS} pilots)"
+                break
+            tries += 1
+            figures = _pilot(copy_scene(scene), method(dt), window, duration)
+            if figures is not None:
+                pilots.append(figures)
     elif pilot:
         reason += "; no pilot: a heat bath or a moving wall does work the balance does not book"
+    elif dashpot < dt:  # no pilot asked for: the dashpots' law, the worst case
+        dt = dashpot
+        reason = (f"the dashpots of {what} (rate c/2m* = {rate:.4g}) in the worst case keep the balance within "
+                  f"{aim:.3g}: {rate * dt / inner:.3g} of the energy dissipated, {ONSET * rate * dt / inner:.3g} "
+                  f"of an impact's at its onset")
     return StepChoice(dt, accuracy, stable, dashpot, reason, pilots, time.perf_counter() - clock)
+
+
+def _pilot(scene, integrator, window, duration):
+    """The figures of one pilot run of ``scene`` over ``window``: its largest departure of the balance
+    (``drift``) and energy dissipated (fractions of the energy scale), and the drift it predicts for
+    the run (the departure per energy dissipated at its end, times the energy the run would
+    dissipate beyond the pilot's at the pilot's rate, at most the scale); None without energy."""
+    from .simulation import Simulation, SimulationError
+    dt = integrator.dt
+    steps = math.ceil(window / dt)
+    sim = Simulation(scene, integrator, notes=False)
+    try:
+        traj = sim.run(duration=steps * dt, record_every=max(1, steps // 100) * dt, progress=False)
+    except SimulationError as error:
+        raise ValueError(f'dt = "auto": a pilot run at dt = {dt:.4g} failed ({error}); give dt as a number') \
+            from error
+    parts = np.column_stack([v for k, v in traj.energy.items() if k not in ("total", "dissipated")])
+    lost = traj.energy["dissipated"]
+    total = parts.sum(axis=1) + lost
+    scale = float(np.max(np.abs(parts).sum(axis=1)))  # as the notes' (demkit.notes)
+    if not scale > 0.0:
+        return None
+    drift = float(np.max(np.abs(total - total[0]))) / scale
+    dissipated = float(lost[-1] - lost[0]) / scale
+    predicted = drift
+    if dissipated > DISSIPATING:
+        expected = min(1.0, dissipated * duration / (steps * dt))  # of the scale, by the run's end
+        predicted += abs(total[-1] - total[0]) / scale / dissipated * max(0.0, expected - dissipated)
+    return {"dt": dt, "steps": steps, "drift": drift, "dissipated": dissipated, "predicted": predicted}
