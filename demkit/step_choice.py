@@ -63,6 +63,8 @@ MARGIN = 0.6
 PILOT_FRACTION = 0.02
 #: ... and at least this many steps (or the whole run when it is shorter)
 PILOT_STEPS = 300
+#: a pilot records frames at every step, or as often as this many sphere-frames allow (~100 MB)
+SPHERE_FRAMES = 1_000_000
 #: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
 ONSET = 2.0
 #: a pilot that dissipated nothing runs again over this many times its window (up to the whole run)
@@ -207,7 +209,10 @@ def _pilot(scene, integrator, window, duration):
     steps = math.ceil(window / dt)
     sim = Simulation(scene, integrator, notes=False)
     try:
-        traj = sim.run(duration=steps * dt, record_every=max(1, steps // 100) * dt, progress=False)
+        # frames at every step up to SPHERE_FRAMES (the balance departs most for a step or two as a
+        # contact begins: sparse frames would miss what a run recording often shows)
+        stride = max(1, math.ceil(steps * len(scene.particles) / SPHERE_FRAMES))
+        traj = sim.run(duration=steps * dt, record_every=stride * dt, progress=False)
     except SimulationError as error:
         raise ValueError(f'dt = "auto": a pilot run at dt = {dt:.4g} failed ({error}); give dt as a number') \
             from error
