@@ -6,6 +6,7 @@ for a first-order balance; many-body runs are chaotic, so positions are not comp
 are: they are what the balance is made of).
 
     python benchmarks/bench_auto_step.py [case ...]    # all cases by default
+    python benchmarks/bench_auto_step.py --table       # the results as a markdown table
 
 Writes benchmarks/results/auto_step.json (after each case: a stopped run keeps what it measured).
 """
@@ -101,5 +102,26 @@ def main(names):
     print(f"wrote {OUT}")
 
 
+def table():
+    """The results as a markdown table (docs/accuracy.md)."""
+    cases = json.loads(OUT.read_text())["cases"]
+    print("| scene | N | steps | dt chosen / half the safe step | balance at it (note?) | at half the safe step "
+          "| energies against dt/k | choosing / run (s) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, c in cases.items():
+        ch, run_, half, truth = c["chosen"], c["run"], c["half_safe_step"], c["truth"]
+        pct = lambda x: "not booked" if x is None else f"{100 * x:.2f} %"  # noqa: E731
+        true = f"{max(truth['kinetic_error'], truth['potential_error']):.1e} (k = {truth['finer']})"
+        if "spin_error" in truth:
+            true += f"; spin {truth['spin_error']:.1e}"
+        print(f"| {name} | {c['n']} | {run_['steps']:,} | {ch['dt'] / ch['stable']:.3g} "
+              f"| {pct(run_['energy_drift'])}{' (note)' if run_['step_note'] else ''} "
+              f"| {pct(half['energy_drift'])}{' (note)' if half['step_note'] else ''} | {true} "
+              f"| {ch['wall_s']:.1f} / {run_['wall_s']:.1f} |")
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:] or list(SCENES))
+    if sys.argv[1:] == ["--table"]:
+        table()
+    else:
+        main(sys.argv[1:] or list(SCENES))

@@ -9,9 +9,9 @@ at :data:`MARGIN` of it, in three stages:
 2. **a pilot**, measured: the scene's start is run (on a copy: nothing of the scene changes) for
    :data:`PILOT_FRACTION` of the run (at least :data:`PILOT_STEPS` steps) at that step; in a scene
    with dashpots, a pilot that dissipates less than :data:`DISSIPATING` of the energy scale runs
-   again over :data:`GROWTH` times its window, up to the whole run (its impacts come later: the
-   seed paper's pair meets 37 % into its run; a pilot at this longest step costs at most what a
-   run at it does). Its balance
+   on to :data:`GROWTH` times its window, up to the whole run (its impacts come later: the seed
+   paper's pair meets 37 % into its run; a pilot at this longest step costs at most what a run at
+   it does). Its balance
    is read: the largest departure, plus, when the pilot dissipates, the departure per energy
    dissipated at its end times the energy the run would dissipate beyond the pilot's at the
    pilot's rate (at most the whole scale: the part that accumulates). When this prediction
@@ -67,7 +67,7 @@ PILOT_STEPS = 300
 SPHERE_FRAMES = 1_000_000
 #: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
 ONSET = 2.0
-#: a pilot that dissipated nothing runs again over this many times its window (up to the whole run)
+#: a pilot that dissipated nothing runs on to this many times its window (up to the whole run)
 GROWTH = 4.0
 #: at most this many pilots at shorter steps (each over the first pilot's window)
 PILOTS = 3
@@ -161,9 +161,9 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
     dt, reason, pilots = stable, f"half the largest safe step ({why})", []
     if pilot and RunNotes(scene).balance:
         first = min(max(PILOT_STEPS * dt, PILOT_FRACTION * duration), duration)
-        window = first
+        window, run = first, _Pilot(copy_scene(scene), method(dt))
         while True:  # until it dissipates (impacts later in the run: the seed paper's pair meets at 37 %)
-            figures = _pilot(copy_scene(scene), method(dt), window, duration)
+            figures = run.extend(window, duration)
             if figures is None:  # no energy at all: nothing to measure
                 break
             pilots.append(figures)
@@ -186,7 +186,7 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
                 reason += f" (after {PILOTS} pilots)"
                 break
             tries += 1
-            figures = _pilot(copy_scene(scene), method(dt), window, duration)
+            figures = _Pilot(copy_scene(scene), method(dt)).extend(window, duration)
             if figures is not None:
                 pilots.append(figures)
     elif pilot:
@@ -199,33 +199,43 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
     return StepChoice(dt, accuracy, stable, dashpot, reason, pilots, time.perf_counter() - clock)
 
 
-def _pilot(scene, integrator, window, duration):
-    """The figures of one pilot run of ``scene`` over ``window``: its largest departure of the balance
-    (``drift``) and energy dissipated (fractions of the energy scale), and the drift it predicts for
-    the run (the departure per energy dissipated at its end, times the energy the run would
-    dissipate beyond the pilot's at the pilot's rate, at most the scale); None without energy."""
-    from .simulation import Simulation, SimulationError
-    dt = integrator.dt
-    steps = math.ceil(window / dt)
-    sim = Simulation(scene, integrator, notes=False)
-    try:
-        # frames at every step up to SPHERE_FRAMES (the balance departs most for a step or two as a
-        # contact begins: sparse frames would miss what a run recording often shows)
-        stride = max(1, math.ceil(steps * len(scene.particles) / SPHERE_FRAMES))
-        traj = sim.run(duration=steps * dt, record_every=stride * dt, progress=False)
-    except SimulationError as error:
-        raise ValueError(f'dt = "auto": a pilot run at dt = {dt:.4g} failed ({error}); give dt as a number') \
-            from error
-    parts = np.column_stack([v for k, v in traj.energy.items() if k not in ("total", "dissipated")])
-    lost = traj.energy["dissipated"]
-    total = parts.sum(axis=1) + lost
-    scale = float(np.max(np.abs(parts).sum(axis=1)))  # as the notes' (demkit.notes)
-    if not scale > 0.0:
-        return None
-    drift = float(np.max(np.abs(total - total[0]))) / scale
-    dissipated = float(lost[-1] - lost[0]) / scale
-    predicted = drift
-    if dissipated > DISSIPATING:
-        expected = min(1.0, dissipated * duration / (steps * dt))  # of the scale, by the run's end
-        predicted += abs(total[-1] - total[0]) / scale / dissipated * max(0.0, expected - dissipated)
-    return {"dt": dt, "steps": steps, "drift": drift, "dissipated": dissipated, "predicted": predicted}
+class _Pilot:
+    """A pilot run of a copy of the scene at one step, extended window by window (a continued run is
+    the same as one run: the steps already made are not made again)."""
+
+    def __init__(self, scene, integrator):
+        from .simulation import Simulation
+        self.sim, self.dt, self.steps, self.energies = Simulation(scene, integrator, notes=False), integrator.dt, 0, []
+
+    def extend(self, window, duration):
+        """Run on to ``window`` and return the figures over it: its largest departure of the balance
+        (``drift``) and energy dissipated (fractions of the energy scale), and the drift it predicts
+        for the run (the departure per energy dissipated at its end, times the energy the run would
+        dissipate beyond the pilot's at the pilot's rate, at most the scale); None without energy."""
+        from .simulation import SimulationError
+        more = math.ceil(window / self.dt) - self.steps
+        if more > 0:
+            # frames at every step up to SPHERE_FRAMES (the balance departs most for a step or two as
+            # a contact begins: sparse frames would miss what a run recording often shows)
+            stride = max(1, math.ceil(more * len(self.sim.scene.particles) / SPHERE_FRAMES))
+            try:
+                traj = self.sim.run(duration=more * self.dt, record_every=stride * self.dt, progress=False)
+            except SimulationError as error:
+                raise ValueError(f'dt = "auto": a pilot run at dt = {self.dt:.4g} failed ({error}); give dt as '
+                                 f'a number') from error
+            self.energies.append((np.column_stack([v for k, v in traj.energy.items()
+                                                   if k not in ("total", "dissipated")]), traj.energy["dissipated"]))
+            self.steps += more
+        parts = np.concatenate([e for e, _ in self.energies])
+        lost = np.concatenate([d for _, d in self.energies])
+        total = parts.sum(axis=1) + lost
+        scale = float(np.max(np.abs(parts).sum(axis=1)))  # as the notes' (demkit.notes)
+        if not scale > 0.0:
+            return None
+        drift = float(np.max(np.abs(total - total[0]))) / scale
+        dissipated = float(lost[-1] - lost[0]) / scale
+        predicted = drift
+        if dissipated > DISSIPATING:
+            expected = min(1.0, dissipated * duration / (self.steps * self.dt))  # of the scale, by the run's end
+            predicted += abs(total[-1] - total[0]) / scale / dissipated * max(0.0, expected - dissipated)
+        return {"dt": self.dt, "steps": self.steps, "drift": drift, "dissipated": dissipated, "predicted": predicted}
