@@ -176,8 +176,9 @@ def info_command(args):
         print(f"checks        refused: {err}")
     choice = loaded.step_choice
     if choice is not None:
-        pilots = (f"{len(choice.pilots)} pilot run{'s' if len(choice.pilots) != 1 else ''} of "
-                  f"{sum(p['steps'] for p in choice.pilots):,} steps in all" if choice.pilots else "no pilot run")
+        runs = sum(p["added"] == p["steps"] for p in choice.pilots)  # (a pilot that found no impact ran on)
+        pilots = (f"{runs} pilot run{'s' if runs != 1 else ''} of {sum(p['added'] for p in choice.pilots):,} steps "
+                  f"in all" if choice.pilots else "no pilot run")
         print(f'chosen        dt = "auto" for an energy balance within {choice.accuracy:.3g} of the energy scale '
               f"(integrator.accuracy): {choice.why}; {pilots}, {choice.seconds:.2f} s")
     else:

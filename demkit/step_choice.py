@@ -82,8 +82,9 @@ DISSIPATING = 0.01
 class StepChoice:
     """The step chosen (``dt``, of the method's whole step; ``contact_step`` its inner step) and why:
     ``stable`` half the largest safe step, ``dashpot`` the bound of stage 2 (inf: none), ``pilots``
-    one dict per pilot run (dt, steps, drift and dissipated energy as fractions of the energy
-    scale, predicted drift of the run), ``seconds`` what choosing cost (wall), ``why`` one line."""
+    one dict per pilot reading (dt, steps from its start, of which ``added`` new: a pilot that found no
+    impact runs on; drift and dissipated energy as fractions of the energy scale, predicted drift of
+    the run), ``seconds`` what choosing cost (wall), ``why`` one line."""
 
     dt: float
     accuracy: float
@@ -213,7 +214,7 @@ class _Pilot:
         for the run (the departure per energy dissipated at its end, times the energy the run would
         dissipate beyond the pilot's at the pilot's rate, at most the scale); None without energy."""
         from .simulation import SimulationError
-        more = math.ceil(window / self.dt) - self.steps
+        more = max(0, math.ceil(window / self.dt) - self.steps)
         if more > 0:
             # frames at every step up to SPHERE_FRAMES (the balance departs most for a step or two as
             # a contact begins: sparse frames would miss what a run recording often shows)
@@ -238,4 +239,5 @@ class _Pilot:
         if dissipated > DISSIPATING:
             expected = min(1.0, dissipated * duration / (self.steps * self.dt))  # of the scale, by the run's end
             predicted += abs(total[-1] - total[0]) / scale / dissipated * max(0.0, expected - dissipated)
-        return {"dt": self.dt, "steps": self.steps, "drift": drift, "dissipated": dissipated, "predicted": predicted}
+        return {"dt": self.dt, "steps": self.steps, "added": more, "drift": drift, "dissipated": dissipated,
+                "predicted": predicted}
