@@ -9,12 +9,14 @@ at :data:`MARGIN` of it, in three stages:
 2. **a pilot**, measured: the scene's start is run (on a copy: nothing of the scene changes) for
    :data:`PILOT_FRACTION` of the run (at least :data:`PILOT_STEPS` steps) at that step; in a scene
    with dashpots, a pilot that dissipates less than :data:`DISSIPATING` of the energy scale runs
-   on to :data:`GROWTH` times its window, up to the whole run (its impacts come later: the seed
-   paper's pair meets 37 % into its run; a pilot at this longest step costs at most what a run at
-   it does). Its balance
+   on to :data:`GROWTH` times its window, and again, until it has dissipated :data:`ENOUGH` of it
+   or reached the run's end (its impacts come later: the seed paper's pair meets 37 % into its run;
+   a pour's first impacts are not its bulk; a pilot at this longest step costs at most what a run
+   at it does). Its balance
    is read: the largest departure, plus, when the pilot dissipates, the departure per energy
    dissipated at its end times the energy the run would dissipate beyond the pilot's at the
-   pilot's rate (at most the whole scale: the part that accumulates). When this prediction
+   pilot's rate (at most the whole scale: the part that accumulates; the whole scale when it began
+   dissipating only after its first window: the bulk of a pour's impacts is still to come). When this prediction
    exceeds :data:`ACCEPT` of the accuracy, the step shrinks to aim at MARGIN of it (at first order
    when the pilot dissipates: dashpots; else at the method's order); a pilot of the first window
    runs again at the new step (at most :data:`PILOTS` in all), a longer one is trusted (running it
@@ -63,6 +65,9 @@ MARGIN = 0.6
 PILOT_FRACTION = 0.02
 #: ... and at least this many steps (or the whole run when it is shorter)
 PILOT_STEPS = 300
+#: a pilot whose impacts began after its first window runs on until it has dissipated this much of
+#: the energy scale (or to the run's end): a pour's first impacts are not its bulk
+ENOUGH = 0.1
 #: a pilot records frames at every step, or as often as this many sphere-frames allow (~100 MB)
 SPHERE_FRAMES = 1_000_000
 #: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
@@ -164,11 +169,13 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
         first = min(max(PILOT_STEPS * dt, PILOT_FRACTION * duration), duration)
         window, run = first, _Pilot(copy_scene(scene), method(dt))
         while True:  # until it dissipates (impacts later in the run: the seed paper's pair meets at 37 %)
-            figures = run.extend(window, duration)
+            figures = run.extend(window, duration, late=window > first)
             if figures is None:  # no energy at all: nothing to measure
                 break
             pilots.append(figures)
-            if figures["dissipated"] > DISSIPATING or window >= duration or rate == 0.0:  # (no dashpot: none)
+            if window >= duration or rate == 0.0:  # (no dashpot: nothing to wait for)
+                break
+            if figures["dissipated"] > (DISSIPATING if window == first else ENOUGH):  # (a late start: its bulk)
                 break
             window = min(GROWTH * window, duration)
         tries = 1
@@ -187,7 +194,7 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
                 reason += f" (after {PILOTS} pilots)"
                 break
             tries += 1
-            figures = _Pilot(copy_scene(scene), method(dt)).extend(window, duration)
+            figures = _Pilot(copy_scene(scene), method(dt)).extend(window, duration, late=window > first)
             if figures is not None:
                 pilots.append(figures)
     elif pilot:
@@ -208,11 +215,12 @@ class _Pilot:
         from .simulation import Simulation
         self.sim, self.dt, self.steps, self.energies = Simulation(scene, integrator, notes=False), integrator.dt, 0, []
 
-    def extend(self, window, duration):
+    def extend(self, window, duration, late=False):
         """Run on to ``window`` and return the figures over it: its largest departure of the balance
         (``drift``) and energy dissipated (fractions of the energy scale), and the drift it predicts
         for the run (the departure per energy dissipated at its end, times the energy the run would
-        dissipate beyond the pilot's at the pilot's rate, at most the scale); None without energy."""
+        dissipate beyond the pilot's at the pilot's rate, at most the scale; the whole scale when the
+        dissipation started ``late``: its bulk is still to come); None without energy."""
         from .simulation import SimulationError
         more = max(0, math.ceil(window / self.dt) - self.steps)
         if more > 0:
@@ -238,6 +246,8 @@ class _Pilot:
         predicted = drift
         if dissipated > DISSIPATING:
             expected = min(1.0, dissipated * duration / (self.steps * self.dt))  # of the scale, by the run's end
+            if late and self.steps * self.dt < duration:
+                expected = 1.0
             predicted += abs(total[-1] - total[0]) / scale / dissipated * max(0.0, expected - dissipated)
         return {"dt": self.dt, "steps": self.steps, "added": more, "drift": drift, "dissipated": dissipated,
                 "predicted": predicted}
