@@ -233,14 +233,18 @@ def langevin_colloid():
                 f"4 d, elastic Kelvin-Voigt k = 1000, Langevin kT = 1, drag 1 (no energy balance with a bath)")
 
 
+def damped(stiffness, restitution, **kw):
+    """A Kelvin-Voigt law with the restitution asked for between two unit masses (m* = 1/2)."""
+    zeta = -math.log(restitution) / math.hypot(math.pi, math.log(restitution))
+    return dk.KelvinVoigt(stiffness, 2 * zeta * math.sqrt(stiffness * 0.5), **kw)
+
+
 def _fmm_cluster(name, n, fmm, duration, note):
     radius, coupling = 0.5, 1.0
     box = dk.build.box_for(n, radius, 0.15, periodic=False)  # open: only where the spheres start
     particles = dk.Particles(position=dk.build.random_packing(n, radius, box, seed=8), radius=radius, mass=1.0,
                              dipole=math.sqrt(coupling) * dk.build.random_directions(n, seed=9))
-    stiffness = 6 * coupling / 0.01  # the touching pull squeezes by 1 % of d
-    zeta = -math.log(0.5) / math.hypot(math.pi, math.log(0.5))
-    contact = dk.KelvinVoigt(stiffness, 2 * zeta * math.sqrt(stiffness * 0.5))
+    contact = damped(6 * coupling / 0.01, 0.5)  # the touching pull squeezes by 1 % of d
     scene = dk.Scene(particles, [dk.Dipole(prefactor=1.0, long_range=fmm), contact])
     return Case(name, scene, dk.VelocityVerlet, duration, 0.1,
                 f"new user: {n} unit magnets at rest at volume fraction 0.15 in open space, collapsing into "
@@ -266,9 +270,7 @@ def friction_gas_mu08():
     box = dk.build.box_for(n, radius, 0.3, periodic=True)
     particles = dk.Particles(position=dk.build.random_packing(n, radius, box, seed=10), radius=radius, mass=1.0,
                              velocity=dk.build.thermal_velocities(n, kT=1.0, mass=1.0, seed=11))
-    stiffness = 1e4
-    zeta = -math.log(0.7) / math.hypot(math.pi, math.log(0.7))
-    contact = dk.KelvinVoigt(stiffness, 2 * zeta * math.sqrt(stiffness * 0.5), friction=dk.Friction(0.8))
+    contact = damped(1e4, 0.7, friction=dk.Friction(0.8))
     scene = dk.Scene(particles, [contact], box=box)
     return Case("friction_gas_mu08", scene, dk.VelocityVerlet, 10.0, 0.05,
                 f"new user: {n} spheres at volume fraction 0.3, periodic, kT = 1 at the start, no dipoles; "
