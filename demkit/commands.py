@@ -84,6 +84,9 @@ def run_command(args):
     n = len(loaded.scene.particles)
     steps = round(loaded.duration / loaded.integrator.dt)
     print(f"{loaded.path}: {n} spheres, {loaded.integrator!r}, t = 0 .. {loaded.duration:g} ({steps:,} steps)")
+    if loaded.step_choice is not None:
+        choice = loaded.step_choice
+        print(f'dt = "auto" for a balance within {choice.accuracy:g}: {choice.why} ({choice.seconds:.1f} s)')
     outputs = dict(_outputs(loaded, args.out))
     if not outputs:
         print(NO_OUTPUTS)

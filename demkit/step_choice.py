@@ -68,6 +68,8 @@ PILOT_STEPS = 300
 #: a pilot whose impacts began after its first window runs on until it has dissipated this much of
 #: the energy scale (or to the run's end): a pour's first impacts are not its bulk
 ENOUGH = 0.1
+#: a step this many times shorter than half the safe step says so in its reason
+COSTLY = 20.0
 #: a pilot records frames at every step, or as often as this many sphere-frames allow (~100 MB)
 SPHERE_FRAMES = 1_000_000
 #: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
@@ -204,6 +206,9 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
         reason = (f"the dashpots of {what} (rate c/2m* = {rate:.4g}) in the worst case keep the balance within "
                   f"{aim:.3g}: {rate * dt / inner:.3g} of the energy dissipated, {ONSET * rate * dt / inner:.3g} "
                   f"of an impact's at its onset")
+    if dt < stable / COSTLY:  # a careless accuracy: say what it costs
+        reason += (f"; {stable / dt:.0f} times the steps of half the safe step (the accuracy asked costs that; "
+                   f"a looser one costs less)")
     return StepChoice(dt, accuracy, stable, dashpot, reason, pilots, time.perf_counter() - clock)
 
 

@@ -52,6 +52,9 @@ def test_the_chosen_step_keeps_the_balance_within_the_accuracy_asked():
     assert at_half.statistics["energy_drift"] > notes.ENERGY_DRIFT
     tight = dk.choose_time_step(scene, dk.VelocityVerlet, 1.0, 1e-3)
     assert tight.dt < loose.dt
+    # a step over 20 times shorter than half the safe step says what the accuracy costs
+    assert loose.dt > loose.stable / step_choice.COSTLY and "times the steps" not in loose.why
+    assert tight.dt < tight.stable / step_choice.COSTLY and "73 times the steps of half the safe step" in tight.why
     for choice in (loose, tight):
         sim = dk.Simulation(head_on(), dk.VelocityVerlet(choice.dt))
         sim.run(1.0, record_every=0.01)
@@ -175,3 +178,6 @@ def test_scene_files_take_dt_auto_with_an_accuracy_and_demkit_info_says_why(tmp_
     out = capsys.readouterr().out
     assert 'chosen        dt = "auto" for an energy balance within 0.002 of the energy scale' in out
     assert "pilot" in out
+    assert main(["run", str(path)]) in (0, None)  # says the step it runs with, and why
+    out = capsys.readouterr().out
+    assert 'dt = "auto" for a balance within 0.002: a pilot of' in out
