@@ -59,7 +59,7 @@ from .notes import ENERGY_DRIFT
 #: end-of-run note's limit
 ACCURACY = ENERGY_DRIFT
 #: the step aims at this fraction of the accuracy asked: a margin for what a pilot extrapolates
-#: (its predictions were 1.5 and 1.9 times the drift of the runs, benchmarks/results/auto_step.json)
+#: (its predictions were 1.2-2.4 times the drift of the runs, benchmarks/results/auto_step.json)
 MARGIN = 0.6
 #: a pilot runs this fraction of the run ...
 PILOT_FRACTION = 0.02
@@ -72,7 +72,7 @@ ENOUGH = 0.1
 COSTLY = 20.0
 #: a pilot records frames at every step, or as often as this many sphere-frames allow (~100 MB)
 SPHERE_FRAMES = 1_000_000
-#: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 2)
+#: a contact's onset departs the balance by ONSET rate dt of the impact's kinetic energy (stage 3)
 ONSET = 2.0
 #: a pilot that dissipated nothing runs on to this many times its window (up to the whole run)
 GROWTH = 4.0
@@ -87,8 +87,8 @@ DISSIPATING = 0.01
 
 @dataclass
 class StepChoice:
-    """The step chosen (``dt``, of the method's whole step; ``contact_step`` its inner step) and why:
-    ``stable`` half the largest safe step, ``dashpot`` the bound of stage 2 (inf: none), ``pilots``
+    """The step chosen (``dt``, the method's whole step) and why: ``accuracy`` asked, ``stable`` half
+    the largest safe step, ``dashpot`` the worst-case bound of stage 3 (inf: none), ``pilots``
     one dict per pilot reading (dt, steps from its start, of which ``added`` new: a pilot that found no
     impact runs on; drift and dissipated energy as fractions of the energy scale, predicted drift of
     the run), ``seconds`` what choosing cost (wall), ``why`` one line."""
@@ -145,7 +145,7 @@ def choose_time_step(scene, method, duration, accuracy=ACCURACY, pilot=True):
     """A step for ``method`` (an Integrator class or a callable dt -> Integrator, e.g. ``lambda dt:
     dk.MultipleTimeStep(dt, inner=4)``) to run ``scene`` for ``duration`` with its energy balance
     within ``accuracy`` of its energy scale (see the module docstring). ``pilot=False``: stages 1
-    and 2 only (no run). Returns a :class:`StepChoice`; raises ValueError when no stability limit
+    and 3 only (no run). Returns a :class:`StepChoice`; raises ValueError when no stability limit
     is known yet (nothing moves or pulls) or a pilot fails."""
     from .accuracy import copy_scene
     from .notes import RunNotes
