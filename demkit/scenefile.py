@@ -949,6 +949,7 @@ def _magnet_field(table, where, src, scale):
 
 
 def _integrator(d, scene, src):
+    """(the integrator, the StepChoice of dt = "auto" or None)."""
     from .cli import parse_method
     integ = d["integrator"]
     text = integ["method"]
@@ -962,18 +963,15 @@ def _integrator(d, scene, src):
     if integ["accuracy"] is not None and dt != "auto":
         raise src.error(("integrator", "accuracy"), 'accuracy chooses the step of dt = "auto"; with dt given as a '
                                                      'number it has no effect: remove it, or set dt = "auto"')
+    choice = None
     if dt == "auto":
         from .step_choice import ACCURACY, choose_time_step
         accuracy = ACCURACY if integ["accuracy"] is None else integ["accuracy"]
-        if accuracy >= 1.0:
-            raise src.error(("integrator", "accuracy"), f"accuracy is a fraction of the energy scale, below 1; got "
-                                                         f"{accuracy!r}")
-        with _At(src, "integrator", "dt"):
+        with _At(src, "integrator", keys=("dt", "accuracy")):  # at the key its message names first
             choice = choose_time_step(scene, make, d["run"]["duration"], accuracy)
-        src.step_choice = choice
         dt = choice.dt
     with _At(src, "integrator"):
-        return make(dt)
+        return make(dt), choice
 
 
 def _build(data, src, base):
@@ -1000,7 +998,7 @@ def _build(data, src, base):
     with _At(src, "particles", keys=given, keyed=("scene",)):
         scene = Scene(particles, interactions, box=box, skin=options["skin"], parallel=parallel,
                       sort_every=options["sort_every"])
-    integrator = _integrator(data, scene, src)
+    integrator, step_choice = _integrator(data, scene, src)
     run = data["run"]
     with _At(src, "integrator"):
         from .guards import before_stepping
@@ -1010,7 +1008,7 @@ def _build(data, src, base):
     return LoadedScene(scene=scene, integrator=integrator, duration=run["duration"], record_every=run["record_every"],
                        outputs=outputs, path=None if str(src.name) == "<string>" else Path(src.name), data=data,
                        units=units, max_energy_growth=run["max_energy_growth"], base=base, source=src,
-                       step_choice=getattr(src, "step_choice", None))
+                       step_choice=step_choice)
 
 
 # ---- running --------------------------------------------------------------------------------------
