@@ -75,7 +75,8 @@ def part_costs(sizes):
         table = tuned.table_values()
         force, torque = np.zeros((n, 3)), np.zeros((n, 3))
         size = np.asarray(box.size, dtype=np.float64)
-        reciprocal = best_time(lambda: reciprocal_sum(pos, dip, size, table, 0, force, torque, True))
+        status = np.zeros(4, dtype=np.int64)
+        reciprocal = best_time(lambda: reciprocal_sum(pos, dip, size, table, 0, force, torque, True, status))
         k = np.stack(np.meshgrid(*[np.arange(-m, m + 1) for m in tuned.kmax], indexing="ij"), -1).reshape(-1, 3)
         vectors = int((((2 * np.pi * k / size) ** 2).sum(1) <= tuned.kcut ** 2).sum() - 1) // 2
         pairs = listed_pairs(scene)

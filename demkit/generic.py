@@ -636,7 +636,8 @@ class _Generic:
                  "        slot = s.program[SUM_ROW + q, S_SLOT]"]
         for k in range(len(SUMS)):
             lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
-                      f"            {target} += sum_{k}(s.position, s.dipole, s.box, s.params, slot, {rest})"]
+                      f"            {target} += sum_{k}(s.position, s.dipole, s.box, s.params, slot, {rest}, "
+                      "s.status)"]
         return lines
 
     def upkeep_functions(self):

@@ -746,7 +746,8 @@ class _Source:
         if plan.effects and speed != "slow":
             lines.append(f"    power += sphere_forces({_state_fields()}, {force}, {torque}, s.sphere_history, commit_flag)")
         if speed != "fast":  # long-range sums are slow forces (dipoles)
-            lines += [f"    long_range_{q}(s.position, s.dipole, s.box, s.params, {slot}, {force}, {torque}, np.True_)"
+            lines += [f"    long_range_{q}(s.position, s.dipole, s.box, s.params, {slot}, {force}, {torque}, np.True_, "
+                      "s.status)"
                       for q, slot in enumerate(self.sum_slot)]
         return lines
 
@@ -851,7 +852,7 @@ class _Source:
             lines.append(f"    sphere_energies({spheres}, s.sphere_history, out)")
         for q, (tuned, slot) in enumerate(zip(plan.sums, self.sum_slot)):
             lines.append(f"    out[{2 + self.kinds.index(tuned.energy_kind)}] += long_range_{q}(s.position, s.dipole, "
-                         f"s.box, s.params, {slot}, s.force, s.torque, np.False_)")
+                         f"s.box, s.params, {slot}, s.force, s.torque, np.False_, s.status)")
         if plan.induction is not None:
             lines.append(f"    out[{2 + self.kinds.index(plan.induction.energy_kind)}] += induction_energy(s.dipole, "
                          f"s.tag, s.params, {self.induction_slot})")

@@ -666,10 +666,18 @@ class Scene:
                    + [math.inf])
 
     # ---- diagnostics ---------------------------------------------------------------------
+    def check_layers(self):
+        """ValueError when the spheres left the layer of a slab sum (demkit.interactions.slab): its
+        forces and energies would hold copies of the layer too close."""
+        for tuned in self.long_range:
+            if getattr(tuned, "layer", None) is not None:
+                tuned.layer.check(self.particles.position, self.particles.ids)
+
     def forces(self):
         """(force, torque), each (N,3), at the current state; changes nothing (history included)."""
         n = len(self.particles)
         force, torque = np.zeros((n, 3)), np.zeros((n, 3))
+        self.check_layers()
         self.induce()
         self.push()
         self.kernels.compute_forces(self.state, force, torque, False, False)
@@ -680,6 +688,7 @@ class Scene:
         """Energies: kinetic, rotational, one per energy kind (magnetic, contact, ...), total and
         dissipated. total = kinetic + rotational + potentials; total + dissipated is conserved."""
         out = np.zeros(2 + len(self.energy_kinds))
+        self.check_layers()
         self.induce()
         self.push()
         self.kernels.energies_of(self.state, out)

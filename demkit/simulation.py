@@ -20,7 +20,8 @@ from .progress import Progress, check_progress, compile_estimate, compile_notice
 from .scene import energy_dict
 from .threads import ThreadChoice
 from .tiers import TierChoice
-from .state import DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, MOVED_TOO_FAR, OK, REBUILDS, RUN_START
+from .state import (DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, LEFT_LAYER,
+                    MOVED_TOO_FAR, OK, REBUILDS, RUN_START)
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
 CHUNK_SECONDS = 0.2
@@ -660,7 +661,7 @@ class Simulation:
         self.step = start_step + bad_step
         kept = (f"The {good_frames} frames recorded before it are kept in simulation.trajectory")
         tag = scene.arrays["tag"]
-        if code in (MOVED_TOO_FAR, DEEP_OVERLAP):  # the kernels flagged a particle (internal index)
+        if code in (MOVED_TOO_FAR, DEEP_OVERLAP, LEFT_LAYER):  # the kernels flagged a particle (internal index)
             k = int(tag[index])
             speed = float(np.linalg.norm(p.velocity[k]))
         if code == MOVED_TOO_FAR:
@@ -682,6 +683,12 @@ class Simulation:
                 f"stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
                 f"overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
                 f"docs/stability.md says how to size both. {kept}.",
+                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
+        if code == LEFT_LAYER:
+            hint = next(tuned.layer.stop_hint() for tuned in scene.long_range if getattr(tuned, "layer", None))
+            raise SimulationError(
+                f"particle id {p.ids[k]} {hint} It happened at step {self.step} (t = {self.time:.6g}; its speed "
+                f"{speed:.6g}, position {p.position[k].tolist()}). {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         if code == INDUCTION_FAILED:
             solver = scene.induction

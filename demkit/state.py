@@ -24,7 +24,8 @@ a pair interaction when it happens in an inner loop.
 Codes written to ``status[0]`` by the compiled loop (``status[1]`` holds the internal particle index,
 ``status[2]`` the global step, ``status[3]`` a second particle): :data:`OK`, :data:`NON_FINITE`,
 :data:`MOVED_TOO_FAR`, :data:`DEEP_OVERLAP` (the pair loops flag it in ``status[0]``/``[1]``/``[3]``),
-:data:`INDUCTION_FAILED` (the induced-moment solve did not converge; demkit.interactions.induction).
+:data:`INDUCTION_FAILED` (the induced-moment solve did not converge; demkit.interactions.induction),
+:data:`LEFT_LAYER` (a sphere left the layer of a slab sum; demkit.interactions.slab).
 """
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ from numba.core.extending import intrinsic
 from numba.core import types
 from numba.experimental import structref
 
-OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, INDUCTION_FAILED = 0, 1, 2, 3, 4
+OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, INDUCTION_FAILED, LEFT_LAYER = 0, 1, 2, 3, 4, 5
 #: a contact overlap deeper than this fraction of the smaller radius stops a run (DEEP_OVERLAP): the
 #: contact is too soft to stop the spheres, which would tunnel through each other; the same limit
 #: as for a start (Scene refuses deeper initial overlaps)

@@ -240,7 +240,7 @@ def test_the_stress_of_an_ewald_sum_is_minus_the_energy_derivative_under_a_strai
         from demkit.interactions.ewald import reciprocal_sum
         table = tuned.table_values()
         compiled = reciprocal_sum(p.position, p.dipole, scene.box.size, table, 0, np.zeros((40, 3)),
-                                  np.zeros((40, 3)), False)
+                                  np.zeros((40, 3)), False, np.zeros(4, dtype=np.int64))
         self_term = -tuned.prefactor * 2 * tuned.alpha ** 3 / (3 * np.sqrt(np.pi)) * np.sum(p.dipole ** 2)
         assert reciprocal_energy_strained(*args, np.zeros((3, 3))) + self_term == pytest.approx(compiled, rel=1e-12)
         assert s.per_sphere.sum(axis=0) == pytest.approx(s.volume * s.pressure_tensor, rel=1e-10, abs=1e-10)

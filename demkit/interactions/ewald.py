@@ -27,6 +27,10 @@ and what surrounds it), is split with a Gaussian screening of width 1/alpha into
   M = sum_i m_i (field -(4 pi A / 3V) M on every dipole, no force); none with metallic
   ("tin-foil") surroundings, the default, as in ESPResSo and LAMMPS.
 
+A box periodic along two axes only (a slab) is summed as a 3-D box drawn out along its open axis
+with an empty gap, plus the layer term of Yeh and Berkowitz (:mod:`demkit.interactions.slab`): the
+lengths L and volume V above are then those of the drawn-out box.
+
 Parameters are tuned to a requested relative root-mean-square force error (``accuracy``) from the
 error estimates of Wang and Holm, J. Chem. Phys. 115, 6351 (2001): real space (their eq. 37, M^2 =
 sum_i |m_i|^2, N dipoles, r_c the real-space cutoff)
@@ -54,6 +58,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 from .base import positive
+from .slab import Layer, check_layer, gap_error, gap_for, layer_terms, open_axis, table_entries
 
 SURFACES = ("metallic", "vacuum")
 #: time per (sphere, wave vector) of the reciprocal sum against one real-space pair within the
@@ -62,8 +67,10 @@ SURFACES = ("metallic", "vacuum")
 RECIPROCAL_COST = 0.08
 #: more wave vectors than this are refused (a cutoff far too short for the accuracy asked)
 MAX_WAVE_VECTORS = 2e6
-#: table of a tuned sum in the scene's params: A, alpha, vacuum (0/1), kx, ky, kz maxima, k_c^2
-TABLE_SIZE = 7
+#: table of a tuned sum in the scene's params: A, alpha, vacuum (0/1), kx, ky, kz maxima, k_c^2, the three
+#: lengths of the periodic box summed (a slab's drawn out along its open axis), the open axis (-1: none)
+#: and the layer's thickness (demkit.interactions.slab)
+TABLE_SIZE = 12
 RECIPROCAL_OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
 
 
@@ -140,10 +147,13 @@ def _phases(position, box, kmax, axis):
 
 
 @njit(**RECIPROCAL_OPTIONS)
-def reciprocal_sum(position, dipole, box, params, start, force, torque, with_forces):
+def reciprocal_sum(position, dipole, box, params, start, force, torque, with_forces, status):
     """The reciprocal, self and surface terms of the dipolar Ewald sum (module docstring) with the
     table at params[start:start + TABLE_SIZE]; adds forces and torques when ``with_forces``;
-    returns their energy."""
+    returns their energy. A slab's spheres out of its layer flag LEFT_LAYER in ``status`` (the
+    run's, as the long-range sums' last argument)."""
+    if with_forces:
+        check_layer(position, params, start + 10, status)
     field = np.zeros((position.shape[0] if with_forces else 0, 3))
     energy = reciprocal_terms(position, dipole, box, params, start, force, field, with_forces)
     for i in range(field.shape[0]):
@@ -162,12 +172,14 @@ def reciprocal_terms(position, dipole, box, params, start, force, field, with_fo
     vacuum = params[start + 2] != 0.0
     px, py, pz = int(params[start + 3]), int(params[start + 4]), int(params[start + 5])
     kcut2 = params[start + 6]
+    size = params[start + 7:start + 10]  # the box summed (a slab's drawn out; ``box`` is the scene's)
+    axis = int(params[start + 10])
     n = position.shape[0]
-    volume = box[0] * box[1] * box[2]
-    ux, uy, uz = 2.0 * math.pi / box[0], 2.0 * math.pi / box[1], 2.0 * math.pi / box[2]
-    cx, sx = _phases(position, box, px, 0)
-    cy, sy = _phases(position, box, py, 1)
-    cz, sz = _phases(position, box, pz, 2)
+    volume = size[0] * size[1] * size[2]
+    ux, uy, uz = 2.0 * math.pi / size[0], 2.0 * math.pi / size[1], 2.0 * math.pi / size[2]
+    cx, sx = _phases(position, size, px, 0)
+    cy, sy = _phases(position, size, py, 1)
+    cz, sz = _phases(position, size, pz, 2)
     re = np.empty(n)
     im = np.empty(n)
     mk = np.empty(n)
@@ -224,6 +236,8 @@ def reciprocal_terms(position, dipole, box, params, start, force, field, with_fo
     energy -= prefactor * 2.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * squares
     if vacuum:
         energy += 2.0 * math.pi * prefactor / (3.0 * volume) * (mx * mx + my * my + mz * mz)
+    if axis >= 0:
+        energy += layer_terms(dipole, axis, volume, prefactor, field, with_forces)
     if not with_forces:
         return energy
     if vacuum:
@@ -289,9 +303,11 @@ def wave_vector_limits(target, prefactor, squares, n, volume, alpha, size):
                   for k, length in zip(kmax, size)), float(kcut))
 
 
-def reciprocal_table(prefactor, alpha, vacuum, kmax, kcut):
-    """The run-time table of :func:`reciprocal_sum` (its params[start:start + TABLE_SIZE])."""
-    return np.array([prefactor, alpha, 1.0 if vacuum else 0.0, *kmax, kcut ** 2 * (1 + 1e-9)], dtype=np.float64)
+def reciprocal_table(prefactor, alpha, vacuum, kmax, kcut, geometry):
+    """The run-time table of :func:`reciprocal_sum` (its params[start:start + TABLE_SIZE]); ``geometry``:
+    the entries of :meth:`demkit.interactions.slab.Layer.table` or :func:`~demkit.interactions.slab.table_entries`."""
+    return np.array([prefactor, alpha, 1.0 if vacuum else 0.0, *kmax, kcut ** 2 * (1 + 1e-9), *geometry],
+                    dtype=np.float64)
 
 
 # ---- tuning ------------------------------------------------------------------------------------
@@ -336,18 +352,27 @@ def _kmax_for(target, prefactor, squares, n, volume, alpha, length):
 
 
 def scales(what, prefactor, particles, box, otherwise):
-    """(N, sum |m|^2, V, the touching pull 6 A m_rms^2 / d^4, half the shortest side) of a scene a
-    periodic sum is tuned to; ValueError unless the box is periodic along every axis (``otherwise``
-    says what to do) and some moment is not zero."""
-    if box is None or not all(box.periodic):
-        axes = "no box" if box is None else f"periodic={[bool(f) for f in box.periodic]}"
-        raise ValueError(f"{what} needs a box periodic along x, y and z (got {axes}); {otherwise}")
+    """(N, sum |m|^2, V, the touching pull 6 A m_rms^2 / d^4, half the shortest periodic side, the open
+    axis of a slab or -1) of a scene a periodic sum is tuned to; ValueError unless the box is periodic
+    along every axis or along two (``otherwise`` says what to do) and some moment is not zero."""
+    axis = open_axis(box, what, otherwise)
     n = len(particles)
     squares = float(np.einsum("ij,ij->", particles.dipole, particles.dipole))
     if squares == 0.0:
         raise ValueError(f"{what} needs dipole moments, but every moment is zero")
     diameter = 2.0 * float(np.mean(particles.radius))
-    return n, squares, box.volume, 6.0 * prefactor * squares / n / diameter ** 4, 0.5 * float(np.min(box.size))
+    half = 0.5 * min(float(length) for length, flag in zip(box.size, box.periodic) if flag)
+    return n, squares, box.volume, 6.0 * prefactor * squares / n / diameter ** 4, half, axis
+
+
+def slab_layer(box, axis, target, prefactor, squares, n, half):
+    """The :class:`~demkit.interactions.slab.Layer` of a slab whose copies pull with an estimated RMS
+    force error of at most ``target`` (and at least the longest real-space cutoff, ``half``, away), or
+    None for a box periodic along every axis."""
+    if axis < 0:
+        return None
+    area, longest = Layer.periodic_lengths(box)
+    return Layer(box, axis, max(gap_for(target, prefactor, squares, n, area, longest), half))
 
 
 #: spheres of the sample a tuned sum's whole error is measured on
@@ -367,12 +392,14 @@ class Sample:
     and Ewald's estimates, which assume random moments, in polarised samples). ``ready`` is False
     when no converged reference can be tuned (accuracies near round-off)."""
 
-    def __init__(self, particles, box, prefactor, target):
+    def __init__(self, particles, box, prefactor, target, axis=-1):
         rng = np.random.default_rng(12345)
         n = len(particles)
         self.m = m = min(n, SAMPLE)
         self.scale = math.sqrt(n / m)  # errors of random sums grow as the square root of the count
         self.size = size = np.asarray(box.size, dtype=np.float64)
+        self.periodic = np.asarray(box.periodic, dtype=bool)
+        self.axis = axis  # a slab's open axis (-1: none); its spheres within the box's length along it
         self.position = rng.uniform(0.0, 1.0, (m, 3)) * size
         self._separations = None  # (d, r2) of _pairs
         self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
@@ -387,13 +414,16 @@ class Sample:
         # the reference converged ten times below the target; for fields a hundred times more (its
         # parameters come from the forces' error estimates, which the field's error exceeds ~6-fold)
         fine = (0.001 if self.fields else 0.1) * target / self.scale
-        cutoff = 0.999 * 0.5 * float(size.min())
+        cutoff = 0.999 * 0.5 * float(size[self.periodic].min())
         alpha = _alpha_for(fine, prefactor, squares, m, box.volume, cutoff)
         self.ready = alpha is not None and squares > 0.0
         if not self.ready:
             return
-        kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, box.volume, alpha, size)
-        force, field = self.reciprocal(alpha, kmax, kcut)
+        # a slab's reference: its copies a gap far longer away (its estimated pull at the fine target)
+        self.layer = slab_layer(box, axis, fine, prefactor, squares, m, cutoff)
+        summed = size if self.layer is None else np.asarray(self.layer.size)
+        kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, float(np.prod(summed)), alpha, summed)
+        force, field = self.reciprocal(alpha, kmax, kcut, summed)
         self.exact = force + self.real_forces(alpha, cutoff)
         if self.fields:
             self.exact_field = self.field_term(alpha, field + self.real_field(alpha, cutoff))
@@ -404,7 +434,7 @@ class Sample:
         if self._separations is None:
             x = self.position
             d = x[None, :, :] - x[:, None, :]
-            d -= self.size * np.round(d / self.size)
+            d -= np.where(self.periodic, self.size, 0.0) * np.round(d / self.size)
             r2 = np.einsum("ijk,ijk->ij", d, d)
             np.fill_diagonal(r2, np.inf)
             self._separations = d, r2
@@ -435,12 +465,17 @@ class Sample:
                                  * (bd[:, :, None] * mu[:, None, :] + ad[:, :, None] * mu[None, :, :]))
         return -on_j.sum(axis=1)  # the force on i of each pair (i, j) is minus that on j
 
-    def reciprocal(self, alpha, kmax, kcut):
-        """(forces, field), each (m, 3), of the wave-vector sum with these limits (metallic surroundings)."""
+    def reciprocal(self, alpha, kmax, kcut, summed):
+        """(forces, field), each (m, 3), of the wave-vector sum with these limits (metallic surroundings)
+        over a periodic box of lengths ``summed`` (a slab's: drawn out, with its layer term)."""
         force, field = np.zeros((self.m, 3)), np.zeros((self.m, 3))
-        reciprocal_terms(self.position, self.dipole, self.size, reciprocal_table(self.prefactor, alpha, False, kmax,
-                                                                                 kcut), 0, force, field, True)
+        table = reciprocal_table(self.prefactor, alpha, False, kmax, kcut, self.geometry(summed))
+        reciprocal_terms(self.position, self.dipole, self.size, table, 0, force, field, True)
         return force, field
+
+    def geometry(self, summed):
+        """The table entries of a candidate summing a periodic box of lengths ``summed``."""
+        return table_entries(summed) if self.axis < 0 else [*summed, float(self.axis), float(self.size[self.axis])]
 
     def error_of(self, force, field=None):
         """RMS error of these (m, 3) sample forces against the exact ones, scaled to the scene's count;
@@ -463,7 +498,9 @@ class Ewald:
     alpha : the splitting parameter (1/length); None: tuned with the cutoff.
 
     The real-space cutoff is the Dipole's ``cutoff`` (None: tuned); the box must be periodic along
-    all three axes. The tuned values are in ``scene.long_range`` (see :class:`TunedEwald`).
+    all three axes, or along two: a slab (:mod:`demkit.interactions.slab`; its spheres stay within the
+    box's length along the open axis, and ``surface`` is left out). The tuned values are in
+    ``scene.long_range`` (see :class:`TunedEwald`).
     """
 
     def __init__(self, accuracy=1e-6, surface="metallic", alpha=None):
@@ -478,40 +515,53 @@ class Ewald:
 
     def tune(self, prefactor, particles, box, cutoff=None):
         """:class:`TunedEwald` for these spheres in this box (ValueError when the box is not
-        periodic along every axis, or no cutoff shorter than half of it reaches the accuracy).
+        periodic along every axis or two, or no cutoff shorter than half of it reaches the accuracy).
 
         The Wang-Holm estimates choose the cutoff, alpha and the wave vectors; the whole error is
         then measured on a :class:`Sample` with the scene's moments, and where it exceeds MARGIN of
         the accuracy (polarised samples: the estimates assume random moments) the target is
         tightened by TIGHTEN times the excess and the choice made again, up to MEASURED_TRIES times."""
-        n, squares, volume, pull, half = scales("an Ewald sum", prefactor, particles, box,
-                                                "a slab correction for partly periodic boxes is not available "
-                                                "yet: use a cut-off Dipole or an open scene without long_range")
+        n, squares, volume, pull, half, axis = scales(
+            "an Ewald sum", prefactor, particles, box, "use a cut-off Dipole or an open scene without long_range")
+        self.refuse_surface_of_slab(axis)
         goal = self.accuracy * pull
-        sample = Sample(particles, box, prefactor, goal)
-        target, measured = goal / math.sqrt(2.0), None
+        sample = Sample(particles, box, prefactor, goal, axis)
+        # the squared error budget in equal shares: real space, wave vectors (and a slab's copies)
+        target, measured = goal / math.sqrt(2.0 if axis < 0 else 3.0), None
         for _ in range(MEASURED_TRIES):
-            rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, box, cutoff, n, squares, volume, half)
-            _refuse_too_many_wave_vectors(rc, kcut, volume, n, self.accuracy)  # before measuring with them
+            layer = slab_layer(box, axis, target, prefactor, squares, n, half)
+            summed = box.size if layer is None else layer.size
+            rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, summed, cutoff, n, squares, volume,
+                                                 half)
+            _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy)
             if not sample.ready:
                 break
-            force, field = sample.reciprocal(alpha, kmax, kcut)
+            force, field = sample.reciprocal(alpha, kmax, kcut, summed)
             field = sample.field_term(alpha, field + sample.real_field(alpha, rc)) if sample.fields else None
             measured = sample.error_of(force + sample.real_forces(alpha, rc), field)
             if measured <= MARGIN * goal:
                 break
             target *= TIGHTEN * MARGIN * goal / measured
-        _refuse_too_many_wave_vectors(rc, kcut, volume, n, self.accuracy)
-        return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut,
-                          tuple(float(x) for x in box.size),
+        _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy)
+        volume_summed = float(np.prod(summed))
+        gap = 0.0 if layer is None else gap_error(prefactor, squares, n, *Layer.periodic_lengths(box), layer.gap)
+        return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut, tuple(float(x) for x in summed),
                           real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,
-                          math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume, alpha, k, length) ** 2
-                                        for k, length in zip(kmax, box.size)) / 3.0) / pull,
-                          None if measured is None else measured / pull)
+                          math.sqrt(sum(reciprocal_error(prefactor, squares, n, volume_summed, alpha, k, length) ** 2
+                                        for k, length in zip(kmax, summed)) / 3.0) / pull,
+                          None if measured is None else measured / pull, layer, gap / pull)
 
-    def _choose(self, target, prefactor, particles, box, cutoff, n, squares, volume, half):
+    def refuse_surface_of_slab(self, axis):
+        """ValueError for a ``surface`` other than metallic in a slab (open ``axis`` >= 0)."""
+        if axis >= 0 and self.surface != "metallic":
+            raise ValueError(f"a slab (a box periodic along two axes) is an infinite layer, whose surface term is its "
+                             f"own (demkit.interactions.slab): surface={self.surface!r} is for boxes periodic along "
+                             f"x, y and z; leave it out")
+
+    def _choose(self, target, prefactor, particles, summed, cutoff, n, squares, volume, half):
         """(cutoff, alpha, kmax, kcut) of the least estimated cost whose estimated real-space and
-        per-axis reciprocal errors are at most ``target`` each."""
+        per-axis reciprocal errors are at most ``target`` each (``volume``: the box's, where the
+        real-space pairs are; ``summed``: the lengths of the periodic box of the wave vectors)."""
         contact = 2.0 * float(np.max(particles.radius))
         if cutoff is not None:
             candidates = [cutoff]
@@ -520,14 +570,15 @@ class Ewald:
             candidates = list(np.linspace(low, 0.999 * half, 60))
         best = None
         density = n / volume
+        volume_summed = float(np.prod(summed))
         for rc in candidates:
             alpha = self.alpha or _alpha_for(target, prefactor, squares, n, volume, rc)
             if alpha is None:
                 continue
             if real_space_error(prefactor, squares, n, volume, alpha, rc) > target * 1.0001:
                 continue
-            kmax, kcut = wave_vector_limits(target, prefactor, squares, n, volume, alpha, box.size)
-            vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3  # half of the k-sphere
+            kmax, kcut = wave_vector_limits(target, prefactor, squares, n, volume_summed, alpha, summed)
+            vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume_summed / (2.0 * math.pi) ** 3  # half of the k-sphere
             cost = n * (2.0 * math.pi / 3.0 * density * rc ** 3 + RECIPROCAL_COST * vectors)
             if best is None or cost < best[0]:
                 best = (cost, rc, alpha, kmax, kcut)
@@ -556,15 +607,19 @@ class TunedEwald:
     """An Ewald sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``kmax`` (largest wave
     number per axis, in units of 2 pi / L), ``kcut`` (|k| kept), the estimated relative RMS force
     errors ``real_error`` and ``reciprocal_error`` (fractions of the touching pull), and
-    ``measured_error``, the whole sum's on the tuning's sample (None where none was measured)."""
+    ``measured_error``, the whole sum's on the tuning's sample (None where none was measured). A
+    slab's ``layer`` (:class:`~demkit.interactions.slab.Layer`, else None) holds its gap, whose
+    estimated error is ``gap_error``; ``box_size`` is then the drawn-out box summed."""
 
     energy_kind = "magnetic"
     #: the compiled function the kernels call once per force evaluation (module, name)
     kernel = ("demkit.interactions.ewald", "reciprocal_sum")
 
     def __init__(self, settings, prefactor, cutoff, alpha, kmax, kcut, box_size, real_error, reciprocal_error_,
-                 measured_error=None):
+                 measured_error=None, layer=None, gap_error_=0.0):
         self.settings = settings
+        self.layer = layer
+        self.gap_error = gap_error_
         self.measured_error = measured_error
         self.box_size = box_size
         self.prefactor = prefactor
@@ -590,7 +645,7 @@ class TunedEwald:
         none could be) the estimates'."""
         if self.measured_error is not None:
             return self.measured_error
-        return math.hypot(self.real_error, self.reciprocal_error)
+        return math.sqrt(self.real_error ** 2 + self.reciprocal_error ** 2 + self.gap_error ** 2)
 
     @property
     def wave_vectors(self):
@@ -603,13 +658,15 @@ class TunedEwald:
         """(W (3, 3), each sphere's share (N, 3, 3)) of the reciprocal and surface terms, in the pair
         virial's convention (:mod:`demkit.interactions.ewald_virial`); the real-space pairs are pair forces."""
         from .ewald_virial import reciprocal_virial
-        return reciprocal_virial(particles.position, particles.dipole, box.size, self.prefactor, self.alpha,
-                                 self.settings.surface == "vacuum", self.kmax, self.kcut)
+        return reciprocal_virial(particles.position, particles.dipole, self.box_size, self.prefactor, self.alpha,
+                                 self.settings.surface == "vacuum", self.kmax, self.kcut, self.layer)
 
     def table_values(self):
         """The sum's run-time table in the scene's params (see :func:`reciprocal_sum`)."""
-        return reciprocal_table(self.prefactor, self.alpha, self.settings.surface == "vacuum", self.kmax, self.kcut)
+        return reciprocal_table(self.prefactor, self.alpha, self.settings.surface == "vacuum", self.kmax, self.kcut,
+                                table_entries(self.box_size) if self.layer is None else self.layer.table())
 
     def __repr__(self):
+        layer = "" if self.layer is None else f", layer={self.layer!r}"
         return (f"TunedEwald(cutoff={self.cutoff:.6g}, alpha={self.alpha:.6g}, kmax={self.kmax}, "
-                f"surface={self.settings.surface!r}, estimated_error={self.estimated_error:.3g})")
+                f"surface={self.settings.surface!r}{layer}, estimated_error={self.estimated_error:.3g})")

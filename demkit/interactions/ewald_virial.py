@@ -12,7 +12,8 @@ the convention of the pair virial sum d_a F_b, is
 
 with T_a(k) = sum_j m_ja exp(i k.x_j). The self term does not depend on positions or volume (no
 virial); the surface term of vacuum boundaries, (2 pi A / 3V) |sum m|^2, adds (2 pi A / 3V) |sum m|^2
-delta_ab. A P3M sum's mesh part is the Ewald reciprocal sum at its splitting alpha to its accuracy:
+delta_ab, and a slab's layer term (2 pi A / V') M_a^2 (demkit.interactions.slab, V' the drawn-out box)
+adds (2 pi A / V') M_a^2 delta_ab likewise. A P3M sum's mesh part is the Ewald reciprocal sum at its splitting alpha to its accuracy:
 its virial is this one's with the wave vectors that accuracy needs. The real-space pairs are pair
 forces (:meth:`demkit.Scene.pair_forces`).
 """
@@ -36,10 +37,11 @@ def half_space(box, kmax, kcut):
     return k[np.einsum("ij,ij->i", k, k) <= kcut * kcut * (1 + 1e-9)]
 
 
-def reciprocal_virial(position, dipole, box, prefactor, alpha, vacuum, kmax, kcut):
+def reciprocal_virial(position, dipole, box, prefactor, alpha, vacuum, kmax, kcut, layer=None):
     """(W (3, 3), each sphere's share (N, 3, 3)) of the reciprocal and surface terms (module
     docstring). Sphere j's share takes its part of |S|^2 and of Re(S* T_a), Re(S* (m_j.k) e^(ik.x_j))
-    and Re(S* m_ja e^(ik.x_j)), and of the surface term (m_j . sum m): the shares add up to W."""
+    and Re(S* m_ja e^(ik.x_j)), and of the surface term (m_j . sum m): the shares add up to W. A slab's
+    ``layer`` (``box`` then the drawn-out box summed) adds its term (2 pi A / V') M_a^2 delta_ab."""
     x = np.asarray(position, dtype=np.float64)
     m = np.asarray(dipole, dtype=np.float64)
     box = np.asarray(box, dtype=np.float64)
@@ -66,5 +68,9 @@ def reciprocal_virial(position, dipole, box, prefactor, alpha, vacuum, kmax, kcu
         surface = 2.0 * math.pi * prefactor / (3.0 * volume) * (m @ m.sum(axis=0))
         for a in range(3):
             shares[:, a, a] += surface
+    if layer is not None:
+        term = 2.0 * math.pi * prefactor / volume * m[:, layer.axis] * m[:, layer.axis].sum()
+        for a in range(3):
+            shares[:, a, a] += term
     return shares.sum(axis=0), shares
 

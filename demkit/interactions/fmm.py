@@ -84,9 +84,10 @@ def field(position, dipole, prefactor, eps):
 
 
 @njit(cache=True)
-def fmm_sum(position, dipole, box, params, start, force, torque, with_forces):
+def fmm_sum(position, dipole, box, params, start, force, torque, with_forces, status):
     """The whole dipole sum by FMM3D (the kernels' long-range call): energy, and with
-    ``with_forces`` forces and torques added; params[start:start + 2] = A, eps."""
+    ``with_forces`` forces and torques added; params[start:start + 2] = A, eps (``status``: the
+    run's, as for every long-range sum; an open sum flags nothing)."""
     prefactor = params[start]
     eps = params[start + 1]
     # fresh arrays into object mode: numba boxes a view of an array (multiple time stepping passes

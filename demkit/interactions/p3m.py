@@ -33,7 +33,8 @@ import numpy as np
 from numba import njit, objmode
 
 from .. import memory
-from .ewald import Ewald, Sample, _alpha_for, real_space_error, scales, screened_pair, self_field
+from .ewald import Ewald, Sample, _alpha_for, real_space_error, scales, screened_pair, self_field, slab_layer
+from .slab import Layer, check_layer, gap_error, layer_terms, table_entries
 
 #: mesh sizes tried (products of 2, 3 and 5)
 MESH_SIZES = sorted({2 ** a * 3 ** b * 5 ** c for a in range(9) for b in range(4) for c in range(3)
@@ -44,8 +45,9 @@ PAIR_SECONDS, POINT_SECONDS, FFT_SECONDS = 7.5e-8, 7.0e-9, 2.0e-9
 #: bytes per mesh point: the peak of one evaluation (grid, its transform, the potential: 26 measured
 #: with tracemalloc on 32^3 and 64^3 meshes) and the influence table in the scene's params (4)
 MESH_BYTES = 32
-#: head of a tuned sum's table in the scene's params: A, alpha, vacuum, Kx, Ky, Kz, order; then C
-HEAD = 7
+#: head of a tuned sum's table in the scene's params: A, alpha, vacuum, Kx, Ky, Kz, order, the lengths of
+#: the periodic box summed (a slab's drawn out), the open axis (-1: none), the layer's thickness; then C
+HEAD = 12
 OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
 
 
@@ -211,15 +213,19 @@ def terms(position, dipole, box, table, force, field, with_forces):
     prefactor, alpha, vacuum = table[0], table[1], table[2] != 0.0
     mesh = np.array([int(x) for x in table[3:6]], dtype=np.int64)
     p = int(table[6])
+    summed = np.array(table[7:10])  # the box summed (a slab's drawn out; ``box`` is the scene's)
+    axis = int(table[10])
     size = mesh[0] * mesh[1] * (mesh[2] // 2 + 1)  # (a table read from params may go on: other terms)
     c = table[HEAD:HEAD + size].reshape(mesh[0], mesh[1], mesh[2] // 2 + 1)
-    energy = mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces)
+    energy = mesh_terms(position, dipole, summed, mesh, p, c, force, field, with_forces)
     energy -= prefactor * 2.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * float(np.einsum("ij,ij->", dipole, dipole))
     total = dipole.sum(axis=0)
-    volume = float(np.prod(box))
+    volume = float(np.prod(summed))
     if vacuum:
         energy += 2.0 * math.pi * prefactor / (3.0 * volume) * float(np.sum(total * total))
         field -= 4.0 * math.pi * prefactor / (3.0 * volume) * total
+    if axis >= 0:
+        energy += layer_terms(dipole, axis, volume, prefactor, field, with_forces)
     return energy
 
 
@@ -233,10 +239,13 @@ def evaluate(position, dipole, box, table, force, torque, with_forces):
 
 
 @njit(cache=True)
-def p3m_sum(position, dipole, box, params, start, force, torque, with_forces):
+def p3m_sum(position, dipole, box, params, start, force, torque, with_forces, status):
     """The mesh part of a P3M sum with its table at params[start:] (scipy's FFT, in object mode): HEAD
     values, then the influence function on the mesh, whose size :func:`terms` reads from the mesh
-    (what follows belongs to others, such as the induced moments' solve)."""
+    (what follows belongs to others, such as the induced moments' solve). A slab's spheres out of
+    its layer flag LEFT_LAYER in ``status``."""
+    if with_forces:
+        check_layer(position, params, start + 10, status)
     # fresh arrays into object mode (a view would be boxed as its parent: see fmm.fmm_sum)
     f = np.zeros(force.shape)
     t = np.zeros(torque.shape)
@@ -277,9 +286,13 @@ class P3M(Ewald):
 
     def tune(self, prefactor, particles, box, cutoff=None):
         """:class:`TunedP3M` for these spheres in this box (module docstring)."""
-        n, squares, volume, pull, half = scales("a P3M sum", prefactor, particles, box,
-                                                "use a cut-off Dipole or, in open space, long_range=dk.FMM(...)")
-        target = self.accuracy * pull / math.sqrt(2.0)
+        n, squares, volume, pull, half, axis = scales(
+            "a P3M sum", prefactor, particles, box, "use a cut-off Dipole or, in open space, long_range=dk.FMM(...)")
+        self.refuse_surface_of_slab(axis)
+        # the squared error budget in equal shares: real space, the mesh (and a slab's copies)
+        target = self.accuracy * pull / math.sqrt(2.0 if axis < 0 else 3.0)
+        layer = slab_layer(box, axis, target, prefactor, squares, n, half)
+        summed = tuple(float(x) for x in (box.size if layer is None else layer.size))
         if cutoff is not None:
             candidates = [cutoff]
         else:
@@ -288,7 +301,7 @@ class P3M(Ewald):
         if self.mesh is not None:
             memory.refuse_above(MESH_BYTES * float(np.prod(self.mesh)), f"a P3M mesh of {self.mesh} points needs",
                                 "ask for a smaller mesh (or mesh=None: tuned) or use long_range=dk.Ewald(...)")
-        sample = Sample(particles, box, prefactor, self.accuracy * pull)
+        sample = Sample(particles, box, prefactor, self.accuracy * pull, axis)
         if not sample.ready:
             raise ValueError(f"P3M accuracy {self.accuracy:g} is too close to round-off for its mesh error to be "
                              f"measured against a converged Ewald sum: ask for a lower accuracy")
@@ -302,7 +315,7 @@ class P3M(Ewald):
             budget = math.inf if best is None else best[0] - real
             if budget <= 0.0:
                 continue
-            found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, box, budget, smallest)
+            found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, summed, budget, smallest)
             if found is None:
                 continue
             mesh, error = found
@@ -318,17 +331,20 @@ class P3M(Ewald):
                              f"{MESH_SIZES[-1]} points per axis{fits} reach P3M accuracy {self.accuracy:g}: ask for a "
                              f"lower accuracy, or use long_range=dk.Ewald(...)")
         _, rc, alpha, mesh, error = best
-        return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, tuple(float(x) for x in box.size),
-                        real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull)
+        gap = 0.0 if layer is None else gap_error(prefactor, squares, n, *Layer.periodic_lengths(box), layer.gap)
+        return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, summed,
+                        real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull, layer,
+                        gap / pull)
 
-    def _mesh_for(self, target, sample, alpha, cutoff, box, budget, smallest=0):
+    def _mesh_for(self, target, sample, alpha, cutoff, summed, budget, smallest=0):
         """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
         error is at most ``target``, whose FFTs cost less than ``budget`` seconds and whose longest axis
-        has at least ``smallest`` points (bisection: the error falls as the mesh grows), or None."""
+        has at least ``smallest`` points (bisection: the error falls as the mesh grows), or None;
+        ``summed``: the lengths of the periodic box the mesh covers (a slab's drawn out)."""
         real = sample.real_forces(alpha, cutoff), sample.real_field(alpha, cutoff) if sample.fields else None
         if self.mesh is not None:
-            return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order)
-        size = sample.size
+            return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order, summed)
+        size = np.asarray(summed)
         sizes = [tuple(int(next(s for s in MESH_SIZES if s >= k * length / size.max())) for length in size)
                  for k in MESH_SIZES if k >= 2 * self.order]
         room = memory.machine_memory()[0] or math.inf
@@ -338,7 +354,7 @@ class P3M(Ewald):
         # bisection tries first cost most), then bisection between the last mesh too coarse and the first fine
         last, lo, probe, step, found = len(sizes) - 1, 0, 0, 1, None
         while sizes:
-            error = _mesh_error(sample, real, alpha, sizes[probe], self.order)
+            error = _mesh_error(sample, real, alpha, sizes[probe], self.order, summed)
             if error <= target:
                 found = sizes[probe], error
                 break
@@ -349,7 +365,7 @@ class P3M(Ewald):
         hi = probe - 1
         while found is not None and lo <= hi:
             mid = (lo + hi) // 2
-            error = _mesh_error(sample, real, alpha, sizes[mid], self.order)
+            error = _mesh_error(sample, real, alpha, sizes[mid], self.order, summed)
             if error <= target:
                 found, hi = (sizes[mid], error), mid - 1
             else:
@@ -367,26 +383,32 @@ def _fft_seconds(mesh):
     return points * math.log2(points) * FFT_SECONDS
 
 
-def _mesh_error(sample, real, alpha, mesh, order):
+def _mesh_error(sample, real, alpha, mesh, order, summed):
     """Measured RMS force error of a candidate on an :class:`~demkit.interactions.ewald.Sample`
-    (``real``: its real-space forces and field, and this mesh), scaled to the scene's count (with
-    magnetisable spheres, or its field's error if larger: Sample.error_of)."""
-    c = influence(sample.size, mesh, alpha, order, sample.prefactor)
+    (``real``: its real-space forces and field, and this mesh over a periodic box of lengths ``summed``),
+    scaled to the scene's count (with magnetisable spheres, or its field's error if larger: Sample.error_of)."""
     force, field = real[0].copy(), (real[1] if sample.fields else np.zeros((sample.m, 3))).copy()
-    mesh_terms(sample.position, sample.dipole, sample.size, np.array(mesh), order, c, force, field, True)
+    table = np.concatenate([[sample.prefactor, alpha, 0.0, *mesh, order, *sample.geometry(summed)],
+                            influence(np.asarray(summed), mesh, alpha, order, sample.prefactor).ravel()])
+    terms(sample.position, sample.dipole, sample.size, table, force, field, True)
+    # terms adds the self energy but no self field: the field of the sample's candidate as Sample.field_term
     return sample.error_of(force, sample.field_term(alpha, field) if sample.fields else None)
 
 
 class TunedP3M:
     """A P3M sum tuned to a scene: ``cutoff`` (real space), ``alpha``, ``mesh``, ``order``; the
     relative RMS force errors ``real_error`` (the Wang-Holm estimate of the real-space part) and
-    ``estimated_error`` (of the whole sum, measured on a sample while tuning)."""
+    ``estimated_error`` (of the whole sum, measured on a sample while tuning). A slab's ``layer`` and
+    ``gap_error`` are as for :class:`~demkit.interactions.ewald.TunedEwald` (``box_size`` drawn out)."""
 
     energy_kind = "magnetic"
     kernel = ("demkit.interactions.p3m", "p3m_sum")
 
-    def __init__(self, settings, prefactor, cutoff, alpha, mesh, box_size, real_error, measured_error):
+    def __init__(self, settings, prefactor, cutoff, alpha, mesh, box_size, real_error, measured_error, layer=None,
+                 gap_error_=0.0):
         self.settings = settings
+        self.layer = layer
+        self.gap_error = gap_error_
         self.prefactor = prefactor
         self.cutoff = cutoff
         self.alpha = alpha
@@ -420,17 +442,19 @@ class TunedP3M:
         sum to this accuracy; :mod:`demkit.interactions.ewald_virial`)."""
         from .ewald import scales, wave_vector_limits
         from .ewald_virial import reciprocal_virial
-        n, squares, volume, pull, _ = scales("a P3M sum", self.prefactor, particles, box, "")
+        n, squares, _, pull, _, _ = scales("a P3M sum", self.prefactor, particles, box, "")
         kmax, kcut = wave_vector_limits(self.settings.accuracy * pull / math.sqrt(2.0), self.prefactor, squares, n,
-                                        volume, self.alpha, box.size)
-        return reciprocal_virial(particles.position, particles.dipole, box.size, self.prefactor, self.alpha,
-                                 self.settings.surface == "vacuum", kmax, kcut)
+                                        float(np.prod(self.box_size)), self.alpha, self.box_size)
+        return reciprocal_virial(particles.position, particles.dipole, self.box_size, self.prefactor, self.alpha,
+                                 self.settings.surface == "vacuum", kmax, kcut, self.layer)
 
     def table_values(self):
         vacuum = 1.0 if self.settings.surface == "vacuum" else 0.0
         c = influence(np.asarray(self.box_size), self.mesh, self.alpha, self.order, self.prefactor)
-        return np.concatenate([[self.prefactor, self.alpha, vacuum, *self.mesh, self.order], c.ravel()])
+        geometry = table_entries(self.box_size) if self.layer is None else self.layer.table()
+        return np.concatenate([[self.prefactor, self.alpha, vacuum, *self.mesh, self.order, *geometry], c.ravel()])
 
     def __repr__(self):
+        layer = "" if self.layer is None else f", layer={self.layer!r}"
         return (f"TunedP3M(cutoff={self.cutoff:.6g}, alpha={self.alpha:.6g}, mesh={self.mesh}, order={self.order}, "
-                f"surface={self.settings.surface!r}, estimated_error={self.estimated_error:.3g})")
+                f"surface={self.settings.surface!r}{layer}, estimated_error={self.estimated_error:.3g})")
