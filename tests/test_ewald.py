@@ -149,7 +149,7 @@ def test_bad_input_is_refused():
     pos, dip = lattice(3)
     p = dk.Particles(position=pos, radius=0.3, mass=1.0, dipole=dip)
     with pytest.raises(ValueError, match="periodic along x, y and z"):
-        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.Ewald())], box=dk.Box(3.0, periodic=(True, True, False)))
+        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.Ewald())], box=dk.Box(3.0, periodic=(True, False, False)))
     with pytest.raises(ValueError, match="periodic along x, y and z"):
         dk.Scene(p, [dk.Dipole(1.0, long_range=dk.Ewald())])
     for bad in (0.0, -1e-6, 1.0, float("nan")):

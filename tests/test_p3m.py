@@ -95,7 +95,7 @@ def test_bad_input_is_refused():
     pos, dip = lattice(3)
     p = dk.Particles(position=pos, radius=0.3, mass=1.0, dipole=dip)
     with pytest.raises(ValueError, match="periodic along x, y and z"):
-        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M())], box=dk.Box(3.0, periodic=(True, False, True)))
+        dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M())], box=dk.Box(3.0, periodic=(False, False, True)))
     for order in (3, 8, 4.5, True):
         with pytest.raises(ValueError, match="order"):
             dk.P3M(order=order)
