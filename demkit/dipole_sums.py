@@ -71,7 +71,7 @@ class DipoleSums:
     label, dipole, seconds, tuning_seconds, tuned), ``pull`` P and ``diameter`` d (the error
     units), ``n``, ``periodic``, ``repeats``, ``threads`` ("1 thread" or "threads as each scene chose") and
     ``load`` (the machine's 1-minute load average before and after: above ~0.5 per core other work
-    ran beside the timings)."""
+    ran beside the timings), ``space`` (what was summed: periodic box, slab or open space)."""
 
     rows: list
     reference: dict
@@ -82,6 +82,8 @@ class DipoleSums:
     repeats: int
     threads: str
     load: tuple = field(default=(math.nan, math.nan))
+    #: "periodic box", "slab open along z" (or x, y) or "open space"
+    space: str = "periodic box"
 
     def cheapest(self, accuracy, torque=None):
         """The fastest :class:`SumRow` whose force error is at most ``accuracy`` and, if ``torque``
@@ -102,7 +104,7 @@ class DipoleSums:
             return "  ".join(x.ljust(w) if k == 0 else x.rjust(w) for k, (x, w) in enumerate(zip(c, widths)))
         out = [line(head), line(["-" * w for w in widths])] + [line(c) for c in cells]
         ref = self.reference
-        out += ["", f"{self.n} spheres, {'periodic box' if self.periodic else 'open space'}; errors against "
+        out += ["", f"{self.n} spheres, {self.space}; errors against "
                     f"{ref['label']} ({1e3 * ref['seconds']:.4g} ms/eval)",
                 f"force err: RMS |F - F_ref| / {self.pull:.4g} (the touching pull 6 A <m^2>/d^4, d = "
                 f"{self.diameter:.4g}); torque err: RMS |T - T_ref| / {self.pull * self.diameter:.4g} (pull x d)",
@@ -115,7 +117,7 @@ class DipoleSums:
         return self.table()
 
     def as_dict(self):
-        return dict(n=self.n, periodic=self.periodic, pull=self.pull, diameter=self.diameter, repeats=self.repeats,
+        return dict(n=self.n, periodic=self.periodic, space=self.space, pull=self.pull, diameter=self.diameter, repeats=self.repeats,
                     threads=self.threads, load_before_after=list(self.load), reference=self.reference,
                     rows=[r.as_dict() for r in self.rows])
 
@@ -158,7 +160,7 @@ class DipoleSums:
         ax.set_ylabel("RMS force error / touching pull")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-        ax.set_title(title or f"N = {self.n}, {'periodic' if self.periodic else 'open'}; against "
+        ax.set_title(title or f"N = {self.n}, {self.space}; against "
                               f"{self.reference['label']}", fontsize=9)
         if own:
             fig.tight_layout()
@@ -194,13 +196,14 @@ def _label(dipole, diameter, n=0):
 
 def default_candidates(prefactor, particles, box, surface="metallic"):
     """The candidates :func:`compare_dipole_sums` tries when given none (``Dipole`` objects):
-    periodic box: plain and switched (width a quarter of the cutoff) cutoffs at 2-6 mean diameters
-    shorter than half the box, Ewald and P3M at 1e-3 ... 1e-6; open space: the same cutoffs, the
-    exact sum and, if fmm3dpy imports, FMM at eps 1e-3, 1e-6, 1e-9 (``exact_below=0``: the FMM itself,
-    even where the exact sum is cheaper). ``surface``: of Ewald and P3M."""
+    periodic box (or slab): plain and switched (width a quarter of the cutoff) cutoffs at 2-6 mean
+    diameters shorter than half the shortest periodic side, Ewald and P3M at 1e-3 ... 1e-6; open
+    space: the same cutoffs, the exact sum and, if fmm3dpy imports, FMM at eps 1e-3, 1e-6, 1e-9
+    (``exact_below=0``: the FMM itself, even where the exact sum is cheaper). ``surface``: of Ewald
+    and P3M."""
     d = 2.0 * float(np.mean(particles.radius))
-    periodic = box is not None and all(box.periodic)
-    half = 0.5 * float(np.min(box.size)) if periodic else math.inf
+    periodic = _periodic(box)
+    half = 0.5 * float(np.min(np.asarray(box.size)[box.periodic])) if periodic else math.inf
     out = []
     for k in CUTOFFS:
         if k * d < half:
@@ -261,7 +264,9 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
     """Force and torque errors and time per evaluation of dipole sums on one configuration.
 
     particles : dk.Particles with dipole moments (the current positions and moments are compared).
-    box : a dk.Box periodic along x, y and z, or None (or a box without periodic axes) for open space.
+    box : a dk.Box periodic along x, y and z, or along two of them (a slab: the reference and the Ewald
+        and P3M candidates are slab sums, demkit.interactions.slab), or None (or a box without periodic
+        axes) for open space.
     prefactor : A of ``dk.Dipole`` (mu0/4pi in SI).
     candidates : a list of ``dk.Dipole`` (same prefactor; a cutoff in a periodic box), ``dk.Ewald``,
         ``dk.P3M`` or ``dk.FMM`` objects; None: :func:`default_candidates`.
@@ -274,18 +279,18 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
         on average, the cavity's field cancelling the sphere's demagnetising field.
 
     Returns a :class:`DipoleSums` report (module docstring). ValueError for particles without
-    moments, a partly periodic box, or a candidate that is none of the above.
+    moments, a box periodic along one axis only, or a candidate that is none of the above.
     """
     if not isinstance(particles, Particles):
         raise ValueError(f"particles must be a dk.Particles, got {type(particles).__name__}")
     if particles.dipole is None or not np.any(particles.dipole):
         raise ValueError("compare_dipole_sums needs particles with dipole moments (Particles(..., dipole=...)), "
                          "but " + ("they have none" if particles.dipole is None else "every moment is zero"))
-    periodic = box is not None and all(box.periodic)
+    periodic = _periodic(box)
     if box is not None and any(box.periodic) and not periodic:
-        raise ValueError(f"compare_dipole_sums needs a box periodic along x, y and z, or open space (got "
-                         f"periodic={[bool(f) for f in box.periodic]}): no converged sum exists for partly periodic "
-                         f"boxes in demkit yet")
+        raise ValueError(f"compare_dipole_sums needs a box periodic along x, y and z or along two of them (a slab), "
+                         f"or open space (got periodic={[bool(f) for f in box.periodic]}): no converged sum exists "
+                         f"for a box periodic along one axis in demkit yet")
     if not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats must be a whole number of at least 1, got {repeats!r}")
     if candidates is None:
@@ -305,8 +310,16 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
         force, torque, seconds, cpu, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)
         rows.append(SumRow(_label(dipole, d, len(particles)), dipole, _rms(force - f_ref) / pull,
                            _rms(torque - t_ref) / (pull * d), seconds, cpu, tuning, tuned))
+    space = "open space" if not periodic else "periodic box" if all(box.periodic) else \
+        f"slab open along {'xyz'[int(np.flatnonzero(~np.asarray(box.periodic))[0])]}"
     return DipoleSums(rows, reference, pull, d, len(particles), periodic, repeats,
-                      "1 thread" if parallel is False else "threads as each scene chose", (load, os.getloadavg()[0]))
+                      "1 thread" if parallel is False else "threads as each scene chose", (load, os.getloadavg()[0]),
+                      space)
+
+
+def _periodic(box):
+    """Is ``box`` periodic along three axes or two (a slab)? (Open space otherwise.)"""
+    return box is not None and int(np.count_nonzero(box.periodic)) >= 2
 
 
 def _rms(a):
