@@ -169,3 +169,36 @@ def test_boxes_a_slab_sum_refuses():
     with pytest.raises(ValueError, match="surface='vacuum' is for boxes periodic along x, y and z"):
         dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M(1e-4, surface="vacuum"))],
                  box=dk.Box([4, 4, 1], periodic=[True, True, False]))
+
+
+def test_a_scene_file_sums_a_slab_and_compare_dipole_sums_measures_one(random_layer):
+    """The square layer from a scene file (box periodic along x and y) has its closed-form energy;
+    compare_dipole_sums on a slab measures Ewald and P3M within their accuracy of its converged slab
+    sum, a cutoff far from it."""
+    p, _ = lattice_layer((0.0, 0.0, 1.0))
+    text = f"""
+[particles]
+position = {p.position.tolist()}
+dipole = {p.dipole.tolist()}
+radius = 0.2
+[box]
+size = [4.0, 4.0, 1.0]
+periodic = [true, true, false]
+[interactions.dipole]
+prefactor = 1.0
+[interactions.dipole.p3m]
+accuracy = 1e-5
+[integrator]
+dt = 0.001
+[run]
+duration = 0.01
+"""
+    loaded = dk.parse_scene(text)
+    assert loaded.scene.long_range[0].layer.axis == 2
+    assert loaded.scene.energy()["magnetic"] / len(p) == pytest.approx(square_lattice_sum() / 2, rel=1e-4)
+    position, dipole, box, _ = random_layer
+    report = dk.compare_dipole_sums(dk.Particles(position, radius=0.35, mass=1.0, dipole=dipole), box, 1.0,
+                                    [dk.Ewald(1e-4), dk.P3M(1e-4), dk.Dipole(1.0, cutoff=1.9)], repeats=1)
+    assert report.space == "slab open along z" and "slab open along z" in report.table()
+    ewald, p3m, cutoff = report.rows
+    assert ewald.force_error < 2e-4 and p3m.force_error < 2e-4 and cutoff.force_error > 1e-2
