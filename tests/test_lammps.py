@@ -293,3 +293,21 @@ def test_long_range_forces_torques_and_energy_agree_with_lammps(reference_1000, 
     assert rms_error(force, lf) < tolerance
     assert rms_error(torque, lt) < tolerance
     assert abs(energy - le) < energy_tolerance * PAIR_ENERGY
+
+
+def test_slab_forces_and_torques_agree_with_lammps_pppm_dipole_slab(tmp_path):
+    """A layer periodic along x and y (benchmarks/bench_slab.py): demkit's slab Ewald and P3M at 1e-4
+    against LAMMPS' pppm/dipole with `kspace_modify slab 10` at the same absolute accuracy: forces
+    and torques within 3 x the accuracy (their errors are independent: about sqrt(2) x; measured
+    1.3e-6 and 7.6e-7 at 1e-6, benchmarks/results/slab.json). LAMMPS' gap is 9 layer heights here,
+    longer than demkit's (5.8 heights); at the factor 3 of its docs its forces are off by 4e-4.
+    (LAMMPS' energy leaves out the layer term demkit adds: its energies are not compared here.)"""
+    from bench_slab import DIAMETER, demkit_slab, lammps_slab, layer, pull_of, rms
+    position, dipole, box = layer()
+    pull, accuracy = pull_of(dipole), 1e-4
+    force, torque, _ = lammps_slab(position, dipole, box, "pppm", accuracy * pull, 10.0, tmp_path)
+    assert rms(force) > 0.1 * pull  # real dipolar forces
+    for method in (dk.Ewald, dk.P3M):
+        f, t, _, _ = demkit_slab(position, dipole, box, method(accuracy))
+        assert rms(f - force) < 3 * accuracy * pull, method
+        assert rms(t - torque) < 3 * accuracy * pull * DIAMETER, method
