@@ -365,14 +365,14 @@ def scales(what, prefactor, particles, box, otherwise):
     return n, squares, box.volume, 6.0 * prefactor * squares / n / diameter ** 4, half, axis
 
 
-def slab_layer(box, axis, target, prefactor, squares, n, half):
+def slab_layer(box, axis, target, prefactor, squares, n, cutoff):
     """The :class:`~demkit.interactions.slab.Layer` of a slab whose copies pull with an estimated RMS
-    force error of at most ``target`` (and at least the longest real-space cutoff, ``half``, away), or
-    None for a box periodic along every axis."""
+    force error of at most ``target`` (and at least the real-space ``cutoff`` away: no copy within
+    it), or None for a box periodic along every axis."""
     if axis < 0:
         return None
     area, longest = Layer.periodic_lengths(box)
-    return Layer(box, axis, max(gap_for(target, prefactor, squares, n, area, longest), half))
+    return Layer(box, axis, max(gap_for(target, prefactor, squares, n, area, longest), cutoff))
 
 
 #: spheres of the sample a tuned sum's whole error is measured on
@@ -529,10 +529,14 @@ class Ewald:
         # the squared error budget in equal shares: real space, wave vectors (and a slab's copies)
         target, measured = goal / math.sqrt(2.0 if axis < 0 else 3.0), None
         for _ in range(MEASURED_TRIES):
-            layer = slab_layer(box, axis, target, prefactor, squares, n, half)
-            summed = box.size if layer is None else layer.size
-            rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, summed, cutoff, n, squares, volume,
+            def summed_for(rc, target=target):
+                """The lengths of the periodic box summed with real-space cutoff rc (a slab's gap: at least rc)."""
+                layer = slab_layer(box, axis, target, prefactor, squares, n, rc)
+                return tuple(box.size) if layer is None else layer.size
+            rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, summed_for, cutoff, n, squares, volume,
                                                  half)
+            layer = slab_layer(box, axis, target, prefactor, squares, n, rc)
+            summed = summed_for(rc)
             _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy)
             if not sample.ready:
                 break
@@ -558,10 +562,10 @@ class Ewald:
                              f"own (demkit.interactions.slab): surface={self.surface!r} is for boxes periodic along "
                              f"x, y and z; leave it out")
 
-    def _choose(self, target, prefactor, particles, summed, cutoff, n, squares, volume, half):
+    def _choose(self, target, prefactor, particles, summed_for, cutoff, n, squares, volume, half):
         """(cutoff, alpha, kmax, kcut) of the least estimated cost whose estimated real-space and
         per-axis reciprocal errors are at most ``target`` each (``volume``: the box's, where the
-        real-space pairs are; ``summed``: the lengths of the periodic box of the wave vectors)."""
+        real-space pairs are; ``summed_for(rc)``: the lengths of the periodic box of the wave vectors)."""
         contact = 2.0 * float(np.max(particles.radius))
         if cutoff is not None:
             candidates = [cutoff]
@@ -570,8 +574,9 @@ class Ewald:
             candidates = list(np.linspace(low, 0.999 * half, 60))
         best = None
         density = n / volume
-        volume_summed = float(np.prod(summed))
         for rc in candidates:
+            summed = summed_for(rc)
+            volume_summed = float(np.prod(summed))
             alpha = self.alpha or _alpha_for(target, prefactor, squares, n, volume, rc)
             if alpha is None:
                 continue

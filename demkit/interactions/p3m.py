@@ -291,8 +291,6 @@ class P3M(Ewald):
         self.refuse_surface_of_slab(axis)
         # the squared error budget in equal shares: real space, the mesh (and a slab's copies)
         target = self.accuracy * pull / math.sqrt(2.0 if axis < 0 else 3.0)
-        layer = slab_layer(box, axis, target, prefactor, squares, n, half)
-        summed = tuple(float(x) for x in (box.size if layer is None else layer.size))
         if cutoff is not None:
             candidates = [cutoff]
         else:
@@ -315,14 +313,18 @@ class P3M(Ewald):
             budget = math.inf if best is None else best[0] - real
             if budget <= 0.0:
                 continue
+            layer = slab_layer(box, axis, target, prefactor, squares, n, rc)  # a slab's gap: at least rc
+            summed = tuple(float(x) for x in (box.size if layer is None else layer.size))
             found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, summed, budget, smallest)
             if found is None:
                 continue
             mesh, error = found
-            smallest = max(mesh)  # a shorter cutoff takes a larger alpha, whose mesh error is larger on any mesh
+            # a shorter cutoff takes a larger alpha, whose mesh error is larger on any mesh (a slab's
+            # mesh along its open axis shrinks with the gap: the periodic axes bound it)
+            smallest = max(m for m, flag in zip(mesh, box.periodic) if flag)
             cost = real + _fft_seconds(mesh)
             if best is None or cost < best[0]:
-                best = (cost, rc, alpha, mesh, error)
+                best = (cost, rc, alpha, mesh, error, layer, summed)
         if best is None:
             room = memory.machine_memory()[0]
             fits = (f" that fits in the {room / memory.GB:.3g} GB of memory available" if room and MESH_BYTES
@@ -330,7 +332,7 @@ class P3M(Ewald):
             raise ValueError(f"no real-space cutoff shorter than half the box ({half:.6g}) and mesh of at most "
                              f"{MESH_SIZES[-1]} points per axis{fits} reach P3M accuracy {self.accuracy:g}: ask for a "
                              f"lower accuracy, or use long_range=dk.Ewald(...)")
-        _, rc, alpha, mesh, error = best
+        _, rc, alpha, mesh, error, layer, summed = best
         gap = 0.0 if layer is None else gap_error(prefactor, squares, n, *Layer.periodic_lengths(box), layer.gap)
         return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, summed,
                         real_space_error(prefactor, squares, n, volume, alpha, rc) / pull, error / pull, layer,
@@ -338,8 +340,9 @@ class P3M(Ewald):
 
     def _mesh_for(self, target, sample, alpha, cutoff, summed, budget, smallest=0):
         """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
-        error is at most ``target``, whose FFTs cost less than ``budget`` seconds and whose longest axis
-        has at least ``smallest`` points (bisection: the error falls as the mesh grows), or None;
+        error is at most ``target``, whose FFTs cost less than ``budget`` seconds and whose longest
+        periodic axis has at least ``smallest`` points (bisection: the error falls as the mesh grows),
+        or None;
         ``summed``: the lengths of the periodic box the mesh covers (a slab's drawn out)."""
         real = sample.real_forces(alpha, cutoff), sample.real_field(alpha, cutoff) if sample.fields else None
         if self.mesh is not None:
@@ -349,7 +352,7 @@ class P3M(Ewald):
                  for k in MESH_SIZES if k >= 2 * self.order]
         room = memory.machine_memory()[0] or math.inf
         sizes = [mesh for mesh in sizes if _fft_seconds(mesh) < budget and MESH_BYTES * np.prod(mesh) < room
-                 and max(mesh) >= smallest]
+                 and max(m for m, flag in zip(mesh, sample.periodic) if flag) >= smallest]
         # galloping up from the smallest (an evaluation costs its mesh's FFTs: the large meshes a plain
         # bisection tries first cost most), then bisection between the last mesh too coarse and the first fine
         last, lo, probe, step, found = len(sizes) - 1, 0, 0, 1, None
