@@ -191,7 +191,8 @@ INTERACTIONS = Table({
                                         choices=("metallic", "vacuum")),
                          "alpha": _n("splitting parameter (none: tuned)", check="positive", dim="inverse_length")},
                          "every image of a periodic box: a dipolar Ewald sum (dk.Ewald); cutoff is then the "
-                         "real-space cutoff (none: tuned)"),
+                         "real-space cutoff (none: tuned); in a box periodic along two axes, a slab sum (surface "
+                         "left out)"),
                      "p3m": Table({
                          "accuracy": _n("relative RMS force error the sum is tuned to", default=1e-4,
                                         check="positive"),
@@ -201,7 +202,8 @@ INTERACTIONS = Table({
                          "order": Key("integer", 6, "B-spline order, 4 to 7"),
                          "mesh": Key("integer", None, "mesh points per axis (none: tuned)")},
                          "every image of a big periodic box: a dipolar particle-mesh sum (dk.P3M); cutoff is "
-                         "then the real-space cutoff (none: tuned)"),
+                         "then the real-space cutoff (none: tuned); in a box periodic along two axes, a slab sum "
+                         "(surface left out)"),
                      "fmm": Table({
                          "accuracy": _n("FMM3D's precision eps", default=1e-9, check="positive"),
                          "exact_below": Key("number_or_auto", "auto", 'fewer spheres keep the exact sum: "auto" '
