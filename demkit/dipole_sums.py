@@ -156,6 +156,8 @@ class DipoleSums:
             for r, xi, yi in zip(rows, x, y):
                 ax.annotate(_tag(r.dipole, self.diameter), (xi, yi), fontsize=6, color=line.get_color(),
                             xytext=(3, 3), textcoords="offset points")
+        from matplotlib.ticker import NullFormatter
+        ax.xaxis.set_minor_formatter(NullFormatter())  # the minor labels of a short log axis overlap
         ax.set_xlabel(f"one force evaluation (ms, {self.threads})")
         ax.set_ylabel("RMS force error / touching pull")
         ax.grid(True, which="both", alpha=0.3)

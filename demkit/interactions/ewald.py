@@ -58,7 +58,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 from .base import positive
-from .slab import Layer, check_layer, gap_error, gap_for, layer_terms, open_axis, table_entries
+from .slab import Layer, check_layer, gap_error, gap_for, layer_terms, open_axis, table_entries, thick_box_hint
 
 SURFACES = ("metallic", "vacuum")
 #: time per (sphere, wave vector) of the reciprocal sum against one real-space pair within the
@@ -386,7 +386,8 @@ TIGHTEN = 0.85
 
 
 class Sample:
-    """Up to SAMPLE spheres at random places in the scene's box with moments drawn from the scene's,
+    """Up to SAMPLE spheres at random places in the scene's box (a slab's across its layer where the
+    scene's spheres are) with moments drawn from the scene's,
     and the exact Ewald forces on them (a real-space and a wave-vector sum converged ten times
     below the target): the reference a tuned sum's whole error is measured against (P3M's mesh,
     and Ewald's estimates, which assume random moments, in polarised samples). ``ready`` is False
@@ -399,8 +400,11 @@ class Sample:
         self.scale = math.sqrt(n / m)  # errors of random sums grow as the square root of the count
         self.size = size = np.asarray(box.size, dtype=np.float64)
         self.periodic = np.asarray(box.periodic, dtype=bool)
-        self.axis = axis  # a slab's open axis (-1: none); its spheres within the box's length along it
+        self.axis = axis  # a slab's open axis (-1: none)
         self.position = rng.uniform(0.0, 1.0, (m, 3)) * size
+        if axis >= 0:  # a slab's sample across the layer as the scene's spheres are (a monolayer stays one)
+            self.position[:, axis] = np.asarray(particles.position, dtype=np.float64)[rng.choice(n, m, replace=False),
+                                                                                        axis]
         self._separations = None  # (d, r2) of _pairs
         self.dipole = np.asarray(particles.dipole, dtype=np.float64)[rng.choice(n, m, replace=False)]
         self.prefactor = prefactor
@@ -537,7 +541,8 @@ class Ewald:
                                                  half)
             layer = slab_layer(box, axis, target, prefactor, squares, n, rc)
             summed = summed_for(rc)
-            _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy)
+            _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy,
+                                          thick_box_hint(box, axis, particles.position))
             if not sample.ready:
                 break
             force, field = sample.reciprocal(alpha, kmax, kcut, summed)
@@ -546,7 +551,8 @@ class Ewald:
             if measured <= MARGIN * goal:
                 break
             target *= TIGHTEN * MARGIN * goal / measured
-        _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy)
+        _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy,
+                                      thick_box_hint(box, axis, particles.position))
         volume_summed = float(np.prod(summed))
         gap = 0.0 if layer is None else gap_error(prefactor, squares, n, *Layer.periodic_lengths(box), layer.gap)
         return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut, tuple(float(x) for x in summed),
@@ -598,14 +604,15 @@ class Ewald:
         return f"Ewald(accuracy={self.accuracy!r}, surface={self.surface!r}{extra})"
 
 
-def _refuse_too_many_wave_vectors(rc, kcut, volume, n, accuracy):
-    """ValueError when the wave vectors within ``kcut`` (half of the k-sphere) exceed MAX_WAVE_VECTORS."""
+def _refuse_too_many_wave_vectors(rc, kcut, volume, n, accuracy, hint=""):
+    """ValueError when the wave vectors within ``kcut`` (half of the k-sphere) exceed MAX_WAVE_VECTORS
+    (``hint``: a sentence to add)."""
     vectors = 2.0 * math.pi / 3.0 * kcut ** 3 * volume / (2.0 * math.pi) ** 3
     if vectors > MAX_WAVE_VECTORS:
         raise ValueError(f"an Ewald sum with real-space cutoff {rc:.6g} needs about {vectors:.3g} wave vectors "
                          f"(more than {MAX_WAVE_VECTORS:.0e}) for accuracy {accuracy:g}: each force "
                          f"evaluation would take {vectors * n * 6e-9:.3g} s or more; leave the cutoff to the "
-                         f"tuning, make it longer, or ask for a lower accuracy")
+                         f"tuning, make it longer, or ask for a lower accuracy.{hint}")
 
 
 class TunedEwald:

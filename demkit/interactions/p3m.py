@@ -34,7 +34,7 @@ from numba import njit, objmode
 
 from .. import memory
 from .ewald import Ewald, Sample, _alpha_for, real_space_error, scales, screened_pair, self_field, slab_layer
-from .slab import Layer, check_layer, gap_error, layer_terms, table_entries
+from .slab import Layer, check_layer, gap_error, layer_terms, table_entries, thick_box_hint
 
 #: mesh sizes tried (products of 2, 3 and 5)
 MESH_SIZES = sorted({2 ** a * 3 ** b * 5 ** c for a in range(9) for b in range(4) for c in range(3)
@@ -331,7 +331,8 @@ class P3M(Ewald):
                     * MESH_SIZES[-1] ** 3 > room else "")
             raise ValueError(f"no real-space cutoff shorter than half the box ({half:.6g}) and mesh of at most "
                              f"{MESH_SIZES[-1]} points per axis{fits} reach P3M accuracy {self.accuracy:g}: ask for a "
-                             f"lower accuracy, or use long_range=dk.Ewald(...)")
+                             f"lower accuracy, or use long_range=dk.Ewald(...)."
+                             f"{thick_box_hint(box, axis, particles.position)}")
         _, rc, alpha, mesh, error, layer, summed = best
         gap = 0.0 if layer is None else gap_error(prefactor, squares, n, *Layer.periodic_lengths(box), layer.gap)
         return TunedP3M(self, prefactor, float(rc), float(alpha), mesh, summed,

@@ -46,6 +46,18 @@ def open_axis(box, what, otherwise):
                      f"{otherwise}")
 
 
+def thick_box_hint(box, axis, position):
+    """A sentence for a refused slab sum whose box is much thicker than its spheres span ("" otherwise)."""
+    if axis < 0:
+        return ""
+    span = float(np.ptp(np.asarray(position)[:, axis])) if len(position) else 0.0
+    thickness = float(box.size[axis])
+    if span >= 0.5 * thickness:
+        return ""
+    return (f" The spheres span {span:.6g} of the box's {thickness:.6g} along {'xyz'[axis]}, the layer the slab "
+            f"sum is drawn out from: a box about as thick as the layer they form makes the sum far cheaper.")
+
+
 def gap_error(prefactor, squares, n, area, longest, gap):
     """The estimate dF_gap of the force error from the layer's copies across a gap (module docstring)."""
     q = 2.0 * math.pi / longest
