@@ -343,8 +343,7 @@ class P3M(Ewald):
         """(mesh, the measured RMS force error of the whole sum with it) for the smallest mesh whose
         error is at most ``target``, whose FFTs cost less than ``budget`` seconds and whose longest
         periodic axis has at least ``smallest`` points (bisection: the error falls as the mesh grows),
-        or None;
-        ``summed``: the lengths of the periodic box the mesh covers (a slab's drawn out)."""
+        or None; ``summed``: the lengths of the periodic box the mesh covers (a slab's drawn out)."""
         real = sample.real_forces(alpha, cutoff), sample.real_field(alpha, cutoff) if sample.fields else None
         if self.mesh is not None:
             return self.mesh, _mesh_error(sample, real, alpha, self.mesh, self.order, summed)
