@@ -365,13 +365,17 @@ def scales(what, prefactor, particles, box, otherwise):
     return n, squares, box.volume, 6.0 * prefactor * squares / n / diameter ** 4, half, axis
 
 
-def slab_layer(box, axis, target, prefactor, squares, n, cutoff):
+def slab_layer(box, axis, target, prefactor, squares, n, cutoff, radius=None):
     """The :class:`~demkit.interactions.slab.Layer` of a slab whose copies pull with an estimated RMS
     force error of at most ``target`` (and at least the real-space ``cutoff`` away: no copy within
-    it), or None for a box periodic along every axis."""
+    it), or None for a box periodic along every axis. ``radius``: of magnetisable spheres, whose
+    field error counts (weighted by pull / touching field, as in :class:`Sample`): the copies' field,
+    one derivative less than their pull, weighs 3 / (2 q1 R) = 3 L_max / (4 pi R) times more."""
     if axis < 0:
         return None
     area, longest = Layer.periodic_lengths(box)
+    if radius is not None:
+        target /= max(1.0, 3.0 * longest / (4.0 * math.pi * radius))
     return Layer(box, axis, max(gap_for(target, prefactor, squares, n, area, longest), cutoff))
 
 
@@ -415,6 +419,7 @@ class Sample:
         self.fields = chi is not None and bool(np.any(np.asarray(chi) > 0.0))
         moment = math.sqrt(float(np.einsum("ij,ij->", particles.dipole, particles.dipole)) / n)
         self.field_weight = 3.0 * moment / (2.0 * float(np.mean(particles.radius)))  # pull / touching field
+        self.radius = float(np.mean(particles.radius)) if self.fields else None  # (for a slab's gap)
         # the reference converged ten times below the target; for fields a hundred times more (its
         # parameters come from the forces' error estimates, which the field's error exceeds ~6-fold)
         fine = (0.001 if self.fields else 0.1) * target / self.scale
@@ -424,7 +429,7 @@ class Sample:
         if not self.ready:
             return
         # a slab's reference: its copies a gap far longer away (its estimated pull at the fine target)
-        self.layer = slab_layer(box, axis, fine, prefactor, squares, m, cutoff)
+        self.layer = slab_layer(box, axis, fine, prefactor, squares, m, cutoff, self.radius)
         summed = size if self.layer is None else np.asarray(self.layer.size)
         kmax, kcut = wave_vector_limits(fine, prefactor, squares, m, float(np.prod(summed)), alpha, summed)
         force, field = self.reciprocal(alpha, kmax, kcut, summed)
@@ -535,11 +540,11 @@ class Ewald:
         for _ in range(MEASURED_TRIES):
             def summed_for(rc, target=target):
                 """The lengths of the periodic box summed with real-space cutoff rc (a slab's gap: at least rc)."""
-                layer = slab_layer(box, axis, target, prefactor, squares, n, rc)
+                layer = slab_layer(box, axis, target, prefactor, squares, n, rc, sample.radius)
                 return tuple(box.size) if layer is None else layer.size
             rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, summed_for, cutoff, n, squares, volume,
                                                  half)
-            layer = slab_layer(box, axis, target, prefactor, squares, n, rc)
+            layer = slab_layer(box, axis, target, prefactor, squares, n, rc, sample.radius)
             summed = summed_for(rc)
             _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy,
                                           thick_box_hint(box, axis, particles.position))

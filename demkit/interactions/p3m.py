@@ -313,7 +313,7 @@ class P3M(Ewald):
             budget = math.inf if best is None else best[0] - real
             if budget <= 0.0:
                 continue
-            layer = slab_layer(box, axis, target, prefactor, squares, n, rc)  # a slab's gap: at least rc
+            layer = slab_layer(box, axis, target, prefactor, squares, n, rc, sample.radius)  # gap: at least rc
             summed = tuple(float(x) for x in (box.size if layer is None else layer.size))
             found = self._mesh_for(self.accuracy * pull, sample, alpha, rc, summed, budget, smallest)
             if found is None:
