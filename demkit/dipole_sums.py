@@ -27,6 +27,7 @@ import numpy as np
 from .interactions.dipole import Dipole
 from .interactions.ewald import Ewald
 from .interactions.fmm import FMM
+from .interactions.slab import open_axis
 from .interactions.p3m import P3M
 from .particles import Particles
 from .scene import Scene
@@ -117,8 +118,8 @@ class DipoleSums:
         return self.table()
 
     def as_dict(self):
-        return dict(n=self.n, periodic=self.periodic, space=self.space, pull=self.pull, diameter=self.diameter, repeats=self.repeats,
-                    threads=self.threads, load_before_after=list(self.load), reference=self.reference,
+        return dict(n=self.n, periodic=self.periodic, space=self.space, pull=self.pull, diameter=self.diameter,
+                    repeats=self.repeats, threads=self.threads, load_before_after=list(self.load), reference=self.reference,
                     rows=[r.as_dict() for r in self.rows])
 
     def to_json(self, path=None):
@@ -312,8 +313,8 @@ def compare_dipole_sums(particles, box, prefactor, candidates=None, repeats=3, p
         force, torque, seconds, cpu, tuning, tuned = _measure(particles, box, dipole, repeats, parallel)
         rows.append(SumRow(_label(dipole, d, len(particles)), dipole, _rms(force - f_ref) / pull,
                            _rms(torque - t_ref) / (pull * d), seconds, cpu, tuning, tuned))
-    space = "open space" if not periodic else "periodic box" if all(box.periodic) else \
-        f"slab open along {'xyz'[int(np.flatnonzero(~np.asarray(box.periodic))[0])]}"
+    axis = open_axis(box, "compare_dipole_sums", "") if periodic else -1
+    space = "open space" if not periodic else "periodic box" if axis < 0 else f"slab open along {'xyz'[axis]}"
     return DipoleSums(rows, reference, pull, d, len(particles), periodic, repeats,
                       "1 thread" if parallel is False else "threads as each scene chose", (load, os.getloadavg()[0]),
                       space)

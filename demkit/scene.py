@@ -670,7 +670,7 @@ class Scene:
         """ValueError when the spheres left the layer of a slab sum (demkit.interactions.slab): its
         forces and energies would hold copies of the layer too close."""
         for tuned in self.long_range:
-            if getattr(tuned, "layer", None) is not None:
+            if tuned.layer is not None:
                 tuned.layer.check(self.particles.position, self.particles.ids)
 
     def forces(self):

@@ -685,7 +685,7 @@ class Simulation:
                 f"docs/stability.md says how to size both. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         if code == LEFT_LAYER:
-            hint = next(tuned.layer.stop_hint() for tuned in scene.long_range if getattr(tuned, "layer", None))
+            hint = next(tuned.layer.stop_hint() for tuned in scene.long_range if tuned.layer is not None)
             raise SimulationError(
                 f"particle id {p.ids[k]} {hint} It happened at step {self.step} (t = {self.time:.6g}; its speed "
                 f"{speed:.6g}, position {p.position[k].tolist()}). {kept}.",

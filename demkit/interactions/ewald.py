@@ -484,7 +484,7 @@ class Sample:
 
     def geometry(self, summed):
         """The table entries of a candidate summing a periodic box of lengths ``summed``."""
-        return table_entries(summed) if self.axis < 0 else [*summed, float(self.axis), float(self.size[self.axis])]
+        return table_entries(summed, self.axis, self.size[self.axis] if self.axis >= 0 else 0.0)
 
     def error_of(self, force, field=None):
         """RMS error of these (m, 3) sample forces against the exact ones, scaled to the scene's count;
@@ -537,6 +537,7 @@ class Ewald:
         sample = Sample(particles, box, prefactor, goal, axis)
         # the squared error budget in equal shares: real space, wave vectors (and a slab's copies)
         target, measured = goal / math.sqrt(2.0 if axis < 0 else 3.0), None
+        hint = thick_box_hint(box, axis, particles.position)
         for _ in range(MEASURED_TRIES):
             def summed_for(rc, target=target):
                 """The lengths of the periodic box summed with real-space cutoff rc (a slab's gap: at least rc)."""
@@ -545,9 +546,8 @@ class Ewald:
             rc, alpha, kmax, kcut = self._choose(target, prefactor, particles, summed_for, cutoff, n, squares, volume,
                                                  half)
             layer = slab_layer(box, axis, target, prefactor, squares, n, rc, sample.radius)
-            summed = summed_for(rc)
-            _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy,
-                                          thick_box_hint(box, axis, particles.position))
+            summed = tuple(box.size) if layer is None else layer.size
+            _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy, hint)
             if not sample.ready:
                 break
             force, field = sample.reciprocal(alpha, kmax, kcut, summed)
@@ -556,9 +556,8 @@ class Ewald:
             if measured <= MARGIN * goal:
                 break
             target *= TIGHTEN * MARGIN * goal / measured
-        _refuse_too_many_wave_vectors(rc, kcut, float(np.prod(summed)), n, self.accuracy,
-                                      thick_box_hint(box, axis, particles.position))
         volume_summed = float(np.prod(summed))
+        _refuse_too_many_wave_vectors(rc, kcut, volume_summed, n, self.accuracy, hint)
         gap = 0.0 if layer is None else gap_error(prefactor, squares, n, *Layer.periodic_lengths(box), layer.gap)
         return TunedEwald(self, prefactor, float(rc), float(alpha), kmax, kcut, tuple(float(x) for x in summed),
                           real_space_error(prefactor, squares, n, volume, alpha, rc) / pull,

@@ -13,8 +13,8 @@ the convention of the pair virial sum d_a F_b, is
 with T_a(k) = sum_j m_ja exp(i k.x_j). The self term does not depend on positions or volume (no
 virial); the surface term of vacuum boundaries, (2 pi A / 3V) |sum m|^2, adds (2 pi A / 3V) |sum m|^2
 delta_ab, and a slab's layer term (2 pi A / V') M_a^2 (demkit.interactions.slab, V' the drawn-out box)
-adds (2 pi A / V') M_a^2 delta_ab likewise. A P3M sum's mesh part is the Ewald reciprocal sum at its splitting alpha to its accuracy:
-its virial is this one's with the wave vectors that accuracy needs. The real-space pairs are pair
+adds (2 pi A / V') M_a^2 delta_ab likewise. A P3M sum's mesh part is the Ewald reciprocal sum at its
+splitting alpha to its accuracy: its virial is this one's with the wave vectors that accuracy needs. The real-space pairs are pair
 forces (:meth:`demkit.Scene.pair_forces`).
 """
 from __future__ import annotations

@@ -174,6 +174,8 @@ class TunedFMM:
     energy_kind = "magnetic"
     #: the compiled function the kernels call once per force evaluation (module, name)
     kernel = ("demkit.interactions.fmm", "fmm_sum")
+    #: an open-space sum has no slab layer (demkit.interactions.slab)
+    layer = None
 
     def __init__(self, settings, prefactor):
         self.settings = settings

@@ -90,8 +90,8 @@ class Layer:
         return sides[0] * sides[1], max(sides)
 
     def table(self):
-        """The run-time entries of the layer in a sum's table: the drawn-out lengths, axis, thickness."""
-        return [*self.size, float(self.axis), self.thickness]
+        """The run-time entries of the layer in a sum's table (:func:`table_entries`)."""
+        return table_entries(self.size, self.axis, self.thickness)
 
     def check(self, position, ids):
         """ValueError when these (N, 3) positions leave the layer (a state its sum cannot hold); ``ids``
@@ -111,9 +111,10 @@ class Layer:
         return f"Layer(axis={'xyz'[self.axis]!r}, thickness={self.thickness:.6g}, gap={self.gap:.6g})"
 
 
-def table_entries(size):
-    """The run-time entries of a fully periodic box (no layer): its lengths, axis -1, thickness 0."""
-    return [*(float(x) for x in size), -1.0, 0.0]
+def table_entries(size, axis=-1, thickness=0.0):
+    """The run-time entries of the box a sum covers: its lengths (a slab's drawn out), the open axis
+    (-1: none, a box periodic along every axis) and the layer's thickness."""
+    return [*(float(x) for x in size), float(axis), float(thickness)]
 
 
 @njit(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
