@@ -215,16 +215,19 @@ def info_command(args):
         per_step, count = _timed_steps(sim, integ)
         how = f"measured over {count:,} steps now"
         tiers = sim._tiers
-        if tiers.worth_switching(per_step * round(loaded.duration / integ.dt)):
+        switched = tiers.switch_step is not None  # during the timing (earlier runs of the combination count)
+        if switched or tiers.worth_switching(per_step * round(loaded.duration / integ.dt)):
             # the run goes over to the scene's own code (tier 2): time that, compiled or loaded now
             tiers.hurry()
             deadline = time.perf_counter() + 300.0
-            while tiers.tier == 1 and time.perf_counter() < deadline:
+            while tiers.tier == 1 and tiers.switchable and time.perf_counter() < deadline:
                 sim.run(duration=count * integ.dt, progress=False)
             if tiers.tier == 2:
                 sim.run(duration=5 * integ.dt, progress=False)  # its first chunk warms up, as above
                 per_step, count = _timed_steps(sim, integ)
                 how = f"measured over {count:,} steps now on tier 2, the scene's own code a run this long switches to"
+            else:
+                how += f" on tier 1 ({tiers.reason})"
         per_step += est.later
         if est.later > 0.0:
             how += f", + {_short(est.later)} for {est.later_what} of the model ({est.note})"

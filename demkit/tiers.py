@@ -63,6 +63,7 @@ class TierChoice:
         else:
             self.reason = "the generic module (tier 1) until the scene's own code (tier 2) is worth compiling"
         self._work = None
+        self._failure = None  # what stopped tier 2's compilation, if it failed
         self._modules = None  # (serial, thread or None) of tier 2, once compiled
         self._cached = None
         self._key = None  # (tier 2's module name, loop name), once asked for
@@ -121,7 +122,11 @@ class TierChoice:
                 return None
             self._start()
             return None
-        if self._work.is_alive() or self._modules is None:
+        if self._work.is_alive():
+            return None
+        if self._modules is None:
+            self.switchable = False
+            self.reason = f"tier 2 failed to compile in the background ({self._failure}); tier 1 ran on"
             return None
         self.switchable = False
         _READY.add(self.key)
@@ -153,8 +158,9 @@ class TierChoice:
                         getattr(module, function).compile(signature)
                     modules.append(module)
                 self._modules = (modules[0], modules[1] if len(modules) > 1 else None)
-            except Exception:  # noqa: BLE001 - a failed compile keeps the run on tier 1
+            except Exception as error:  # noqa: BLE001 - a failed compile keeps the run on tier 1, and says so
                 self._modules = None
+                self._failure = f"{type(error).__name__}: {error}"
 
         from .threads import _UNFINISHED
         self._work = threading.Thread(target=work, name=BACKGROUND, daemon=True)

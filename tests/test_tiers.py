@@ -391,3 +391,30 @@ def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_sp
     for kind in {inter.energy_kind for inter in scene.interactions}:
         columns = [k for k, inter in enumerate(scene.interactions) if inter.energy_kind == kind]
         assert np.isclose(energies[:, columns].sum(), energy[kind], rtol=1e-12, atol=1e-14), kind
+
+
+def test_a_failed_tier_2_compilation_is_reported_and_the_run_goes_on_on_tier_1(monkeypatch):
+    """A background compilation that fails (a full disk, a broken plugin) keeps the run on tier 1
+    with the same bits, and the run's statistics say why instead of waiting for it forever."""
+    from demkit import tiers
+    monkeypatch.setattr(tiers, "WORTH_COMPILING_OPEN", 0.0)
+    monkeypatch.setattr(tiers, "WORTH_LOADING", 0.0)
+    monkeypatch.setattr(tiers, "_SPENT", {})
+    monkeypatch.setattr(tiers, "_READY", set())
+    scene = small_scene(None)
+
+    def broken(threads, tier=None):
+        if tier == 2:
+            raise OSError("No space left on device")
+        return original(threads, tier=tier)
+
+    original = scene._kernels
+    monkeypatch.setattr(scene, "_kernels", broken)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    for _ in range(40):  # short runs: each looks whether the background work ended
+        sim.run(duration=0.005, progress=False)
+        if not sim._tiers.switchable:
+            break
+    stats = sim.statistics
+    assert stats["tier"] == 1 and stats["tier_switch_step"] is None
+    assert "failed to compile" in stats["tier_reason"] and "No space left" in stats["tier_reason"]
