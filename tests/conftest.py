@@ -119,7 +119,8 @@ if __import__("os").environ.get("DEMKIT_COMPILE_LOG"):
             if self.depth == 0 and self.start is not None:
                 f = ev.data["dispatcher"].py_func
                 self.rows.append({"test": self.test, "function": f.__name__, "module": f.__module__,
-                                  "cpu": time.process_time() - self.start[1],
+                                  "cpu": time.process_time() - self.start[1], "began": self.start[0],
+                                  "wall": time.perf_counter() - self.start[0],
                                   "thread": threading.current_thread().name, "pid": os.getpid()})
                 self.start = None
 
@@ -129,7 +130,11 @@ if __import__("os").environ.get("DEMKIT_COMPILE_LOG"):
     @pytest.fixture(autouse=True)
     def _log_compiles(request):
         _LOG.test = request.node.nodeid
+        began, cpu = time.perf_counter(), time.process_time()
         yield
+        # and the test itself (its wall and CPU seconds, from when): a timeline of each worker
+        _LOG.rows.append({"test": _LOG.test, "function": None, "began": began, "wall": time.perf_counter() - began,
+                          "cpu": time.process_time() - cpu, "pid": os.getpid()})
         with open(os.environ["DEMKIT_COMPILE_LOG"], "a") as fh:
             for row in _LOG.rows:
                 fh.write(json.dumps(row) + "\n")

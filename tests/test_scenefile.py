@@ -713,6 +713,9 @@ def test_demkit_info_measure_after_earlier_runs_of_the_combination(monkeypatch):
         def get(self, key, default=None):
             return 1e3  # seconds every combination ran on tier 1 before, in this process
 
+    for name, seconds in (("WORTH_COMPILING", 20.0), ("WORTH_COMPILING_OPEN", 8.0), ("WORTH_LOADING", 2.0)):
+        monkeypatch.setattr(dk.tiers, name, seconds)  # the shipped thresholds (the suite's conftest: never)
+    monkeypatch.setattr(dk.tiers, "_READY", set())
     monkeypatch.setattr(dk.tiers, "_SPENT", LongBefore())
     done = demkit("info", str(COLLISION), "--measure", "--set", "run.duration=400000.0", cwd=ROOT)
     assert done.returncode == 0, done.stderr
