@@ -646,12 +646,14 @@ class _Generic:
         lines += MAINTAIN_LISTS_HEAD
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)"]
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic)"]
         lines += MAINTAIN_LISTS_TAIL
+        # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
+        # saved by the tags the particles had (``before``): saving and restoring it here, inlined for
+        # each of the groups, compiled for 10 CPU s a module
         lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
-                  '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""']
-        for g in range(MAX_GROUPS):
-            lines.append(f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)")
+                  '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""',
+                  "    before = s.tag.copy()"]
         lines += ["    shortest = s.program[0, H_SHORTEST]",
                   "    reach = s.lists[0].reach if shortest == 0 else (s.lists[1].reach if shortest == 1 else "
                   "s.lists[2].reach)",
@@ -662,10 +664,7 @@ class _Generic:
         for g in range(MAX_GROUPS):
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                      f"        build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)",
-                      f"        if s.program[{row}, G_WIDTH] > 0:",
-                      f"            restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})",
-                      f"        balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)"]
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         return lines
 
@@ -770,8 +769,7 @@ class _Generic:
                  "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
                  "from demkit.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
-                 "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
-                 "                               restore_history)",
+                 "                               permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
                  "from demkit.kernels import BLOCK",

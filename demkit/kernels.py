@@ -786,24 +786,19 @@ class _Source:
             # callers pass strict as a bool *variable* (True != False): numba compiles a function
             # once per literal argument value, and this one links the whole list builder
             lines += MAINTAIN_LISTS_HEAD
-            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, s.box, s.periodic)" for g in plan.lists]
+            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic)" for g in plan.lists]
             lines += MAINTAIN_LISTS_TAIL
         if plan.sorted:
-            history = [g for g in plan.lists if plan.groups[g].width]
             shortest = plan.lists[0]  # groups come sorted by reach: the cells of the shortest list
             lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
                       '    """Re-order the particles by cell (memory locality) and rebuild the lists, carrying',
                       '    their history by tag. Only between steps: every per-particle array moves."""']
-            lines += [f"    owners_{g}, partners_{g}, rows_{g} = saved_history(s.lists[{g}], s.tag)" for g in history]
+            lines += ["    before = s.tag.copy()  # the tags the lists were built with (their history's keys)"]
             lines += [f"    order = cell_order(s.position, s.box, s.periodic, s.lists[{shortest}].reach)"]
             lines += PERMUTE_BY_ORDER
             if plan.effect_width:
                 lines.append("    permute_rows(s.sphere_history, order)")
-            for g in plan.lists:
-                lines.append(f"    build(s.lists[{g}], s.position, s.tag, s.box, s.periodic)")
-                if g in history:
-                    lines.append(f"    restore_history(s.lists[{g}], s.tag, owners_{g}, partners_{g}, rows_{g})")
-                lines.append(f"    balance(s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].bounds)")
+            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic)" for g in plan.lists]
             lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         # forces. forces_of has compute_forces' body written out on s.force/s.torque rather than a
         # call of it: numba re-reads and copies a function at every level of inlining (the time
@@ -890,8 +885,7 @@ class _Source:
                  "                           KERNEL_OPTIONS)",
                  "from demkit.events import earliest_crossing_all, earliest_crossing_list",
                  "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
-                 "                               permute_vectors, permute_scalars, permute_rows, saved_history,",
-                 "                               restore_history)",
+                 "                               permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
                  "                          INNER_STEPS, RUN_START, INDUCTION_FAILED, field)",
                  ""]

@@ -377,9 +377,11 @@ def build_threads(pl, position, tag, box, periodic):
     finish_build(pl, work)
 
 
-@njit(**HELPER)
+@njit(**ENTRY)
 def start_build(pl, position, tag, box, periodic):
-    """Bin the particles into cells and cut the cells into chunks: the working arrays of a build."""
+    """Bin the particles into cells and cut the cells into chunks: the working arrays of a build.
+    Compiled once for both builders (not inlined into each): with lists built on threads too, the
+    two rebuilds compiled in 26-27 CPU s instead of 32, at ~2 s more for the serial one alone."""
     n = position.shape[0]
     origin = np.empty(3)
     size = np.empty(3)
@@ -544,10 +546,12 @@ def balance(start, end, bounds):
 
 
 @njit(**ENTRY)
-def rebuild(pl, position, tag, box, periodic):
-    """Rebuild one list, carrying its per-pair history by tag."""
+def rebuild(pl, position, tag, before, box, periodic):
+    """Rebuild one list, carrying its per-pair history by tag: ``before`` are the tags the particles
+    had when the list was last built (``tag`` itself, unless they were re-ordered since: the sort
+    permutes the particles first and then rebuilds every list with this one compiled function)."""
     if pl.history.shape[1] > 0:
-        owners, partners, rows = saved_history(pl, tag)
+        owners, partners, rows = saved_history(pl, before)
         build(pl, position, tag, box, periodic)
         restore_history(pl, tag, owners, partners, rows)
     else:
@@ -556,10 +560,10 @@ def rebuild(pl, position, tag, box, periodic):
 
 
 @njit(**ENTRY)
-def rebuild_threads(pl, position, tag, box, periodic):
+def rebuild_threads(pl, position, tag, before, box, periodic):
     """:func:`rebuild` with the list's chunks filled on threads (the same list)."""
     if pl.history.shape[1] > 0:
-        owners, partners, rows = saved_history(pl, tag)
+        owners, partners, rows = saved_history(pl, before)
         build_threads(pl, position, tag, box, periodic)
         restore_history(pl, tag, owners, partners, rows)
     else:

@@ -290,7 +290,7 @@ class Scene:
             position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
         pairs = new_pair_list(solver.cutoff if solver.kind == "list" else 0.0, n, 0, 1)
         if solver.kind == "list":
-            neighbours.rebuild(pairs, position, index, self.arrays["box"], self.arrays["periodic"])
+            neighbours.rebuild(pairs, position, index, index, self.arrays["box"], self.arrays["periodic"])
         code = induction.induce(position, p.dipole, index, self.arrays["box"], self.arrays["periodic"], self.params,
                                 self.induction_slot, pairs.start, pairs.end, pairs.partner, np.zeros((n, 0)), 0,
                                 False)
@@ -601,7 +601,7 @@ class Scene:
             return np.column_stack([i[close], j[close]]).astype(np.int64)
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
-        neighbours.rebuild(pl, p.position, index, self.arrays["box"], self.arrays["periodic"])
+        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"])
         return neighbours.pairs_of(pl, index)
 
     def separations(self, pairs):
