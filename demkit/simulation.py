@@ -12,6 +12,7 @@ import threading
 import time
 import warnings
 
+import numba
 import numpy as np
 
 from . import checks, guards
@@ -751,11 +752,14 @@ class _Stepping:
 
     def __init__(self, scene):
         self.scene = scene
+        self.threads = None
 
     def __enter__(self):
         self.scene.stepping = True
+        self.threads = numba.get_num_threads()  # the run's chunks set it (demkit.threads): given back
 
     def __exit__(self, kind, error, tb):
+        numba.set_num_threads(self.threads)
         self.scene.stepping = False
         self.scene.pull()
         if kind is not None and not issubclass(kind, KeyboardInterrupt):

@@ -161,7 +161,7 @@ class ThreadChoice:
             if self.fixed > 1:
                 numba.set_num_threads(self.fixed)
                 return self._threaded(), steps
-            return self.serial_loop, steps
+            return self._serial(), steps
         now = time.perf_counter()
         serial = self.rates[1]
         if self.thread_loop is None:
@@ -185,12 +185,20 @@ class ThreadChoice:
                 return self.thread_loop, min(steps, probe)
             self.threads = 1  # on threads: look at one thread again, briefly
             self.probing = True
-            return self.serial_loop, min(steps, probe)
+            return self._serial(), min(steps, probe)
         self.probing = False
         if self.threads > 1:
             numba.set_num_threads(self.threads)
             return self.thread_loop, steps
-        return self.serial_loop, steps
+        return self._serial(), steps
+
+    def _serial(self):
+        """The serial loop, with numba's threads set to one: what a serial chunk calls on threads of
+        its own (a P3M sum's mesh, demkit.interactions.p3m) follows the run's choice too. (A run
+        gives numba's setting back when it ends: demkit.simulation._Stepping.)"""
+        if numba.get_num_threads() != 1:
+            numba.set_num_threads(1)
+        return self.serial_loop
 
     def measured(self, steps, seconds, first=False):
         """The last chunk, of ``steps`` steps, took ``seconds`` on the current choice; ``first``: it

@@ -30,7 +30,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, objmode
+import numba
+from numba import njit, objmode, prange
 
 from .. import memory
 from .ewald import Ewald, Sample, _alpha_for, real_space_error, scales, screened_pair, self_field, slab_layer
@@ -49,6 +50,10 @@ MESH_BYTES = 32
 #: the periodic box summed (a slab's drawn out), the open axis (-1: none), the layer's thickness; then C
 HEAD = 12
 OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
+#: the mesh's loops over spheres and mesh planes run on numba's threads (as many as the run's chunk
+#: uses: demkit.threads sets them; one outside a run on threads). Each sphere's weights and forces,
+#: and each mesh point's sum, are added in the same order on any number of threads: the same bits.
+THREADS = dict(OPTIONS, parallel=True)
 
 
 @njit(**OPTIONS)
@@ -68,88 +73,106 @@ def _splines(t, p, table, w, dw, ddw):
                   + (table[p - 2, l - 2] if l >= 2 else 0.0))
 
 
-@njit(**OPTIONS)
-def _weights(position, box, mesh, p):
-    """Base mesh index and spline values, first and second derivatives per sphere and axis."""
+@njit(**THREADS)
+def _weights(position, box, mesh, p, chunks):
+    """Base mesh index and spline values, first and second derivatives per sphere and axis (the
+    spheres in ``chunks`` chunks on threads, each with its scratch table)."""
     n = position.shape[0]
     base = np.empty((n, 3), dtype=np.int64)
     w = np.empty((n, 3, p))
     dw = np.empty((n, 3, p))
     ddw = np.empty((n, 3, p))
-    table = np.empty((p + 1, p + 1))
-    for j in range(n):
-        for a in range(3):
-            s = position[j, a] / box[a]
-            u = (s - math.floor(s)) * mesh[a]
-            b = int(math.floor(u))
-            if b >= mesh[a]:
-                b -= mesh[a]
-            base[j, a] = b
-            _splines(u - b, p, table, w[j, a], dw[j, a], ddw[j, a])
+    for k in prange(chunks):
+        table = np.empty((p + 1, p + 1))
+        for j in range(k * n // chunks, (k + 1) * n // chunks):
+            for a in range(3):
+                s = position[j, a] / box[a]
+                u = (s - math.floor(s)) * mesh[a]
+                b = int(math.floor(u))
+                if b >= mesh[a]:
+                    b -= mesh[a]
+                base[j, a] = b
+                _splines(u - b, p, table, w[j, a], dw[j, a], ddw[j, a])
     return base, w, dw, ddw
 
 
-@njit(**OPTIONS)
-def spread(dipole, box, mesh, p, base, w, dw, grid):
-    """grid(g) = sum_j m_j . grad_j W_j(g) (grid zeroed first)."""
+@njit(**THREADS)
+def spread(dipole, box, mesh, p, base, w, dw, grid, chunks):
+    """grid(g) = sum_j m_j . grad_j W_j(g) (grid zeroed first). Each of ``chunks`` threads fills its own planes
+    x = const of the mesh, going through the spheres in order: every mesh point gets its terms in
+    the order one thread adds them, whatever the number of threads."""
     grid[...] = 0.0
     sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
-    iz = np.empty(p, dtype=np.int64)
-    for j in range(dipole.shape[0]):
-        mx, my, mz = dipole[j, 0] * sx, dipole[j, 1] * sy, dipole[j, 2] * sz
-        for c in range(p):
-            iz[c] = (base[j, 2] - c) % mesh[2]
-        for a in range(p):
-            gx = (base[j, 0] - a) % mesh[0]
-            xa, xd = w[j, 0, a], mx * dw[j, 0, a]
-            for b in range(p):
-                gy = (base[j, 1] - b) % mesh[1]
-                u = xd * w[j, 1, b] + xa * my * dw[j, 1, b]   # times M(z)
-                v = xa * w[j, 1, b] * mz                      # times M'(z)
-                for c in range(p):
-                    grid[gx, gy, iz[c]] += u * w[j, 2, c] + v * dw[j, 2, c]
+    chunks = min(chunks, mesh[0])
+    for k in prange(chunks):
+        lo, hi = k * mesh[0] // chunks, (k + 1) * mesh[0] // chunks  # this thread's planes
+        iz = np.empty(p, dtype=np.int64)
+        for j in range(dipole.shape[0]):
+            mx, my, mz = dipole[j, 0] * sx, dipole[j, 1] * sy, dipole[j, 2] * sz
+            for c in range(p):
+                iz[c] = (base[j, 2] - c) % mesh[2]
+            for a in range(p):
+                gx = (base[j, 0] - a) % mesh[0]
+                if gx < lo or gx >= hi:
+                    continue
+                xa, xd = w[j, 0, a], mx * dw[j, 0, a]
+                for b in range(p):
+                    gy = (base[j, 1] - b) % mesh[1]
+                    u = xd * w[j, 1, b] + xa * my * dw[j, 1, b]   # times M(z)
+                    v = xa * w[j, 1, b] * mz                      # times M'(z)
+                    for c in range(p):
+                        grid[gx, gy, iz[c]] += u * w[j, 2, c] + v * dw[j, 2, c]
+
+
+@njit(**THREADS)
+def gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field, chunks):
+    """Add F_j = -sum Phi Hess(W) m_j to force and H_j = -sum Phi grad(W) to field (the spheres in
+    ``chunks`` chunks on threads)."""
+    sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
+    n = dipole.shape[0]
+    for k in prange(chunks):
+        iz = np.empty(p, dtype=np.int64)
+        for j in range(k * n // chunks, (k + 1) * n // chunks):
+            _gather_one(j, dipole, mesh, p, base, w, dw, ddw, phi, force, field, sx, sy, sz, iz)
 
 
 @njit(**OPTIONS)
-def gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field):
-    """Add F_j = -sum Phi Hess(W) m_j to force and H_j = -sum Phi grad(W) to field."""
-    sx, sy, sz = mesh[0] / box[0], mesh[1] / box[1], mesh[2] / box[2]
-    iz = np.empty(p, dtype=np.int64)
-    for j in range(dipole.shape[0]):
-        for c in range(p):
-            iz[c] = (base[j, 2] - c) % mesh[2]
-        hx = hy = hz = 0.0
-        xx = yy = zz = xy = xz = yz = 0.0
-        for a in range(p):
-            gx = (base[j, 0] - a) % mesh[0]
-            wx, dx, ddx = w[j, 0, a], dw[j, 0, a], ddw[j, 0, a]
-            for b in range(p):
-                gy = (base[j, 1] - b) % mesh[1]
-                s0 = 0.0  # sum over z of phi M, phi M', phi M''
-                s1 = 0.0
-                s2 = 0.0
-                for c in range(p):
-                    f = phi[gx, gy, iz[c]]
-                    s0 += f * w[j, 2, c]
-                    s1 += f * dw[j, 2, c]
-                    s2 += f * ddw[j, 2, c]
-                wy, dy, ddy = w[j, 1, b], dw[j, 1, b], ddw[j, 1, b]
-                hx += dx * wy * s0
-                hy += wx * dy * s0
-                hz += wx * wy * s1
-                xx += ddx * wy * s0
-                yy += wx * ddy * s0
-                zz += wx * wy * s2
-                xy += dx * dy * s0
-                xz += dx * wy * s1
-                yz += wx * dy * s1
-        field[j, 0] -= hx * sx
-        field[j, 1] -= hy * sy
-        field[j, 2] -= hz * sz
-        mx, my, mz = dipole[j, 0], dipole[j, 1], dipole[j, 2]
-        force[j, 0] -= xx * sx * sx * mx + xy * sx * sy * my + xz * sx * sz * mz
-        force[j, 1] -= xy * sx * sy * mx + yy * sy * sy * my + yz * sy * sz * mz
-        force[j, 2] -= xz * sx * sz * mx + yz * sy * sz * my + zz * sz * sz * mz
+def _gather_one(j, dipole, mesh, p, base, w, dw, ddw, phi, force, field, sx, sy, sz, iz):
+    """Sphere j's part of :func:`gather`."""
+    for c in range(p):
+        iz[c] = (base[j, 2] - c) % mesh[2]
+    hx = hy = hz = 0.0
+    xx = yy = zz = xy = xz = yz = 0.0
+    for a in range(p):
+        gx = (base[j, 0] - a) % mesh[0]
+        wx, dx, ddx = w[j, 0, a], dw[j, 0, a], ddw[j, 0, a]
+        for b in range(p):
+            gy = (base[j, 1] - b) % mesh[1]
+            s0 = 0.0  # sum over z of phi M, phi M', phi M''
+            s1 = 0.0
+            s2 = 0.0
+            for c in range(p):
+                f = phi[gx, gy, iz[c]]
+                s0 += f * w[j, 2, c]
+                s1 += f * dw[j, 2, c]
+                s2 += f * ddw[j, 2, c]
+            wy, dy, ddy = w[j, 1, b], dw[j, 1, b], ddw[j, 1, b]
+            hx += dx * wy * s0
+            hy += wx * dy * s0
+            hz += wx * wy * s1
+            xx += ddx * wy * s0
+            yy += wx * ddy * s0
+            zz += wx * wy * s2
+            xy += dx * dy * s0
+            xz += dx * wy * s1
+            yz += wx * dy * s1
+    field[j, 0] -= hx * sx
+    field[j, 1] -= hy * sy
+    field[j, 2] -= hz * sz
+    mx, my, mz = dipole[j, 0], dipole[j, 1], dipole[j, 2]
+    force[j, 0] -= xx * sx * sx * mx + xy * sx * sy * my + xz * sx * sz * mz
+    force[j, 1] -= xy * sx * sy * mx + yy * sy * sy * my + yz * sy * sz * mz
+    force[j, 2] -= xz * sx * sz * mx + yz * sy * sz * my + zz * sz * sz * mz
 
 
 def influence(box, mesh, alpha, p, prefactor):
@@ -196,13 +219,16 @@ def _dot(a, b):
 def mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces):
     """Energy of the mesh sum; with ``with_forces`` its forces added to force, its field to field."""
     import scipy.fft
-    base, w, dw, ddw = _weights(position, box, mesh, p)
+    workers = numba.get_num_threads()  # the run's chunk sets them (demkit.threads); any number: the same bits
+    base, w, dw, ddw = _weights(position, box, mesh, p, workers)
     grid = np.empty(tuple(mesh))
-    spread(dipole, box, mesh, p, base, w, dw, grid)
-    phi = 2.0 * float(np.prod(mesh)) * scipy.fft.irfftn(c * scipy.fft.rfftn(grid), s=tuple(mesh))
+    spread(dipole, box, mesh, p, base, w, dw, grid, workers)
+    # (pocketfft gives each worker whole 1-D transforms: the same bits on any number of them)
+    phi = 2.0 * float(np.prod(mesh)) * scipy.fft.irfftn(c * scipy.fft.rfftn(grid, workers=workers), s=tuple(mesh),
+                                                       workers=workers)
     energy = 0.5 * _dot(grid, phi)
     if with_forces:
-        gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field)
+        gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field, workers)
     return energy
 
 
