@@ -26,7 +26,7 @@ from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
-from .threads import THREADS_FROM_SECONDS, estimated_force_seconds
+from .threads import PARALLEL_MIN, THREADS_FROM_SECONDS, estimated_force_seconds
 from . import generic
 from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds, importable
 from .motion import empty_vectors
@@ -40,8 +40,6 @@ from .state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, S
 MAX_INITIAL_OVERLAP = DEEP_OVERLAP_FRACTION
 #: open scenes with at most this many spheres loop over all pairs (no neighbour lists)
 ALL_PAIRS_MAX = 64
-#: scenes with at least this many spheres split their pair loops among threads (parallel="auto")
-PARALLEL_MIN = 2000
 #: default skin of the neighbour lists, as a fraction of the mean diameter
 DEFAULT_SKIN = 0.3
 #: scenes with neighbour lists and at least this many spheres are re-sorted by cell (sort_every=None)

@@ -46,6 +46,8 @@ from .progress import BACKGROUND
 #: velocity Verlet, one core: 11.8 ns per pair; the per-sphere passes, list checks included)
 PAIR_SECONDS = 1.2e-8
 SPHERE_SECONDS = 5.0e-8
+#: scenes with at least this many spheres split their pair loops among threads (parallel=None)
+PARALLEL_MIN = 2000
 #: with parallel=None, a scene is cut into chunks for threads when one force evaluation is
 #: estimated to take at least this long (seconds): below it the threads' waits cost what they gain
 #: (measured: a 4000-sphere contact-only gas, 0.13 ms a step, estimated 0.28 ms, ran 0.66x as fast on
@@ -137,7 +139,6 @@ class ThreadChoice:
             return "numba has one thread (NUMBA_NUM_THREADS=1 or a one-core machine)"
         if not scene.plan.growing:
             return "a small open scene (all pairs, no neighbour lists)"
-        from .scene import PARALLEL_MIN
         if len(scene.particles) < PARALLEL_MIN:
             return f"fewer than {PARALLEL_MIN} spheres (parallel=True forces threads)"
         return (f"one force evaluation is estimated at {1e3 * self.scene.force_seconds:.2g} ms, under the "
