@@ -768,7 +768,7 @@ class _Generic:
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
                  "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
                  "from demkit.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
-                 "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
+                 "from demkit.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
@@ -783,7 +783,7 @@ class _Generic:
                  ""]
         if self.threads:  # the list upkeep alone (the time loops, and their passes over spheres, are serial)
             lines += ["from demkit.neighbours import (max_displacement_threads as max_displacement,",
-                      "                               rebuild_threads as rebuild, build_threads as build)"]
+                      "                               rebuild_threads as rebuild)"]
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules
         # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power

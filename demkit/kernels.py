@@ -884,7 +884,7 @@ class _Source:
                  "                           total_forces, sum_chunks,",
                  "                           KERNEL_OPTIONS)",
                  "from demkit.events import earliest_crossing_all, earliest_crossing_list",
-                 "from demkit.neighbours import (max_displacement, rebuild, build, balance, copy_rows, wrap, cell_order,",
+                 "from demkit.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
                  "                          INNER_STEPS, RUN_START, INDUCTION_FAILED, field)",
@@ -907,7 +907,7 @@ class _Source:
                       "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
                       "                           state_is_finite_threads as state_is_finite)",
                       "from demkit.neighbours import (max_displacement_threads as max_displacement,",
-                      "                               rebuild_threads as rebuild, build_threads as build)", ""]
+                      "                               rebuild_threads as rebuild)", ""]
         if self.importable:
             lines += function_imports(enumerate(plan.interactions), enumerate(plan.effects))
         cache = self.importable

@@ -682,16 +682,10 @@ def test_every_problem_of_the_keys_is_reported_in_one_pass():
         dk.parse_scene(SMALL.replace("radius = 0.5", "radius = -0.5"), source="s.toml")
 
 
-def test_demkit_info_measure_times_the_tier_a_long_run_uses(monkeypatch):
+def test_demkit_info_measure_times_the_tier_a_long_run_uses(shipped_tiers, monkeypatch):
     """A run long enough to go over to the scene's own code (tier 2) is timed there: the paper's
     collision steps several times faster on its fused module than on the generic one, and a
     timing of tier 1 put `demkit info --measure` at 2.5 times the run. A short run stays on tier 1."""
-    monkeypatch.delenv("DEMKIT_TIER", raising=False)  # the suite's conftest keeps scenes on tier 1
-    # ... and never compiles tier 2: the shipped thresholds (demkit.tiers) back
-    for name, seconds in (("WORTH_COMPILING", 20.0), ("WORTH_COMPILING_OPEN", 8.0), ("WORTH_LOADING", 2.0)):
-        monkeypatch.setattr(dk.tiers, name, seconds)
-    monkeypatch.setattr(dk.tiers, "_SPENT", {})  # as in a process that has not run the collision before
-    monkeypatch.setattr(dk.tiers, "_READY", set())
     # 40 million steps: about 20 s on tier 1, which compiles tier 2 (or loads it) for the run
     done = demkit("info", str(COLLISION), "--measure", "--set", "run.duration=400000.0", cwd=ROOT)
     assert done.returncode == 0, done.stderr
@@ -703,19 +697,15 @@ def test_demkit_info_measure_times_the_tier_a_long_run_uses(monkeypatch):
     assert done.returncode == 0 and "steps now" in done.stdout and "tier 2" not in done.stdout.split("cost")[1]
 
 
-def test_demkit_info_measure_after_earlier_runs_of_the_combination(monkeypatch):
+def test_demkit_info_measure_after_earlier_runs_of_the_combination(shipped_tiers, monkeypatch):
     """Earlier runs of the combination in the process count towards compiling tier 2, so a process
     that ran the collision long before switches during the timing itself; the timing still says (and
     times) the tier the run uses. (A test worker that had run it before printed no tier: CI failed.)"""
-    monkeypatch.delenv("DEMKIT_TIER", raising=False)
 
     class LongBefore(dict):
         def get(self, key, default=None):
             return 1e3  # seconds every combination ran on tier 1 before, in this process
 
-    for name, seconds in (("WORTH_COMPILING", 20.0), ("WORTH_COMPILING_OPEN", 8.0), ("WORTH_LOADING", 2.0)):
-        monkeypatch.setattr(dk.tiers, name, seconds)  # the shipped thresholds (the suite's conftest: never)
-    monkeypatch.setattr(dk.tiers, "_READY", set())
     monkeypatch.setattr(dk.tiers, "_SPENT", LongBefore())
     done = demkit("info", str(COLLISION), "--measure", "--set", "run.duration=400000.0", cwd=ROOT)
     assert done.returncode == 0, done.stderr
