@@ -21,29 +21,20 @@ def automatic_tier(monkeypatch):
     monkeypatch.delenv("DEMKIT_TIER", raising=False)
 
 
-def small_scene(tier, laws="kelvin_voigt"):
-    """Six spheres in open space (all pairs, no lists) above a floor, between walls; with Hertz
-    contacts two of them magnetisable (the induced moments solved before the forces of every step)."""
+def small_scene(tier):
+    """Six spheres in open space (all pairs, no lists) above a floor, between walls: Kelvin-Voigt
+    contacts with friction, rolling and twisting resistance, a switched dipole, gravity and a field."""
     rng = np.random.default_rng(4)
     pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5],
                     [1.6, 0.4, 1.4]])
     d = rng.normal(size=(6, 3))
-    magnetisable = {} if laws == "kelvin_voigt" else {"susceptibility": [2.0, 0, 0, 3.0, 0, 0]}
     p = dk.Particles(position=pos, velocity=0.3 * rng.normal(size=(6, 3)), radius=0.5, mass=1.0,
-                     angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None],
-                     **magnetisable)
-    if laws == "kelvin_voigt":
-        law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
-                             twisting=dk.TwistingResistance())
-        pair = [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5)]
-        more = [dk.UniformField((0.0, 0.05, 0.02))]
-    else:
-        law = dk.Hertz(young=5e4, poisson=0.3, restitution=0.6, friction=dk.Friction(0.3),
-                       twisting=dk.TwistingResistance())
-        pair = [dk.Dipole(prefactor=0.05)]  # at every range (the power law: test_sorted_chunked_gas...)
-        more = [dk.Langevin(drag=0.5, temperature=0.01, seed=3), dk.UniformField((0.0, 0.0, 0.5))]
+                     angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None])
+    law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
+                         twisting=dk.TwistingResistance())
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0))]
-    return dk.Scene(p, [*pair, law, dk.Gravity((0, 0, -1.0)), *more, *walls], tier=tier)
+    return dk.Scene(p, [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5), law, dk.Gravity((0, 0, -1.0)),
+                        dk.UniformField((0.0, 0.05, 0.02)), *walls], tier=tier)
 
 
 def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_voigt=False, cutoff=3.0):
@@ -94,18 +85,9 @@ def same_bits(make, integrator, duration, diagnostics=False):
 def test_small_scene_with_multiple_time_steps_same_bits():
     """Kelvin-Voigt contacts with friction, rolling and twisting resistance, a switched dipole, walls,
     gravity and a field, in open space, stepped by multiple time stepping: its time loop calls every
-    force of the scene, split into fast and slow (velocity Verlet's loop: the Hertz scene below; each
-    time loop of a fused module compiles for 20-30 CPU s, so each scene here runs one)."""
+    force of the scene, split into fast and slow (each time loop of a fused module compiles for 20-30
+    CPU s, so this scene runs one; velocity Verlet's loop runs the scenes with lists below)."""
     same_bits(small_scene, dk.MultipleTimeStep(4e-4, inner=2), 0.05)
-
-
-def test_hertz_magnetisable_langevin_same_bits():
-    """Hertz contacts, induced moments in a uniform field, a heat bath, in open space, stepped by
-    velocity Verlet."""
-    assert small_scene(1, laws="hertz").induction is not None
-    # its tier 2: its own pieces under the generic loops (the solve takes most of a step; no fused module)
-    assert small_scene(2, laws="hertz").loop_kernels.pieces.__name__.startswith("demkit_pieces_")
-    same_bits(lambda tier: small_scene(tier, laws="hertz"), dk.VelocityVerlet(2e-4), 0.05)
 
 
 @pytest.mark.parametrize("integrator", [dk.VelocityVerlet(1e-3), dk.RK4(1e-3), dk.ForestRuth(1e-3),
@@ -131,30 +113,28 @@ def test_multiple_time_steps_with_lists_same_bits():
 
 
 def walled_pour(tier, n=72):
-    """Spheres falling in a box of five walls, with neighbour lists in open space: Hertz contacts with
-    friction and twisting resistance, gravity, a field, a Langevin bath (tier 2: the scene's own
-    pieces, its sphere loop a switch over its effects' kinds)."""
+    """Spheres falling in a box of five walls in open space: Hertz contacts with friction and twisting
+    resistance over neighbour lists, dipoles at every range over all pairs, one sphere in four
+    magnetisable (the induced moments solved before the forces of every step), gravity, a field and a
+    Langevin bath (tier 2: the scene's own pieces under the generic loops, its sphere loop a switch
+    over its effects' kinds; with induced moments an open scene gets pieces, not a fused module)."""
     k = np.arange(n)
     rng = np.random.default_rng(6)
     pos = np.stack([0.75 + 1.25 * (k % 4), 0.75 + 1.25 * ((k // 4) % 4), 1.0 + 1.25 * (k // 16)], axis=1)
     p = dk.Particles(position=pos + rng.uniform(-0.1, 0.1, (n, 3)), velocity=rng.normal(size=(n, 3)), radius=0.5,
-                     mass=1.0, dipole=0.1 * rng.normal(size=(n, 3)))
+                     mass=1.0, dipole=0.1 * rng.normal(size=(n, 3)), susceptibility=np.where(k % 4 == 1, 2.0, 0.0))
     law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5), twisting=dk.TwistingResistance())
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
              dk.Wall((5.5, 5.5, 0), (-1, 0, 0)), dk.Wall((5.5, 5.5, 0), (0, -1, 0))]
-    effects = [dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0.1, 0.1)), dk.Langevin(drag=0.5, temperature=0.01, seed=4)]
-    return dk.Scene(p, [law, *effects, *walls], skin=0.4, tier=tier)
+    effects = [dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0.1, 0.3)), dk.Langevin(drag=0.5, temperature=0.01, seed=4)]
+    return dk.Scene(p, [dk.Dipole(prefactor=0.02), law, *effects, *walls], skin=0.4, tier=tier)
 
 
-def test_walled_pour_with_lists_same_bits():
-    assert walled_pour(1).plan.growing
+def test_walled_pour_with_lists_all_pairs_and_induced_moments_same_bits():
+    scene = walled_pour(1)
+    assert scene.plan.growing and scene.induction is not None and len(scene.plan.groups) == 2
+    assert walled_pour(2).loop_kernels.pieces.__name__.startswith("demkit_pieces_")
     same_bits(walled_pour, dk.VelocityVerlet(1e-3), 0.3)
-
-
-def test_sorted_chunked_gas_on_threads_same_bits():
-    """Sorting by cell, chunks on numba's threads (parallel=True), the switched power law."""
-    same_bits(lambda tier: gas(tier, n=1100, parallel=True, sort_every=40, power_law=True),
-              dk.VelocityVerlet(1e-3), 0.1)
 
 
 def long_range_gas(tier, method):
@@ -235,13 +215,14 @@ def test_functions_of_your_own_run_on_tier_1_through_adapters_with_the_catalogue
 
 def test_functions_of_your_own_with_history_over_lists_on_threads_same_bits():
     """A pair function of your own with per-contact history (a touch counter) beside the gas's
-    frictional Hertz contacts and dipoles, and a single-sphere function of your own, over neighbour
-    lists sorted by cell, in chunks on threads: tier 1 (the adapters, called inside the threads' chunks)
-    and tier 2 (the scene's own pieces) give the same bits, history and diagnostics included."""
+    frictional Hertz contacts and switched power-law dipoles, and a single-sphere function of your
+    own, over neighbour lists re-sorted by cell, in chunks on numba's threads (parallel=True): tier 1
+    (the adapters, called inside the threads' chunks) and tier 2 (the scene's own pieces) give the
+    same bits, history and diagnostics included."""
     from plugin_interactions import PullSmall, TouchCounter
 
     def make(tier):
-        scene = gas(tier, n=240, parallel=True, sort_every=20)
+        scene = gas(tier, n=240, parallel=True, sort_every=20, power_law=True)
         counter = TouchCounter(cutoff=1.0)
         return dk.Scene(scene.particles, [*scene.interactions, counter, PullSmall(0.6, (0.0, 0.0, -0.5))],
                         box=scene.box, tier=tier, parallel=True, sort_every=20), counter
