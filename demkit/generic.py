@@ -293,11 +293,13 @@ def program_of(plan, slots, kinds):
 TORQUES = ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")
 
 
-def _pair_call(law, kind, owner="i", prefix=""):
+def _pair_call(law, kind, owner="i", prefix="", held=False):
+    """The call of a law's force or energy function; its parameters read from ``params`` at the call,
+    or (``held``) from the locals q0, q1, ... (see blocked_loop)."""
     args = [owner, "j", "dx", "dy", "dz", "r2", *(prefix + name for name in law.reads)]
     if law.history:
         args += ["history", "p", "off", "commit" if kind == "force" else "False"]
-    args += [f"params[slot + {m}]" for m in range(law.parameters)]
+    args += [f"q{m}" if held else f"params[slot + {m}]" for m in range(law.parameters)]
     return f"law_{law.kind}_{kind}({', '.join(args)})"
 
 
@@ -470,13 +472,16 @@ class _Generic:
         body += [f"{inner}c = params[cut] if cut >= 0 else math.inf"]
 
         def branch(law):
+            # the parameters read before the loop: read in it, LLVM cannot tell that the stores into
+            # the block's rows leave them alone, and the screened (Ewald) pair stayed scalar
             outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
-            lines = ["for u in range(m):", "    j = u + 1",
+            lines = [f"q{m} = params[slot + {m}]" for m in range(law.parameters)]
+            lines += ["for u in range(m):", "    j = u + 1",
                      f"    dx = {gather}[0, j] - xi", f"    dy = {gather}[1, j] - yi", f"    dz = {gather}[2, j] - zi"]
             for axis in "xyz":
                 lines += [f"    if p{axis}:", f"        d{axis} -= l{axis} * np.rint(d{axis} * il{axis})"]
             lines += ["    r2 = dx * dx + dy * dy + dz * dz",
-                      f"    {', '.join(outs)} = {_pair_call(law, 'force', owner='0', prefix='g_')}",
+                      f"    {', '.join(outs)} = {_pair_call(law, 'force', owner='0', prefix='g_', held=True)}",
                       "    keep = 1.0 if r2 < c else 0.0"]
             lines += [f"    {out}[{n}, u] += {o} * keep" for n, o in enumerate(outs)]
             return lines
