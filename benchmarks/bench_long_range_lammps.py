@@ -24,7 +24,11 @@ torque error relative to pull x d (24 too), dipolar energy per sphere relative t
 torques against the other's at equal accuracy. Both use tin-foil (metallic) surroundings. Also
 LAMMPS' ewald/dipole at 2.4e-8, a check of the truth by the other code.
 
-    python benchmarks/bench_long_range_lammps.py [--part speed8000|accuracy1000] [--quick]
+``--busy``: the speed part with a child process burning one core (a plain Python loop) throughout,
+demkit's runs and LAMMPS' alike, as on a machine doing other work (key "speed_busy"; the idle figures
+are kept).
+
+    python benchmarks/bench_long_range_lammps.py [--part speed8000|accuracy1000] [--quick] [--busy]
 """
 from __future__ import annotations
 
@@ -168,6 +172,7 @@ def main(argv=None):
     args = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     args.add_argument("--part", choices=("speed8000", "accuracy1000"), default="speed8000")
     args.add_argument("--quick", action="store_true")
+    args.add_argument("--busy", action="store_true", help="speed with one core kept busy by another process")
     opts = args.parse_args(argv)
     if opts.part == "accuracy1000":
         write_results({"n1000": accuracy1000()})
@@ -180,17 +185,36 @@ def main(argv=None):
     p, box = particles_and_box(load_reference_scene(N, str(folder)))
     steps, repeats = (50, 1) if opts.quick else (200, 2)
 
-    # accuracy at the start
-    reference = dk.Scene(p, [dk.Dipole(1.0, long_range=dk.Ewald(1e-9))], box=box).forces()[0]
-    ours = dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M(ACCURACY))], box=box)
-    accuracy = {"demkit_p3m": float(np.sqrt(np.mean(((ours.forces()[0] - reference) ** 2).sum(1))) / PULL),
-                "demkit_tuned": repr(ours.long_range[0])}
     lammps_acc = ACCURACY * PULL  # the same absolute force error, relative to LAMMPS' unit force
-    if lammps_available():
-        accuracy["lammps_pppm_dipole"] = rms_error(lammps_start(data, "pppm", lammps_acc, folder)[0], reference)
-    print(json.dumps(accuracy))
+    accuracy = None
+    if not opts.busy:  # accuracy at the start
+        reference = dk.Scene(p, [dk.Dipole(1.0, long_range=dk.Ewald(1e-9))], box=box).forces()[0]
+        ours = dk.Scene(p, [dk.Dipole(1.0, long_range=dk.P3M(ACCURACY))], box=box)
+        accuracy = {"demkit_p3m": float(np.sqrt(np.mean(((ours.forces()[0] - reference) ** 2).sum(1))) / PULL),
+                    "demkit_tuned": repr(ours.long_range[0])}
+        if lammps_available():
+            accuracy["lammps_pppm_dipole"] = rms_error(lammps_start(data, "pppm", lammps_acc, folder)[0], reference)
+        print(json.dumps(accuracy))
 
     speed = []
+    burner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if opts.busy else None
+    try:
+        _speeds(speed, dk, data, folder, steps, repeats, run_deck, lammps_available)
+    finally:
+        if burner is not None:
+            burner.kill()
+            burner.wait()
+    if opts.busy:
+        write_results({"speed_busy": {"date": time.strftime("%Y-%m-%d %H:%M"), "rows": speed}})
+        return
+    write_results({"machine": {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}, "n": N,
+                   "accuracy_requested": ACCURACY, "lammps_accuracy_setting": lammps_acc, "force_error": accuracy,
+                   "speed": speed})
+
+
+def _speeds(speed, dk, data, folder, steps, repeats, run_deck, lammps_available):
+    """demkit's and LAMMPS' atom-steps per second on one and two cores, appended to ``speed``."""
+    lammps_acc = ACCURACY * PULL  # the same absolute force error, relative to LAMMPS' unit force
     for cores in (1, 2):
         ours = demkit_rate(cores, folder, steps, repeats)
         theirs = None
@@ -207,9 +231,6 @@ def main(argv=None):
             speed[-1].update(demkit_forced_threads_particle_steps_per_s=forced,
                              ratio_forced_threads=None if theirs is None else forced / theirs)
         print(json.dumps(speed[-1]))
-    write_results({"machine": {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}, "n": N,
-                   "accuracy_requested": ACCURACY, "lammps_accuracy_setting": lammps_acc, "force_error": accuracy,
-                   "speed": speed})
 
 
 if __name__ == "__main__":
