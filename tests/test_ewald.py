@@ -302,3 +302,31 @@ def test_a_scene_built_again_is_not_tuned_again(monkeypatch):
     dipole._TUNINGS.clear()
     fresh = ewald_scene(np.roll(pos, 1, axis=0), dip, 5.0, accuracy=3e-5)
     assert len(calls) == 5 and fresh.energy()["magnetic"] == again.energy()["magnetic"]
+
+
+def test_the_reciprocal_sum_on_threads_gives_the_bits_of_one_thread():
+    """The structure factors (a wave vector per thread at a time) and each sphere's force and field (a
+    sphere per thread at a time) are summed in one order: forces and a run on two threads give the bits
+    of one thread, and the run gives numba's thread setting back."""
+    import numba
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here")
+    before = numba.get_num_threads()
+    runs, forces = [], []
+    try:
+        for threads in (2, 1):
+            numba.set_num_threads(threads)
+            pos, dip = random_gas(n=120, side=12.0, seed=7)
+            scene = ewald_scene(pos, dip, 12.0, accuracy=1e-5, radius=0.4,
+                                velocity=np.random.default_rng(4).normal(size=(120, 3)))
+            serial = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=False)
+            forces.append(np.concatenate([a.ravel() for a in serial.forces()]))  # the sum on `threads` threads
+            scene = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=True)
+            sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+            traj = sim.run(duration=0.03, record_every=0.015, progress=False)
+            assert sim.statistics["threads"] == threads and numba.get_num_threads() == threads
+            runs.append(np.concatenate([traj.position.ravel(), traj.angular_velocity.ravel()]))
+    finally:
+        numba.set_num_threads(before)
+    assert forces[0].tobytes() == forces[1].tobytes()
+    assert runs[0].tobytes() == runs[1].tobytes()
