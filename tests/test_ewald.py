@@ -304,10 +304,10 @@ def test_a_scene_built_again_is_not_tuned_again(monkeypatch):
     assert len(calls) == 5 and fresh.energy()["magnetic"] == again.energy()["magnetic"]
 
 
-def test_the_reciprocal_sum_on_threads_gives_the_bits_of_one_thread():
-    """The structure factors (a wave vector per thread at a time) and each sphere's force and field (a
-    sphere per thread at a time) are summed in one order: forces and a run on two threads give the bits
-    of one thread, and the run gives numba's thread setting back."""
+def test_an_ewald_run_on_two_threads_gives_the_bits_of_one_thread():
+    """The real-space pairs in fixed chunks on numba's threads, the reciprocal sum on one (a split of it
+    over threads measured slower on one thread, docs/long_range.md): forces and a run on two threads
+    give the bits of one thread, and the run gives numba's thread setting back."""
     import numba
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")

@@ -54,7 +54,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 from .base import positive
@@ -73,9 +73,6 @@ MAX_WAVE_VECTORS = 2e6
 #: and the layer's thickness (demkit.interactions.slab)
 TABLE_SIZE = 12
 RECIPROCAL_OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
-#: the reciprocal sum's passes run on numba's threads (as many as the run's chunk uses: demkit.threads
-#: sets them; one outside a run on threads)
-RECIPROCAL_THREADS = dict(RECIPROCAL_OPTIONS, parallel=True)
 
 
 @njit(**KERNEL_OPTIONS)
@@ -137,57 +134,19 @@ def ewald_real_energy(i, j, dx, dy, dz, r2, dipole, prefactor, alpha):
 
 @njit(**RECIPROCAL_OPTIONS)
 def _phases(position, box, kmax, axis):
-    """cos and sin of (2 pi m / L) x along one axis for m = 0..kmax: two (N, kmax + 1) arrays."""
+    """cos and sin of (2 pi m / L) x along one axis for m = 0..kmax: two (kmax + 1, N) arrays."""
     n = position.shape[0]
-    cos_, sin_ = np.empty((n, kmax + 1)), np.empty((n, kmax + 1))
+    cos_, sin_ = np.empty((kmax + 1, n)), np.empty((kmax + 1, n))
     unit = 2.0 * math.pi / box[axis]
     for j in range(n):
         c1 = math.cos(unit * position[j, axis])
         s1 = math.sin(unit * position[j, axis])
-        cos_[j, 0] = 1.0
-        sin_[j, 0] = 0.0
+        cos_[0, j] = 1.0
+        sin_[0, j] = 0.0
         for m in range(1, kmax + 1):
-            cos_[j, m] = cos_[j, m - 1] * c1 - sin_[j, m - 1] * s1
-            sin_[j, m] = sin_[j, m - 1] * c1 + cos_[j, m - 1] * s1
+            cos_[m, j] = cos_[m - 1, j] * c1 - sin_[m - 1, j] * s1
+            sin_[m, j] = sin_[m - 1, j] * c1 + cos_[m - 1, j] * s1
     return cos_, sin_
-
-
-@njit(**RECIPROCAL_OPTIONS)
-def _wave_vectors(px, py, pz, ux, uy, uz, kcut2, quarter):
-    """The wave vectors of half of k-space within the cutoff, in the order the sums take them: rows
-    (kx, ky, kz, exp(-k^2 / 4 alpha^2) / k^2) and their indices (p, |q|, |r|, sign q, sign r)."""
-    rows = np.empty(((px + 1) * (2 * py + 1) * (2 * pz + 1), 4))
-    index = np.empty((rows.shape[0], 5), dtype=np.int64)
-    count = 0
-    for p in range(px + 1):
-        for q in range(-py, py + 1):
-            for r in range(-pz, pz + 1):
-                if p == 0 and (q < 0 or (q == 0 and r <= 0)):
-                    continue  # -k of a vector counted already (and k = 0)
-                kx, ky, kz = p * ux, q * uy, r * uz
-                k2 = kx * kx + ky * ky + kz * kz
-                if k2 > kcut2:
-                    continue
-                rows[count, 0], rows[count, 1], rows[count, 2] = kx, ky, kz
-                rows[count, 3] = math.exp(-k2 * quarter) / k2
-                index[count, 0], index[count, 1], index[count, 2] = p, abs(q), abs(r)
-                index[count, 3] = 1 if q >= 0 else -1
-                index[count, 4] = 1 if r >= 0 else -1
-                count += 1
-    return rows[:count], index[:count]
-
-
-@njit(**RECIPROCAL_OPTIONS)
-def _wave(j, t, rows, index, cx, sx, cy, sy, cz, sz, dipole):
-    """exp(i k.x_j) (real, imaginary) from the axis phases, and m_j.k, for wave vector t."""
-    p, qq, rr = index[t, 0], index[t, 1], index[t, 2]
-    yr, yi = cy[j, qq], index[t, 3] * sy[j, qq]
-    zr, zi = cz[j, rr], index[t, 4] * sz[j, rr]
-    yzr = yr * zr - yi * zi
-    yzi = yr * zi + yi * zr
-    er = cx[j, p] * yzr - sx[j, p] * yzi
-    ei = cx[j, p] * yzi + sx[j, p] * yzr
-    return er, ei, dipole[j, 0] * rows[t, 0] + dipole[j, 1] * rows[t, 1] + dipole[j, 2] * rows[t, 2]
 
 
 @njit(**RECIPROCAL_OPTIONS)
@@ -207,14 +166,10 @@ def reciprocal_sum(position, dipole, box, params, start, force, torque, with_for
     return energy
 
 
-@njit(**RECIPROCAL_THREADS)
+@njit(**RECIPROCAL_OPTIONS)
 def reciprocal_terms(position, dipole, box, params, start, force, field, with_forces):
     """:func:`reciprocal_sum`'s work: its energy, and with ``with_forces`` its forces added to
-    ``force`` and the field of the reciprocal and surface terms (torque m x field) to ``field``.
-    Two passes on numba's threads: the structure factors S(k) = sum_j (m_j.k) exp(i k.x_j), a wave
-    vector per thread at a time, each summed over the spheres in order; then each sphere's force and
-    field, a sphere per thread at a time, summed over the wave vectors in order: the same bits on any
-    number of threads."""
+    ``force`` and the field of the reciprocal and surface terms (torque m x field) to ``field``."""
     prefactor = params[start]
     alpha = params[start + 1]
     vacuum = params[start + 2] != 0.0
@@ -228,36 +183,51 @@ def reciprocal_terms(position, dipole, box, params, start, force, field, with_fo
     cx, sx = _phases(position, size, px, 0)
     cy, sy = _phases(position, size, py, 1)
     cz, sz = _phases(position, size, pz, 2)
+    re = np.empty(n)
+    im = np.empty(n)
+    mk = np.empty(n)
     scale = 4.0 * math.pi * prefactor / volume  # half of k-space: twice (2 pi A / V)
-    rows, index = _wave_vectors(px, py, pz, ux, uy, uz, kcut2, 0.25 / (alpha * alpha))
-    vectors = rows.shape[0]
-    structure = np.empty((vectors, 2))
-    for t in prange(vectors):
-        s_re = 0.0
-        s_im = 0.0
-        for j in range(n):
-            er, ei, m = _wave(j, t, rows, index, cx, sx, cy, sy, cz, sz, dipole)
-            s_re += m * er
-            s_im += m * ei
-        structure[t, 0] = s_re
-        structure[t, 1] = s_im
+    quarter = 0.25 / (alpha * alpha)
     total = 0.0
-    for t in range(vectors):
-        total += rows[t, 3] * (structure[t, 0] * structure[t, 0] + structure[t, 1] * structure[t, 1])
-    if with_forces:
-        for i in prange(n):
-            for t in range(vectors):
-                er, ei, m = _wave(i, t, rows, index, cx, sx, cy, sy, cz, sz, dipole)
-                s_re, s_im = structure[t, 0], structure[t, 1]
-                w = 2.0 * scale * rows[t, 3]
-                f = w * m * (s_re * ei - s_im * er)  # Im[S* exp(i k.x_i)]
-                h = -w * (s_re * er + s_im * ei)     # Re[S* exp(i k.x_i)]
-                force[i, 0] += f * rows[t, 0]
-                force[i, 1] += f * rows[t, 1]
-                force[i, 2] += f * rows[t, 2]
-                field[i, 0] += h * rows[t, 0]
-                field[i, 1] += h * rows[t, 1]
-                field[i, 2] += h * rows[t, 2]
+    for p in range(px + 1):
+        for q in range(-py, py + 1):
+            for r in range(-pz, pz + 1):
+                if p == 0 and (q < 0 or (q == 0 and r <= 0)):
+                    continue  # -k of a vector counted already (and k = 0)
+                kx, ky, kz = p * ux, q * uy, r * uz
+                k2 = kx * kx + ky * ky + kz * kz
+                if k2 > kcut2:
+                    continue
+                g = math.exp(-k2 * quarter) / k2
+                qq, rr = abs(q), abs(r)
+                sq = 1.0 if q >= 0 else -1.0
+                sr = 1.0 if r >= 0 else -1.0
+                s_re = 0.0
+                s_im = 0.0
+                for j in range(n):  # exp(i k.x_j) from the axis phases, and S(k)
+                    yr, yi = cy[qq, j], sq * sy[qq, j]
+                    zr, zi = cz[rr, j], sr * sz[rr, j]
+                    yzr = yr * zr - yi * zi
+                    yzi = yr * zi + yi * zr
+                    er = cx[p, j] * yzr - sx[p, j] * yzi
+                    ei = cx[p, j] * yzi + sx[p, j] * yzr
+                    m = dipole[j, 0] * kx + dipole[j, 1] * ky + dipole[j, 2] * kz
+                    re[j], im[j], mk[j] = er, ei, m
+                    s_re += m * er
+                    s_im += m * ei
+                total += g * (s_re * s_re + s_im * s_im)
+                if not with_forces:
+                    continue
+                w = 2.0 * scale * g
+                for i in range(n):
+                    f = w * mk[i] * (s_re * im[i] - s_im * re[i])  # Im[S* exp(i k.x_i)]
+                    h = -w * (s_re * re[i] + s_im * im[i])         # Re[S* exp(i k.x_i)]
+                    force[i, 0] += f * kx
+                    force[i, 1] += f * ky
+                    force[i, 2] += f * kz
+                    field[i, 0] += h * kx
+                    field[i, 1] += h * ky
+                    field[i, 2] += h * kz
     energy = scale * total
     squares = 0.0
     mx, my, mz = 0.0, 0.0, 0.0
