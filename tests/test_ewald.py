@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import demkit as dk
+from conftest import same_bits_on_two_threads_and_one
 from demkit.interactions.ewald import real_space_error, reciprocal_error
 
 
@@ -308,25 +309,9 @@ def test_an_ewald_run_on_two_threads_gives_the_bits_of_one_thread():
     """The real-space pairs in fixed chunks on numba's threads, the reciprocal sum on one (a split of it
     over threads measured slower on one thread, docs/long_range.md): forces and a run on two threads
     give the bits of one thread, and the run gives numba's thread setting back."""
-    import numba
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("numba has one thread here")
-    before = numba.get_num_threads()
-    runs, forces = [], []
-    try:
-        for threads in (2, 1):
-            numba.set_num_threads(threads)
-            pos, dip = random_gas(n=120, side=12.0, seed=7)
-            scene = ewald_scene(pos, dip, 12.0, accuracy=1e-5, radius=0.4,
-                                velocity=np.random.default_rng(4).normal(size=(120, 3)))
-            serial = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=False)
-            forces.append(np.concatenate([a.ravel() for a in serial.forces()]))  # the sum on `threads` threads
-            scene = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=True)
-            sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
-            traj = sim.run(duration=0.03, record_every=0.015, progress=False)
-            assert sim.statistics["threads"] == threads and numba.get_num_threads() == threads
-            runs.append(np.concatenate([traj.position.ravel(), traj.angular_velocity.ravel()]))
-    finally:
-        numba.set_num_threads(before)
-    assert forces[0].tobytes() == forces[1].tobytes()
-    assert runs[0].tobytes() == runs[1].tobytes()
+    def make():
+        pos, dip = random_gas(n=120, side=12.0, seed=7)
+        velocity = np.random.default_rng(4).normal(size=(120, 3))
+        return ewald_scene(pos, dip, 12.0, accuracy=1e-5, radius=0.4, velocity=velocity)
+
+    same_bits_on_two_threads_and_one(make, 0.03)

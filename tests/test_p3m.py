@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import demkit as dk
+from conftest import same_bits_on_two_threads_and_one
 from test_ewald import assert_forces_are_energy_gradients, lattice, random_gas
 
 
@@ -125,26 +126,9 @@ def test_the_mesh_on_threads_gives_the_bits_of_one_thread():
     """The mesh's weights, spreading, FFTs and gathering run on numba's threads (each mesh plane and
     each sphere summed in one order): a run on two threads gives the bits of the same run on one,
     the forces outside a run too, and a run gives numba's thread setting back when it ends."""
-    import numba
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("numba has one thread here")
-    before = numba.get_num_threads()
-    runs, forces = [], []
-    try:
-        for threads in (2, 1):
-            numba.set_num_threads(threads)
-            pos, dip = random_gas(n=160, side=15.0, seed=5)
-            scene = scene_of(pos, 0.3 * dip, 15.0, dk.P3M(1e-4), velocity=np.random.default_rng(3).normal(size=(160, 3)),
-                             angular_velocity=np.zeros((160, 3)))
-            serial = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=False)
-            forces.append(np.concatenate([a.ravel() for a in serial.forces()]))  # the mesh on `threads` threads
-            scene = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=True)
-            sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
-            traj = sim.run(duration=0.05, record_every=0.025, progress=False)
-            assert sim.statistics["threads"] == threads
-            assert numba.get_num_threads() == threads  # given back, whatever the run's chunks set
-            runs.append(np.concatenate([traj.position.ravel(), traj.angular_velocity.ravel()]))
-    finally:
-        numba.set_num_threads(before)
-    assert forces[0].tobytes() == forces[1].tobytes()
-    assert runs[0].tobytes() == runs[1].tobytes()
+    def make():
+        pos, dip = random_gas(n=160, side=15.0, seed=5)
+        return scene_of(pos, 0.3 * dip, 15.0, dk.P3M(1e-4), velocity=np.random.default_rng(3).normal(size=(160, 3)),
+                        angular_velocity=np.zeros((160, 3)))
+
+    same_bits_on_two_threads_and_one(make, 0.05)
