@@ -50,9 +50,10 @@ LISTED_PAIR = 7.2e-9
 #: seconds per listed pair of a loop holding dipoles (a dipole force, within reach + skin; 23 ns
 #: calibrated, 24.8 ns at the start of benchmarks/scenes/gas600.toml)
 DIPOLE_PAIR = 2.4e-8
-#: seconds per listed pair of the real-space part of an Ewald sum (erfc and exp: 62-65 ns, N = 500 to
-#: 4000; benchmarks/bench_ewald.py)
-EWALD_PAIR = 6.4e-8
+#: seconds per listed pair of the real-space part of an Ewald sum (vectorised exp and erfc,
+#: demkit.interactions.special_functions: 54-57 ns at N = 1000 to 4000, 34 ns at 500, 29 Nov 2026;
+#: 62-65 ns with the C library's, 26 Nov; benchmarks/bench_ewald.py)
+EWALD_PAIR = 5.5e-8
 #: seconds per sphere and wave vector of the reciprocal part of an Ewald sum (5.6-6.1 ns, the same)
 RECIPROCAL_VECTOR = 5.8e-9
 #: seconds per sphere and B-spline point of a P3M mesh sum (spreading and gathering; the FFTs as
