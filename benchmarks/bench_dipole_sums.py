@@ -7,7 +7,10 @@ Scenes (prefactor A = 1, diameter 1, moments of magnitude 2, so the touching pul
 * ``polarised``: the same positions, each moment tilted from +z by a polar angle |N(0, 20 deg)| (RMS
   20 deg) with a uniform azimuth, as in a sample magnetised along z;
 * ``open``: a random cluster at volume fraction 0.15 in open space (as benchmarks/bench_fmm.py),
-  random moments.
+  random moments;
+* ``slab``: the reference scene's spheres and moments in a box periodic along x and y only, open along
+  z (the spheres fill a layer as thick as the box): slab sums (demkit.interactions.slab) as reference
+  and candidates.
 
 Periodic scenes: plain and switched (width r_c/4) cutoffs at 2-6 diameters, Ewald and P3M at
 accuracy 1e-3 ... 1e-6, errors against Ewald at 1e-10. Open cluster: the same cutoffs, the exact
@@ -81,7 +84,9 @@ def main(argv=None):
     particles, box = particles_and_box(make_reference_scene(n, moment=MOMENT))
     polar = polarised(particles)
     cosines = polar.dipole[:, 2] / MOMENT
-    scenes = [("reference", particles, box), ("polarised", polar, box), ("open", cluster(n), None)]
+    slab = dk.Box(box.size, periodic=[True, True, False])
+    scenes = [("reference", particles, box), ("polarised", polar, box), ("open", cluster(n), None),
+              ("slab", particles, slab)]
     load = os.getloadavg()
     reports, result = [], dict(
         machine=dict(platform=platform.platform(), date=time.strftime("%Y-%m-%d %H:%M"), cores=os.cpu_count(),
@@ -132,7 +137,7 @@ def plot(reports, n, path):
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(reports), figsize=(5.2 * len(reports), 4.4))
     titles = dict(reference=f"N = {n}, periodic, random moments", polarised=f"N = {n}, periodic, polarised along z",
-                  open=f"N = {n}, open cluster")
+                  open=f"N = {n}, open cluster", slab=f"N = {n}, slab periodic along x and y")
     for ax, (name, report) in zip(axes, reports):
         report.plot(None, title=f"{titles[name]}\nagainst {report.reference['label']}", ax=ax)
     fig.tight_layout()
