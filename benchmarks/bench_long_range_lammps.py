@@ -178,7 +178,7 @@ def main(argv=None):
         write_results({"n1000": accuracy1000()})
         return
     import demkit as dk
-    from lammps_run import lammps_available, run_deck
+    from lammps_run import lammps_available
     from reference_scene import load_reference_scene, particles_and_box, write_reference_scene
     folder = Path(tempfile.mkdtemp(prefix="demkit-lr-"))
     _, _, data = write_reference_scene(N, folder)
@@ -196,10 +196,9 @@ def main(argv=None):
             accuracy["lammps_pppm_dipole"] = rms_error(lammps_start(data, "pppm", lammps_acc, folder)[0], reference)
         print(json.dumps(accuracy))
 
-    speed = []
     burner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if opts.busy else None
     try:
-        _speeds(speed, dk, data, folder, steps, repeats, run_deck, lammps_available)
+        speed = _speeds(data, folder, steps, repeats)
     finally:
         if burner is not None:
             burner.kill()
@@ -212,9 +211,11 @@ def main(argv=None):
                    "speed": speed})
 
 
-def _speeds(speed, dk, data, folder, steps, repeats, run_deck, lammps_available):
-    """demkit's and LAMMPS' atom-steps per second on one and two cores, appended to ``speed``."""
+def _speeds(data, folder, steps, repeats):
+    """demkit's and LAMMPS' atom-steps per second on one and two cores (a row each)."""
+    from lammps_run import lammps_available, run_deck
     lammps_acc = ACCURACY * PULL  # the same absolute force error, relative to LAMMPS' unit force
+    speed = []
     for cores in (1, 2):
         ours = demkit_rate(cores, folder, steps, repeats)
         theirs = None
@@ -231,6 +232,7 @@ def _speeds(speed, dk, data, folder, steps, repeats, run_deck, lammps_available)
             speed[-1].update(demkit_forced_threads_particle_steps_per_s=forced,
                              ratio_forced_threads=None if theirs is None else forced / theirs)
         print(json.dumps(speed[-1]))
+    return speed
 
 
 if __name__ == "__main__":

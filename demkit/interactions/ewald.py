@@ -58,7 +58,7 @@ from numba import njit
 
 from ..motion import KERNEL_OPTIONS
 from .base import positive
-from .special_functions import erfc_scaled, gaussian
+from .special_functions import screened
 from .slab import Layer, check_layer, gap_error, gap_for, layer_terms, open_axis, table_entries, thick_box_hint
 
 SURFACES = ("metallic", "vacuum")
@@ -82,9 +82,7 @@ def ewald_real_force(i, j, dx, dy, dz, r2, dipole, prefactor, alpha):
     inv_r2 = 1.0 / r2
     ar = alpha * r
     a2r2 = ar * ar
-    g = gaussian(ar)  # exp(-a^2 r^2), shared with erfc (demkit.interactions.special_functions: vectorises)
-    gauss = 1.1283791670955126 * ar * g  # (2 a r / sqrt(pi)) exp(-a^2 r^2)
-    erfc = erfc_scaled(ar) * g
+    erfc, gauss = screened(ar)  # erfc(a r), (2 a r / sqrt(pi)) exp(-a^2 r^2); vectorises
     b = prefactor * (erfc + gauss) * inv_r2 / r
     c = prefactor * (3.0 * erfc + gauss * (3.0 + 2.0 * a2r2)) * inv_r2 * inv_r2 / r
     d = prefactor * (15.0 * erfc + gauss * (15.0 + a2r2 * (10.0 + 4.0 * a2r2))) * inv_r2 * inv_r2 * inv_r2 / r
@@ -121,9 +119,7 @@ def ewald_real_energy(i, j, dx, dy, dz, r2, dipole, prefactor, alpha):
     r = math.sqrt(r2)
     ar = alpha * r
     a2r2 = ar * ar
-    g = gaussian(ar)
-    gauss = 1.1283791670955126 * ar * g
-    erfc = erfc_scaled(ar) * g
+    erfc, gauss = screened(ar)
     b = (erfc + gauss) / (r2 * r)
     c = (3.0 * erfc + gauss * (3.0 + 2.0 * a2r2)) / (r2 * r2 * r)
     ad = dipole[i, 0] * dx + dipole[i, 1] * dy + dipole[i, 2] * dz

@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit, objmode
 
 from .base import number
-from .special_functions import erfc_scaled, gaussian
+from .special_functions import screened
 
 #: the solvers of the live scenes, by the key the kernels find in their params table
 _SOLVERS = weakref.WeakValueDictionary()
@@ -196,9 +196,7 @@ def screened_pair_field(position, dipole, box, periodic, start, end, partner, al
                 continue
             r = math.sqrt(r2)
             ar = alpha * r
-            g = gaussian(ar)
-            gauss = 1.1283791670955126 * ar * g
-            erfc = erfc_scaled(ar) * g
+            erfc, gauss = screened(ar)
             b = prefactor * (erfc + gauss) / (r2 * r)
             c = prefactor * (3.0 * erfc + gauss * (3.0 + 2.0 * ar * ar)) / (r2 * r2 * r)
             bx, by, bz = dipole[j, 0], dipole[j, 1], dipole[j, 2]

@@ -16,7 +16,8 @@ they share their exponential: erfc(x) = erfcx(x) exp(-x^2).
   in 2t - 1 (:data:`ERFCX_CHEBYSHEV`, from :func:`fit_erfcx`) is summed by Clenshaw's recurrence.
   Relative error below 1e-14 for every x >= 0.
 * :func:`erfc` = erfc_scaled(x) gaussian(x), x >= 0: relative error below 1e-14 for x < 6 (every
-  screened pair of a sum tuned by demkit), growing as x^2 ulp beyond (the rounding of x^2).
+  screened pair of a sum tuned by demkit), growing as x^2 ulp beyond (the rounding of x^2);
+  :func:`screened` gives it with the Gaussian term of the screened pairs, from one exponential.
 """
 from __future__ import annotations
 
@@ -30,8 +31,7 @@ from ..motion import KERNEL_OPTIONS
 #: t = ERFCX_SCALE / (ERFCX_SCALE + x)
 ERFCX_SCALE = 4.0
 #: Chebyshev coefficients (in 2t - 1) of erfcx(x) (s + x)/s, interpolated at the 21 Chebyshev points
-#: (fit_erfcx(); tests/test_special_functions.py checks that the fit gives them again); erfc_scaled
-#: writes them out as literals
+#: (fit_erfcx(); tests/test_special_functions.py checks that the fit gives them again)
 ERFCX_CHEBYSHEV = np.array((
     0.40802446954913135, 0.3763582356763674, 0.1475803545722234, 0.04957131793002755,
     0.01422710755711737, 0.003443493262717322, 0.0006822541832837137, 0.0001034045197574484,
@@ -97,34 +97,43 @@ def erfc_scaled(x):
     coefficients inside that loop kept it scalar in the large generated pair loops)."""
     t = ERFCX_SCALE / (ERFCX_SCALE + x)
     u2 = 4.0 * t - 2.0  # 2 (2t - 1)
-    b1 = -4.420897897715865e-15
+    c = ERFCX_CHEBYSHEV  # a global array: numba freezes it, and each c[k] below is a constant
+    b1 = c[20]
     b2 = 0.0
-    b1, b2 = u2 * b1 - b2 + -2.3940730683682906e-15, b1
-    b1, b2 = u2 * b1 - b2 + 1.2122832249236643e-13, b1
-    b1, b2 = u2 * b1 - b2 + 2.6148931173934587e-13, b1
-    b1, b2 = u2 * b1 - b2 + -3.3922811100214054e-12, b1
-    b1, b2 = u2 * b1 - b2 + -1.7035105739937274e-11, b1
-    b1, b2 = u2 * b1 - b2 + 6.872143158738528e-11, b1
-    b1, b2 = u2 * b1 - b2 + 8.633410897517493e-10, b1
-    b1, b2 = u2 * b1 - b2 + 9.479919745119963e-10, b1
-    b1, b2 = u2 * b1 - b2 + -3.0291768048960843e-08, b1
-    b1, b2 = u2 * b1 - b2 + -2.1747767697037275e-07, b1
-    b1, b2 = u2 * b1 - b2 + -1.198871376296041e-07, b1
-    b1, b2 = u2 * b1 - b2 + 9.72854595190127e-06, b1
-    b1, b2 = u2 * b1 - b2 + 0.0001034045197574484, b1
-    b1, b2 = u2 * b1 - b2 + 0.0006822541832837137, b1
-    b1, b2 = u2 * b1 - b2 + 0.003443493262717322, b1
-    b1, b2 = u2 * b1 - b2 + 0.01422710755711737, b1
-    b1, b2 = u2 * b1 - b2 + 0.04957131793002755, b1
-    b1, b2 = u2 * b1 - b2 + 0.1475803545722234, b1
-    b1, b2 = u2 * b1 - b2 + 0.3763582356763674, b1
-    return t * (0.5 * u2 * b1 - b2 + 0.40802446954913135)
+    b1, b2 = u2 * b1 - b2 + c[19], b1
+    b1, b2 = u2 * b1 - b2 + c[18], b1
+    b1, b2 = u2 * b1 - b2 + c[17], b1
+    b1, b2 = u2 * b1 - b2 + c[16], b1
+    b1, b2 = u2 * b1 - b2 + c[15], b1
+    b1, b2 = u2 * b1 - b2 + c[14], b1
+    b1, b2 = u2 * b1 - b2 + c[13], b1
+    b1, b2 = u2 * b1 - b2 + c[12], b1
+    b1, b2 = u2 * b1 - b2 + c[11], b1
+    b1, b2 = u2 * b1 - b2 + c[10], b1
+    b1, b2 = u2 * b1 - b2 + c[9], b1
+    b1, b2 = u2 * b1 - b2 + c[8], b1
+    b1, b2 = u2 * b1 - b2 + c[7], b1
+    b1, b2 = u2 * b1 - b2 + c[6], b1
+    b1, b2 = u2 * b1 - b2 + c[5], b1
+    b1, b2 = u2 * b1 - b2 + c[4], b1
+    b1, b2 = u2 * b1 - b2 + c[3], b1
+    b1, b2 = u2 * b1 - b2 + c[2], b1
+    b1, b2 = u2 * b1 - b2 + c[1], b1
+    return t * (0.5 * u2 * b1 - b2 + c[0])
 
 
 @njit(**KERNEL_OPTIONS)
 def erfc(x):
     """erfc(x) for x >= 0."""
     return erfc_scaled(x) * gaussian(x)
+
+
+@njit(**KERNEL_OPTIONS)
+def screened(x):
+    """(erfc(x), (2 x / sqrt(pi)) exp(-x^2)) for x = alpha r >= 0: the two radial pieces of every
+    Ewald-screened pair term (demkit.interactions.ewald), from one exponential."""
+    g = gaussian(x)
+    return erfc_scaled(x) * g, 1.1283791670955126 * x * g
 
 
 def fit_erfcx(degree=_DEGREE, scale=ERFCX_SCALE):
