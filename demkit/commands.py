@@ -254,7 +254,9 @@ def info_command(args):
 
 def _timed_steps(sim, integ):
     """(seconds per step, steps timed) of ``sim`` going on: at least 50 steps and 0.2 s of wall
-    time, so that tiny scenes are timed too."""
+    time, so that tiny scenes are timed too. Each try aims at 0.3 s from the last one's rate (at
+    most 8 times as many steps), so that no timing run is long enough to count as a long run (one
+    of 2 s or more loads the scene's own code, tier 2, when it is cached)."""
     count = 50
     while True:
         clock = time.perf_counter()
@@ -262,7 +264,7 @@ def _timed_steps(sim, integ):
         seconds = time.perf_counter() - clock
         if seconds >= 0.2 or count >= 10**7:
             return seconds / count, count
-        count *= 8
+        count = int(count * min(8.0, max(2.0, 0.3 / max(seconds, 1e-9))))
 
 
 def _short(seconds):
