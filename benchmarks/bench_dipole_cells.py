@@ -30,7 +30,7 @@ from numba import njit  # noqa: E402
 
 import demkit as dk  # noqa: E402
 from demkit.interactions.dipole import dipole_force  # noqa: E402
-from demkit.neighbours import bin_particles  # noqa: E402
+from demkit.engine.neighbours import bin_particles  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 OPTIONS = dict(fastmath={"contract", "arcp"}, error_model="numpy", cache=True)

@@ -373,10 +373,10 @@ WARM_GENERIC = {
     """,
 }
 #: after a warm-up scene: every piece of tier 1, of every family, for its kind of state (the install-wide
-#: code; a scene compiles only the pieces it calls, demkit.generic.needs_of)
+#: code; a scene compiles only the pieces it calls, demkit.engine.generic.needs_of)
 WARM_PIECES = """
 import numba
-from demkit import generic
+from demkit.engine import generic
 for family in generic.FAMILIES:
     generic.build_generic(False, generic.CALLS, None, family).calls_for(numba.typeof(scene.state))
 """
@@ -437,7 +437,7 @@ TIER_SCENES = {  # name: (scene source, kind of state, integrator)
     "pour_twisting": ("pour_twisting", "lists", "dk.VelocityVerlet(1e-3)"),
     "p3m": ("p3m", "lists_sums", "dk.VelocityVerlet(1e-3)"),
     "magnetisable": ("magnetisable", "small_sums", "dk.VelocityVerlet(1e-3)"),
-    "plugin": ("plugin", "small", "dk.VelocityVerlet(1e-3)"),  # functions of your own (demkit.own_laws)
+    "plugin": ("plugin", "small", "dk.VelocityVerlet(1e-3)"),  # functions of your own (demkit.engine.own_laws)
     "plugin_lists": ("plugin_lists", "lists", "dk.VelocityVerlet(1e-3)"),
 }
 SCENES["p3m"] = """

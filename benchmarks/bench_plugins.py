@@ -8,7 +8,7 @@ an importable module, as the guide advises (cached on disk).
 For each scene, in fresh processes with demkit's install-wide code cached (warmed by another scene of
 the same kind, as bench_latency's ``tiers`` part does), CPU s from ``import demkit`` to the first step:
 ``new_combination`` (the plug-in never compiled before: tier 1 compiles its adapters,
-demkit.own_laws), ``cached`` (the same again), ``tier2_first_step`` (then on tier 2, its own pieces).
+demkit.engine.own_laws), ``cached`` (the same again), ``tier2_first_step`` (then on tier 2, its own pieces).
 Then steps/s of ``plugin_lists`` on tier 1 and tier 2 (three alternating rounds, medians).
 
 Usage: python benchmarks/bench_plugins.py [--against=<git revision>]  (the same first-step figures for

@@ -1,7 +1,7 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
-from . import numba_cache
+from .engine import numba_cache
 numba_cache.install()  # before any function is defined: caches stamped with the whole package's source
-from . import inlining  # noqa: F401 (numba's inliner in linear time: compiles 40 % faster)
+from .engine import inlining  # noqa: F401 (numba's inliner in linear time: compiles 40 % faster)
 from . import units
 from .box import Box
 from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet
@@ -30,7 +30,7 @@ from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # T
 from .lammps import export_lammps  # a scene as a LAMMPS data file and input deck
 from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep hides the module name)
 
-__version__ = "0.1.0"
+from .version import __version__  # noqa: E402
 
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
            "LargeOutputWarning", "CheckpointWarning", "Dipole",

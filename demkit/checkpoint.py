@@ -33,8 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from . import checks
+from . import version
 from .outputs import check_writable, sync_folder
-from .state import PAIR_LIST_FIELDS
+from .engine.state import PAIR_LIST_FIELDS
 
 #: bumped whenever the layout of the file changes
 FORMAT = 1
@@ -99,7 +100,6 @@ def _interval(name, value):
 # ---- what identifies a scene --------------------------------------------------------------------
 def scene_hash(scene, integrator):
     """sha256 of everything constant that the stepping depends on (not the state)."""
-    from . import __version__
     from .interactions import induction
     h = hashlib.sha256()
     p = scene.particles
@@ -131,7 +131,7 @@ def scene_hash(scene, integrator):
     add("groups", [(g.kind, g.reach, g.parallel, [k for k, _ in g.members]) for g in scene.plan.groups])
     add("fields", [name for name in SAVED_ARRAYS if scene.arrays[name].size])
     add("integrator", repr(integrator))
-    add("version", __version__)
+    add("version", version.__version__)
     return h.hexdigest()
 
 
@@ -163,10 +163,9 @@ def constants(scene):
 def save(simulation, path, extra=None):
     """Write the checkpoint of ``simulation`` to ``path`` atomically (see the module docstring);
     ``extra``: more metadata (a dict)."""
-    from . import __version__
     path = Path(path)
     scene = simulation.scene
-    meta = {"format": FORMAT, "demkit": __version__, "scene": scene_hash(scene, simulation.integrator),
+    meta = {"format": FORMAT, "demkit": version.__version__, "scene": scene_hash(scene, simulation.integrator),
             "integrator": repr(simulation.integrator), "step": int(simulation.step),
             "time": float(simulation.time), "particles": len(scene.particles),
             "groups": len(scene.plan.groups), "energy_origin": simulation.energy_origin,
@@ -224,11 +223,10 @@ def load(path):
 
 def check_compatible(meta, arrays, simulation, path):
     """Raise ValueError unless the checkpoint fits ``simulation``'s scene, integrator and version."""
-    from . import __version__
     scene = simulation.scene
-    if meta.get("demkit") != __version__:
+    if meta.get("demkit") != version.__version__:
         raise ValueError(f"checkpoint {path} was written by demkit {meta.get('demkit')}, this is demkit "
-                         f"{__version__}: an exact restart needs the same version")
+                         f"{version.__version__}: an exact restart needs the same version")
     if meta.get("particles") != len(scene.particles):
         raise ValueError(f"checkpoint {path} holds {meta.get('particles')} particles, the scene has "
                          f"{len(scene.particles)}: it belongs to another scene")

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from . import accuracy
-from .integrators import RK4, EulerCromer, ForestRuth, MultipleTimeStep, VelocityVerlet
+from .integrators import parse_method  # noqa: F401 (demkit.cli.parse_method, as before)
 from .scene import Scene
 
 #: the description of `demkit accuracy --help`
@@ -32,30 +32,6 @@ EulerCromer, VelocityVerlet, ForestRuth, RK4, MultipleTimeStep (MultipleTimeStep
 4 by default), and :resolve after VelocityVerlet or MultipleTimeStep to resolve contact events
 (VelocityVerlet:resolve, MultipleTimeStep:8:resolve).
 """
-
-PLAIN = {"EulerCromer": EulerCromer, "VelocityVerlet": VelocityVerlet, "ForestRuth": ForestRuth, "RK4": RK4}
-
-
-def parse_method(text):
-    """An integrator factory f(dt) from a name such as 'RK4', 'MultipleTimeStep:8:resolve'."""
-    name, *options = text.strip().split(":")
-    resolve = "resolve" in options
-    options = [o for o in options if o != "resolve"]
-    if name in PLAIN and not options:
-        if resolve and name != "VelocityVerlet":
-            raise ValueError(f"{name} cannot resolve contact events (VelocityVerlet and MultipleTimeStep can)")
-        cls = PLAIN[name]
-        return (lambda dt: cls(dt, resolve_contacts=True)) if resolve else cls
-    if name == "MultipleTimeStep" and len(options) <= 1:
-        try:
-            inner = int(options[0]) if options else 4
-        except ValueError:
-            raise ValueError(f"MultipleTimeStep:<inner> needs a whole number of inner steps, got {text!r}") from None
-        MultipleTimeStep(1.0, inner=inner)  # checks inner now, not in the middle of the study
-        return lambda dt: MultipleTimeStep(dt, inner=inner, resolve_contacts=resolve)
-    raise ValueError(f"unknown method {text!r}: use {', '.join(PLAIN)}, MultipleTimeStep[:inner], with "
-                     f"':resolve' after VelocityVerlet or MultipleTimeStep")
-
 
 def parse_dts(text):
     try:

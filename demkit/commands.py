@@ -108,7 +108,7 @@ def run_command(args):
         again = ("run the same command to resume" if checkpoint is not None else
                  "no [outputs.checkpoint]: a rerun starts over")
         what = "interrupted" if isinstance(err, KeyboardInterrupt) else f"error: {err}"
-        from .threads import finish_compiling
+        from .engine.threads import finish_compiling
         finish_compiling()  # a compilation in the background ends first (said on stderr): this line stays the last
         print(f"demkit run: {what}; kept: {', '.join(kept) or 'nothing'}; {again}", file=sys.stderr)
         return 130 if isinstance(err, KeyboardInterrupt) else 1
@@ -245,8 +245,8 @@ def info_command(args):
     print(f"              -> ~{_duration(stepping + est.outputs)} for the run: stepping {_duration(stepping)}"
           + (f", outputs {_duration(est.outputs)}" if est.outputs >= 0.05 else "")
           + " (one thread, compilation not included; dk.cost)")
-    from .threads import ThreadChoice
-    from .tiers import TierChoice
+    from .engine.threads import ThreadChoice
+    from .engine.tiers import TierChoice
     print(f"threads       {ThreadChoice(scene, integ.template).describe()}")
     print(f"compiled code {TierChoice(scene, f'{integ.template}_steps').describe()}")
     return 0

@@ -41,6 +41,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .interactions.fmm import ALL_PAIR, FMM_SPHERE, FMM_SPHERE_PER_DIGIT, fmm_sphere_seconds  # noqa: F401
+
 #: seconds per sphere and force evaluation: the integrator's passes, the list checks
 SPHERE = 1.2e-8
 #: seconds per sphere and wall it does not touch (a distance test)
@@ -62,12 +64,9 @@ MESH_POINT = 7.0e-9
 #: seconds of a P3M mesh sum's fixed work per evaluation (numba's object mode, scipy's FFT set-up,
 #: numpy temporaries: measured 1 ms with 100 spheres on a 25^3 mesh, where the model above says 0.6 ms)
 MESH_CALL = 1.0e-3
-#: seconds per sphere of a fast multipole sum at eps 1e-3, and more per further digit of eps (FMM3D
-#: with gradients and Hessians, N >= 1e4: 3.4e-5, 9.5e-5 and 1.8e-4 s at 1e-3, 1e-6, 1e-9;
-#: benchmarks/bench_fmm.py)
-FMM_SPHERE, FMM_SPHERE_PER_DIGIT = 3.4e-5, 2.4e-5
-#: seconds per pair of the exact (all-pairs) sum of dipoles
-ALL_PAIR = 2.0e-8
+# FMM_SPHERE, FMM_SPHERE_PER_DIGIT (seconds per sphere of a fast multipole sum) and ALL_PAIR (per pair of
+# the exact all-pairs sum of dipoles) are the FMM's own figures, which it chooses its crossover with
+# (imported above from demkit.interactions.fmm)
 #: seconds per touching pair (or sphere on a wall), by contact law and friction (at rest and shaken:
 #: 13/22/93/73-104 ns on a squeezed lattice; a settled frictional pour measures ~150 ns)
 TOUCHING = {("KelvinVoigt", False): 1.3e-8, ("Hertz", False): 2.2e-8,
@@ -317,12 +316,6 @@ def _long_range_seconds(tuned, n):
         return "mesh sum", MESH_CALL + n * tuned.order ** 3 * MESH_POINT + _fft_seconds(tuned.mesh)
     return "fast multipole sum", n * fmm_sphere_seconds(tuned.settings.accuracy)
 
-
-def fmm_sphere_seconds(accuracy):
-    """Seconds per sphere of a fast multipole sum at FMM3D precision ``accuracy`` (one core):
-    FMM_SPHERE + FMM_SPHERE_PER_DIGIT per digit of eps beyond the third."""
-    digits = max(-math.log10(accuracy), 1.0)
-    return FMM_SPHERE + FMM_SPHERE_PER_DIGIT * (digits - 3.0)
 
 
 def _ramp_mean(start, end, ramp, duration):

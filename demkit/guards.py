@@ -41,13 +41,13 @@ from .interactions.dipole import Dipole
 from .interactions.fields import Gravity
 from .interactions.hertz import Hertz
 from .interactions.wall import Wall
-from .state import DEEP_OVERLAP_FRACTION
+from .engine.state import DEEP_OVERLAP_FRACTION
 
 #: largest rotation per step (rad) of a sphere that feels torques (dipoles, fields, friction)
 MAX_TURN = 1.0
 #: a contact law is refused when touching head-to-tail magnets snapping together from rest would
 #: overlap by more than this fraction of the smaller radius, with the attraction as it is there (it
-#: grows as they overlap): the run would be stopped there (demkit.state.DEEP_OVERLAP_FRACTION)
+#: grows as they overlap): the run would be stopped there (demkit.engine.state.DEEP_OVERLAP_FRACTION)
 REFUSED_MAGNETIC_OVERLAP = DEEP_OVERLAP_FRACTION
 #: the overlap the advised stiffness keeps such a snap within (a margin below the refusal; measured,
 #: docs/stability.md: judged at this overlap with the attraction there, the advice is met)

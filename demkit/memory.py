@@ -28,7 +28,7 @@ GB = 1e9
 #: the densest packing of equal spheres (pi / sqrt(18)): bounds the spheres within a reach when
 #: the volume they fill is unknown
 DENSEST = math.pi / math.sqrt(18.0)
-#: neighbour lists keep room for this fraction more entries than they hold (demkit.neighbours.GROWTH)
+#: neighbour lists keep room for this fraction more entries than they hold (demkit.engine.neighbours.GROWTH)
 LIST_ROOM = 1.0 / 8.0
 
 

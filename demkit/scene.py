@@ -5,7 +5,7 @@ Only what the interactions declare is allocated: no dipole arrays without a dipo
 spins), no history unless an interaction keeps some, no image counts or periodic arithmetic in
 open space, no neighbour lists for a handful of spheres, no threads for small scenes.
 
-Interactions are grouped by reach (:class:`demkit.kernels.Group`): those of equal finite reach
+Interactions are grouped by reach (:class:`demkit.engine.kernels.Group`): those of equal finite reach
 share a neighbour list with a skin (contacts reach 2 R_max, dipoles their cutoff); interactions
 without a cutoff loop over all pairs i < j; a scene of at most :data:`ALL_PAIRS_MAX` spheres in
 open space loops over all pairs for everything (one fused loop, the fastest for a few spheres).
@@ -18,25 +18,25 @@ import math
 import numba
 import numpy as np
 
-from . import checks, neighbours
+from . import checks
 from .box import Box
-from .integrators import TEMPLATES
+from .engine import generic, neighbours
+from .engine.kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds, importable
+from .engine.motion import empty_vectors
+from .engine.notice import compile_estimate, compile_notice
+from .engine.state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, TupleStateModule,
+                           make_pair_list, make_state, new_pair_list, touch_getters)
+from .engine.templates import TEMPLATES
+from .engine.threads import PARALLEL_MIN, THREADS_FROM_SECONDS, estimated_force_seconds
 from .interactions import induction
 from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
-from .threads import PARALLEL_MIN, THREADS_FROM_SECONDS, estimated_force_seconds
-from . import generic
-from .kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds, importable
-from .motion import empty_vectors
 from .particles import Particles
-from .progress import compile_estimate, compile_notice
-from .state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, TupleStateModule,
-                    make_pair_list, make_state, new_pair_list, touch_getters)
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
-#: same limit stops a run, see demkit.state.DEEP_OVERLAP_FRACTION)
+#: same limit stops a run, see demkit.engine.state.DEEP_OVERLAP_FRACTION)
 MAX_INITIAL_OVERLAP = DEEP_OVERLAP_FRACTION
 #: open scenes with at most this many spheres loop over all pairs (no neighbour lists)
 ALL_PAIRS_MAX = 64
@@ -66,7 +66,7 @@ class Scene:
         rebuilt when a sphere has moved skin/2.
     parallel : None (default: a scene of at least 2000 spheres whose force evaluation is
         estimated at 0.5 ms or more may use threads, and each run measures whether they pay, see
-        :mod:`demkit.threads`), True (always threads) or False (never). Threads follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops
+        :mod:`demkit.engine.threads`), True (always threads) or False (never). Threads follow ``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``; the pair loops
         of such a scene are cut into ``numba.config.NUMBA_NUM_THREADS`` fixed chunks, so results
         do not depend on how many threads run them, nor on whether threads run them at all.
     sort_every : re-order the spheres by cell every this many steps (at the next list rebuild) for
@@ -94,7 +94,8 @@ class Scene:
         interactions = [inter for inter in interactions if isinstance(inter, PairInteraction)]
         if box is not None and not isinstance(box, Box):
             raise TypeError(f"box must be a demkit.Box or None, got {type(box).__name__}")
-        polarisabilities = induction.prepare(particles, interactions, effects)  # None: no magnetisable spheres
+        dipoles = [inter for inter in interactions if isinstance(inter, Dipole)]
+        polarisabilities = induction.prepare(particles, dipoles, effects)  # None: no magnetisable spheres
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]
@@ -189,13 +190,13 @@ class Scene:
     def fused_source(self, threads=False):
         """The text of this scene's fused module (tier 2; generated, not compiled): what code the
         scene's combination of interactions needs, and only that."""
-        from .kernels import fused_source
+        from .engine.kernels import fused_source
         return fused_source(self.plan, TEMPLATES, threads)
 
     def _kernels(self, threads, tier=None):
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``).
         Tier 2 of a scene that the program describes, with neighbour lists or functions of your own,
-        is the generic time loops calling the scene's own pieces (:func:`demkit.kernels.build_pieces`);
+        is the generic time loops calling the scene's own pieces (:func:`demkit.engine.kernels.build_pieces`);
         else its fused module (through named tuples over the arrays of a structref state)."""
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
@@ -219,10 +220,10 @@ class Scene:
         return make_pair_list(*fields) if self.plan.growing else PairListTuple(*fields)
 
     def _adapters(self):
-        """The adapters of the scene's functions of your own on tier 1 (demkit.own_laws), or None."""
+        """The adapters of the scene's functions of your own on tier 1 (demkit.engine.own_laws), or None."""
         if not self.on_tier_1_possible:
             return None
-        from .own_laws import build_adapters
+        from .engine.own_laws import build_adapters
         tables = {e for e, effect in enumerate(self.plan.effects) if np.size(effect.table_values())}
         return build_adapters(self.plan, tables)
 
@@ -455,7 +456,7 @@ class Scene:
         return self._state_object()
 
     def padded(self, lists):
-        """The scene's lists followed by empty ones up to demkit.generic.MAX_GROUPS: every state has
+        """The scene's lists followed by empty ones up to demkit.engine.generic.MAX_GROUPS: every state has
         as many, so that one compiled generic module serves every scene."""
         lists = list(lists)
         while len(lists) < generic.MAX_GROUPS:

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .integrators import parse_method
 from .schema import (REQUIRED, Key, SchemaError, SchemaErrors, Table, Tables, Variant, dotted, key_lines, line_of,
                      validate)
 
@@ -734,7 +735,6 @@ def _check_memory(data, box, interactions, src):
 
     from . import build as B
     from . import memory
-    from .cli import parse_method
     from .interactions.base import PairInteraction
     from .scene import DEFAULT_SKIN, PARALLEL_MIN, SORT_MIN
     b = data["particles"]["build"] if data["particles"] else None
@@ -781,7 +781,7 @@ def _check_memory(data, box, interactions, src):
     torques = any(inter.torque or "angular_velocity" in inter.reads for inter in interactions)
     threads = int(numba.config.NUMBA_NUM_THREADS) if n >= PARALLEL_MIN and options.get("parallel") is not False else 1
     # (an upper bound: with parallel unset, only scenes whose force evaluation is estimated at 0.5 ms or
-    # more are cut into chunks for threads, demkit.threads.THREADS_FROM_SECONDS)
+    # more are cut into chunks for threads, demkit.engine.threads.THREADS_FROM_SECONDS)
     try:
         stages = parse_method(data["integrator"]["method"])(1.0).stage_arrays
     except Exception:  # the method is checked, with its own message, once the scene is built  # noqa: BLE001
@@ -952,7 +952,6 @@ def _magnet_field(table, where, src, scale):
 
 def _integrator(d, scene, src):
     """(the integrator, the StepChoice of dt = "auto" or None)."""
-    from .cli import parse_method
     integ = d["integrator"]
     text = integ["method"]
     if integ["inner"] is not None:

@@ -17,11 +17,12 @@ import numpy as np
 
 from . import checks, guards
 from .notes import RunNotes, say as say_notes
-from .progress import Progress, check_progress, compile_estimate, compile_notice
+from .engine.notice import compile_estimate, compile_notice
+from .progress import Progress, check_progress
 from .scene import energy_dict
-from .threads import ThreadChoice
-from .tiers import TierChoice
-from .state import (DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, LEFT_LAYER,
+from .engine.threads import ThreadChoice
+from .engine.tiers import TierChoice
+from .engine.state import (DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, LEFT_LAYER,
                     MOVED_TOO_FAR, OK, REBUILDS, RUN_START)
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
@@ -608,7 +609,7 @@ class Simulation:
         }
 
     def _switch_tier(self, steps_left):
-        """Between chunks: run tier 2's loops from now on when it is ready (demkit.tiers)."""
+        """Between chunks: run tier 2's loops from now on when it is ready (demkit.engine.tiers)."""
         rate = self._threads.rates.get(self._threads.threads)  # measured after the first chunk (no compiling)
         seconds_left = steps_left / rate if rate else None
         modules = self._tiers.ready(seconds_left, busy=self._threads.compiling)
@@ -756,7 +757,7 @@ class _Stepping:
 
     def __enter__(self):
         self.scene.stepping = True
-        self.threads = numba.get_num_threads()  # the run's chunks set it (demkit.threads): given back
+        self.threads = numba.get_num_threads()  # the run's chunks set it (demkit.engine.threads): given back
 
     def __exit__(self, kind, error, tb):
         numba.set_num_threads(self.threads)

@@ -13,11 +13,11 @@ import demkit as dk
 # other worker). tests/test_tiers.py switches on purpose, and asks for tier 2 where it compares the
 # tiers; scenes with functions of your own run on tier 2 (DEMKIT_TIER=1 is a default, not a demand).
 os.environ["DEMKIT_TIER"] = "1"
-#: demkit.tiers' shipped thresholds, which the suite replaces by "never" (the `shipped_tiers` fixture puts them back)
-SHIPPED_THRESHOLDS = {name: getattr(dk.tiers, name) for name in ("WORTH_COMPILING", "WORTH_COMPILING_OPEN",
+#: demkit.engine.tiers' shipped thresholds, which the suite replaces by "never" (the `shipped_tiers` fixture puts them back)
+SHIPPED_THRESHOLDS = {name: getattr(dk.engine.tiers, name) for name in ("WORTH_COMPILING", "WORTH_COMPILING_OPEN",
                                                                   "WORTH_LOADING")}
 for _name in SHIPPED_THRESHOLDS:
-    setattr(dk.tiers, _name, float("inf"))
+    setattr(dk.engine.tiers, _name, float("inf"))
 
 R_PAPER = 6.94
 V_PAPER = 5.78e-3
@@ -147,13 +147,13 @@ if __import__("os").environ.get("DEMKIT_COMPILE_LOG"):
 
 @pytest.fixture
 def shipped_tiers(monkeypatch):
-    """Scenes choose their tier as outside the suite (no DEMKIT_TIER, demkit.tiers' shipped thresholds),
+    """Scenes choose their tier as outside the suite (no DEMKIT_TIER, demkit.engine.tiers' shipped thresholds),
     in a process that has run no combination yet."""
     monkeypatch.delenv("DEMKIT_TIER", raising=False)
     for name, seconds in SHIPPED_THRESHOLDS.items():
-        monkeypatch.setattr(dk.tiers, name, seconds)
-    monkeypatch.setattr(dk.tiers, "_SPENT", {})
-    monkeypatch.setattr(dk.tiers, "_READY", set())
+        monkeypatch.setattr(dk.engine.tiers, name, seconds)
+    monkeypatch.setattr(dk.engine.tiers, "_SPENT", {})
+    monkeypatch.setattr(dk.engine.tiers, "_READY", set())
 
 
 @pytest.fixture

@@ -142,7 +142,7 @@ def test_a_checkpoint_of_another_scene_integrator_or_version_is_refused(tmp_path
                        list(other.interactions), box=other.box, sort_every=40)
     _refused(path, changed, "another scene")
     _refused(path, gas(), "same integrator", integrator=dk.VelocityVerlet(2 * DT))
-    monkeypatch.setattr(dk, "__version__", "9.9.9")
+    monkeypatch.setattr(dk.version, "__version__", "9.9.9")  # (what checkpoints record)
     _refused(path, gas(), "demkit 9.9.9")
 
 

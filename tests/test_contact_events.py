@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import demkit as dk
-from demkit.events import pair_crossing
+from demkit.engine.events import pair_crossing
 from demkit.two_magnets.scene import TwoMagnets
 
 K, C, M = 1000.0, 4.0, 1.0

@@ -177,13 +177,13 @@ def test_a_pour_of_magnetisable_spheres_follows_its_lists_and_solve_as_they_sett
 
 
 def test_the_compile_notice_counts_the_induction_solve_when_it_is_not_cached(monkeypatch):
-    from demkit import progress
+    from demkit.engine import notice
     p = dk.Particles(position=[[0, 0, 0], [2.0, 0, 0]], radius=0.5, mass=1.0, susceptibility=5.0)
     scene = dk.Scene(p, [dk.Dipole(prefactor=1.0), dk.UniformField((0, 0, 1.0))])
-    monkeypatch.setattr(progress, "induction_cached", lambda: False)
-    text = progress.compile_estimate(scene.plan, "scene", tier=2)
-    lo, hi = progress.ESTIMATES["small"]
-    extra = progress.ESTIMATES["induction"]
+    monkeypatch.setattr(notice, "induction_cached", lambda: False)
+    text = notice.compile_estimate(scene.plan, "scene", tier=2)
+    lo, hi = notice.ESTIMATES["small"]
+    extra = notice.ESTIMATES["induction"]
     assert f"about {lo + extra}-{hi + extra} s" in text and "induced moments" in text
-    monkeypatch.setattr(progress, "induction_cached", lambda: True)
-    assert progress.compile_estimate(scene.plan, "scene", tier=2) == f"about {lo}-{hi} s on an idle machine"
+    monkeypatch.setattr(notice, "induction_cached", lambda: True)
+    assert notice.compile_estimate(scene.plan, "scene", tier=2) == f"about {lo}-{hi} s on an idle machine"

@@ -1,4 +1,4 @@
-"""demkit.inlining: numba's inliner copies a callee's IR with one memo per copy (linear, not quadratic).
+"""demkit.engine.inlining: numba's inliner copies a callee's IR with one memo per copy (linear, not quadratic).
 
 Independent truths: the copy must equal the original block by block (numba's own IR equality), share
 one scope like the original, be made afresh each time, and inlined code must compute what the plain
@@ -13,7 +13,7 @@ from numba.core import inline_closurecall, ir
 from numba.core.compiler import run_frontend
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit import inlining
+from demkit.engine import inlining
 
 
 def branchy(x, n):
@@ -71,7 +71,7 @@ def test_inlined_functions_compute_what_python_computes():
 
 def test_demkit_plain_inlining_keeps_numba_as_it_is():
     code = ("import demkit, copy; from numba.core import inline_closurecall as ic; "
-            "print(demkit.inlining.INSTALLED, ic.copy is copy)")
+            "print(demkit.engine.inlining.INSTALLED, ic.copy is copy)")
     env = dict(os.environ, DEMKIT_PLAIN_INLINING="1")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True"]

@@ -40,7 +40,7 @@ def test_a_scene_whose_kernels_load_from_the_cache_runs_in_a_new_process():
 GETTERS = textwrap.dedent("""
     import numba
     import demkit as dk
-    from demkit import state as st
+    from demkit.engine import state as st
     p = dk.Particles(position=[[1.0, 2.0, 3.0], [4.0, 2.0, 3.0]], velocity=[[0.5, 0.0, 0.0], [0.0, 0.0, 0.0]], radius=0.1)
     scene = dk.Scene(p, [dk.KelvinVoigt(1.0)], box=dk.Box([10, 10, 10], periodic=[True, True, False]))
     state_type = numba.typeof(scene.state)
@@ -66,12 +66,12 @@ def test_a_new_scene_has_its_list_getters_compiled_before_any_run(tmp_path):
 def test_demkits_own_cached_functions_are_stamped_with_the_whole_package(tmp_path):
     """numba stamps a cached function with its own file's hash only; a demkit function holds the code
     of the helpers it calls from other files (a wall law, the friction spring), so its stamp must
-    change when any of demkit's files does (demkit.numba_cache). Functions of other packages keep
+    change when any of demkit's files does (demkit.engine.numba_cache). Functions of other packages keep
     numba's own stamp."""
     import numba
 
     import demkit as dk
-    from demkit import numba_cache
+    from demkit.engine import numba_cache
     from demkit.interactions import wall
 
     law = wall.wall_kelvin_voigt_twisting_force
@@ -94,7 +94,7 @@ def test_demkits_own_cached_functions_are_stamped_with_the_whole_package(tmp_pat
     theirs = numba.njit(cache=True)(mine)
     theirs(1)
     assert not type(theirs._cache._impl._locator).__name__.startswith("Demkit")
-    dk.numba_cache.install()  # a second install adds nothing
+    dk.engine.numba_cache.install()  # a second install adds nothing
     impl = type(law._cache._impl)
     assert sum(c.__name__.startswith("Demkit") for c in impl._locator_classes) == 3
 
@@ -103,7 +103,7 @@ RACE = textwrap.dedent("""
     import os, sys, time
     import numpy as np
     import demkit
-    from demkit import neighbours
+    from demkit.engine import neighbours
     go = sys.argv[1]
     while not os.path.exists(go):  # both processes start compiling together
         time.sleep(0.001)
@@ -116,7 +116,7 @@ RACE = textwrap.dedent("""
 def test_processes_starting_together_on_an_empty_cache_compile_each_function_once(tmp_path):
     """Two processes (the workers of a sweep or of this suite) that need the same function of an
     empty cache at the same moment: one compiles it, the other waits for it and loads it
-    (demkit.numba_cache's lock). Without the lock both missed the cache and both compiled."""
+    (demkit.engine.numba_cache's lock). Without the lock both missed the cache and both compiled."""
     env = dict(os.environ, DEMKIT_CACHE_DIR=str(tmp_path / "cache"), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
                DEMKIT_QUIET="1")
     go = tmp_path / "go"
@@ -141,7 +141,7 @@ def test_a_compile_that_fails_releases_its_lock():
     import numpy as np
     import pytest
 
-    from demkit import neighbours, numba_cache
+    from demkit.engine import neighbours, numba_cache
     with pytest.raises(numba.core.errors.TypingError):
         neighbours.max_displacement(np.zeros((4, 3)), "not an array")
     assert numba_cache._HELD == {}

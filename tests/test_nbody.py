@@ -10,8 +10,8 @@ from plugin_interactions import TouchCounter
 from reference_forces import dipole_forces, kelvin_voigt_forces, pairs_within
 
 import demkit as dk
-from demkit import neighbours
-from demkit.state import SORTS, new_pair_list
+from demkit.engine import neighbours
+from demkit.engine.state import SORTS, new_pair_list
 
 
 def gas(n=300, phi=0.2, periodic=True, seed=1, uneven=False, dipoles=True, speed=1.0, moment=1.0):
@@ -350,7 +350,7 @@ def test_threads_chosen_chunk_by_chunk_give_the_bits_of_threads_and_of_one_threa
     thread end; statistics say how many threads ran and why."""
     import demkit.scene as scene_module
     import demkit.simulation as simulation_module
-    import demkit.threads as threads
+    import demkit.engine.threads as threads
     p, box = gas(n=300, periodic=True, seed=10)
     before = numba.get_num_threads()
 
@@ -396,7 +396,7 @@ def test_a_new_simulation_starts_on_the_choice_measured_for_its_kind_of_scene(mo
     still checks them again (here every chunk, and threads always lose: it goes back to one thread).
     A scene with another number of spheres starts from scratch."""
     import demkit.scene as scene_module
-    import demkit.threads as threads
+    import demkit.engine.threads as threads
     p, box = gas(n=300, periodic=True, seed=10)
     monkeypatch.setattr(scene_module, "PARALLEL_MIN", 100)
     monkeypatch.setattr(scene_module, "THREADS_FROM_SECONDS", 0.0)
@@ -438,7 +438,7 @@ def test_threads_outlast_a_slow_chunk_but_not_a_collapse_or_a_slow_spell():
     chunks differ by the list rebuilds they hold, so threads are left at once only below LEAVE of
     that rate (a busy core making them far slower), or once SPELL_CHUNKS chunks on threads ran no
     faster than one thread on average (a busy core beside a long step: ~0.9x); a probe must win by MARGIN."""
-    from demkit import threads
+    from demkit.engine import threads
 
     def on_threads():
         choice = threads.ThreadChoice.__new__(threads.ThreadChoice)  # the decision alone, no scene
@@ -472,7 +472,7 @@ def test_only_scenes_with_enough_work_per_step_are_cut_into_chunks_for_threads()
     more; the estimate follows the pairs (a longer dipole cutoff, more pairs, more time). Contact-only
     gases at volume fraction 0.2: 8000 spheres (0.2-0.3 ms a step, 1.1-1.5x as fast on two threads)
     qualify, 4000 (0.13 ms, 0.66x) do not."""
-    from demkit.threads import THREADS_FROM_SECONDS
+    from demkit.engine.threads import THREADS_FROM_SECONDS
     assert THREADS_FROM_SECONDS == 0.5e-3
     p, box = gas(n=2000, periodic=True, seed=3, dipoles=True)
     contacts = dk.Scene(p.copy(), [dk.KelvinVoigt(stiffness=1000.0, damping=1.0)], box=box)
@@ -486,7 +486,7 @@ def test_only_scenes_with_enough_work_per_step_are_cut_into_chunks_for_threads()
     pairs = dipoles.force_seconds - contacts.force_seconds  # the dipole list's pairs, about 1/2 rho 4/3 pi (4 + skin)^3
     rho = 2000 / box.volume
     assert pairs / (2000 * 0.5 * rho * 4 / 3 * math.pi * (4.0 + dipoles.skin) ** 3 * 1.2e-8) == pytest.approx(1, rel=0.05)
-    from demkit.threads import ThreadChoice
+    from demkit.engine.threads import ThreadChoice
     assert "estimated" in ThreadChoice(contacts, "velocity_verlet").describe()
 
 
@@ -507,7 +507,7 @@ def test_a_tier_switch_that_brings_a_thread_module_before_any_probe_gets_it_prob
     """Tier 2 handed in with its thread module while the run had not probed threads yet (no check
     scheduled): the next chunk probes them; before, it compared the clock with None and stopped the run
     (the N = 8000 reference scene on two cores, TypeError)."""
-    from demkit import threads
+    from demkit.engine import threads
 
     class Module:
         velocity_verlet_steps = "serial loop"

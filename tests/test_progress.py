@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 import demkit as dk
 from demkit import progress as prog
+from demkit.engine import notice
 
 
 @pytest.fixture
@@ -128,7 +129,7 @@ class Soft(dk.PairInteraction):
 
 def test_compiling_is_announced_before_and_timed_after_and_a_warm_scene_is_silent(monkeypatch, capsys, tmp_path,
                                                                                    request):
-    monkeypatch.setattr(prog, "NOTICE_AFTER", 0.0)
+    monkeypatch.setattr(notice, "NOTICE_AFTER", 0.0)
     monkeypatch.delenv("DEMKIT_QUIET", raising=False)
     # importable plug-ins (tier 1 calls them through the scene's adapters, a second or two to compile),
     # new to the cache in every run of the suite (a random token in the force function's source)
@@ -165,7 +166,7 @@ def test_compiling_is_announced_before_and_timed_after_and_a_warm_scene_is_silen
         monkeypatch.setenv("DEMKIT_QUIET", quiet)
         module = {"__name__": "demkit_kernel_quiet_test"}
         exec("def plus_one(x):\n    return x + 1\n", module)
-        with prog.compile_notice("a moment"):
+        with notice.compile_notice("a moment"):
             numba.njit(module["plus_one"])(1)
         assert len(capsys.readouterr().err.splitlines()) == said
 
@@ -176,18 +177,18 @@ def test_the_compile_notice_expects_what_the_scene_needs(monkeypatch):
     small, lists = SimpleNamespace(growing=False), SimpleNamespace(growing=True)
     dk.Scene(dk.Particles(position=[[0.5, 0.5, 0.5], [2.0, 0.5, 0.5]], radius=0.5),
              [dk.KelvinVoigt(1.0)], box=dk.Box([4.0, 4.0, 4.0], periodic=True))  # builds lists: cached now
-    assert prog.cell_lists_cached()
-    lo, hi = prog.ESTIMATES["small"]
-    assert prog.compile_estimate(small, "run") == f"about {lo}-{hi} s on an idle machine"
-    lo, hi = prog.ESTIMATES["lists"]
-    assert prog.compile_estimate(lists, "run") == f"about {lo}-{hi} s on an idle machine"
-    monkeypatch.setattr(prog, "cell_lists_cached", lambda: False)
-    extra = prog.ESTIMATES["cell_lists"]
-    assert prog.compile_estimate(lists, "run") == (f"about {lo + extra}-{hi + extra} s on an idle machine; the "
+    assert notice.cell_lists_cached()
+    lo, hi = notice.ESTIMATES["small"]
+    assert notice.compile_estimate(small, "run") == f"about {lo}-{hi} s on an idle machine"
+    lo, hi = notice.ESTIMATES["lists"]
+    assert notice.compile_estimate(lists, "run") == f"about {lo}-{hi} s on an idle machine"
+    monkeypatch.setattr(notice, "cell_lists_cached", lambda: False)
+    extra = notice.ESTIMATES["cell_lists"]
+    assert notice.compile_estimate(lists, "run") == (f"about {lo + extra}-{hi + extra} s on an idle machine; the "
                                                    f"cell lists' code compiles once per install")
-    lo, hi = prog.ESTIMATES["lists_scene"]
-    assert prog.compile_estimate(lists, "scene").startswith(f"about {lo + extra}-{hi + extra} s")
-    assert prog.compile_estimate(small, "run") == prog.compile_estimate(small, "scene")  # no lists to build
+    lo, hi = notice.ESTIMATES["lists_scene"]
+    assert notice.compile_estimate(lists, "scene").startswith(f"about {lo + extra}-{hi + extra} s")
+    assert notice.compile_estimate(small, "run") == notice.compile_estimate(small, "scene")  # no lists to build
 
 
 def test_small_scenes_find_close_pairs_like_the_cell_list(rng):

@@ -691,8 +691,8 @@ def test_demkit_info_measure_times_the_tier_a_long_run_uses(shipped_tiers, monke
     assert done.returncode == 0, done.stderr
     assert "steps now on tier 2" in done.stdout, done.stdout
     # a new process (the long run's tier 2 is cached now, but a short run does not even load it)
-    monkeypatch.setattr(dk.tiers, "_SPENT", {})
-    monkeypatch.setattr(dk.tiers, "_READY", set())
+    monkeypatch.setattr(dk.engine.tiers, "_SPENT", {})
+    monkeypatch.setattr(dk.engine.tiers, "_READY", set())
     done = demkit("info", str(COLLISION), "--measure", "--set", "run.duration=2.0", cwd=ROOT)
     assert done.returncode == 0 and "steps now" in done.stdout and "tier 2" not in done.stdout.split("cost")[1]
 
@@ -706,7 +706,7 @@ def test_demkit_info_measure_after_earlier_runs_of_the_combination(shipped_tiers
         def get(self, key, default=None):
             return 1e3  # seconds every combination ran on tier 1 before, in this process
 
-    monkeypatch.setattr(dk.tiers, "_SPENT", LongBefore())
+    monkeypatch.setattr(dk.engine.tiers, "_SPENT", LongBefore())
     done = demkit("info", str(COLLISION), "--measure", "--set", "run.duration=400000.0", cwd=ROOT)
     assert done.returncode == 0, done.stderr
     assert "steps now on tier 2" in done.stdout, done.stdout

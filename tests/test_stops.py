@@ -57,7 +57,7 @@ def test_the_finiteness_check_agrees_with_numpy_for_any_value_anywhere(threads, 
     """The check every step ends with (serial and on threads) against np.isfinite: NaN of either
     sign and +-inf in each array at each place, among values of both signs, and huge finite values
     (a sum of the values themselves would overflow: an earlier check called 1e308 + 1e308 non-finite)."""
-    from demkit.motion import state_is_finite, state_is_finite_threads
+    from demkit.engine.motion import state_is_finite, state_is_finite_threads
     check = state_is_finite_threads if threads else state_is_finite
     rng = np.random.default_rng(5)
     arrays = [rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-300, 300, size=(n, 3)) for _ in range(3)]

@@ -1,4 +1,4 @@
-"""The two tiers of compiled code (demkit.tiers): the generic module (tier 1) and a scene's own code
+"""The two tiers of compiled code (demkit.engine.tiers): the generic module (tier 1) and a scene's own code
 (tier 2: its fused module in open space and on threads, its own pair and sphere loops called by the
 generic time loops with neighbour lists) give byte-equal trajectories and energies (and diagnostics,
 which tier 2 computes only for functions of your own), and a run that switches from one to the other in its middle gives the same bits as either. The scenes
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import demkit as dk
-from demkit import generic
+from demkit.engine import generic
 
 
 @pytest.fixture(autouse=True)
@@ -165,7 +165,7 @@ def test_switch_in_the_middle_same_bits():
 
 def test_functions_of_your_own_run_on_tier_1_through_adapters_with_the_catalogues_bits():
     """A scene with pair and single-sphere functions of your own is described by the program (their
-    kind: generic.OWN): tier 1 calls them through the scene's adapters (demkit.own_laws, all it
+    kind: generic.OWN): tier 1 calls them through the scene's adapters (demkit.engine.own_laws, all it
     compiles), tier 2 runs its own pieces under the generic time loops; both give the bits of the
     shipped laws behind them on tier 1."""
     from numba.core import event
@@ -238,7 +238,7 @@ def test_functions_of_your_own_with_history_over_lists_on_threads_same_bits():
 
 
 def test_tier_choice_and_refusals(monkeypatch):
-    from demkit import tiers
+    from demkit.engine import tiers
     monkeypatch.setattr(tiers, "_READY", set())  # as in a process that has not run this combination
     monkeypatch.setattr(tiers, "_SPENT", {})
     scene = gas(None)
@@ -288,7 +288,7 @@ def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
     """Short runs of one combination (a sweep, the paper's replication) pay for tier 2 together: the
     seconds each spent on tier 1 in this process count for the next, and once one run has tier 2,
     the later ones switch to it at once."""
-    from demkit import tiers
+    from demkit.engine import tiers
     monkeypatch.setattr(tiers, "WORTH_COMPILING_OPEN", 1.0)
     monkeypatch.setattr(tiers, "WORTH_LOADING", 1.0)
     monkeypatch.setattr(tiers, "_SPENT", {})
@@ -314,7 +314,7 @@ def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
 def test_the_first_chunk_which_compiles_is_not_counted_as_time_on_tier_1(monkeypatch):
     """A run's first chunk compiles or loads tier 1's code: on a new install that took 20 s, which
     counted as time on tier 1 made a 1000-step run of two spheres start compiling tier 2."""
-    from demkit import tiers
+    from demkit.engine import tiers
     monkeypatch.setattr(tiers, "_SPENT", {})
     p = dk.Particles(position=[[0, 0, 0], [3.0, 0, 0]], radius=1.0, dipole=[[0, 0, 1.0], [0, 0, 1.0]])
     sim = dk.Simulation(dk.Scene(p, [dk.Dipole(1.0), dk.KelvinVoigt(100.0)]), dk.EulerCromer(1e-3))
@@ -344,7 +344,7 @@ def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_sp
     dk.Simulation(scene, dk.VelocityVerlet(2e-4 if open_space else 1e-3)).run(0.02, progress=False)
     compiled = []
 
-    class Compiles(event.Listener):  # the generic modules' functions (a small helper of demkit.state, which
+    class Compiles(event.Listener):  # the generic modules' functions (a small helper of demkit.engine.state, which
         def on_start(self, ev):      # reads the state's arrays, may compile the first time it is used)
             function = ev.data["dispatcher"].py_func
             if function.__module__.startswith("demkit_generic"):
@@ -377,7 +377,7 @@ def test_per_pair_diagnostics_are_the_pair_loops_own_and_compile_nothing(open_sp
 def test_a_failed_tier_2_compilation_is_reported_and_the_run_goes_on_on_tier_1(monkeypatch):
     """A background compilation that fails (a full disk, a broken plugin) keeps the run on tier 1
     with the same bits, and the run's statistics say why instead of waiting for it forever."""
-    from demkit import tiers
+    from demkit.engine import tiers
     monkeypatch.setattr(tiers, "WORTH_COMPILING_OPEN", 0.0)
     monkeypatch.setattr(tiers, "WORTH_LOADING", 0.0)
     monkeypatch.setattr(tiers, "_SPENT", {})

@@ -2,7 +2,7 @@
 
 An interaction is a small evaluator. It declares what it needs and provides two pure numba
 functions; the scene fuses the chosen interactions into one compiled pair loop
-(see :mod:`demkit.kernels`).
+(see :mod:`demkit.engine.kernels`).
 
 Pair functions see one pair (i, j) with separation ``d = x_j - x_i`` (``dx, dy, dz``) and
 ``r2 = |d|**2``, then the particle arrays named in ``reads`` (indexed with i and j), then the

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, flag, non_negative, positive
 from .friction import HISTORY, Friction, pair_friction, release, springs_energy

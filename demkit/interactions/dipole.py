@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, inverse_inertia, positive
 

@@ -56,7 +56,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 from .base import positive
 from .special_functions import screened
 from .slab import Layer, check_layer, gap_error, gap_for, layer_terms, open_axis, table_entries, thick_box_hint

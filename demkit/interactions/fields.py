@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import SAFE_PHASE, inverse_inertia
 from .sphere import SphereInteraction, vector

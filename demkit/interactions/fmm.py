@@ -102,6 +102,20 @@ def fmm_sum(position, dipole, box, params, start, force, torque, with_forces, st
     return energy
 
 
+#: seconds per sphere of a fast multipole sum at eps 1e-3, and more per further digit of eps (FMM3D
+#: with gradients and Hessians, N >= 1e4: 3.4e-5, 9.5e-5 and 1.8e-4 s at 1e-3, 1e-6, 1e-9;
+#: benchmarks/bench_fmm.py); demkit.cost estimates runs with them
+FMM_SPHERE, FMM_SPHERE_PER_DIGIT = 3.4e-5, 2.4e-5
+#: seconds per pair of the exact (all-pairs) sum of dipoles, which the FMM replaces above its crossover
+ALL_PAIR = 2.0e-8
+
+
+def fmm_sphere_seconds(accuracy):
+    """Seconds per sphere of a fast multipole sum at FMM3D precision ``accuracy`` (one core):
+    FMM_SPHERE + FMM_SPHERE_PER_DIGIT per digit of eps beyond the third."""
+    digits = max(-math.log10(accuracy), 1.0)
+    return FMM_SPHERE + FMM_SPHERE_PER_DIGIT * (digits - 3.0)
+
 class FMM:
     """Settings of a fast multipole sum: ``Dipole(prefactor, long_range=FMM(accuracy=1e-9))``.
 
@@ -130,9 +144,8 @@ class FMM:
 
     def crossover(self):
         """Number of spheres from which the FMM is estimated cheaper than the exact all-pairs sum:
-        2 c_FMM / c_pair with demkit.cost's FMM_SPHERE(_PER_DIGIT) and ALL_PAIR (one core)."""
-        from .. import cost
-        return int(round(2.0 * cost.fmm_sphere_seconds(self.accuracy) / cost.ALL_PAIR))
+        2 c_FMM / c_pair with :func:`fmm_sphere_seconds` and :data:`ALL_PAIR` (one core)."""
+        return int(round(2.0 * fmm_sphere_seconds(self.accuracy) / ALL_PAIR))
 
     def uses_exact_sum(self, n):
         """Does a scene of n spheres keep the exact sum (fewer than ``exact_below`` spheres)?"""

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, number, positive
 from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,

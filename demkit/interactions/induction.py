@@ -95,7 +95,7 @@ def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, 
     within ``cutoff``: A [C (m_j.d) d - B m_j] with B = 1/r^3, C = 3/r^5 (times the switch S(r)
     when inv_width > 0), or their Ewald-screened forms when alpha > 0 (demkit.interactions.ewald).
 
-    Each owner's pairs go in blocks of FIELD_BLOCK, as in the force loops (demkit.kernels): a
+    Each owner's pairs go in blocks of FIELD_BLOCK, as in the force loops (demkit.engine.kernels): a
     copy loop gathers the partners' positions and moments, a branch-free loop the compiler
     vectorises evaluates every pair (minimum image by rounding; the prefactor is 0 beyond the
     cutoff), a scalar loop scatters the partners' fields: 1.7-1.8x faster than one scalar loop with
@@ -488,15 +488,14 @@ def applied_sources(effects):
     return uniform, [e for e in effects if isinstance(e, MagnetField)]
 
 
-def prepare(particles, interactions, effects):
+def prepare(particles, dipoles, effects):
     """Check a scene's magnetisable spheres and give them their moments in the applied field alone
-    (m = alpha B_0, the solve's first guess, which long-range sums are tuned with); returns the
+    (m = alpha B_0, the solve's first guess, which long-range sums are tuned with); ``dipoles``: the
+    scene's dk.Dipole interactions (and subclasses), the first of which couples the moments. Returns the
     polarisabilities (N,), or None when no sphere has chi > 0 (the scene then does no induction work)."""
-    from .dipole import Dipole
     chi = particles.susceptibility
     if chi is None or not np.any(chi > 0.0):
         return None
-    dipoles = [inter for inter in interactions if isinstance(inter, Dipole)]
     if not dipoles:
         raise ValueError("spheres with a susceptibility > 0 need a dk.Dipole among the interactions: its prefactor "
                          "A = mu0/4pi sets their polarisability alpha = beta R^3 / A, and it couples their moments")

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, uint64
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import inverse_inertia, non_negative, positive
 from .sphere import SphereInteraction

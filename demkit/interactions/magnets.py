@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import positive, real_array
 from .sphere import SphereInteraction

@@ -51,7 +51,7 @@ MESH_BYTES = 32
 HEAD = 12
 OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
 #: the mesh's loops over spheres and mesh planes run on numba's threads (as many as the run's chunk
-#: uses: demkit.threads sets them; one outside a run on threads). Each sphere's weights and forces,
+#: uses: demkit.engine.threads sets them; one outside a run on threads). Each sphere's weights and forces,
 #: and each mesh point's sum, are added in the same order on any number of threads: the same bits.
 THREADS = dict(OPTIONS, parallel=True)
 
@@ -219,7 +219,7 @@ def _dot(a, b):
 def mesh_terms(position, dipole, box, mesh, p, c, force, field, with_forces):
     """Energy of the mesh sum; with ``with_forces`` its forces added to force, its field to field."""
     import scipy.fft
-    workers = numba.get_num_threads()  # the run's chunk sets them (demkit.threads); any number: the same bits
+    workers = numba.get_num_threads()  # the run's chunk sets them (demkit.engine.threads); any number: the same bits
     base, w, dw, ddw = _weights(position, box, mesh, p, workers)
     grid = np.empty(tuple(mesh))
     spread(dipole, box, mesh, p, base, w, dw, grid, workers)

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..motion import HELPER_OPTIONS
+from ..engine.motion import HELPER_OPTIONS
 
 from .base import non_negative, positive
 from .spring import spring_force

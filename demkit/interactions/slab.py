@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..state import LEFT_LAYER, OK
+from ..engine.state import LEFT_LAYER, OK
 
 #: room the check of the layer leaves for round-off (relative to its thickness)
 SLACK = 1e-9

@@ -1,7 +1,7 @@
 """exp(-x^2) and erfc(x) in plain arithmetic, for the screened real-space pairs of Ewald sums.
 
 numba turns ``math.exp`` into a call of the C library and ``math.erfc`` into a call of a C helper;
-neither vectorises, so a block of screened pairs (demkit.interactions.ewald, demkit.generic's blocked
+neither vectorises, so a block of screened pairs (demkit.interactions.ewald, demkit.engine.generic's blocked
 pair loops) ran one pair at a time, ~75 ns each, most of a P3M step. These two functions are only
 multiplications, additions and bit operations, which LLVM runs on four pairs at once (AVX2), and
 they share their exponential: erfc(x) = erfcx(x) exp(-x^2).
@@ -26,7 +26,7 @@ from numba import njit, types
 from numba.core.extending import intrinsic
 from llvmlite import ir
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 #: t = ERFCX_SCALE / (ERFCX_SCALE + x)
 ERFCX_SCALE = 4.0

@@ -30,7 +30,7 @@ import math
 
 from numba import njit
 
-from ..motion import HELPER_OPTIONS
+from ..engine.motion import HELPER_OPTIONS
 
 #: history values per spring: displacement (3), the stiffness at the last update, and the force of
 #: the last update (3: the second half of its work is booked at the next update)

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .contact import KelvinVoigt, kelvin_voigt_normal
 from .friction import HISTORY, release, springs_energy, wall_friction

@@ -5,9 +5,8 @@ meshio is imported only when a frame is written or read, so ``import demkit`` st
 from pathlib import Path
 
 from .frames import VECTOR_FIELDS, read_frame
-from .polylines import write_polylines
 from .pvd import read_pvd, write_pvd
-from .series import SeriesData, read_series, write_series
+from .series import SeriesData, read_series, write_polylines, write_series
 from .writer import VTKWriter
 
 __all__ = ["VTKWriter", "write_polylines", "write_series", "read_series", "SeriesData",

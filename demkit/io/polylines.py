@@ -5,7 +5,8 @@ written here directly because meshio has no poly-line cells. Point data: ``time`
 each vertex) and ``id``; cell data (one value per line): ``id`` and ``radius``. Colour by ``time``
 in ParaView to see the direction of motion. In a periodic box the paths are unwrapped
 (position + image * size, so they do not jump across the box) and field data ``box_size`` and
-``box_periodic`` (0/1) describe the box.
+``box_periodic`` (0/1) describe the box. This module writes the file; :func:`demkit.io.write_polylines`
+(in :mod:`demkit.io.series`, which reads a written series back when given its path) chooses what goes in.
 """
 from __future__ import annotations
 
@@ -86,38 +87,6 @@ def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False
         f.write(b"\n</AppendedData>\n</VTKFile>\n")
     os.replace(tmp, path)
     return path
-
-
-def write_polylines(source, path, compress=False):
-    """Write the paths of all particles of ``source`` as poly-lines to ``path`` (.vtp).
-
-    source : a :class:`demkit.Trajectory`, a :class:`demkit.io.SeriesData`, or a written series
-        (its .pvd or folder; frames are read back and matched by particle id). With image counts
-        and a box the paths are unwrapped (position + image * size).
-    Returns the path written.
-    """
-    if isinstance(source, (str, os.PathLike)):
-        from .series import read_series
-
-        source = read_series(source)
-    path = Path(path)
-    if path.suffix != ".vtp":
-        raise ValueError(f"polylines are written as VTK PolyData: the path must end in .vtp, got {path}")
-    time = np.asarray(source.time, dtype=np.float64)
-    position = np.asarray(source.position)
-    image, box = getattr(source, "image", None), getattr(source, "box", None)
-    if image is not None and box is not None:
-        position = position + np.asarray(image) * box.size
-    if position.ndim != 3 or position.shape[0] != len(time) or position.shape[2] != 3:
-        raise ValueError(f"position must have shape (T, N, 3) with T = {len(time)} frames, got {position.shape}")
-    nframes, n = position.shape[:2]
-    ids = np.asarray(source.ids, dtype=np.int64)
-    points = position.transpose(1, 0, 2).reshape(-1, 3)  # particle-major: line k is particle k
-    return write_vtp_lines(
-        path, points, np.full(n, nframes),
-        point_data={"time": np.tile(time, n), "id": np.repeat(ids, nframes)},
-        cell_data={"id": ids, "radius": np.asarray(source.radius, dtype=np.float64)},
-        compress=compress, field_data=box_fields(box))
 
 
 def box_fields(box):

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, read_frame
+from .polylines import box_fields, write_vtp_lines
 from .pvd import GrowingPvd, find_pvd, read_box, read_entries, read_pvd
 
 #: relative tolerance on times when a series is continued from a time
@@ -244,8 +245,6 @@ def write_series(trajectory, folder, name="particles", compress=False, dtype="fl
     counts (a trajectory holds no forces), the box into the .pvd, plus the polyline trails file
     (unwrapped paths) when ``trails``. Returns the .pvd path.
     """
-    from .polylines import write_polylines
-
     series = SeriesFolder(folder, name, overwrite, box=getattr(trajectory, "box", None))
     image = getattr(trajectory, "image", None)
     writer = FrameWriter(compress, dtype)
@@ -263,3 +262,33 @@ def write_series(trajectory, folder, name="particles", compress=False, dtype="fl
     if trails:
         write_polylines(trajectory, series.trails, compress=bool(writer.compression))
     return series.pvd
+
+
+def write_polylines(source, path, compress=False):
+    """Write the paths of all particles of ``source`` as poly-lines to ``path`` (.vtp).
+
+    source : a :class:`demkit.Trajectory`, a :class:`demkit.io.SeriesData`, or a written series
+        (its .pvd or folder; frames are read back and matched by particle id). With image counts
+        and a box the paths are unwrapped (position + image * size).
+    Returns the path written.
+    """
+    if isinstance(source, (str, os.PathLike)):
+        source = read_series(source)
+    path = Path(path)
+    if path.suffix != ".vtp":
+        raise ValueError(f"polylines are written as VTK PolyData: the path must end in .vtp, got {path}")
+    time = np.asarray(source.time, dtype=np.float64)
+    position = np.asarray(source.position)
+    image, box = getattr(source, "image", None), getattr(source, "box", None)
+    if image is not None and box is not None:
+        position = position + np.asarray(image) * box.size
+    if position.ndim != 3 or position.shape[0] != len(time) or position.shape[2] != 3:
+        raise ValueError(f"position must have shape (T, N, 3) with T = {len(time)} frames, got {position.shape}")
+    nframes, n = position.shape[:2]
+    ids = np.asarray(source.ids, dtype=np.int64)
+    points = position.transpose(1, 0, 2).reshape(-1, 3)  # particle-major: line k is particle k
+    return write_vtp_lines(
+        path, points, np.full(n, nframes),
+        point_data={"time": np.tile(time, n), "id": np.repeat(ids, nframes)},
+        cell_data={"id": ids, "radius": np.asarray(source.radius, dtype=np.float64)},
+        compress=compress, field_data=box_fields(box))

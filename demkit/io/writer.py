@@ -24,7 +24,7 @@ import weakref
 import numpy as np
 
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, choose_fields, read_frame
-from .polylines import write_polylines
+from .series import write_polylines
 from .series import TIME_TOLERANCE, SeriesFolder
 
 

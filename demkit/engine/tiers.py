@@ -1,7 +1,7 @@
 """Which compiled code runs a scene: the generic module (tier 1) or its own code (tier 2).
 
-A scene of shipped interactions starts on tier 1 (:mod:`demkit.generic`: compiled once per install,
-loaded in a fraction of a second). Its own code (:mod:`demkit.kernels`: with neighbour lists its own
+A scene of shipped interactions starts on tier 1 (:mod:`demkit.engine.generic`: compiled once per install,
+loaded in a fraction of a second). Its own code (:mod:`demkit.engine.kernels`: with neighbour lists its own
 pair and sphere loops called by tier 1's time loops, in open space a fused module, or its pieces
 when it solves induced moments) runs 0-25 % faster but costs 3-30 CPU s to compile the first time a
 combination of interactions is run. So a run
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import threading
 
-from .progress import BACKGROUND
+from .notice import BACKGROUND
 
 #: a run with at least this many seconds left on tier 1 compiles tier 2 in the background (a first
 #: compile of a combination costs 5-30 CPU s on the other core; tier 2 saves 0-25 % of the run)
@@ -98,7 +98,7 @@ class TierChoice:
     def key(self):
         """(tier 2's module name, the run's loop): what runs of the same combination share."""
         if self._key is None:
-            from .integrators import TEMPLATES
+            from .templates import TEMPLATES
             from .kernels import fused_name, pieces_source
             scene = self.scene
             name = (pieces_source(scene.plan, scene.program_columns)[1] if scene._pieces_tier_2() else

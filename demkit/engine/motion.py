@@ -16,7 +16,7 @@ from numba import njit, prange
 #: checks still work) and IEEE division (x/0 gives inf or NaN, caught by those checks, instead of
 #: a Python ZeroDivisionError test at every division, which also stops vectorisation).
 #: the fast-math flags of demkit's shared helpers, compiled once and called (the same machine code
-#: for every scene). The generated modules use none (demkit.kernels, demkit.generic): there LLVM
+#: for every scene). The generated modules use none (demkit.engine.kernels, demkit.engine.generic): there LLVM
 #: would round differently where the generic and the fused code are shaped differently
 FASTMATH = {"contract", "arcp"}
 KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy",
@@ -362,7 +362,7 @@ def _called(fn):
     """``fn`` compiled as a function of its own (never inlined by numba), without fast-math flags:
     inlined by numba, a pass takes those of the generated module that inlines it (none), and a
     scene must round the same whichever form its time loop calls (the open scenes' fused module
-    inlines, the generic module calls: demkit.tiers)."""
+    inlines, the generic module calls: demkit.engine.tiers)."""
     return njit(**dict(HELPER_OPTIONS, fastmath=False))(fn.py_func)
 
 

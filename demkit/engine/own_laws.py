@@ -1,10 +1,10 @@
 """Functions of your own on tier 1: a small generated module of adapters, compiled in about a second.
 
-Tier 1's pair and sphere loops (:mod:`demkit.generic`) switch over the catalogue's kinds. A pair
+Tier 1's pair and sphere loops (:mod:`demkit.engine.generic`) switch over the catalogue's kinds. A pair
 interaction or single-sphere effect of your own (a :class:`demkit.PairInteraction` or
 :class:`demkit.SphereInteraction` subclass) has kind ``OWN`` in the scene's program, and the loops call
 the scene's *adapter* for it: a numba first-class function of one fixed signature
-(:data:`demkit.generic.OWN_CALLS`) that picks the function by the interaction's index and calls it with
+(:data:`demkit.engine.generic.OWN_CALLS`) that picks the function by the interaction's index and calls it with
 the arguments its declaration asks for (``reads``, history, table, parameters; see
 :mod:`demkit.interactions.base`). Only the adapters are compiled for a new scene of your own: the loops
 are tier 1's, compiled once per install. They return the loops' fixed set of outputs (zeros for the
@@ -80,8 +80,8 @@ def adapters_source(plan, importable, tables=()):
     """The adapters' module text for the scene's functions of your own (``tables``: the indices of
     the effects that carry a table)."""
     pairs, effects = own_members(plan)
-    lines = ['"""Adapters of a scene\'s functions of your own (written by demkit.own_laws, do not edit)."""',
-             "from numba import njit", "from demkit.state import field"]
+    lines = ['"""Adapters of a scene\'s functions of your own (written by demkit.engine.own_laws, do not edit)."""',
+             "from numba import njit", "from demkit.engine.state import field"]
     if importable:
         lines += function_imports(pairs, effects)
     options = f'cache={importable}, _nrt=False, error_model="numpy"'

@@ -1,6 +1,6 @@
 """Tier 1: one generic kernel module per install, where a scene is data, not code.
 
-:mod:`demkit.kernels` writes one fused module per combination of interactions (tier 2): the
+:mod:`demkit.engine.kernels` writes one fused module per combination of interactions (tier 2): the
 fastest loops, but each new combination compiles for 5-30 CPU s before its first step. This
 module writes the *generic* module: the same pair loops, time loops and upkeep, in which every
 shipped pair law and single-sphere effect (the :data:`PAIR_LAWS` and :data:`EFFECTS` catalogues)
@@ -12,7 +12,7 @@ cache in a fraction of a second by every later scene, whatever its combination.
 
 The generic loops do the fused loops' arithmetic in the fused loops' order (members of a pair loop
 in the scene's order, the same minimum image, the same blocks of pairs for dipoles), so a run gives
-the same bits on either tier and may switch tier between chunks (:mod:`demkit.tiers`).
+the same bits on either tier and may switch tier between chunks (:mod:`demkit.engine.tiers`).
 
 Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
 
@@ -24,12 +24,12 @@ Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
 * row ``effect_row(e)`` for each single-sphere effect: ``E_*`` columns.
 
 Laws and effects of your own have the kind ``OWN``: the loops call the scene's adapters for them
-(:mod:`demkit.own_laws`, passed to the pieces as ``own``; :data:`OWN_CALLS`). Scenes this tier
+(:mod:`demkit.engine.own_laws`, passed to the pieces as ``own``; :data:`OWN_CALLS`). Scenes this tier
 cannot run (more groups, members or effects than the table holds; functions of your own in a
 blocked loop or as a plane contact) run on tier 2 only.
 
 Tier 2 of a scene with neighbour lists is these time loops given the scene's own pieces
-(:func:`demkit.kernels.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
+(:func:`demkit.engine.kernels.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
 
 The tier is compiled in pieces never linked into one another (docs/engine.md, "Tier 1 in pieces"):
 the pair and sphere loops in a *pieces* module per family of laws (:meth:`_Generic.pieces_text`), the
@@ -37,7 +37,7 @@ scene-level functions and time loops in one module (serial) and its twin on thre
 (:meth:`_Generic.text`), which take the pieces as numba first-class functions in a tuple ``calls``
 (:data:`CALLS`); numba would otherwise link and optimise the whole catalogue again in each of the
 seven time loops. Every scene on this tier, with neighbour lists or in open space, has a structref
-state (:class:`demkit.state.State`) and runs these same loops: an open scene's pair loops run over
+state (:class:`demkit.engine.state.State`) and runs these same loops: an open scene's pair loops run over
 all pairs (``G_LIST`` 0) and it is given stubs for the list upkeep.
 """
 from __future__ import annotations
@@ -200,10 +200,10 @@ def _law_of(inter, laws):
 
 def program_of(plan, slots, kinds):
     """(program, None): the scene's program (int64 table, see the module docstring; laws and effects of
-    your own have kind :data:`OWN`: tier 1 calls them through adapters, :mod:`demkit.own_laws`);
+    your own have kind :data:`OWN`: tier 1 calls them through adapters, :mod:`demkit.engine.own_laws`);
     (program, why) when some of them cannot be adapted (in a blocked dipole loop, or a plane contact:
     the scene's own pieces run it, tier 1 cannot); (None, why) when the table cannot describe the scene. ``slots``: the parameter slots
-    (``param_slot``, ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.kernels._Source`
+    (``param_slot``, ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.engine.kernels._Source`
     gives them); ``kinds``: the energy kinds."""
     laws, effect_laws = catalogue()
     if len(plan.sums) > MAX_SUMS:
@@ -419,7 +419,7 @@ class _Generic:
                 lines.append("power += w")
             return lines
         body += _switch(self.laws, inner, branch)
-        body += [f"{inner}{'elif' if self.laws else 'if'} kind == OWN:",  # a function of your own, through its adapter (demkit.own_laws)
+        body += [f"{inner}{'elif' if self.laws else 'if'} kind == OWN:",  # a function of your own, through its adapter (demkit.engine.own_laws)
                  f"{inner}    ax, ay, az, bix, biy, biz, bjx, bjy, bjz, w = own(program[mb + M_INDEX], i, j, dx, dy, "
                  "dz, r2, s, history, p, off, commit, slot)",
                  f"{inner}    fx += ax", f"{inner}    fy += ay", f"{inner}    fz += az",
@@ -452,7 +452,7 @@ class _Generic:
 
     def blocked_loop(self, pad, first, last, force, torque, out, gather):
         """Dipole-like members (branch-free, reading only the moments) over blocks of BLOCK entries
-        (see demkit.kernels._Source.blocked_loop): the switch is taken once per block and member."""
+        (see demkit.engine.kernels._Source.blocked_loop): the switch is taken once per block and member."""
         open_, close = self.owner_sums(pad + "    ", force, torque)
         inner = pad + " " * 12
         body = [f"{pad}    {gather}[3, 0] = dipole[i, 0]", f"{pad}    {gather}[4, 0] = dipole[i, 1]",
@@ -498,7 +498,7 @@ class _Generic:
         return self.rows(pad, first, last) + open_ + body + close
 
     def chunked(self, name, loop):
-        """A pair-loop function over fixed chunks of owners (see demkit.kernels: the same bits on any
+        """A pair-loop function over fixed chunks of owners (see demkit.engine.kernels: the same bits on any
         number of threads, and serially). Each chunk is one call of ``<name>_chunk``, a serial function
         of the serial pieces: the loop on threads (prange) is a few lines around it, not a second copy
         of the catalogue for numba's parallel compiler (which took 55 s over the whole loop)."""
@@ -571,7 +571,7 @@ class _Generic:
             outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if law.torque else []) + (["w"] if law.dissipative else [])
             body = [f"{', '.join(outs)} = {_effect_call(law, 'force')}"]
             lines = []
-            if law.plane_contact:  # walls: plane, nx, ny, nz come first (see demkit.kernels)
+            if law.plane_contact:  # walls: plane, nx, ny, nz come first (see demkit.engine.kernels)
                 lines += ["overlap = radius[i] - (x * params[slot + 1] + y * params[slot + 2] + z * params[slot + 3] "
                           "- params[slot])",
                           "held = False",
@@ -587,7 +587,7 @@ class _Generic:
             body += effect_sums(law.torque, law.dissipative)
             return lines + [pad + line for line in body]
         lines += _switch(self.effects, " " * 12, branch)
-        lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",  # an effect of your own, through its adapter (demkit.own_laws)
+        lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",  # an effect of your own, through its adapter (demkit.engine.own_laws)
                   "                ax, ay, az, bx, by, bz, w = own(e, i, x, y, z, s, history, off, commit, slot, table)"]
         lines += ["    " * 4 + line for line in effect_sums(True, True)]
         lines.append("    return power")
@@ -713,7 +713,7 @@ class _Generic:
                       f'    """The {speed} forces and torques only into force/torque."""']
             lines += self.forces_body(speed, "force", "torque", "True")
         lines += ["", "", "@njit(**LOOP)", "def next_contact_event(calls, s, force, horizon):",
-                  '    """Earliest time in (0, horizon] at which a contact starts or stops (see demkit.events)."""',
+                  '    """Earliest time in (0, horizon] at which a contact starts or stops (see demkit.engine.events)."""',
                   "    earliest = math.inf"]
         args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
         # one call site per search, in a loop over the pair loops: each call site is optimised whole
@@ -766,19 +766,19 @@ class _Generic:
         return lines
 
     def imports(self):
-        lines = ['"""demkit\'s generic kernel module (tier 1): written by demkit.generic, do not edit."""',
+        lines = ['"""demkit\'s generic kernel module (tier 1): written by demkit.engine.generic, do not edit."""',
                  _layout_line(),
                  "import math", "import numpy as np", "from numba import njit, prange",
-                 "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
+                 "from demkit.engine.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
                  "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
-                 "from demkit.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
-                 "from demkit.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
+                 "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
+                 "from demkit.engine.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
-                 "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
+                 "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
-                 "from demkit.kernels import BLOCK",
-                 "from demkit.generic import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
+                 "from demkit.engine.kernels import BLOCK",
+                 "from demkit.engine.generic import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
                  "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
                  "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE)",
@@ -787,11 +787,11 @@ class _Generic:
                  f"SUM_ROW = {sum_row(0)}",
                  ""]
         if self.threads:  # the list upkeep alone (the time loops, and their passes over spheres, are serial)
-            lines += ["from demkit.neighbours import (max_displacement_threads as max_displacement,",
+            lines += ["from demkit.engine.neighbours import (max_displacement_threads as max_displacement,",
                       "                               rebuild_threads as rebuild)"]
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules
-        # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
+        # (demkit.engine.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
         # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
         lines += [f"INNER = dict(cache=True, _nrt=False, {fast})",
@@ -836,13 +836,13 @@ class _Generic:
         lines = self.imports()
         if self.threads:
             return "\n".join(lines + self.upkeep_functions()) + "\n"
-        lines += ["from demkit.state import INDUCTION_FAILED",
+        lines += ["from demkit.engine.state import INDUCTION_FAILED",
                   "from demkit.interactions.induction import induce, induction_energy",
-                  "from demkit.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
+                  "from demkit.engine.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
                   "H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, S_KIND, S_SLOT, S_ENERGY)"]
         lines += [f"from {module} import {name} as sum_{k}" for k, (module, name) in enumerate(SUMS)]
         from .motion import CALLED_PASSES
-        lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
+        lines += ["from demkit.engine.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
                   + ")"]
         lines += self.scene_functions()
         # stubs passed for the list upkeep, the sums and the induction solve to scenes without them
@@ -881,7 +881,7 @@ class _Generic:
 def _borrowing(lines, names):
     """The functions ``names`` of the module's ``lines`` compiled without reference counting (STEP):
     their reads of the state's fields (``s.force``, ``pl.start``) become borrowed reads
-    (:func:`demkit.state.field`). A time loop calls them through ``steps`` once or twice a step; with
+    (:func:`demkit.engine.state.field`). A time loop calls them through ``steps`` once or twice a step; with
     numba's reads each field took an atomic increment and decrement (a quarter of the time of a
     small scene's step on tier 1, measured with perf)."""
     out, inside, docstring = [], False, False
@@ -913,7 +913,7 @@ SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies"
 UPKEEP = SCENE_PIECES[:2]
 
 
-#: the adapters of a scene's functions of your own (:mod:`demkit.own_laws`), given to the pieces
+#: the adapters of a scene's functions of your own (:mod:`demkit.engine.own_laws`), given to the pieces
 #: (stubs for a scene of shipped interactions): a pair force's and energy's take
 #: (k, i, j, dx, dy, dz, r2, s, history, p, offset, commit, slot) and return 10 floats (force, torques on
 #: i and j, power; an energy in the first), a single-sphere effect's (e, i, x, y, z, s, history,
@@ -939,7 +939,7 @@ def _layout_line():
 def generic_source(threads=False):
     """Python source of the generic module's scene-level functions and time loops (serial, or
     calling the thread pieces and the threaded passes)."""
-    from .integrators import TEMPLATES
+    from .templates import TEMPLATES
     return _Generic(threads).text(TEMPLATES)
 
 
@@ -966,7 +966,7 @@ def _load(key, source_and_name):
         from .kernels import _load_from_file
         source, name = source_and_name()
         module = _load_from_file(name, source)
-        numba.get_num_threads()  # start numba's threading layer (see demkit.kernels.build_module)
+        numba.get_num_threads()  # start numba's threading layer (see demkit.engine.kernels.build_module)
         module.source = source
         _MODULES[key] = module
     return _MODULES[key]
@@ -994,10 +994,10 @@ def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_en
     threads), compiled function by function as called and cached on disk like the fused modules;
     seen by a scene that calls ``needs`` of :data:`CALLS` (see :func:`needs_of`: the others are
     stubbed, never compiled for it) of ``family`` (see :func:`family_of`). ``pieces``: a scene's own
-    pieces (tier 2, :func:`demkit.kernels.build_pieces`) in place of the generic ones; without
+    pieces (tier 2, :func:`demkit.engine.kernels.build_pieces`) in place of the generic ones; without
     ``own_energies`` (a scene tier 1 can run) only their forces: the energies, computed once a
     frame, are the family's (the same bits), so that tier 2 compiles what makes steps faster alone.
-    ``own``: the adapters of the scene's functions of your own (:func:`demkit.own_laws.build_adapters`)."""
+    ``own``: the adapters of the scene's functions of your own (:func:`demkit.engine.own_laws.build_adapters`)."""
     key = ("generic", bool(threads))
     own_energies = bool(own_energies) or pieces is None  # (tier 1: the family's energies are its own)
     view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies, own and own.__name__)
@@ -1095,7 +1095,7 @@ class GenericKernels:
 
     def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, upkeep=None, own=None):
         self.module, self.threads, self.needs = module, threads, needs
-        self.own = own  # the adapters of the scene's functions of your own (demkit.own_laws), or None
+        self.own = own  # the adapters of the scene's functions of your own (demkit.engine.own_laws), or None
         self.upkeep = upkeep or module  # maintain_lists and sort_particles (on threads: the thread module's)
         self.family, self.own_energies = family, own_energies
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones

@@ -39,7 +39,7 @@ import time
 
 import numba
 
-from .progress import BACKGROUND
+from .notice import BACKGROUND
 
 #: rough serial cost of one pair and of one sphere in a force evaluation (seconds; measured on the
 #: 2-core project machine with examples/magnetic_cluster/cluster.toml: 400 dipoles, all pairs,
@@ -91,7 +91,7 @@ class ThreadChoice:
     def __init__(self, scene, template):
         self.scene = scene
         self.name = f"{template}_steps"
-        self.serial_module = scene.loop_kernels  # the tier's modules (demkit.tiers: tier 2 may replace them)
+        self.serial_module = scene.loop_kernels  # the tier's modules (demkit.engine.tiers: tier 2 may replace them)
         self._thread_module = lambda: scene.thread_kernels
         self.serial_loop = getattr(self.serial_module, self.name)
         self.thread_loop = None
@@ -240,7 +240,7 @@ class ThreadChoice:
         """Seconds of run left (at the one-thread rate) that make loading the thread module worth
         it: WORTH_COMPILING when it must be compiled, 0.5 s when numba's cache has it."""
         if self._cached is None:
-            from .integrators import TEMPLATES
+            from .templates import TEMPLATES
             from .kernels import is_cached
             if self.serial_module is self.scene.kernels and self.scene.tier == 1:
                 from .generic import is_cached as generic_cached
@@ -260,7 +260,7 @@ class ThreadChoice:
         return self._compiling is not None and self._compiling.is_alive()
 
     def use_modules(self, serial, threaded):
-        """Run the loops of these modules from now on (tier 2 took over: demkit.tiers); ``threaded``
+        """Run the loops of these modules from now on (tier 2 took over: demkit.engine.tiers); ``threaded``
         None: the thread module is compiled when threads are worth it, as at a run's start."""
         self.serial_module = serial
         self.serial_loop = getattr(serial, self.name)
@@ -310,7 +310,7 @@ def estimated_force_seconds(particles, reaches, skin, box):
 
     import numpy as np
 
-    from .memory import pairs_per_sphere
+    from ..memory import pairs_per_sphere
     n = len(particles)
     if n < 2:
         return n * SPHERE_SECONDS
@@ -333,10 +333,10 @@ _UNFINISHED = []
 @atexit.register
 def finish_compiling():
     """Wait for the compilations running in the background (the thread module, a scene's fused
-    module: demkit.tiers), saying so on stderr."""
+    module: demkit.engine.tiers), saying so on stderr."""
     alive = [t for t in _UNFINISHED if t.is_alive()]
     if alive:
-        from .progress import quiet
+        from .notice import quiet
         if not quiet():
             print("demkit: finishing a compilation started in the background (cached for the next runs)...",
                   file=sys.stderr, flush=True)

@@ -14,7 +14,7 @@ cutoff or a handful of spheres). For each group the module holds
 and for the scene ``forces_of(s, commit)``, ``energies_of(s, out)``, ``end_step`` (list upkeep,
 wrapping, finiteness, recording) and one ``<name>_steps`` time loop per integrator template (see
 :mod:`demkit.integrators`), pasted from ordinary Python source. ``s`` is the scene's named state
-(:mod:`demkit.state`). Parameters arrive in ``s.params`` (an argument, not a frozen global).
+(:mod:`demkit.engine.state`). Parameters arrive in ``s.params`` (an argument, not a frozen global).
 
 The source is written to a cache folder named by a hash of everything it depends on (its own text
 and the source of every pair function), so numba's on-disk cache is reused safely between runs;
@@ -139,7 +139,7 @@ LIST_ARRAYS = "start, end, partner, history"
 #: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
 #: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
 #: buffers, the commit flag, the program row r of the pair loop, and ``own``: the scene's functions
-#: of your own behind one first-class function (demkit.own_laws; tier 1's loops call it for kind OWN)
+#: of your own behind one first-class function (demkit.engine.own_laws; tier 1's loops call it for kind OWN)
 PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r, own",
                     "pairs_forces_blocked": "s, force, torque, pl, commit, r, own",
                     "sphere_forces": "s, force, torque, commit, own", "pairs_energies": "s, pl, out, r, own",
@@ -816,7 +816,7 @@ class _Source:
         # contact events (VelocityVerlet(resolve_contacts=True)): compiled only when called
         lines += ["", "", "@njit(**OUTER)", "def next_contact_event(s, force, horizon):",
                   '    """Earliest time in (0, horizon] at which a pair of a contact law starts or stops',
-                  '    touching along the velocity-Verlet path under ``force`` (math.inf: none; see demkit.events)."""',
+                  '    touching along the velocity-Verlet path under ``force`` (math.inf: none; see demkit.engine.events)."""',
                   "    earliest = math.inf"]
         for g, group in enumerate(plan.groups):
             if not any(inter.contact_reach for _, inter in group.members):
@@ -879,41 +879,41 @@ class _Source:
         """The module's imports and the options of its functions."""
         plan = self.plan
         lines = ["import math", "import numpy as np", "from numba import njit, prange",
-                 "from demkit.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
+                 "from demkit.engine.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
                  "                           total_forces, sum_chunks,",
                  "                           KERNEL_OPTIONS)",
-                 "from demkit.events import earliest_crossing_all, earliest_crossing_list",
-                 "from demkit.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
+                 "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list",
+                 "from demkit.engine.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
-                 "from demkit.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
+                 "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
                  "                          INNER_STEPS, RUN_START, INDUCTION_FAILED, field)",
                  ""]
         if plan.induction is not None:
             lines += ["from demkit.interactions.induction import induce, induction_energy", ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
-            lines += ["from demkit.events import earliest_wall_crossing", ""]
+            lines += ["from demkit.engine.events import earliest_wall_crossing", ""]
         for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
             module, name = tuned.kernel
             lines += [f"from {module} import {name} as long_range_{q}"]
-        if plan.growing:  # scenes with lists: the passes compiled once and called (see demkit.motion)
+        if plan.growing:  # scenes with lists: the passes compiled once and called (see demkit.engine.motion)
             from .motion import CALLED_PASSES
-            lines += ["from demkit.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
+            lines += ["from demkit.engine.motion import (" + ", ".join(f"{name}_called as {name}" for name in CALLED_PASSES)
                       + ")"]
         if self.threads:  # the chunk sums on threads, and in scenes with lists every per-step pass
-            lines += ["from demkit.motion import sum_chunks_threads as sum_chunks"]
+            lines += ["from demkit.engine.motion import sum_chunks_threads as sum_chunks"]
         if self.threads and plan.growing:
-            lines += ["from demkit.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
+            lines += ["from demkit.engine.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
                       "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
                       "                           state_is_finite_threads as state_is_finite)",
-                      "from demkit.neighbours import (max_displacement_threads as max_displacement,",
+                      "from demkit.engine.neighbours import (max_displacement_threads as max_displacement,",
                       "                               rebuild_threads as rebuild)", ""]
         if self.importable:
             lines += function_imports(enumerate(plan.interactions), enumerate(plan.effects))
         cache = self.importable
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules
-        # (demkit.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
+        # (demkit.engine.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
         # law on threads differed by an ulp)
         fast = 'error_model="numpy"'
         # no reference counting in small scenes, unless a long-range sum allocates (its arrays into object mode)
@@ -947,8 +947,8 @@ class _Source:
         """Tier 2 of a scene with neighbour lists that tier 1 can run (see :func:`build_pieces`): its
         own pair and sphere loops, under the names and with the arguments of the generic pieces
         (:data:`PIECE_SIGNATURES`), which pick a pair loop by the program row's group and
-        speed (``columns``: their columns in a row, :data:`demkit.generic.G_GROUP` and
-        :data:`demkit.generic.G_SPEED`). Each chunk of a chunked loop is one call of a serial function,
+        speed (``columns``: their columns in a row, :data:`demkit.engine.generic.G_GROUP` and
+        :data:`demkit.engine.generic.G_SPEED`). Each chunk of a chunked loop is one call of a serial function,
         ``<loop>_chunk``; the thread pieces (``self.threads``) run the serial module's (``serial_name``)
         chunks on prange."""
         G_GROUP, G_SPEED = columns
@@ -1040,7 +1040,7 @@ def _source_of(inter, fn):
 
 def _fingerprint(source, interactions):
     """The module's text, numba's version, the source of the interactions' own functions (plug-ins
-    live outside demkit) and demkit's whole source (:data:`demkit.numba_cache.FINGERPRINT`): the
+    live outside demkit) and demkit's whole source (:data:`demkit.engine.numba_cache.FINGERPRINT`): the
     module inlines helpers from many of demkit's files (friction, events, motion, ...), and an edit
     of any of them must give it a new name, not a stale cache."""
     from .numba_cache import FINGERPRINT
@@ -1137,7 +1137,7 @@ def build_pieces(plan, columns, threads=False):
     """The compiled module of the scene's own pieces (``columns`` and ``threads``: see
     :func:`pieces_source`): tier 2
     of a scene with neighbour lists that the generic module can run. The generic time loops call
-    them through ``calls`` as they call the generic pieces (:class:`demkit.generic.GenericKernels`),
+    them through ``calls`` as they call the generic pieces (:class:`demkit.engine.generic.GenericKernels`),
     so tier 2 compiles the scene's pair and sphere loops alone: its time loops, list upkeep and sums
     are tier 1's, compiled once per install."""
     serial = build_pieces(plan, columns) if threads else None  # the serial chunks, imported by the thread pieces

@@ -4,7 +4,7 @@ A list of reach r_c + skin holds every pair closer than that (minimum image alon
 when it is built; it stays complete for the cutoff r_c until some sphere has moved skin/2 from where
 it was at the build, which :func:`max_displacement` watches at every force evaluation.
 
-Layout (:class:`demkit.state.PairList`): rows by owner, the partners of particle i at
+Layout (:class:`demkit.engine.state.PairList`): rows by owner, the partners of particle i at
 ``partner[start[i]:end[i]]`` (rows come in the order of the cells; ``start[N]`` is the number of
 entries). The pair {i, j} is stored once, in the row of the particle with the lower *tag* (tags are persistent: they survive re-sorting), so
 a pair always meets its interaction in the same orientation. Per-pair history rows follow the
@@ -23,7 +23,7 @@ reference scene builds in 11 ms on one thread instead of 28 ms with a loop per n
 of cells.
 
 The functions taking a list object allocate (numba reference counting on); every loop runs in a
-function compiled without it, on plain arrays (see :mod:`demkit.state`).
+function compiled without it, on plain arrays (see :mod:`demkit.engine.state`).
 """
 from __future__ import annotations
 

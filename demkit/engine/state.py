@@ -9,7 +9,7 @@ Two forms with the same field names, so one template source compiles for both:
   arrays never change size (tier 2 of an open scene, such as the seed paper's pair). They need no
   numba reference counting, which keeps a two-sphere step at tens of nanoseconds.
 * :class:`State` / :class:`PairList`, numba structrefs (mutable, one pointer to pass), for every
-  scene on the generic module (tier 1, demkit.generic) and for scenes with neighbour lists, which
+  scene on the generic module (tier 1, demkit.engine.generic) and for scenes with neighbour lists, which
   grow inside the compiled loop. Fields that compiled code replaces (the arrays of a list) are read
   back in Python through the proxies' properties; every other array is shared with Python, which
   made it. :func:`tuple_state` views the same arrays as named tuples.
@@ -183,8 +183,8 @@ def _get_lists(s):
 
 @njit(cache=True)
 def pair_loop_arrays(s, g):
-    """The arrays a pair loop's diagnostics read (demkit.generic.ARRAYS, then pair list g's
-    demkit.generic.LIST_ARRAYS), and the program, from a state with neighbour lists."""
+    """The arrays a pair loop's diagnostics read (demkit.engine.generic.ARRAYS, then pair list g's
+    demkit.engine.generic.LIST_ARRAYS), and the program, from a state with neighbour lists."""
     pl = s.lists[g]
     return (s.position, s.velocity, s.angular_velocity, s.dipole, s.radius, s.mass, s.box, s.params, s.status,
             pl.start, pl.end, pl.partner, pl.history, s.program)
@@ -220,7 +220,7 @@ def make_state(*fields):
 def new_pair_list(reach, n, history_width, chunks, capacity=None):
     """An empty growing list for n particles (filled, and grown, in compiled code). It starts with
     room for one pair per particle; the first build grows it to what it holds and 1/8 more
-    (demkit.neighbours.GROWTH), so a list's memory follows its pairs, not a guess."""
+    (demkit.engine.neighbours.GROWTH), so a list's memory follows its pairs, not a guess."""
     capacity = max(n, 16) if capacity is None else max(int(capacity), 16)
     return make_pair_list(float(reach), np.zeros(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int64),
                           np.zeros(capacity, dtype=np.int32),
