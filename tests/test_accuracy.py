@@ -325,7 +325,7 @@ def glancing_scene():
 
 
 def test_repeated_runs_start_from_the_same_state_and_do_the_same_work():
-    accuracy = importlib.import_module("demkit.accuracy")
+    accuracy = importlib.import_module("demkit.accuracy.study")
     scene = glancing_scene()
     first = accuracy._run(scene, dk.VelocityVerlet, 0.01, 1.0, [0.5, 1.0], 0.01)[0]
     spare = accuracy._Spare(scene)
@@ -341,7 +341,7 @@ def test_short_runs_are_timed_again_and_the_least_time_kept(monkeypatch):
     """repeats=None: a run shorter than 0.2 s is timed again until its runs add up to 0.2 s (at least 5
     runs), keeping the least wall and CPU times and how much they varied; a long run is timed once;
     repeats=n: n runs. The results are the first run's."""
-    accuracy = importlib.import_module("demkit.accuracy")
+    accuracy = importlib.import_module("demkit.accuracy.study")
     real, walls = accuracy._run, []
 
     def scripted(*args, **options):  # a real run, with wall times from the script (CPU: half of it)

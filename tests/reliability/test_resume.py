@@ -77,7 +77,7 @@ def kill_before_checkpoint(step):
 def kill_while_writing_the_trajectory(step):
     """kill -9 in the middle of writing the trajectory file at ``step`` (its temporary file half written)."""
     def patch():
-        from demkit import scenefile
+        from demkit.scenefile import running as scenefile  # (save_trajectory calls its _savez)
         savez = scenefile._savez
 
         def dying(trajectory, tmp):
