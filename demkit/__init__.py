@@ -15,7 +15,8 @@ from .interactions.induction import Induction
 from .particles import Particles
 from .scene import Scene
 from .checkpoint import Checkpoint
-from .simulation import CheckpointWarning, LargeOutputWarning, Simulation, SimulationError, Trajectory
+from .simulation import CheckpointWarning, LargeOutputWarning, Simulation, SimulationError
+from .trajectory import Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture

@@ -9,8 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene import Scene, energy_dict
-from ..simulation import Trajectory
+from ..diagnostics import energy_dict
+from ..scene import Scene
+from ..trajectory import Trajectory
 from .equations import _Borrowed
 from .switches import _Switches, _grazing, _negative
 

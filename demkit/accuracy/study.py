@@ -14,7 +14,8 @@ from ..guards import largest_safe_step
 from ..integrators import EulerCromer, Integrator, VelocityVerlet
 from ..progress import Progress, check_progress
 from ..scene import Scene
-from ..simulation import Simulation, SimulationError, Trajectory
+from ..simulation import Simulation, SimulationError
+from ..trajectory import Trajectory
 from .solver import MAX_PARTICLES, _adaptive, reference
 
 

@@ -313,7 +313,7 @@ def frames_digest(trajectory, keep):
 
 def _frames(trajectory, keep):
     """The frames ``keep`` (a mask or indices) of a Trajectory, as a new Trajectory."""
-    from ..simulation import Trajectory
+    from ..trajectory import Trajectory
     t = trajectory
 
     def pick(a):
@@ -330,7 +330,7 @@ def _join(earlier, parts, start, stride, end, dt):
     consecutive runs ``parts`` (from ``start`` on) after ``start`` on the grid. Kept besides: the
     last frame of the last part (where a stopped run stopped) and, without ``earlier``, the first
     (the file then starts at the resume)."""
-    from ..simulation import Trajectory
+    from ..trajectory import Trajectory
     pieces = [] if earlier is None else [earlier]
     for k, part in enumerate(parts):
         steps = np.rint(part.time / dt).astype(np.int64)
@@ -354,7 +354,7 @@ def load_trajectory(path):
     """A Trajectory from a .npz written by :func:`save_trajectory` (read without pickle). Raises
     ValueError for a file that is not one."""
     from ..box import Box
-    from ..simulation import Trajectory
+    from ..trajectory import Trajectory
     try:
         with np.load(path, allow_pickle=False) as z:
             a = {name: z[name] for name in z.files}

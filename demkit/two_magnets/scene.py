@@ -22,7 +22,8 @@ from ..integrators import EulerCromer
 from ..interactions import Dipole, KelvinVoigt, PowerLawDipole
 from ..particles import Particles
 from ..scene import Scene
-from ..simulation import Simulation, Trajectory
+from ..simulation import Simulation
+from ..trajectory import Trajectory
 
 #: the seed paper's settings (dimensionless): R~, impact speed of each sphere, dashpot c = 2 Gamma
 PAPER_RADIUS, PAPER_SPEED, PAPER_DAMPING = 6.94, 5.78e-3, 0.1
