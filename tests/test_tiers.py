@@ -284,6 +284,58 @@ def test_program_layout():
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
 
 
+def shipped_interactions():
+    """One of every configuration of demkit's own interactions that the catalogue dispatches to."""
+    kv, hertz = dict(stiffness=1000.0, damping=1.0), dict(young=2e4, poisson=0.3, restitution=0.5)
+    contacts = [dk.KelvinVoigt(**kv), dk.KelvinVoigt(**kv, friction=dk.Friction(0.5)),
+                dk.KelvinVoigt(**kv, friction=dk.Friction(0.5), twisting=dk.TwistingResistance()),
+                dk.Hertz(**hertz), dk.Hertz(**hertz, friction=dk.Friction(0.5)),
+                dk.Hertz(**hertz, friction=dk.Friction(0.5), twisting=dk.TwistingResistance())]
+    pairs = [dk.Dipole(0.1), dk.Dipole(0.1, cutoff=2.5, switch_width=0.5), dk.PowerLawDipole(0.1),
+             dk.PowerLawDipole(0.1, cutoff=2.5, switch_width=0.5)]
+    effects = [dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0, 0.1)), dk.Langevin(drag=0.5, temperature=0.01, seed=1)]
+    try:
+        import magpylib
+        effects.append(dk.MagnetField(magpylib.misc.Dipole(moment=(0, 0, 1.0)), ((-3, -3, 1), (3, 3, 4)), spacing=0.5))
+    except ImportError:
+        pass
+    return pairs, contacts, effects
+
+
+def test_every_shipped_interaction_has_a_kind_of_the_catalogue():
+    """A shipped law that matches no line of generic.PAIR_LAWS / EFFECTS (Law.fits: functions, torque,
+    dissipation, reads, history, parameter count) would still run, through the adapters of your own
+    functions (kind OWN) and slower: every shipped configuration gets a kind here, and every line of the
+    catalogue is some configuration's kind (a new line needs a configuration above)."""
+    pairs, contacts, effects = shipped_interactions()
+    p = dk.Particles(position=[[0, 0, 1.5], [1.2, 0, 1.5], [3.0, 0.2, 1.6]], radius=0.5, mass=1.0,
+                     dipole=[[0, 0, 1.0]] * 3)
+    box = dk.Box(6.0, periodic=True)
+    q = dk.Particles(position=[[0.5, 0.5, 0.5], [1.7, 0.5, 0.5], [3.5, 2.0, 2.0]], radius=0.5, mass=1.0,
+                     dipole=[[0, 0, 1.0]] * 3)
+    scenes = [dk.Scene(p, [pair, contact], tier=1) for pair, contact in zip(pairs + pairs[:2], contacts)]
+    scenes += [dk.Scene(p, [contact, dk.Wall((0, 0, 0), (0, 0, 1))], tier=1) for contact in contacts]
+    scenes += [dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0), *effects], tier=1),
+               dk.Scene(q, [dk.Dipole(0.1, long_range=dk.Ewald(1e-3)), dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1)]
+    laws, catalogued_effects = generic.catalogue()
+    seen_laws, seen_effects = set(), set()
+    for scene in scenes:
+        program = scene.program
+        for g in range(generic.MAX_GROUPS):
+            row = program[generic.group_row(g, 0)]
+            for m in range(row[generic.G_COUNT]):
+                kind = row[generic.G_MEMBERS + generic.M_COLUMNS * m + generic.M_KIND]
+                assert kind != generic.OWN, f"{scene.interactions} runs through the adapters: no catalogue line fits"
+                seen_laws.add(int(kind))
+        for e in range(program[0, generic.H_EFFECTS]):
+            kind = program[generic.effect_row(e), generic.E_KIND]
+            assert kind != generic.OWN, f"{scene.effects[e]!r} runs through the adapters: no catalogue line fits"
+            seen_effects.add(int(kind))
+    assert seen_laws == set(range(len(laws)))
+    magnets = {law.kind for law in catalogued_effects if law.force_name == "magnet_force"}
+    assert seen_effects | (magnets if len(effects) == 3 else set()) == set(range(len(catalogued_effects)))
+
+
 def test_runs_of_one_combination_add_up_their_seconds_on_tier_1(monkeypatch):
     """Short runs of one combination (a sweep, the paper's replication) pay for tier 2 together: the
     seconds each spent on tier 1 in this process count for the next, and once one run has tier 2,
