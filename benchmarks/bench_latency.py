@@ -376,9 +376,9 @@ WARM_GENERIC = {
 #: code; a scene compiles only the pieces it calls, demkit.engine.generic.needs_of)
 WARM_PIECES = """
 import numba
-from demkit.engine import generic
-for family in generic.FAMILIES:
-    generic.build_generic(False, generic.CALLS, None, family).calls_for(numba.typeof(scene.state))
+from demkit.engine import catalogue, generic, generic_modules
+for family in catalogue.FAMILIES:
+    generic_modules.build_generic(False, generic.CALLS, None, family).calls_for(numba.typeof(scene.state))
 """
 WARM_GENERIC["lists_sums"] = """
         def make():

@@ -5,7 +5,7 @@ Only what the interactions declare is allocated: no dipole arrays without a dipo
 spins), no history unless an interaction keeps some, no image counts or periodic arithmetic in
 open space, no neighbour lists for a handful of spheres, no threads for small scenes.
 
-Interactions are grouped by reach (:class:`demkit.engine.kernels.Group`): those of equal finite reach
+Interactions are grouped by reach (:class:`demkit.engine.plan.Group`): those of equal finite reach
 share a neighbour list with a skin (contacts reach 2 R_max, dipoles their cutoff); interactions
 without a cutoff loop over all pairs i < j; a scene of at most :data:`ALL_PAIRS_MAX` spheres in
 open space loops over all pairs for everything (one fused loop, the fastest for a few spheres).
@@ -21,8 +21,11 @@ import numpy as np
 from . import checks
 from .box import Box
 from .diagnostics import SceneDiagnostics, energy_dict  # noqa: F401 (demkit.scene.energy_dict, as before)
-from .engine import generic, neighbours
-from .engine.kernels import BLOCK, GATHER_ROWS, Group, Plan, _Source, build_module, build_pieces, energy_kinds, importable
+from .engine import generic, generic_modules, neighbours
+from .engine import program as layout
+from .engine.kernels import _Source
+from .engine.modules import build_module, build_pieces
+from .engine.plan import BLOCK, GATHER_ROWS, Group, Plan, energy_kinds, importable
 from .engine.motion import empty_vectors
 from .engine.notice import compile_estimate, compile_notice
 from .engine.state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, TupleStateModule,
@@ -191,25 +194,25 @@ class Scene(SceneDiagnostics):
     def fused_source(self, threads=False):
         """The text of this scene's fused module (tier 2; generated, not compiled): what code the
         scene's combination of interactions needs, and only that."""
-        from .engine.kernels import fused_source
+        from .engine.modules import fused_source
         return fused_source(self.plan, TEMPLATES, threads)
 
     def _kernels(self, threads, tier=None):
         """The compiled module of this scene's tier, or of ``tier`` (the thread module with ``threads``).
         Tier 2 of a scene that the program describes, with neighbour lists or functions of your own,
-        is the generic time loops calling the scene's own pieces (:func:`demkit.engine.kernels.build_pieces`);
+        is the generic time loops calling the scene's own pieces (:func:`demkit.engine.modules.build_pieces`);
         else its fused module (through named tuples over the arrays of a structref state)."""
         tier = tier or self.tier
         if tier == 1 or self._pieces_tier_2():
             pieces = build_pieces(self.plan, self.program_columns, threads) if tier == 2 else None
-            return generic.build_generic(threads, generic.needs_of(self.program), pieces,
-                                         generic.family_of(self.program), own_energies=not self.on_tier_1_possible,
+            return generic_modules.build_generic(threads, generic_modules.needs_of(self.program), pieces,
+                                         generic_modules.family_of(self.program), own_energies=not self.on_tier_1_possible,
                                          own=self._adapters())
         module = build_module(self.plan, TEMPLATES, threads=threads)
         return TupleStateModule(module, self) if self.structured and not self.plan.growing else module
 
     #: where a program row holds its group and speed (read by the scene's own pieces)
-    program_columns = (generic.G_GROUP, generic.G_SPEED)
+    program_columns = (layout.G_GROUP, layout.G_SPEED)
 
     @property
     def structured(self):
@@ -235,7 +238,7 @@ class Scene(SceneDiagnostics):
         at 0.93 of a fused module's speed, which compiles in 35-40 CPU s against their 11)."""
         if self.program is None:
             return False
-        own = self.program_refusal is not None or bool(set(generic.OWN_CALLS) & set(generic.needs_of(self.program)))
+        own = self.program_refusal is not None or bool(set(generic.OWN_CALLS) & set(generic_modules.needs_of(self.program)))
         if own:  # functions of your own: their own pieces on disk, or a fused module in memory
             return importable(self.plan)
         return self.plan.growing or self.induction is not None
@@ -400,7 +403,7 @@ class Scene(SceneDiagnostics):
         p, plan = self.particles, self.plan
         n = len(p)
         growing = plan.growing
-        self.program, self.program_refusal = generic.program_of(plan, _Source(plan, True), self.energy_kinds)
+        self.program, self.program_refusal = layout.program_of(plan, _Source(plan, True), self.energy_kinds)
         self.tier = self._choose_tier()  # before the lists: the tier decides the state's form
         lists = []
         for group in plan.groups:
@@ -452,15 +455,15 @@ class Scene(SceneDiagnostics):
             thread_power=np.zeros(max(threads, 1)), scratch=np.zeros((max(threads, 1), 9, BLOCK)),
             gather=np.zeros((max(threads, 1), GATHER_ROWS, BLOCK + 1)),
             sphere_history=np.zeros((n, plan.effect_width)), stage=np.zeros((0, 0, 3)),
-            program=self.program if self.program is not None else np.zeros((1, generic.COLUMNS), dtype=np.int64))
+            program=self.program if self.program is not None else np.zeros((1, layout.COLUMNS), dtype=np.int64))
         self.arrays = fields
         return self._state_object()
 
     def padded(self, lists):
-        """The scene's lists followed by empty ones up to demkit.engine.generic.MAX_GROUPS: every state has
+        """The scene's lists followed by empty ones up to demkit.engine.program.MAX_GROUPS: every state has
         as many, so that one compiled generic module serves every scene."""
         lists = list(lists)
-        while len(lists) < generic.MAX_GROUPS:
+        while len(lists) < layout.MAX_GROUPS:
             fields = (0.0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int32),
                       np.zeros((0, 0)), np.zeros(2, dtype=np.int64))
             lists.append(self._pair_list(fields))

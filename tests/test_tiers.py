@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import demkit as dk
-from demkit.engine import generic
+from demkit.engine import catalogue, generic_modules
+from demkit.engine import program as layout
 
 
 @pytest.fixture(autouse=True)
@@ -108,7 +109,7 @@ def test_multiple_time_steps_with_lists_same_bits():
     reach share a pair loop, run as a fast and a slow loop (on tier 2: two pair loops of the scene's
     own pieces, picked by the program row's speed)."""
     scene = gas(1, kelvin_voigt=True, cutoff=1.0)
-    assert len(scene.plan.groups) == 1 and scene.program[generic.group_row(0, 1), generic.G_COUNT] == 1
+    assert len(scene.plan.groups) == 1 and scene.program[layout.group_row(0, 1), layout.G_COUNT] == 1
     same_bits(lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0), dk.MultipleTimeStep(2e-3, inner=2), 0.2)
 
 
@@ -165,7 +166,7 @@ def test_switch_in_the_middle_same_bits():
 
 def test_functions_of_your_own_run_on_tier_1_through_adapters_with_the_catalogues_bits():
     """A scene with pair and single-sphere functions of your own is described by the program (their
-    kind: generic.OWN): tier 1 calls them through the scene's adapters (demkit.engine.own_laws, all it
+    kind: catalogue.OWN): tier 1 calls them through the scene's adapters (demkit.engine.own_laws, all it
     compiles), tier 2 runs its own pieces under the generic time loops; both give the bits of the
     shipped laws behind them on tier 1."""
     from numba.core import event
@@ -203,9 +204,9 @@ def test_functions_of_your_own_run_on_tier_1_through_adapters_with_the_catalogue
             event.unregister("numba:compile", compiled)
         assert own.tier == 1 and own.program_refusal is None
         assert compiled.modules <= {"own"}, compiled.modules  # the adapters alone (if not cached)
-        row = own.program[generic.group_row(0, 0)]
-        assert row[generic.G_MEMBERS + generic.M_COLUMNS + generic.M_KIND] == generic.OWN
-        assert own.program[generic.effect_row(0), generic.E_KIND] == generic.OWN
+        row = own.program[layout.group_row(0, 0)]
+        assert row[layout.G_MEMBERS + layout.M_COLUMNS + layout.M_KIND] == catalogue.OWN
+        assert own.program[layout.effect_row(0), layout.E_KIND] == catalogue.OWN
         second = make(True, tier=2)
         assert second.loop_kernels.pieces.__name__.startswith("demkit_pieces_")  # no fused module
         b = outcome(second, integrator, 0.05, diagnostics=True)[1]
@@ -228,7 +229,7 @@ def test_functions_of_your_own_with_history_over_lists_on_threads_same_bits():
                         box=scene.box, tier=tier, parallel=True, sort_every=20), counter
 
     first, counter = make(1)
-    assert first.tier == 1 and "own_pair_forces" in generic.needs_of(first.program)
+    assert first.tier == 1 and "own_pair_forces" in generic_modules.needs_of(first.program)
     a = outcome(first, dk.VelocityVerlet(1e-3), 0.1, diagnostics=True)[1]
     second, counter_2 = make(2)
     b = outcome(second, dk.VelocityVerlet(1e-3), 0.1, diagnostics=True)[1]
@@ -272,15 +273,15 @@ def test_program_layout():
     """The program holds what the fused module hard-codes: kinds, slots, offsets, flags."""
     scene = small_scene(1)
     program = scene.program
-    laws, effects = generic.catalogue()
-    row = program[generic.group_row(0, 0)]
-    assert row[generic.G_COUNT] == 2 and row[generic.G_LIST] == 0 and row[generic.G_TORQUE] == 1
-    kinds = [laws[row[generic.G_MEMBERS + generic.M_COLUMNS * m + generic.M_KIND]].force_name for m in range(2)]
+    laws, effects = catalogue.catalogue()
+    row = program[layout.group_row(0, 0)]
+    assert row[layout.G_COUNT] == 2 and row[layout.G_LIST] == 0 and row[layout.G_TORQUE] == 1
+    kinds = [laws[row[layout.G_MEMBERS + layout.M_COLUMNS * m + layout.M_KIND]].force_name for m in range(2)]
     assert kinds == ["switched_dipole_force", "kelvin_voigt_twisting_force"]
-    fast = program[generic.group_row(0, 1)]
-    assert fast[generic.G_COUNT] == 1  # the contact law alone (the dipole is slow)
-    assert program[0, generic.H_EFFECTS] == 5
-    names = [effects[program[generic.effect_row(e), generic.E_KIND]].force_name for e in range(5)]
+    fast = program[layout.group_row(0, 1)]
+    assert fast[layout.G_COUNT] == 1  # the contact law alone (the dipole is slow)
+    assert program[0, layout.H_EFFECTS] == 5
+    names = [effects[program[layout.effect_row(e), layout.E_KIND]].force_name for e in range(5)]
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
 
 
@@ -303,7 +304,7 @@ def shipped_interactions():
 
 
 def test_every_shipped_interaction_has_a_kind_of_the_catalogue():
-    """A shipped law that matches no line of generic.PAIR_LAWS / EFFECTS (Law.fits: functions, torque,
+    """A shipped law that matches no line of catalogue.PAIR_LAWS / EFFECTS (Law.fits: functions, torque,
     dissipation, reads, history, parameter count) would still run, through the adapters of your own
     functions (kind OWN) and slower: every shipped configuration gets a kind here, and every line of the
     catalogue is some configuration's kind (a new line needs a configuration above)."""
@@ -317,19 +318,19 @@ def test_every_shipped_interaction_has_a_kind_of_the_catalogue():
     scenes += [dk.Scene(p, [contact, dk.Wall((0, 0, 0), (0, 0, 1))], tier=1) for contact in contacts]
     scenes += [dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0), *effects], tier=1),
                dk.Scene(q, [dk.Dipole(0.1, long_range=dk.Ewald(1e-3)), dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=1)]
-    laws, catalogued_effects = generic.catalogue()
+    laws, catalogued_effects = catalogue.catalogue()
     seen_laws, seen_effects = set(), set()
     for scene in scenes:
         program = scene.program
-        for g in range(generic.MAX_GROUPS):
-            row = program[generic.group_row(g, 0)]
-            for m in range(row[generic.G_COUNT]):
-                kind = row[generic.G_MEMBERS + generic.M_COLUMNS * m + generic.M_KIND]
-                assert kind != generic.OWN, f"{scene.interactions} runs through the adapters: no catalogue line fits"
+        for g in range(layout.MAX_GROUPS):
+            row = program[layout.group_row(g, 0)]
+            for m in range(row[layout.G_COUNT]):
+                kind = row[layout.G_MEMBERS + layout.M_COLUMNS * m + layout.M_KIND]
+                assert kind != catalogue.OWN, f"{scene.interactions} runs through the adapters: no catalogue line fits"
                 seen_laws.add(int(kind))
-        for e in range(program[0, generic.H_EFFECTS]):
-            kind = program[generic.effect_row(e), generic.E_KIND]
-            assert kind != generic.OWN, f"{scene.effects[e]!r} runs through the adapters: no catalogue line fits"
+        for e in range(program[0, layout.H_EFFECTS]):
+            kind = program[layout.effect_row(e), layout.E_KIND]
+            assert kind != catalogue.OWN, f"{scene.effects[e]!r} runs through the adapters: no catalogue line fits"
             seen_effects.add(int(kind))
     assert seen_laws == set(range(len(laws)))
     magnets = {law.kind for law in catalogued_effects if law.force_name == "magnet_force"}

@@ -13,10 +13,12 @@ force evaluations). ``report.suggest(target)`` names the cheapest run meeting a 
 
 The parts: :mod:`~demkit.accuracy.equations` (the scene's compiled forces as an ODE),
 :mod:`~demkit.accuracy.switches` (where force laws are not smooth), :mod:`~demkit.accuracy.solver`
-(the adaptive solver) and :mod:`~demkit.accuracy.study` (work-precision reports and time steps).
+(the adaptive solver) and :mod:`~demkit.accuracy.study` (work-precision studies and time steps) with
+:mod:`~demkit.accuracy.report` (their reports).
 """
 from .solver import MAX_PARTICLES, ReferenceTrajectory, reference
-from .study import MEASURES, DtSuggestion, Suggestion, WorkPrecision, copy_scene, suggest_dt, work_precision
+from .report import MEASURES, Suggestion, WorkPrecision
+from .study import DtSuggestion, copy_scene, suggest_dt, work_precision
 
 __all__ = ["reference", "ReferenceTrajectory", "work_precision", "WorkPrecision", "Suggestion", "suggest_dt",
            "DtSuggestion", "copy_scene", "MEASURES", "MAX_PARTICLES"]

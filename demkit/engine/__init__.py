@@ -9,10 +9,16 @@ API); it is what turns a scene into compiled loops:
   the compile options the interactions' laws use;
 * :mod:`~demkit.engine.neighbours`: cell lists, Verlet lists with per-pair history, sorting;
 * :mod:`~demkit.engine.templates`: the time loops of the integrators, as templates pasted into generated code;
-* :mod:`~demkit.engine.generic`: **tier 1**, one generic module per install, where a scene is data (its
-  *program*) and every shipped law sits behind an integer kind switch;
+* :mod:`~demkit.engine.catalogue`: the shipped laws and effects, each an integer *kind*;
+* :mod:`~demkit.engine.program`: a scene's *program*, the table tier 1's loops read;
+* :mod:`~demkit.engine.generic`, :mod:`~demkit.engine.generic_modules`: **tier 1**, one generic module per
+  install, where a scene is data (its program) and every shipped law sits behind an integer kind switch:
+  its text, and the modules built, loaded and called;
+* :mod:`~demkit.engine.plan`: the plan of a scene's pair loops, which both tiers share;
+* :mod:`~demkit.engine.snippets`: lines of generated code both tiers write alike;
 * :mod:`~demkit.engine.kernels`: **tier 2**, the scene's own code (a fused module in open space, the scene's
-  own pieces under tier 1's loops with neighbour lists), and the planning of pair loops both tiers share;
+  own pieces under tier 1's loops with neighbour lists);
+* :mod:`~demkit.engine.modules`: generated modules named, cached, compiled once per machine and loaded;
 * :mod:`~demkit.engine.own_laws`: adapters that let tier 1 call functions of your own;
 * :mod:`~demkit.engine.tiers`: when a run goes over from tier 1 to tier 2 (between chunks, the same bits);
 * :mod:`~demkit.engine.threads`: whether the pair loops run on numba's threads, measured while running;

@@ -6,7 +6,7 @@ module writes the *generic* module: the same pair loops, time loops and upkeep, 
 shipped pair law and single-sphere effect (the :data:`PAIR_LAWS` and :data:`EFFECTS` catalogues)
 sits behind an integer *kind* switch, and the scene's *program* -- which laws act in which pair
 loop, their parameter slots, cutoffs, history offsets, periodic axes, effects -- is an int64 table
-in the state (``s.program``, made by :func:`program_of`). Its source depends on demkit alone, so it
+in the state (``s.program``, made by :func:`demkit.engine.program.program_of`). Its source depends on demkit alone, so it
 is compiled once per install (function by function, as runs need them) and loaded from numba's
 cache in a fraction of a second by every later scene, whatever its combination.
 
@@ -14,7 +14,10 @@ The generic loops do the fused loops' arithmetic in the fused loops' order (memb
 in the scene's order, the same minimum image, the same blocks of pairs for dipoles), so a run gives
 the same bits on either tier and may switch tier between chunks (:mod:`demkit.engine.tiers`).
 
-Layout of ``s.program`` (rows of :data:`COLUMNS` int64):
+The catalogue is :mod:`demkit.engine.catalogue`, the program :mod:`demkit.engine.program`; this module
+writes the generic module's text, :mod:`demkit.engine.generic_modules` builds, loads and calls it.
+
+Layout of ``s.program`` (rows of :data:`demkit.engine.program.COLUMNS` int64):
 
 * row 0, the header: :data:`H_LISTS` (the scene has neighbour lists), :data:`H_PERIODIC`,
   :data:`H_SORTED`, :data:`H_EFFECTS` (number of effects), :data:`H_SHORTEST` (the first list's group);
@@ -29,7 +32,7 @@ cannot run (more groups, members or effects than the table holds; functions of y
 blocked loop or as a plane contact) run on tier 2 only.
 
 Tier 2 of a scene with neighbour lists is these time loops given the scene's own pieces
-(:func:`demkit.engine.kernels.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
+(:func:`demkit.engine.modules.build_pieces`, ``GenericKernels(pieces=...)``) in place of the catalogue's.
 
 The tier is compiled in pieces never linked into one another (docs/engine.md, "Tier 1 in pieces"):
 the pair and sphere loops in a *pieces* module per family of laws (:meth:`_Generic.pieces_text`), the
@@ -42,254 +45,22 @@ all pairs (``G_LIST`` 0) and it is given stubs for the list upkeep.
 """
 from __future__ import annotations
 
-import importlib
 import inspect
 import re
 import textwrap
 import warnings
 
-import numpy as np
+from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
+                       PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, chunks_run, deep_wall_overlap, effect_sums, piece_prelude)
+from .state import DEEP_OVERLAP_FRACTION
+from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
+from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 
-from .kernels import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
-                      PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, chunks_run, deep_wall_overlap, effect_sums,
-                      piece_prelude)
-from . import neighbours
-from .state import DEEP_OVERLAP_FRACTION, pair_loop_arrays
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
 # feature of numba, used here in its documented form: compiled results passed as arguments)
 warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
 
-MAX_GROUPS = 3
-MAX_MEMBERS = 4
-MAX_EFFECTS = 16
-# header row
-(H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT,
- H_INDUCTION_OFFSET, H_INDUCTION_ENERGY) = range(11)
-# group rows: flags, then the members
-(G_COUNT, G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ, G_EXISTS) = range(11)
-G_MEMBERS = 11
-M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX = range(7)
-M_COLUMNS = 7
-# effect rows
-E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE = range(7)
-# long-range sum rows
-S_KIND, S_SLOT, S_ENERGY = range(3)
-# ... and after the members, the row's own group and speed (read by a scene's own pieces, tier 2)
-G_GROUP = G_MEMBERS + MAX_MEMBERS * M_COLUMNS
-G_SPEED = G_GROUP + 1
-COLUMNS = G_SPEED + 1
-#: the kind of a pair law or effect not in the catalogue (your own functions): the program describes the
-#: scene, but only the scene's own pieces (tier 2) can run it
-OWN = -1
-
-#: the shipped pair laws: (module, force function, energy function, torque, dissipative, branch_free)
-PAIR_LAWS = (
-    ("demkit.interactions.dipole", "dipole_force", "dipole_energy", True, False, True),
-    ("demkit.interactions.dipole", "switched_dipole_force", "switched_dipole_energy", True, False, True),
-    ("demkit.interactions.dipole", "power_law_force", "power_law_energy", False, False, True),
-    ("demkit.interactions.dipole", "switched_power_law_force", "switched_power_law_energy", False, False, True),
-    ("demkit.interactions.ewald", "ewald_real_force", "ewald_real_energy", True, False, True),
-    ("demkit.interactions.contact", "kelvin_voigt_force", "kelvin_voigt_energy", False, True, False),
-    ("demkit.interactions.contact", "kelvin_voigt_friction_force", "kelvin_voigt_friction_energy", True, True, False),
-    ("demkit.interactions.contact", "kelvin_voigt_twisting_force", "kelvin_voigt_twisting_energy", True, True, False),
-    ("demkit.interactions.hertz", "hertz_force", "hertz_energy", False, True, False),
-    ("demkit.interactions.hertz", "hertz_friction_force", "hertz_friction_energy", True, True, False),
-    ("demkit.interactions.hertz", "hertz_twisting_force", "hertz_twisting_energy", True, True, False),
-)
-#: the shipped single-sphere effects: (module, force function, energy function, torque, dissipative,
-#: plane_contact)
-EFFECTS = (
-    ("demkit.interactions.fields", "gravity_force", "gravity_energy", False, False, False),
-    ("demkit.interactions.fields", "field_torque", "field_energy", True, False, False),
-    ("demkit.interactions.langevin", "langevin_force", "langevin_energy", True, False, False),
-    ("demkit.interactions.magnets", "magnet_force", "magnet_energy", True, False, False),
-    ("demkit.interactions.wall", "wall_kelvin_voigt_force", "wall_kelvin_voigt_energy", False, True, True),
-    ("demkit.interactions.wall", "wall_kelvin_voigt_friction_force", "wall_kelvin_voigt_friction_energy",
-     True, True, True),
-    ("demkit.interactions.wall", "wall_kelvin_voigt_twisting_force", "wall_kelvin_voigt_twisting_energy",
-     True, True, True),
-    ("demkit.interactions.wall", "wall_hertz_force", "wall_hertz_energy", False, True, True),
-    ("demkit.interactions.wall", "wall_hertz_friction_force", "wall_hertz_friction_energy", True, True, True),
-    ("demkit.interactions.wall", "wall_hertz_twisting_force", "wall_hertz_twisting_energy", True, True, True),
-)
-#: the long-range sums over all spheres: (module, function), called as
-#: f(position, dipole, box, params, slot, force, torque, with_forces) -> energy
-SUMS = (("demkit.interactions.ewald", "reciprocal_sum"), ("demkit.interactions.p3m", "p3m_sum"),
-        ("demkit.interactions.fmm", "fmm_sum"))
-MAX_SUMS = 2
-FIELD_NAMES = ("velocity", "angular_velocity", "dipole", "radius", "mass")
-
-
-class Law:
-    """One catalogue entry: its functions and the shape of their calls (read from their signature)."""
-
-    def __init__(self, kind, module, force, energy, torque, dissipative, special, pair):
-        self.kind, self.module, self.force_name, self.energy_name = kind, module, force, energy
-        self.torque, self.dissipative = torque, dissipative
-        self.branch_free = special if pair else False
-        self.plane_contact = special if not pair else False
-        self.pair = pair
-        fn = getattr(importlib.import_module(module), force)
-        names = list(inspect.signature(fn.py_func).parameters)[6 if pair else 4:]
-        self.reads = []
-        while names and names[0] in FIELD_NAMES:
-            self.reads.append(names.pop(0))
-        self.reads = tuple(self.reads)
-        self.history = bool(names) and names[0] == "history"
-        if self.history:
-            names = names[4:]
-        self.table = bool(names) and names[0] == "params"
-        if self.table:
-            names = names[2:]
-        self.parameters = len(names)
-        self.functions = (fn, getattr(importlib.import_module(module), energy))
-
-    def fits(self, inter):
-        """Is ``inter`` (a scene's interaction or effect) this law, called the way the law is?"""
-        table = np.size(inter.table_values()) > 0 if not self.pair else False
-        return (tuple(inter.pair_functions()) == self.functions and bool(inter.torque) == self.torque
-                and bool(inter.dissipative) == self.dissipative and tuple(inter.reads) == self.reads
-                and bool(inter.history_size) == self.history and len(inter.parameters) == self.parameters
-                and table == self.table and (self.pair or bool(getattr(inter, "plane_contact", False))
-                                             == self.plane_contact))
-
-
-_CATALOGUE = None
-#: the pair laws of the small family, "plain": the paper's magnets (dipoles, Kelvin-Voigt contacts)
-#: and power-law dipoles, no cutoff switch, no effects (a new install's first scene waits for its
-#: pieces alone: 9 CPU-s, against 45 for the full family's)
-PLAIN_LAWS = ("dipole_force", "power_law_force", "kelvin_voigt_force")
-#: the families of pieces modules, each holding the laws and effects it accepts (with their catalogue
-#: kind numbers), from the smallest: a scene runs on the first family holding its laws. Two, not
-#: more: every family is compiled once per install (a third, for scenes without contact history, cost
-#: 21 CPU-s more in all and ran no faster: 440-504 against 448-487 steps/s, a 600-sphere Hertz gas)
-FAMILIES = {"plain": lambda law: law.pair and law.force_name in PLAIN_LAWS, "full": lambda law: True}
-#: the pieces module of the blocked pair loop, shared by the families: it holds the branch-free laws
-#: (dipoles) alone, which every family holds
-BLOCKED = "blocked"
-
-
-def catalogue():
-    """(pair laws, effects): the :class:`Law` entries, in the order of their kind numbers."""
-    global _CATALOGUE
-    if _CATALOGUE is None:
-        _CATALOGUE = ([Law(k, *entry, pair=True) for k, entry in enumerate(PAIR_LAWS)],
-                      [Law(k, *entry, pair=False) for k, entry in enumerate(EFFECTS)])
-    return _CATALOGUE
-
-
-def group_row(g, speed):
-    return 1 + 3 * g + speed
-
-
-def effect_row(e):
-    return 1 + 3 * MAX_GROUPS + e
-
-
-def sum_row(q):
-    return 1 + 3 * MAX_GROUPS + MAX_EFFECTS + q
-
-
-def _law_of(inter, laws):
-    for law in laws:
-        if law.fits(inter):
-            return law
-    return None
-
-
-def program_of(plan, slots, kinds):
-    """(program, None): the scene's program (int64 table, see the module docstring; laws and effects of
-    your own have kind :data:`OWN`: tier 1 calls them through adapters, :mod:`demkit.engine.own_laws`);
-    (program, why) when some of them cannot be adapted (in a blocked dipole loop, or a plane contact:
-    the scene's own pieces run it, tier 1 cannot); (None, why) when the table cannot describe the scene. ``slots``: the parameter slots
-    (``param_slot``, ``cutoff_slot``, ``effect_slot``, ``table_slot`` as :class:`demkit.engine.kernels._Source`
-    gives them); ``kinds``: the energy kinds."""
-    laws, effect_laws = catalogue()
-    if len(plan.sums) > MAX_SUMS:
-        return None, f"{len(plan.sums)} long-range sums, more than {MAX_SUMS}"
-    if len(plan.groups) > MAX_GROUPS:
-        return None, f"{len(plan.groups)} pair loops (interactions of different reach), more than {MAX_GROUPS}"
-    if len(plan.effects) > MAX_EFFECTS:
-        return None, f"{len(plan.effects)} single-sphere effects, more than {MAX_EFFECTS}"
-    rows = 1 + 3 * MAX_GROUPS + MAX_EFFECTS + MAX_SUMS
-    program = np.zeros((rows, COLUMNS), dtype=np.int64)
-    for q, (tuned, slot) in enumerate(zip(plan.sums, slots.sum_slot)):
-        kind = [f"{module}.{name}" for module, name in SUMS].index(".".join(tuned.kernel)) \
-            if ".".join(tuned.kernel) in [f"{module}.{name}" for module, name in SUMS] else None
-        if kind is None:
-            return None, f"the long-range sum {tuned.kernel} is not in the generic module's catalogue"
-        program[sum_row(q)] [:3] = (kind, slot, 2 + kinds.index(tuned.energy_kind))
-    program[0, H_SUMS] = len(plan.sums)
-    if plan.induction is not None:
-        program[0, H_INDUCTION] = 1
-        program[0, H_INDUCTION_GROUP] = -1 if plan.induction.group is None else plan.induction.group
-        program[0, H_INDUCTION_SLOT] = slots.induction_slot
-        program[0, H_INDUCTION_OFFSET] = plan.effect_width - plan.induction.history_size
-        program[0, H_INDUCTION_ENERGY] = 2 + kinds.index(plan.induction.energy_kind)
-    program[0, H_LISTS] = bool(plan.lists)
-    program[0, H_PERIODIC] = any(plan.periodic)
-    program[0, H_SORTED] = plan.sorted
-    program[0, H_EFFECTS] = len(plan.effects)
-    program[0, H_SHORTEST] = plan.lists[0] if plan.lists else 0
-    from .kernels import Group
-    own = []  # the names of the laws and effects of your own
-    for g, group in enumerate(plan.groups):
-        if len(group.members) > MAX_MEMBERS:
-            return None, f"{len(group.members)} interactions in one pair loop, more than {MAX_MEMBERS}"
-        for sp, speed in enumerate(SPEEDS):
-            members = [(k, inter) for k, inter in group.members if speed is None or inter.slow == (speed == "slow")]
-            if not members:
-                continue
-            sub = Group(members, group.kind, group.reach, group.parallel)
-            row = program[group_row(g, sp)]
-            row[G_EXISTS] = 1
-            row[G_GROUP] = g
-            row[G_SPEED] = sp
-            row[G_COUNT] = len(members)
-            row[G_LIST] = group.kind == "list"
-            row[G_BLOCKED] = sub.blocked
-            row[G_TORQUE] = sub.torque
-            row[G_WIDTH] = group.width
-            row[G_CONTACT_ONLY] = all(inter.contact_reach for _, inter in members)
-            row[G_CONTACT] = any(inter.contact_reach for _, inter in members)
-            for a in range(3):
-                row[G_PX + a] = plan.periodic[a] and group.kind == "list"
-            for m, (k, inter) in enumerate(members):
-                law = _law_of(inter, laws)
-                if law is not None and sub.blocked and law.reads != ("dipole",):
-                    law = None  # the generic blocked loops gather the moments alone
-                if law is None and sub.blocked:
-                    own.append(type(inter).__name__)  # (the blocked loops call no adapter)
-                base = G_MEMBERS + M_COLUMNS * m
-                row[base + M_KIND] = OWN if law is None else law.kind
-                row[base + M_SLOT] = slots.param_slot[k]
-                row[base + M_CUT] = slots.cutoff_slot[k] if inter.cutoff_distance is not None else -1
-                row[base + M_OFFSET] = group.offsets[k]
-                row[base + M_SIZE] = inter.history_size
-                row[base + M_ENERGY] = 2 + kinds.index(inter.energy_kind)
-                row[base + M_INDEX] = k
-    offsets = plan.effect_offsets
-    for e, effect in enumerate(plan.effects):
-        law = _law_of(effect, effect_laws)
-        if law is None and getattr(effect, "plane_contact", False):
-            own.append(type(effect).__name__)  # (a plane contact's guard is the shipped walls')
-        row = program[effect_row(e)]
-        row[E_KIND] = OWN if law is None else law.kind
-        row[E_PLANE] = bool(getattr(effect, "plane_contact", False))
-        row[E_SLOT] = slots.effect_slot[e]
-        row[E_TABLE] = slots.table_slot.get(e, -1)
-        row[E_OFFSET] = offsets[e]
-        row[E_ENERGY] = 2 + kinds.index(effect.energy_kind)
-        row[E_SIZE] = effect.history_size
-    if own:
-        names = ", ".join(dict.fromkeys(own))
-        return program, (f"{names}: functions of your own in a blocked dipole loop or as a plane contact, which "
-                         "tier 1 does not call")
-    return program, None
-
-
-# ---- the generic module's source -------------------------------------------------------------------
 TORQUES = ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")
 
 
@@ -777,8 +548,8 @@ class _Generic:
                  "                               permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
-                 "from demkit.engine.kernels import BLOCK",
-                 "from demkit.engine.generic import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
+                 "from demkit.engine.plan import BLOCK",
+                 "from demkit.engine.program import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
                  "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
                  "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE)",
@@ -838,7 +609,7 @@ class _Generic:
             return "\n".join(lines + self.upkeep_functions()) + "\n"
         lines += ["from demkit.engine.state import INDUCTION_FAILED",
                   "from demkit.interactions.induction import induce, induction_energy",
-                  "from demkit.engine.generic import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
+                  "from demkit.engine.program import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
                   "H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, S_KIND, S_SLOT, S_ENERGY)"]
         lines += [f"from {module} import {name} as sum_{k}" for k, (module, name) in enumerate(SUMS)]
         from .motion import CALLED_PASSES
@@ -927,15 +698,6 @@ CALLS = PIECES + SCENE_PIECES + OWN_CALLS
 PIECE_ARGUMENTS = {name: (params, "0.0" if "force" in name else "None") for name, params in PIECE_SIGNATURES.items()}
 
 
-def _layout_line():
-    """The program's layout as a comment line: generated modules import its constants by name, and
-    numba's cache (keyed by their text) must not serve code compiled for another layout."""
-    layout = ", ".join(f"{name}={value}" for name, value in sorted(globals().items())
-                       if re.fullmatch(r"[HGMES]_[A-Z_]+|COLUMNS|MAX_[A-Z]+", name))
-    return f"# program layout: {layout}"
-
-
-# ---- building and loading ---------------------------------------------------------------------------
 def generic_source(threads=False):
     """Python source of the generic module's scene-level functions and time loops (serial, or
     calling the thread pieces and the threaded passes)."""
@@ -944,334 +706,13 @@ def generic_source(threads=False):
 
 
 def _name(threads):
-    from .kernels import _fingerprint
+    from .modules import _fingerprint
     source = generic_source(threads)
     return source, f"demkit_generic_{_fingerprint(source, [])}"
 
 
 def _pieces_name(threads, family):
-    from .kernels import _fingerprint
+    from .modules import _fingerprint
     source = _Generic(threads, family).pieces_text()
     return source, (f"demkit_generic_pieces_{family}_{'threads_' if threads else ''}"
                     f"{_fingerprint(source, [])}")
-
-
-_MODULES = {}
-
-
-def _load(key, source_and_name):
-    if key not in _MODULES:
-        import numba
-
-        from .kernels import _load_from_file
-        source, name = source_and_name()
-        module = _load_from_file(name, source)
-        numba.get_num_threads()  # start numba's threading layer (see demkit.engine.kernels.build_module)
-        module.source = source
-        _MODULES[key] = module
-    return _MODULES[key]
-
-
-def _pieces(threads, family):
-    """The pieces module of a family (serial, or the thread pieces: the chunked loops on prange)."""
-    _load(("pieces", False, family), lambda: _pieces_name(False, family))
-    return _load(("pieces", threads, family), lambda: _pieces_name(threads, family))
-
-
-def family_of(program):
-    """The smallest family of pieces (:data:`FAMILIES`) holding every law and effect of the program."""
-    laws, effects = catalogue()
-    kinds = [program[row, G_MEMBERS + M_COLUMNS * m + M_KIND]
-             for row in (group_row(g, 0) for g in range(MAX_GROUPS)) for m in range(program[row, G_COUNT])]
-    used = [laws[kind] for kind in kinds if kind != OWN]
-    used += [effects[kind] for kind in (program[effect_row(e), E_KIND] for e in range(program[0, H_EFFECTS]))
-             if kind != OWN]
-    return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
-
-
-def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_energies=True, own=None):
-    """The generic module (one for every scene, with neighbour lists or in open space; serial or on
-    threads), compiled function by function as called and cached on disk like the fused modules;
-    seen by a scene that calls ``needs`` of :data:`CALLS` (see :func:`needs_of`: the others are
-    stubbed, never compiled for it) of ``family`` (see :func:`family_of`). ``pieces``: a scene's own
-    pieces (tier 2, :func:`demkit.engine.kernels.build_pieces`) in place of the generic ones; without
-    ``own_energies`` (a scene tier 1 can run) only their forces: the energies, computed once a
-    frame, are the family's (the same bits), so that tier 2 compiles what makes steps faster alone.
-    ``own``: the adapters of the scene's functions of your own (:func:`demkit.engine.own_laws.build_adapters`)."""
-    key = ("generic", bool(threads))
-    own_energies = bool(own_energies) or pieces is None  # (tier 1: the family's energies are its own)
-    view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies, own and own.__name__)
-    if view not in _MODULES:
-        module = _load(("generic", False), lambda: _name(False))
-        upkeep = _load(key, lambda: _name(True)) if threads else module
-        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies, upkeep,
-                                        own)
-    return _MODULES[view]
-
-
-def needs_of(program):
-    """What a scene of this program calls, of :data:`CALLS`."""
-    rows = [group_row(g, sp) for g in range(MAX_GROUPS) for sp in range(len(SPEEDS))]
-    needs = []
-    if any(program[r, G_COUNT] > 0 and program[r, G_BLOCKED] == 0 for r in rows):
-        needs += ["pairs_forces"]
-    if any(program[r, G_COUNT] > 0 and program[r, G_BLOCKED] != 0 for r in rows):
-        needs += ["pairs_forces_blocked"]
-    if program[0, H_EFFECTS] > 0:
-        needs += ["sphere_forces", "sphere_energies"]
-    if any(program[group_row(g, 0), G_COUNT] > 0 for g in range(MAX_GROUPS)):
-        needs += ["pairs_energies"]
-    if program[0, H_SUMS] > 0:
-        needs += ["long_range", "sum_energies"]
-    if program[0, H_INDUCTION] != 0:
-        needs += ["induce_now"]
-    if program[0, H_LISTS] != 0:
-        needs += ["maintain_lists"]
-    if program[0, H_SORTED] != 0:
-        needs += ["sort_particles"]
-    if any(program[r, G_MEMBERS + M_COLUMNS * m + M_KIND] == OWN for r in rows for m in range(program[r, G_COUNT])):
-        needs += ["own_pair_forces", "own_pair_energies"]
-    if any(program[effect_row(e), E_KIND] == OWN for e in range(program[0, H_EFFECTS])):
-        needs += ["own_sphere_forces", "own_sphere_energies"]
-    return tuple(needs)
-
-
-def is_cached(threads, function):
-    """Is ``function`` of the generic module in numba's disk cache already (on threads: and the list
-    upkeep on threads)?"""
-    from .kernels import cached_function
-    return cached_function(_name(False)[1], function) and (not threads or
-                                                            cached_function(_name(True)[1], "maintain_lists"))
-
-
-def _fields(ty):
-    """name -> numba type of the fields of a state or pair list type (a structref or a named tuple)."""
-    if hasattr(ty, "field_dict"):
-        return dict(ty.field_dict)
-    return dict(zip(ty.instance_class._fields, ty.types))
-
-
-def piece_arguments(state_type):
-    """name -> the argument types of each piece, for states of this numba type (the calls made in
-    the scene-level functions, :meth:`_Generic.forces_body`)."""
-    from numba import types
-    f = _fields(state_type)
-    pair_list = f["lists"][0]
-    chunked = (state_type, f["force"], f["torque"], pair_list, types.boolean, types.int64)
-    out = types.Array(types.float64, 1, "C")
-    arguments = {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
-                 "long_range": (state_type, f["force"], f["torque"]),
-                 "sum_energies": (state_type, out),
-                 "induce_now": (state_type, types.boolean),
-                 "pairs_forces": chunked, "pairs_forces_blocked": chunked,
-                 "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
-                 "pairs_energies": (state_type, pair_list, out, types.int64),
-                 "sphere_energies": (state_type, out)}
-    own = {kind: own_signature(kind, state_type) for kind in ("pair", "sphere")}
-    for name in PIECES:  # each piece takes its kind's adapter last
-        arguments[name] += (types.FunctionType(own["pair" if name.startswith("pairs") else "sphere"]),)
-    for name in OWN_CALLS:
-        arguments[name] = own["pair" if name.startswith("own_pair") else "sphere"].args
-    return arguments
-
-
-def own_signature(kind, state_type):
-    """The numba signature of the adapters of functions of your own (see :data:`OWN_CALLS`)."""
-    from numba import types
-    i64, f64 = types.int64, types.float64
-    f = _fields(state_type)
-    if kind == "pair":
-        history = _fields(f["lists"][0])["history"]
-        return types.UniTuple(f64, 10)(i64, i64, i64, f64, f64, f64, f64, state_type, history, i64, i64,
-                                       types.boolean, i64)
-    return types.UniTuple(f64, 7)(i64, i64, f64, f64, f64, state_type, f["sphere_history"], i64, types.boolean,
-                                  i64, i64)
-
-
-class GenericKernels:
-    """A generic module seen through the names of a fused one (``pair_energies_<g>``, ...), by scenes
-    that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
-    the state's type, the others replaced by stubs, :func:`calls_for`)."""
-
-    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, upkeep=None, own=None):
-        self.module, self.threads, self.needs = module, threads, needs
-        self.own = own  # the adapters of the scene's functions of your own (demkit.engine.own_laws), or None
-        self.upkeep = upkeep or module  # maintain_lists and sort_particles (on threads: the thread module's)
-        self.family, self.own_energies = family, own_energies
-        self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
-        self.tier = 1 if pieces is None else 2
-        self._calls = {}
-        self._steps = {}
-        self._bound = {}
-
-    def calls_for(self, state_type):
-        """The tuple of first-class functions the scene-level functions take, for this state type."""
-        if state_type not in self._calls:
-            arguments = piece_arguments(state_type)
-            calls = []
-            for name in CALLS:
-                family = BLOCKED if name == "pairs_forces_blocked" else self.family
-                module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(
-                    self.threads and name in THREAD_PIECES, family)
-                # the piece, or its stub when the scene never calls it (the list upkeep has none)
-                stubbed = (name not in self.needs or (name in OWN_CALLS and self.own is None)) and \
-                    hasattr(module, f"no_{name}")
-                if name in UPKEEP and not stubbed:
-                    module = self.upkeep
-                own_piece = name in PIECES and (self.own_energies or "energies" not in name)
-                if self.pieces is not None and own_piece and not stubbed:
-                    own = self.pieces  # the scene's own; its thread pieces hold the chunked loops alone
-                    if not (self.threads and name in THREAD_PIECES):
-                        own = getattr(own, "serial", own)
-                    function = getattr(own, f"piece_{name}")
-                elif name in OWN_CALLS and not stubbed:
-                    function = getattr(self.own, name)
-                else:
-                    function = getattr(module, f"no_{name}" if stubbed else name)
-                calls.append(self._wrapped(function, arguments[name]))
-            self._calls[state_type] = tuple(calls)
-        return self._calls[state_type]
-
-    def _diagnostic(self, kind, g):
-        """pair_energies_<g> / pair_forces_<g>(s, owners, partners, out): every entry of pair loop g and
-        its energies or forces. Tier 1: the family's own loops (``pairs_energies_rows``, the serial
-        ``pairs_forces_chunk``) recording each entry, called from Python with the types the pieces
-        compiled them for, so nothing compiles for diagnostics; tier 2: the scene's own
-        ``group_<g>_<kind>``."""
-        if self.pieces is not None:  # the scene's own loop of group g (it takes no program row)
-            function = getattr(getattr(self.pieces, "serial", self.pieces), f"group_{g}_{kind}")
-        else:
-            pieces = _pieces(False, self.family)
-            function = pieces.pairs_energies_rows if kind == "pair_energies" else pieces.pairs_forces_chunk
-
-        def run(s, owners, partners, out):
-            import numba
-            if "maintain_lists" in self.needs:
-                self.module.maintain_lists(s, False)
-            *arrays, program = pair_loop_arrays(s, g)
-            if self.pieces is not None:
-                return function(*arrays, owners, partners, out)
-            row = program[group_row(g, 0)]
-            position, velocity, spin, dipole, radius, mass, box, params, status, *lists = arrays
-            n, partner, is_list = position.shape[0], lists[2], row[G_LIST] != 0
-            entries = np.zeros((partner.shape[0] if is_list else n * (n - 1) // 2, out.shape[1]))
-            status = status.copy()  # a deep overlap seen by a diagnostic stops no run
-            if kind == "pair_energies":
-                members = G_MEMBERS + M_COLUMNS * np.arange(row[G_COUNT])
-                kinds = np.zeros(1 + int(row[members + M_ENERGY].max(initial=0)))  # the sums by kind, unused
-                own = self.calls_for(numba.typeof(s))[CALLS.index("own_pair_energies")]
-                function(position, velocity, spin, dipole, radius, mass, box, params, status, *lists, kinds, True,
-                         entries, row, s, own)
-            else:
-                force, unused = np.zeros((n, 3)), np.zeros((9, 1))  # (the blocked loop's scratch and gather)
-                own = self.calls_for(numba.typeof(s))[CALLS.index("own_pair_forces")]
-                function(position, velocity, spin, dipole, radius, mass, box, params, status, force, force.copy(),
-                         *lists, unused, unused, False, 0, n, row, True, entries, s, own)
-            # every entry, owner by owner (rows past the entries, if any, stay zero: the caller's size)
-            if is_list:
-                owner, rows = neighbours.entry_owners(s.lists[g])
-                other = partner[rows]
-            else:
-                (owner, other), rows = np.triu_indices(n, k=1), slice(None)
-            k = len(owner)
-            owners[:k], partners[:k], out[:k] = owner, other, entries[rows]
-        return run
-
-    def steps_for(self, state_type, record_type, uses):
-        """The tuple of first-class functions ``uses`` (of :data:`STEPS`, a time loop's ``STEPS_OF``)
-        a time loop takes second, for this state and record type."""
-        key = (state_type, record_type, uses)
-        if key not in self._steps:
-            import numba
-            from numba import types
-            calls_type = numba.typeof(self.calls_for(state_type))
-            stage = _fields(state_type)["stage"]
-            vector = types.Array(stage.dtype, stage.ndim - 1, "C" if stage.layout == "C" else "A")
-            frame = self._wrapped(self.module.record_frame, (calls_type, types.int64, state_type, record_type))
-            arguments = {"forces_of": (calls_type, state_type, types.boolean),
-                         "end_step": (calls_type, numba.typeof(frame), types.int64, types.int64, types.int64,
-                                      state_type, record_type),
-                         "fast_forces_of": (calls_type, state_type, vector, vector, types.boolean)}
-            arguments["slow_forces_of"] = arguments["fast_forces_of"]
-            arguments["next_contact_event"] = (calls_type, state_type, vector, types.float64)
-            self._steps[key] = tuple(frame if name == "record_frame" else
-                                     self._wrapped(getattr(self.module, name), arguments[name]) for name in uses)
-        return self._steps[key]
-
-    @staticmethod
-    def _wrapped(function, arguments):
-        """``function`` compiled for ``arguments``, as a first-class function value."""
-        from numba.core.types.function_type import CompileResultWAP
-        function.compile(arguments)
-        return CompileResultWAP(function.overloads[arguments])
-
-    def __getattr__(self, name):
-        for kind in ("pair_energies", "pair_forces"):
-            if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
-                return self._diagnostic(kind, int(name[len(kind) + 1:]))
-        if name not in self._bound:  # the module's function, or it bound to the pieces when it takes them
-            function = getattr(self.upkeep if name in UPKEEP else self.module, name)
-            takes = "calls" in inspect.signature(function.py_func).parameters
-            self._bound[name] = _Bound(self, function) if takes else function
-        return self._bound[name]
-
-
-class _Bound:
-    """A scene-level function of the generic module with its first arguments, the pieces (and for the
-    time loops the scene-level functions they call), supplied for the types of the state and record
-    among the arguments; ``signatures`` and ``compile`` without them."""
-
-    def __init__(self, kernels, function):
-        self.kernels, self.function = kernels, function
-        names = list(inspect.signature(function.py_func).parameters)
-        self.steps = "steps" in names
-        self.position = names.index("s") - (2 if self.steps else 1)
-        self.uses = kernels.module.STEPS_OF[function.__name__] if self.steps else ()
-        self._entries = {}  # argument types -> (compiled entry point, the pieces' tuples)
-
-    def _first(self, state_type, record_type):
-        calls = self.kernels.calls_for(state_type)
-        if not self.steps:
-            return (calls,)
-        return calls, self.kernels.steps_for(state_type, record_type, self.uses)
-
-    def __call__(self, *args):
-        """Call with the pieces supplied. The dispatcher would type the tuples of first-class
-        functions anew at every call (3 ms, more than a chunk of a small scene): after the first call
-        of a signature, its compiled entry point is called directly."""
-        import numba
-        key = tuple(_type_key(a) for a in args)
-        entry = self._entries.get(key)
-        if entry is None:
-            types = tuple(numba.typeof(a) for a in args)
-            p = self.position
-            first = self._first(types[p], types[p + 1] if self.steps else None)
-            result = self.function(*first, *args)
-            compiled = self.function.overloads.get((*(numba.typeof(f) for f in first), *types))
-            if compiled is not None:
-                self._entries[key] = (compiled.entry_point, first)
-            return result
-        function, first = entry
-        return function(*first, *args)
-
-    @property
-    def signatures(self):
-        return [signature[2 if self.steps else 1:] for signature in self.function.signatures]
-
-    def compile(self, signature):
-        import numba
-        p = self.position
-        first = self._first(signature[p], signature[p + 1] if self.steps else None)
-        return self.function.compile((*(numba.typeof(f) for f in first), *signature))
-
-
-def _type_key(value):
-    """What decides the numba type of an argument, read without numba's typeof (arrays: dtype,
-    dimensions, layout, writability; a state: its numba type; tuples: their items)."""
-    if isinstance(value, np.ndarray):
-        flags = value.flags
-        return value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned
-    if isinstance(value, tuple):
-        return tuple(_type_key(v) for v in value)
-    numba_type = getattr(value, "_numba_type_", None)
-    return numba_type if numba_type is not None else type(value)

@@ -138,8 +138,8 @@ def compile_estimate(plan, phase, tier=2):
     its first run): the expected seconds, from :data:`ESTIMATES`; on ``tier`` 1 (the generic module)
     a one-time compile for this machine."""
     if tier == 1:
-        from . import generic, own_laws
-        if any(own_laws.own_members(plan)) and generic.is_cached(False, "forces_of"):
+        from . import generic_modules, own_laws
+        if any(own_laws.own_members(plan)) and generic_modules.is_cached(False, "forces_of"):
             lo, hi = ESTIMATES["own"]
             return f"about {lo}-{hi} s on an idle machine: the adapters of your own functions (demkit.engine.own_laws)"
         lo, hi = ESTIMATES["generic"]

@@ -10,7 +10,7 @@ leaves numba's files behind (pip does not list them) would run such stale code s
 in front of numba's that serve demkit's modules only: the same cache folders as numba's, but a
 stamp that adds a hash of every ``.py`` file of the package, so any change of demkit's source
 recompiles its functions. The kernel modules demkit generates carry the same fingerprint in their
-names (:func:`demkit.engine.kernels._fingerprint`). Hashing the package at import costs ~5 ms.
+names (:func:`demkit.engine.modules._fingerprint`). Hashing the package at import costs ~5 ms.
 
 One compile per machine, not per process (:func:`install_compile_lock`): processes started together
 on empty caches (the workers of a sweep, of the test suite) all missed numba's cache for the same

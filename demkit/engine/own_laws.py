@@ -16,9 +16,10 @@ Pair functions called from a blocked dipole loop, and effects that are plane con
 """
 from __future__ import annotations
 
-from . import generic
-from .kernels import (_callable_arguments, _fingerprint, _importable, _load_from_file, _load_in_memory,
-                      function_imports)
+from . import catalogue
+from .modules import _fingerprint, _load_from_file, _load_in_memory
+from .plan import _importable
+from .snippets import _callable_arguments, function_imports
 
 _MODULES = {}
 PLURAL = {"force": "forces", "energy": "energies"}
@@ -26,9 +27,9 @@ PLURAL = {"force": "forces", "energy": "energies"}
 
 def own_members(plan):
     """(pair interactions of your own as (index, interaction), effects of your own as (index, effect))."""
-    laws, effects = generic.catalogue()
-    pairs = [(k, inter) for k, inter in enumerate(plan.interactions) if generic._law_of(inter, laws) is None]
-    own_effects = [(e, effect) for e, effect in enumerate(plan.effects) if generic._law_of(effect, effects) is None]
+    laws, effects = catalogue.catalogue()
+    pairs = [(k, inter) for k, inter in enumerate(plan.interactions) if catalogue._law_of(inter, laws) is None]
+    own_effects = [(e, effect) for e, effect in enumerate(plan.effects) if catalogue._law_of(effect, effects) is None]
     return pairs, own_effects
 
 

@@ -183,8 +183,8 @@ def _get_lists(s):
 
 @njit(cache=True)
 def pair_loop_arrays(s, g):
-    """The arrays a pair loop's diagnostics read (demkit.engine.generic.ARRAYS, then pair list g's
-    demkit.engine.generic.LIST_ARRAYS), and the program, from a state with neighbour lists."""
+    """The arrays a pair loop's diagnostics read (demkit.engine.snippets.ARRAYS, then pair list g's
+    demkit.engine.snippets.LIST_ARRAYS), and the program, from a state with neighbour lists."""
     pl = s.lists[g]
     return (s.position, s.velocity, s.angular_velocity, s.dipole, s.radius, s.mass, s.box, s.params, s.status,
             pl.start, pl.end, pl.partner, pl.history, s.program)

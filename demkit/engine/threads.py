@@ -241,9 +241,9 @@ class ThreadChoice:
         it: WORTH_COMPILING when it must be compiled, 0.5 s when numba's cache has it."""
         if self._cached is None:
             from .templates import TEMPLATES
-            from .kernels import is_cached
+            from .modules import is_cached
             if self.serial_module is self.scene.kernels and self.scene.tier == 1:
-                from .generic import is_cached as generic_cached
+                from .generic_modules import is_cached as generic_cached
                 self._cached = generic_cached(True, self.name)
             else:
                 self._cached = is_cached(self.scene.plan, TEMPLATES, self.name, threads=True)

@@ -85,7 +85,8 @@ class TierChoice:
         if key in _READY or self._hurried:
             return 0.0
         if self._cached is None:  # (key[0] names the module: its source is generated once)
-            from .kernels import cached_function, functions_importable
+            from .modules import cached_function
+            from .plan import functions_importable
             if self.scene._pieces_tier_2():
                 self._cached = cached_function(key[0], "piece_pairs_forces")
             else:
@@ -99,7 +100,7 @@ class TierChoice:
         """(tier 2's module name, the run's loop): what runs of the same combination share."""
         if self._key is None:
             from .templates import TEMPLATES
-            from .kernels import fused_name, pieces_source
+            from .modules import fused_name, pieces_source
             scene = self.scene
             name = (pieces_source(scene.plan, scene.program_columns)[1] if scene._pieces_tier_2() else
                     fused_name(scene.plan, TEMPLATES))

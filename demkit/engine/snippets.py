@@ -1,0 +1,171 @@
+"""Lines of generated code that both tiers write the same way (so that they give the same bits): the
+arrays a piece reads, list upkeep, recording a frame, the end of a step, deep-overlap checks, sums of an
+effect's outputs."""
+from __future__ import annotations
+
+from .state import DEEP_OVERLAP_FRACTION
+
+
+ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status"
+LIST_ARRAYS = "start, end, partner, history"
+
+#: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
+#: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
+#: buffers, the commit flag, the program row r of the pair loop, and ``own``: the scene's functions
+#: of your own behind one first-class function (demkit.engine.own_laws; tier 1's loops call it for kind OWN)
+PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r, own",
+                    "pairs_forces_blocked": "s, force, torque, pl, commit, r, own",
+                    "sphere_forces": "s, force, torque, commit, own", "pairs_energies": "s, pl, out, r, own",
+                    "sphere_energies": "s, out, own"}
+
+
+def piece_prelude(name):
+    """The first lines of piece ``name`` (also of a scene's own, tier 2): its arrays, by the names its
+    loops use, from the state s, the pair list pl and the program row r."""
+    lines = [f'    {a} = field(s, "{a}")' for a in ARRAYS.split(", ")]
+    if name.startswith("pairs_"):
+        lines += [f'    {a} = field(pl, "{a}")' for a in LIST_ARRAYS.split(", ")] + ['    program = field(s, "program")[r]']
+    else:
+        lines += ['    history = field(s, "sphere_history")', '    program = field(s, "program")']
+    if name.startswith("pairs_forces"):
+        lines += ['    scratch = field(s, "scratch")', '    gather = field(s, "gather")', '    bounds = field(pl, "bounds")',
+                  '    chunk_force = field(s, "thread_force")', '    chunk_torque = field(s, "thread_torque")',
+                  '    chunk_power = field(s, "thread_power")']
+    return lines
+
+
+def _state_fields():
+    """Call arguments handing the ARRAYS over from the state ``s``."""
+    return ", ".join(f"s.{name}" for name in ARRAYS.split(", "))
+
+
+def _state_arrays(g, scratch=False):
+    """Call arguments handing group g's arrays over from the state ``s``."""
+    fields = _state_fields()
+    lists = ", ".join(f"s.lists[{g}].{name}" for name in LIST_ARRAYS.split(", "))
+    return f"{fields}, {{targets}}{lists}" + (", s.scratch, s.gather" if scratch else "")
+
+
+def _pair_call(k, inter, offset, kind, owner="i", fields=""):
+    """Source of the call to interaction k's force or energy function. ``owner`` is the index of
+    particle i in the field arrays, which are named ``fields + <field name>``."""
+    args = [owner, "j", "dx", "dy", "dz", "r2", *(fields + name for name in inter.reads)]
+    if inter.history_size:
+        args += ["history", "p", str(offset), "commit" if kind == "force" else "False"]
+    args += [f"p{k}_{n}" for n in range(len(inter.parameters))]
+    return f"{kind}_{k}({', '.join(_callable_arguments(inter, args))})"
+
+
+def function_imports(pairs, effects):
+    """Import lines binding the pair functions of ``pairs`` and ``effects`` ((index, interaction)
+    pairs) to the names generated code calls: ``force_<k>``/``energy_<k>``, ``sforce_<e>``/``senergy_<e>``."""
+    lines = []
+    for prefix, members in (("", pairs), ("s", effects)):
+        for k, inter in members:
+            for kind, fn in zip(("force", "energy"), inter.pair_functions()):
+                lines.append(f"from {fn.__module__} import {fn.__name__} as {prefix}{kind}_{k}")
+    return lines
+
+
+#: Python 3.11 compiles a call with more arguments than this into a form numba cannot inline
+MAX_ARGUMENTS = 30
+
+
+def _callable_arguments(inter, args):
+    """The call's arguments, refused clearly when there are too many for the compiler."""
+    if len(args) > MAX_ARGUMENTS:
+        raise TypeError(f"{type(inter).__name__}: its functions take {len(args)} arguments, more than the "
+                        f"{MAX_ARGUMENTS} numba can inline (Python compiles longer calls as f(*args)); "
+                        f"combine parameters")
+    return args
+
+
+#: the generated maintain_lists around its rebuild calls (the fused and the generic modules)
+MAINTAIN_LISTS_HEAD = ["", "", "@njit(**UPKEEP)", "def maintain_lists(s, strict):",
+                       '    """Rebuild the neighbour lists once a sphere has moved half the skin since the last',
+                       '    build; ``strict``: flag MOVED_TOO_FAR when it moved more than the skin (a step too long',
+                       '    for the lists to be trusted)."""',
+                       "    d2, k = max_displacement(s.position, s.reference)",
+                       "    if d2 <= 0.25 * s.skin * s.skin:",
+                       "        return",
+                       "    if strict and d2 > s.skin * s.skin and s.status[0] == OK:",
+                       "        s.status[0] = MOVED_TOO_FAR",
+                       "        s.status[1] = k"]
+MAINTAIN_LISTS_TAIL = ["    copy_rows(s.reference, s.position)",
+                       "    s.counters[REBUILDS] += 1",
+                       "    s.counters[WRAP_DUE] = 1"]
+
+
+#: the generated sort_particles' permutation of every per-particle array by ``order``
+PERMUTE_BY_ORDER = (["    n = order.shape[0]",
+                     "    vectors = np.empty((n, 3))",
+                     "    scalars = np.empty(n)",
+                     "    integers = np.empty(n, dtype=np.int64)",
+                     "    count = np.empty((n, 3), dtype=np.int64)"]
+                    + [f"    permute_vectors(s.{name}, order, vectors)" for name in
+                       ("position", "velocity", "angular_velocity", "dipole", "force", "torque")]
+                    + [f"    permute_scalars(s.{name}, order, scalars)" for name in ("radius", "mass", "inertia")]
+                    + ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
+                       "    for k in range(s.stage.shape[0]):  # integrators' arrays that outlive a step",
+                       "        permute_vectors(s.stage[k], order, vectors)"])
+#: the generated record_frame, and end_step's opening
+RECORD_FRAME = ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
+                '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
+                "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
+                "                s.inertia, s.box, s.periodic, record)",
+                "    e = record[4]",
+                "    last = e.shape[1] - 1",
+                "    energies_of(s, e[k, :last])",
+                "    e[k, last] = s.accum[0]",
+                "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record):",
+                '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
+                '    steps left until the next frame (recording frame step // stride when it is due)."""']
+#: end_step after its list upkeep: stops, the finiteness check, the frame when due
+END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagged a stop",
+                 "        s.status[2] = step", "        return -1",
+                 "    if not state_is_finite(s.position, s.velocity, s.angular_velocity):",
+                 "        s.status[0] = NON_FINITE",
+                 "        s.status[2] = step",
+                 "        return -1",
+                 "    if countdown == 1:",
+                 "        record_frame(step // stride, s, record)",
+                 "        return stride",
+                 "    return countdown - 1"]
+
+
+#: the speeds of a pair loop's members, for multiple time stepping: all of them, the fast, the slow
+SPEEDS = (None, "fast", "slow")
+
+
+def chunks_run(loop, call):
+    """Body lines of a pair loop cut into fixed chunks of owners: ``call`` (an expression of t, cf, ct)
+    runs chunk t, chunk 0 adding into force/torque, the others into buffers of their own (zero on
+    entry), over ``loop`` ("range", or "prange" on threads); then the buffers are summed in chunk order
+    (torque too when ``torque_on``, set before) and zeroed again by sum_chunks: the same bits on any
+    number of threads. Returns the dissipated power."""
+    return ["    chunks = bounds.shape[0] - 1",
+            f"    for t in {loop}(chunks):",
+            "        cf = force if t == 0 else chunk_force[t - 1]",
+            "        ct = torque if t == 0 else chunk_torque[t - 1]",
+            f"        chunk_power[t] = {call}",
+            "    if chunks > 1:",
+            "        sum_chunks(force, chunk_force, chunks - 1)",
+            "        if torque_on:",
+            "            sum_chunks(torque, chunk_torque, chunks - 1)",
+            "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
+            "    return power"]
+
+
+def deep_wall_overlap(index):
+    """Lines flagging a sphere pushed deeper than DEEP_OVERLAP_FRACTION of its radius into wall ``index``."""
+    return [f"if overlap > {DEEP_OVERLAP_FRACTION!r} * radius[i] and status[0] == OK:",
+            "    status[0] = DEEP_OVERLAP", "    status[1] = i", f"    status[3] = -1 - {index}"]
+
+
+def effect_sums(torque, dissipative):
+    """Lines adding a single-sphere effect's (ax, ay, az), (bx, by, bz) and w to sphere i's force,
+    torque and the dissipated power."""
+    lines = [f"force[i, {a}] += {o}" for a, o in enumerate(("ax", "ay", "az"))]
+    if torque:
+        lines += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
+    return lines + (["power += w"] if dissipative else [])
