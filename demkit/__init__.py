@@ -20,6 +20,7 @@ from .trajectory import Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
+from . import clustering  # clusters, contacts, chains and rings of spheres in one frame
 from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 from . import accuracy  # adaptive reference solutions and work-precision reports
 from .dipole_sums import compare_dipole_sums  # which dipole sum for my scene: error against time
@@ -38,5 +39,5 @@ __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajec
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
            "PairInteraction", "SphereInteraction", "Wall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
-           "write_series", "read_series", "io", "viz", "two_magnets", "build", "accuracy", "compare_dipole_sums", "guards", "choose_time_step",
+           "write_series", "read_series", "io", "viz", "two_magnets", "build", "clustering", "accuracy", "compare_dipole_sums", "guards", "choose_time_step",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

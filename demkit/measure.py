@@ -166,7 +166,7 @@ def clusters(scene, gap=0.0):
     """The :class:`Clusters` of ``scene`` now: connected groups of spheres whose surfaces are closer
     than ``gap`` (length; 0: touching, r < R_i + R_j; minimum image in periodic boxes); a lone
     sphere is a cluster of one."""
-    from .viz.analysis import clusters as cluster_labels
+    from .clustering import clusters as cluster_labels
     gap = float(gap)
     if not np.isfinite(gap) or gap < 0.0:
         raise ValueError(f"gap must be a non-negative length, got {gap!r}")

@@ -35,7 +35,7 @@ import numpy as np
 
 from .interactions.wall import Wall
 from .progress import quiet
-from .viz.analysis import close_pairs
+from .clustering import close_pairs
 
 #: a contact overlapping by more than this fraction of the smaller radius, in any frame, gets a note
 LARGEST_OVERLAP = 0.05

@@ -50,7 +50,7 @@ def _drift(loaded, trajectory):
 @observable("contacts")
 def _contacts(loaded, trajectory):
     """Touching pairs (r < R_i + R_j, minimum image in a periodic box) in the last frame."""
-    from .viz.analysis import close_pairs
+    from .clustering import close_pairs
     return len(close_pairs(trajectory.position[-1], trajectory.radius, trajectory.box))
 
 

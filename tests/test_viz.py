@@ -416,7 +416,7 @@ def test_periodic_box_outline_and_trails_without_jumps(many):
 
 
 def test_rings_and_chains_are_told_apart():
-    from demkit.viz.analysis import clusters, contacts, rings_and_chains
+    from demkit.clustering import clusters, contacts, rings_and_chains
 
     ring = [[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 2 * np.pi, 7)[:-1]]  # side 1: touching
     chain = [[10.0 + k, 0.0, 0.0] for k in range(4)]

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .analysis import clusters, contacts
+from ..clustering import clusters, contacts
+from . import analysis  # noqa: F401 (moved to demkit.clustering; dk.viz.analysis keeps working)
 from .backend import RenderingUnavailable, ensure_rendering, rendering_info
 
 __all__ = ["snapshot", "animate", "rendering_info", "RenderingUnavailable", "clusters", "contacts"]

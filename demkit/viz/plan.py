@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .analysis import clusters, contacts
+from ..clustering import clusters, contacts
 
 #: colours for ``color_by="id"`` (cycled), RGB 0..255
 PALETTE = np.array([[31, 119, 180], [214, 39, 40], [44, 160, 44], [255, 127, 14], [148, 103, 189],

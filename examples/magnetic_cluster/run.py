@@ -59,7 +59,7 @@ def structures(position):
     chains (an open line: two ends, links between) with their sizes."""
     label = dk.viz.clusters(position, R, gap=TOUCH)  # 0 is the largest cluster
     contacts = dk.viz.contacts(position, R, tolerance=TOUCH)
-    rings, chains = dk.viz.analysis.rings_and_chains(label, contacts)
+    rings, chains = dk.clustering.rings_and_chains(label, contacts)
     return {"clusters": int(label.max() + 1), "largest": int(np.sum(label == 0)),
             "free": int(np.sum(contacts == 0)), "linked": int(np.sum((contacts == 1) | (contacts == 2))),
             "junctions": int(np.sum(contacts >= 3)), "contacts": int(contacts.sum() // 2),

@@ -84,10 +84,10 @@ def structures(position):
     d = 2 * R
     label = dk.viz.clusters(position, R, gap=TOUCH * d)  # 0 is the largest cluster
     contacts = dk.viz.contacts(position, R, tolerance=TOUCH)
-    pairs = dk.viz.analysis.close_pairs(position, R, scale=1 + TOUCH)
+    pairs = dk.clustering.close_pairs(position, R, scale=1 + TOUCH)
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(position),) * 2)
     components = connected_components(graph, directed=False)[0]
-    rings, chains = dk.viz.analysis.rings_and_chains(label, contacts)
+    rings, chains = dk.clustering.rings_and_chains(label, contacts)
     return {"clusters": int(label.max() + 1), "largest": int(np.sum(label == 0)),
             "free": int(np.sum(contacts == 0)), "linked": int(np.sum((contacts == 1) | (contacts == 2))),
             "junctions": int(np.sum(contacts >= 3)), "contacts": int(len(pairs)),

@@ -1,0 +1,94 @@
+"""Clusters and contacts of spheres in one frame (scipy cKDTree; periodic boxes via its boxsize).
+
+    labels = clusters(position, radius, box)     # 0 = the largest cluster, 1 = the next, ...
+    count = contacts(position, radius, box)      # touching neighbours of each sphere
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: spheres whose surfaces are closer than this many mean radii belong to one cluster
+CLUSTER_GAP = 0.1
+#: spheres touch when their centre distance is below (r_i + r_j) * (1 + CONTACT_TOLERANCE)
+CONTACT_TOLERANCE = 0.01
+
+
+def _wrapped(position, box):
+    """Positions brought into [0, L) along the periodic axes of ``box`` and the cKDTree boxsize."""
+    if box is None or not np.any(box.periodic):
+        return position, None
+    position = position.copy()
+    size = np.where(box.periodic, box.size, 0.0)  # 0: not periodic, for cKDTree
+    for a in np.flatnonzero(box.periodic):
+        x = np.mod(position[:, a], box.size[a])
+        x[x >= box.size[a]] = 0.0  # np.mod of a tiny negative number can give L itself
+        position[:, a] = x
+    return position, size
+
+
+def close_pairs(position, radius, box=None, scale=1.0, extra=0.0, distances=False):
+    """(P, 2) index pairs i < j whose centre distance is below (r_i + r_j) * scale + extra,
+    using the minimum image along periodic axes of ``box``; with ``distances``, also their (P,)
+    centre distances."""
+    from scipy.spatial import cKDTree
+
+    position = np.asarray(position, dtype=np.float64)
+    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (len(position),))
+    if len(position) < 2:
+        none = np.zeros((0, 2), dtype=np.int64)
+        return (none, np.zeros(0)) if distances else none
+    points, boxsize = _wrapped(position, box)
+    tree = cKDTree(points, boxsize=boxsize)
+    pairs = tree.query_pairs(2.0 * float(radius.max()) * scale + extra, output_type="ndarray")
+    if len(pairs) == 0:
+        pairs = pairs.reshape(0, 2)
+        return (pairs, np.zeros(0)) if distances else pairs
+    d = points[pairs[:, 1]] - points[pairs[:, 0]]
+    if boxsize is not None:
+        d = box.minimum_image(d)
+    r = np.linalg.norm(d, axis=1)
+    keep = r < (radius[pairs[:, 0]] + radius[pairs[:, 1]]) * scale + extra
+    return (pairs[keep], r[keep]) if distances else pairs[keep]
+
+
+def clusters(position, radius, box=None, gap=None):
+    """Cluster label of every sphere, (N,) int: 0 for the largest cluster, 1 for the next, ...
+
+    Two spheres are connected when the gap between their surfaces is below ``gap`` (length;
+    default CLUSTER_GAP mean radii); clusters are the connected groups (a lone sphere is one).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(position)
+    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (n,))
+    gap = CLUSTER_GAP * float(np.mean(radius)) if gap is None else float(gap)
+    pairs = close_pairs(position, radius, box, extra=gap)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    size = np.bincount(label)
+    rank = np.empty(len(size), dtype=np.int64)
+    rank[np.argsort(-size, kind="stable")] = np.arange(len(size))
+    return rank[label]
+
+
+def contacts(position, radius, box=None, tolerance=CONTACT_TOLERANCE):
+    """Number of touching neighbours of every sphere, (N,) int: centre distance below
+    (r_i + r_j) * (1 + tolerance)."""
+    pairs = close_pairs(position, radius, box, scale=1.0 + tolerance)
+    return np.bincount(pairs.ravel(), minlength=len(position))
+
+
+def rings_and_chains(labels, counts):
+    """Sizes of the clusters that are plain rings (at least 3 spheres, each touching exactly two
+    others) and plain chains (an open line: two ends touching one sphere, the rest two), from the
+    cluster labels of :func:`clusters` and the touching neighbours of :func:`contacts`:
+    (rings, chains), two lists of sizes in label order."""
+    rings, chains = [], []
+    for c in range(int(labels.max()) + 1 if len(labels) else 0):
+        k = counts[labels == c]
+        if len(k) >= 3 and np.all(k == 2):
+            rings.append(len(k))
+        elif len(k) >= 2 and k.max() <= 2 and np.sum(k == 1) == 2:
+            chains.append(len(k))
+    return rings, chains
