@@ -1,22 +1,8 @@
 """Time integrators. They see only force and torque arrays, never which interactions exist.
 
-Each integrator names a *loop template* (:mod:`demkit.engine.templates`): a plain Python function whose
-source is pasted into the scene's generated kernel modules and compiled there, so that many steps run
-in compiled code between Python-level events. A template has the signature
-
-    template(nsteps, first_step, stride, dt, forces_ready, s, record) -> int
-
-where ``s`` is the scene's named state (:mod:`demkit.engine.state`: ``s.position``, ``s.velocity``,
-``s.angular_velocity``, ``s.dipole``, ``s.mass``, ``s.inertia``, ``s.force``, ``s.torque``,
-``s.accum`` (accum[0]: dissipated work), ...). It may call ``forces_of(s, commit)`` (fills
-``s.force``/``s.torque`` and keeps neighbour lists up to date; returns the dissipated power),
-``end_step(step, countdown, stride, s, record)`` (list upkeep, finiteness check and recording;
-returns the steps left until the next frame, or -1 when the run must stop) and the helpers of
-:mod:`demkit.engine.motion`. Pass fields straight into calls (``kick(s.velocity, s.force, s.mass, h)``);
-binding them to local names makes numba count references at every use. It records frame
-``step // stride`` after every step that is a multiple of ``stride`` (global count
-``first_step + n + 1``) and returns -1, or the index n of the step after which the run stopped.
-Per-particle arrays may be re-ordered or wrapped only in ``end_step``, between steps.
+Each integrator names a *loop template* (:mod:`demkit.engine.templates`, where their signature and what
+they may call are written): a plain Python function whose source is pasted into the scene's generated
+kernel modules and compiled there, so that many steps run in compiled code between Python-level events.
 
 Methods: :class:`EulerCromer` (order 1), :class:`VelocityVerlet` (2), :class:`ForestRuth` (4,
 symplectic composition of velocity-Verlet sub-steps) and :class:`RK4` (4, not symplectic; its
