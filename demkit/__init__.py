@@ -20,6 +20,7 @@ from .trajectory import Trajectory
 from . import viz  # pyvista is imported only when drawing
 from .io import VTKWriter, read_series, write_polylines, write_series
 from . import two_magnets  # the seed paper's two-body study: its scene, analysis, fits, capture
+from . import threads  # noqa: F401 (moved to demkit.engine.threads; dk.threads keeps working)
 from . import clustering  # clusters, contacts, chains and rings of spheres in one frame
 from . import build  # starting scenes: random packings, lattices, chains, rings, thermal states
 from . import accuracy  # adaptive reference solutions and work-precision reports
