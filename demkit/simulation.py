@@ -1,12 +1,13 @@
 """Simulation: advance a scene with an integrator, record a trajectory, call writers.
 
 The time loop runs in compiled code; Python regains control only at events (writers' output
-times and the end of the run). Frames are recorded inside the compiled loop.
+times and the end of the run). Frames are recorded inside the compiled loop. This module is the run
+loop; what a run records is :mod:`demkit.recording`, why a run stops :mod:`demkit.stops` (both parts of
+:class:`Simulation`), what it returns :mod:`demkit.trajectory`.
 """
 from __future__ import annotations
 
 import math
-import os
 import signal
 import threading
 import time
@@ -17,14 +18,14 @@ import numpy as np
 
 from . import checks, guards
 from .engine.notice import compile_estimate, compile_notice
-from .engine.state import (DEEP_OVERLAP, DEEP_OVERLAP_FRACTION, INDUCTION_FAILED, INNER_STEPS, LAST_SORT, LEFT_LAYER,
-                           MOVED_TOO_FAR, OK, REBUILDS, RUN_START)
+from .engine.state import INNER_STEPS, LAST_SORT, OK, REBUILDS, RUN_START
 from .engine.threads import ThreadChoice
 from .engine.tiers import TierChoice
 from .notes import RunNotes, say as say_notes
 from .progress import Progress, check_progress
-from .diagnostics import energy_dict
-from .trajectory import Trajectory
+from .recording import LARGE_OUTPUT_BYTES, LARGE_OUTPUT_FILES, LargeOutputWarning, Recording, _frame_of  # noqa: F401
+from .stops import SimulationError, Stops  # noqa: F401 (demkit.simulation.SimulationError, as before)
+from .trajectory import Trajectory  # noqa: F401 (demkit.simulation.Trajectory, as before)
 
 #: wall-clock seconds between the compiled loop's returns to Python (signals, writers, guards)
 CHUNK_SECONDS = 0.2
@@ -32,31 +33,13 @@ CHUNK_SECONDS = 0.2
 #: the user's order and check them (~0.1 s for a million spheres: chunks of 0.2 s doubled the cost
 #: of a step)
 CHUNK_OVERHEAD_RATIO = 20.0
-#: a run that will write more files or bytes than this is announced (LargeOutputWarning)
-LARGE_OUTPUT_FILES = 10_000
-LARGE_OUTPUT_BYTES = 10 * 2**30
-
-
-class LargeOutputWarning(UserWarning):
-    """A run is about to write very many files or bytes."""
 
 
 class CheckpointWarning(UserWarning):
     """A checkpoint could not be written (the run goes on; the previous checkpoint is kept)."""
 
 
-class SimulationError(RuntimeError):
-    """A run stopped because it could not be trusted (e.g. NaN or inf appeared).
-
-    Attributes: ``step``, ``time``, ``particle`` (id), ``trajectory`` (frames recorded so far).
-    """
-
-    def __init__(self, message, step, time, particle, trajectory):
-        super().__init__(message)
-        self.step, self.time, self.particle, self.trajectory = step, time, particle, trajectory
-
-
-class Simulation:
+class Simulation(Recording, Stops):
     """Advance ``scene`` with ``integrator``.
 
     writers : objects with ``every`` (a time interval) and ``open(simulation)``,
@@ -503,28 +486,6 @@ class Simulation:
             except Exception:  # closing must not hide the interruption  # noqa: BLE001
                 pass
 
-    def _check_record_size(self, nframes):
-        p = self.scene.particles
-        vectors = 2 + (p.angular_velocity is not None) + (p.dipole is not None) + (p.image is not None)
-        size = nframes * (len(p) * 3 * 8 * vectors + 8 * (4 + len(self.scene.energy_kinds) + 3))
-        memory = _physical_memory()
-        if memory and size > 0.8 * memory:
-            raise ValueError(
-                f"recording {nframes} frames of {len(p)} particles needs {size / 2**30:.3g} GiB, more than this "
-                f"machine can hold ({memory / 2**30:.3g} GiB of memory): record fewer frames (a larger "
-                f"record_every) or write them to disk with a VTKWriter")
-
-    def _warn_large_output(self, nsteps, writer_steps):
-        files = size = 0
-        for w, ws in zip(self.writers, writer_steps):
-            if hasattr(w, "planned_output"):
-                f, b = w.planned_output(nsteps // ws, self.scene.particles)
-                files, size = files + f, size + b
-        if files > LARGE_OUTPUT_FILES or size > LARGE_OUTPUT_BYTES:
-            warnings.warn(f"this run will write about {files} files and {size / 2**30:.3g} GiB "
-                          f"({nsteps} steps); a larger writer interval writes less", LargeOutputWarning,
-                          stacklevel=3)
-
     def __repr__(self):
         extra = f", checkpoint={self.checkpoint!r}" if self.checkpoint is not None else ""
         return (f"Simulation({len(self.scene.particles)} particles, {self.integrator!r}, step {self.step}, "
@@ -560,110 +521,6 @@ class Simulation:
             w.close()
 
     # ---- helpers ----------------------------------------------------------------------------
-    def _allocate(self, nframes):
-        p = self.scene.particles
-        n = len(p)
-        shape = (nframes, n, 3)
-        omega = np.zeros(shape) if p.angular_velocity is not None else np.zeros((0, 0, 3))
-        dipole = np.zeros(shape) if p.dipole is not None else np.zeros((0, 0, 3))
-        image = np.zeros(shape, dtype=np.int64) if p.image is not None else np.zeros((0, 0, 3), dtype=np.int64)
-        energy = np.zeros((nframes, 3 + len(self.scene.energy_kinds)))
-        return (np.zeros(shape), np.zeros(shape), omega, dipole, energy, np.zeros((nframes, 3)), image)
-
-    def _keep(self, record, start_step, steps):
-        """Make ``self.trajectory`` the frames of ``record`` taken at the run-local ``steps``."""
-        self.trajectory = self._trajectory(record, (start_step + np.asarray(steps)) * self.integrator.dt)
-        return self.trajectory
-
-    def _trajectory(self, record, times):
-        p = self.scene.particles
-        t = len(times)
-        pos, vel, omega, dipole, energy, momentum, image = (r[:t] for r in record)
-        return Trajectory(
-            time=times, position=pos, velocity=vel,
-            angular_velocity=omega if p.angular_velocity is not None else None,
-            dipole=dipole if p.dipole is not None else None,
-            energy=energy_dict(energy[:, :-1], self.scene.energy_kinds, energy[:, -1]),
-            angular_momentum=momentum, radius=p.radius.copy(), mass=p.mass.copy(),
-            inertia=p.inertia.copy(), ids=p.ids.copy(), image=image if p.image is not None else None,
-            box=self.scene.box)
-
-    def _fail(self, bad_step, start_step, stride, record):
-        dt = self.integrator.dt
-        scene = self.scene
-        p = scene.particles
-        status = scene.status
-        code, index, other = int(status[0]), int(status[1]), int(status[3])
-        status[:] = OK
-        good_frames = (bad_step - 1) // stride + 1
-        self._keep(record, start_step, np.arange(good_frames) * stride)
-        self.step = start_step + bad_step
-        kept = (f"The {good_frames} frames recorded before it are kept in simulation.trajectory")
-        tag = scene.arrays["tag"]
-        if code in (MOVED_TOO_FAR, DEEP_OVERLAP, LEFT_LAYER):  # the kernels flagged a particle (internal index)
-            k = int(tag[index])
-            speed = float(np.linalg.norm(p.velocity[k]))
-        if code == MOVED_TOO_FAR:
-            raise SimulationError(
-                f"particle id {p.ids[k]} moved more than the neighbour-list skin ({scene.skin:.6g}) between two "
-                f"rebuilds at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}, so {speed * dt:.6g} per "
-                f"step): the lists could miss pairs and contacts could be stepped over. Use a smaller time step "
-                f"(dt = {dt:.6g}) or a larger skin. {kept}.",
-                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
-        if code == DEEP_OVERLAP:
-            if other < 0:  # a wall: status[3] = -1 - its index among the effects
-                what = f"particle id {p.ids[k]} overlaps {scene.effects[-1 - other]!r} by more than " \
-                       f"{DEEP_OVERLAP_FRACTION} of its radius"
-            else:
-                what = f"particles id {p.ids[k]} and {p.ids[int(tag[other])]} overlap by more than " \
-                       f"{DEEP_OVERLAP_FRACTION} of the smaller radius"
-            raise SimulationError(
-                f"{what} at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}): the contact is too soft to "
-                f"stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
-                f"overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
-                f"docs/stability.md says how to size both. {kept}.",
-                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
-        if code == LEFT_LAYER:
-            hint = next(tuned.layer.stop_hint() for tuned in scene.long_range if tuned.layer is not None)
-            raise SimulationError(
-                f"particle id {p.ids[k]} {hint} It happened at step {self.step} (t = {self.time:.6g}; its speed "
-                f"{speed:.6g}, position {p.position[k].tolist()}). {kept}.",
-                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
-        if code == INDUCTION_FAILED:
-            solver = scene.induction
-            raise SimulationError(
-                f"at step {self.step} (t = {self.time:.6g}) {solver.failure(solver.last_code)}. {kept}.",
-                step=self.step, time=self.time, particle=None, trajectory=self.trajectory)
-        arrays = [p.position, p.velocity] + ([p.angular_velocity] if p.angular_velocity is not None else [])
-        bad = np.zeros(len(p), dtype=bool)
-        for arr in arrays:
-            bad |= ~np.isfinite(arr).all(axis=1)
-        k = int(np.argmax(bad))
-        where = p.position[k] if np.isfinite(p.position[k]).all() else None
-        hints = [hint for effect in scene.effects if (hint := effect.stop_hint(where))]
-        if hints:  # an effect knows why (a sphere left a tabulated field, ...)
-            raise SimulationError(
-                f"the run stopped at step {self.step} (t = {self.time:.6g}): particle id {p.ids[k]} "
-                f"{' '.join(hints)} {kept}.",
-                step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
-        raise SimulationError(
-            f"the run became non-finite (NaN or inf) at step {self.step} (t = {self.time:.6g}) for "
-            f"particle id {p.ids[k]}: position {p.position[k].tolist()}, velocity {p.velocity[k].tolist()}. "
-            f"{kept}; a smaller time step or gentler initial conditions may help.",
-            step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
-
-
-def _frame_of(record, k):
-    """Copies of frame k of every record array (None for absent fields)."""
-    return tuple(r[k].copy() if len(r) else None for r in record)
-
-
-def _physical_memory():
-    """Bytes of memory of this machine (0 when unknown)."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return 0
 
 
 class _MeasuredOnStop:

@@ -293,7 +293,7 @@ def test_a_full_disk_warns_keeps_the_previous_checkpoint_and_the_run_goes_on(tmp
 
 
 def test_a_run_announces_a_large_output_before_it_starts(tmp_path, monkeypatch):
-    import demkit.simulation as simulation
+    import demkit.recording as simulation  # (where the run counts what it will write)
     monkeypatch.setattr(simulation, "LARGE_OUTPUT_FILES", 10)
     writer = dk.VTKWriter(tmp_path / "out", every=1e-4, trails=False)
     sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4), writers=[writer])
