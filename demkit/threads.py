@@ -2,4 +2,3 @@
 keeps working for scripts that read ``dk.threads`` (``dk.threads.estimated_force_seconds``, as
 docs/nbody.md once said); new code should use ``demkit.engine.threads``."""
 from .engine.threads import *  # noqa: F401,F403
-from .engine.threads import PARALLEL_MIN, THREADS_FROM_SECONDS, estimated_force_seconds  # noqa: F401

@@ -50,11 +50,11 @@ import re
 import textwrap
 import warnings
 
+from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
+from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, chunks_run, deep_wall_overlap, effect_sums, piece_prelude)
 from .state import DEEP_OVERLAP_FRACTION
-from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
-from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental

@@ -8,12 +8,12 @@ import inspect
 import numpy as np
 
 from . import neighbours
-from .snippets import SPEEDS
-from .state import pair_loop_arrays
 from .catalogue import BLOCKED, FAMILIES, OWN, catalogue
 from .generic import CALLS, OWN_CALLS, PIECES, SCENE_PIECES, THREAD_PIECES, UPKEEP, _name, _pieces_name
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_SORTED,
                       H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
+from .snippets import SPEEDS
+from .state import pair_loop_arrays
 
 
 _MODULES = {}

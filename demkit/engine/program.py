@@ -7,8 +7,8 @@ import re
 
 import numpy as np
 
-from .snippets import SPEEDS
 from .catalogue import MAX_SUMS, OWN, SUMS, _law_of, catalogue
+from .snippets import SPEEDS
 
 
 MAX_GROUPS = 3

@@ -2,4 +2,3 @@
 not only pictures). This name keeps working for scripts that import ``demkit.viz.analysis``; new code
 should use ``demkit.clustering``."""
 from ..clustering import *  # noqa: F401,F403
-from ..clustering import CLUSTER_GAP, CONTACT_TOLERANCE  # noqa: F401
