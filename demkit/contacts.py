@@ -118,7 +118,7 @@ def _evaluate(law, first, fields, history, params):
             args += [history, k, 0, False]
         if table.size:  # a wall of a law with twisting resistance: its table (demkit.interactions.wall)
             args += [table, 0]
-        out = force_function(*args, *params)
+        out = force_function(*args, *(params(k) if callable(params) else params))
         rows[k, :3], rows[k, 9] = out[:3], out[-1]
         if len(out) == 10:  # a pair: torques on i and j
             rows[k, 3:9] = out[3:9]
@@ -182,9 +182,10 @@ def wall_contacts(scene, wall, number):
         i = int(spheres[k])
         return [i, x[i, 0], x[i, 1], x[i, 2]]
 
-    rows = _evaluate(wall, first, _fields(scene, wall.reads), history, wall.parameter_values())
+    rows = _evaluate(wall, first, _fields(scene, wall.reads), history,
+                     lambda k: wall.parameters_at(x[spheres[k]]))  # (a cylinder: the plane each sphere meets)
     n = len(spheres)
-    normal = np.tile(wall.normal, (n, 1))
+    normal = wall.normals(x[spheres]).reshape(n, 3)
     point = x[spheres] - (p.radius[spheres] - overlap[spheres])[:, None] * normal
     pairs = np.stack([np.full(n, -1), spheres], axis=1).astype(np.int64)
     return _table(pairs, np.full(n, number), point, normal, overlap[spheres], rows, _mu(wall.law))

@@ -113,7 +113,7 @@ def fastest_impact(scene):
         return 0.0, "every sphere is fixed"
     v0 = np.linalg.norm(p.velocity, axis=1)
     walls = [e for e in scene.effects if isinstance(e, Wall)]
-    drag = max((float(np.linalg.norm(w.velocity)) for w in walls), default=0.0)
+    drag = max((w.surface_speed() for w in walls), default=0.0)
     heights, g, note = fall_heights(scene)
     k = int(np.argmax(np.where(moving, v0, -1.0)))
     why = f"the fastest speed present, {v0[k]:.4g}"
@@ -154,7 +154,7 @@ def fall_heights(scene):
     if size == 0.0 or not len(p):
         return None, size, ""
     down = g / size
-    walls = [e for e in scene.effects if isinstance(e, Wall)]
+    walls = [e for e in scene.effects if isinstance(e, Wall) and e.flat]  # (a cylinder's floor: not counted)
     normals = np.array([w.normal for w in walls]).reshape(-1, 3)
     unbounded = (f"gravity ({size:.4g}) has no wall below the spheres to stop their fall, so it does not bound "
                  f"the impact speed (checked while stepping)")

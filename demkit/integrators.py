@@ -53,6 +53,11 @@ class Integrator:
             raise ValueError(
                 f"{baths[0]!r} runs with VelocityVerlet(dt) only (without resolve_contacts): with it the "
                 f"random kicks keep the bath's temperature exactly for free spheres; {self!r} would not")
+        if self.resolve_contacts:
+            curved = [e for e in scene.effects if not getattr(e, "flat", True)]
+            if curved:
+                raise ValueError(f"{self!r} locates contacts with plane walls only, and this scene has {curved[0]!r}: "
+                                 f"use {type(self).__name__}(dt) without resolve_contacts")
         if not self.history:
             kept = scene.history_keepers()
             if kept:

@@ -97,7 +97,7 @@ class RunNotes:
         self.pairs = any(inter.contact_reach for inter in scene.interactions)
         self.walls = [e for e in scene.effects if isinstance(e, Wall)]
         # a moving wall's work and a thermostat's bath are not booked
-        self.balance = not any(np.any(w.velocity != 0.0) for w in self.walls) and not scene.heat_baths
+        self.balance = not any(w.surface_speed() > 0.0 for w in self.walls) and not scene.heat_baths
         self.largest = self.drift = self.scale = 0.0
         self.typical_sum, self.typical_frames = 0.0, 0  # frames' mean overlaps summed; frames with contacts
         self.origin = None  # the balance at the run's first frame

@@ -424,7 +424,9 @@ class Scene(SceneDiagnostics):
         params = [inter.parameter_values() for inter in self.interactions + self.effects]
         cut2 = [inter.cutoff_distance ** 2 if inter.cutoff_distance is not None else math.inf
                 for inter in self.interactions]
-        tables = [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.effects + self.long_range]
+        tables = [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.effects]
+        tables += [np.asarray(e.geometry_values(), dtype=np.float64).ravel() for e in self.effects]
+        tables += [np.asarray(e.table_values(), dtype=np.float64).ravel() for e in self.long_range]
         if self.induction is not None:  # its table last (its first value: the solver's key, see checkpoint)
             tables.append(self.induction.table_values())
         # (the order kernels._Source gives their slots)

@@ -90,6 +90,10 @@ class Simulation(Recording, Stops):
             if scene.heat_baths:
                 raise ValueError(f"max_energy_growth cannot watch a scene with {scene.heat_baths[0]!r}: its bath gives "
                                  f"and takes energy, so the total does not keep")
+            moving = [e for e in scene.effects if hasattr(e, "surface_speed") and e.surface_speed() > 0.0]
+            if moving:
+                raise ValueError(f"max_energy_growth cannot watch a scene with {moving[0]!r}: a moving wall works on "
+                                 f"the spheres, so the total does not keep")
         self.scene = scene
         self.integrator = integrator
         self.writers = list(writers)

@@ -23,8 +23,9 @@ def automatic_tier(monkeypatch):
 
 
 def small_scene(tier):
-    """Six spheres in open space (all pairs, no lists) above a floor, between walls: Kelvin-Voigt
-    contacts with friction, rolling and twisting resistance, a switched dipole, gravity and a field."""
+    """Six spheres in open space (all pairs, no lists) above a floor, between walls and inside a turning
+    cylinder: Kelvin-Voigt contacts with friction, rolling and twisting resistance, a switched
+    dipole, gravity and a field."""
     rng = np.random.default_rng(4)
     pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5],
                     [1.6, 0.4, 1.4]])
@@ -33,7 +34,8 @@ def small_scene(tier):
                      angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None])
     law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
                          twisting=dk.TwistingResistance())
-    walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0))]
+    walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0)),
+             dk.Cylinder((0.8, 0.8, 0.0), (0, 0, 1), 1.62, angular_velocity=0.5)]  # (pressing the first sphere)
     return dk.Scene(p, [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5), law, dk.Gravity((0, 0, -1.0)),
                         dk.UniformField((0.0, 0.05, 0.02)), *walls], tier=tier)
 

@@ -38,6 +38,9 @@ class _Switches:
         self.walls = []
         for effect in scene.effects:
             if isinstance(effect, Wall):
+                if not effect.flat:
+                    raise ValueError(f"the accuracy reference locates contacts with plane walls only, and this scene "
+                                     f"has {effect!r}")
                 law = effect.law
                 kink = None
                 if isinstance(law, KelvinVoigt) and law.no_tension and law.damping > 0:

@@ -53,7 +53,8 @@ import warnings
 from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
-                       PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, chunks_run, deep_wall_overlap, effect_sums, piece_prelude)
+                       PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap, effect_sums,
+                       piece_prelude)
 from .state import DEEP_OVERLAP_FRACTION
 
 
@@ -74,6 +75,11 @@ def _pair_call(law, kind, owner="i", prefix="", held=False):
     return f"law_{law.kind}_{kind}({', '.join(args)})"
 
 
+def wall_plane_line(values):
+    """The line that sets :data:`WALL_PLANE` for sphere i from a wall's seven geometry ``values``."""
+    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], {', '.join(values)})"
+
+
 def _effect_call(law, kind):
     args = ["i", "x", "y", "z", *law.reads]
     if law.history:
@@ -81,6 +87,8 @@ def _effect_call(law, kind):
     if law.table:
         args += ["params", "table"]
     args += [f"params[slot + {m}]" for m in range(law.parameters)]
+    if law.plane_contact:  # walls: the plane they present to sphere i (see wall_plane_line)
+        args[-law.parameters:-law.parameters + len(WALL_PLANE)] = WALL_PLANE
     return f"effect_{law.kind}_{kind}({', '.join(args)})"
 
 
@@ -343,8 +351,8 @@ class _Generic:
             body = [f"{', '.join(outs)} = {_effect_call(law, 'force')}"]
             lines = []
             if law.plane_contact:  # walls: plane, nx, ny, nz come first (see demkit.engine.kernels)
-                lines += ["overlap = radius[i] - (x * params[slot + 1] + y * params[slot + 2] + z * params[slot + 3] "
-                          "- params[slot])",
+                lines += [wall_plane_line([f"params[slot + {m}]" for m in range(len(WALL_PLANE))]),
+                          "overlap = radius[i] - (x * wnx + y * wny + z * wnz - wp)",
                           "held = False",
                           "for h in range(off, off + program[er, E_SIZE]):",
                           "    if history[i, h] != 0.0:",
@@ -365,8 +373,9 @@ class _Generic:
         lines += ["", "", "@njit(**ENTRY)", f"def sphere_energies({PIECE_SIGNATURES['sphere_energies']}):",
                   '    """Add the potential energies of the single-sphere effects to out[kind]."""']
         lines += piece_prelude("sphere_energies") + head
-        lines += _switch(self.effects, " " * 12,
-                         lambda law: [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
+        lines += _switch(self.effects, " " * 12, lambda law: (
+            [wall_plane_line([f"params[slot + {m}]" for m in range(len(WALL_PLANE))])] if law.plane_contact else [])
+            + [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
         lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",
                   "                out[program[er, E_ENERGY]] += own(e, i, x, y, z, s, history, off, False, slot, table)[0]"]
         return lines
@@ -552,7 +561,9 @@ class _Generic:
                  "from demkit.engine.program import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, G_COUNT, G_LIST,",
                  "                            G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
-                 "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE)",
+                 "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE,",
+                 "                            E_GEOMETRY)",
+                 "from demkit.interactions.cylinder import wall_plane",
                  f"OWN = {OWN}",
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",

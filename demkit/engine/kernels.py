@@ -29,7 +29,7 @@ import numpy as np
 
 from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
-                       PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, _callable_arguments, _pair_call,
+                       PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments, _pair_call,
                        _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums, function_imports,
                        piece_prelude)
 from .state import DEEP_OVERLAP_FRACTION
@@ -60,6 +60,12 @@ class _Source:
             size = np.size(effect.table_values())
             if size:
                 self.table_slot[e] = slot
+                slot += size
+        self.geometry_slot = {}  # walls' geometry blocks (a cylinder's) follow the tables
+        for e, effect in enumerate(plan.effects):
+            size = np.size(effect.geometry_values())
+            if size:
+                self.geometry_slot[e] = slot
                 slot += size
         self.sum_slot = []  # long-range sums: their tables follow the effects'
         for tuned in plan.sums:
@@ -364,7 +370,8 @@ class _Source:
                 first, last = runs[-1]
                 one = plan.effects[first]
                 tables = self.table_slot.get(first), self.table_slot.get(e), np.size(one.table_values())
-                if (effect.pair_functions() == one.pair_functions() and effect.parameters == one.parameters
+                if (e not in self.geometry_slot and first not in self.geometry_slot
+                        and effect.pair_functions() == one.pair_functions() and effect.parameters == one.parameters
                         and effect.history_size == one.history_size and effect.energy_kind == one.energy_kind
                         and np.size(effect.table_values()) == tables[2]
                         and (tables[0] is None) == (tables[1] is None)
@@ -412,6 +419,10 @@ class _Source:
                     # a sphere clear of the wall, holding no history there, costs this test and no
                     # call (the law would return zeros: measured 13 ns a sphere and frictional wall)
                     held = "".join(f" or history[i, {offset} + {h}] != 0.0" for h in range(effect.history_size))
+                    if e in self.geometry_slot:  # a cylinder: the plane it presents to sphere i
+                        lines += [self.wall_plane_line(e, q)]
+                        q = self.plane_of(e, q)
+                        call = [f"{', '.join(outs)} = {self.effect_call(e, effect, offset, 'force', q, table)}"]
                     lines += [f"overlap = radius[i] - (x * {q[1]} + y * {q[2]} + z * {q[3]} - {q[0]})",
                               f"if overlap > 0.0{held}:"]
                     pad = "    "
@@ -432,9 +443,20 @@ class _Source:
         for e, last in runs:
             effect = plan.effects[e]
             slot = 2 + self.kinds.index(effect.energy_kind)
-            lines += effect_lines(e, last, lambda index, offset, q, table, e=e, effect=effect, slot=slot: [
-                f"out[{slot}] += {self.effect_call(e, effect, offset, 'energy', q, table)}"])
+            lines += effect_lines(e, last, lambda index, offset, q, table, e=e, effect=effect, slot=slot: (
+                [self.wall_plane_line(e, q)] if e in self.geometry_slot else []) + [
+                f"out[{slot}] += {self.effect_call(e, effect, offset, 'energy', self.plane_of(e, q), table)}"])
         return lines
+
+    def plane_of(self, e, q):
+        """The names of effect e's parameters, a cylinder's first seven replaced by the plane it
+        presents to sphere i (set by :meth:`wall_plane_line`)."""
+        return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if e in self.geometry_slot else q
+
+    def wall_plane_line(self, e, q):
+        """The line setting the plane a cylinder (effect e) presents to sphere i (as tier 1's)."""
+        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {self.geometry_slot[e]}, "
+                f"{', '.join(q[:len(WALL_PLANE)])})")
 
     # ---- scene-level functions -----------------------------------------------------------------
     def group_call(self, g, group, kind, targets, extra, name=None):
@@ -565,8 +587,8 @@ class _Source:
                 lines.append(f"    earliest = min(earliest, earliest_crossing_list({args}, s.lists[{g}].start, "
                              f"s.lists[{g}].end, s.lists[{g}].partner, horizon))")
         for e, effect in enumerate(plan.effects):
-            if getattr(effect, "plane_contact", False):  # walls: parameters plane, nx, ny, nz first
-                q = self.effect_slot[e]
+            if getattr(effect, "plane_contact", False) and getattr(effect, "flat", True):
+                q = self.effect_slot[e]  # plane walls: parameters plane, nx, ny, nz first
                 lines.append(f"    earliest = min(earliest, earliest_wall_crossing(s.position, s.velocity, force, "
                              f"s.mass, s.radius, s.params[{q}], s.params[{q + 1}], s.params[{q + 2}], "
                              f"s.params[{q + 3}], horizon))")
@@ -630,6 +652,8 @@ class _Source:
             lines += ["from demkit.interactions.induction import induce, induction_energy", ""]
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.engine.events import earliest_wall_crossing", ""]
+        if self.geometry_slot:
+            lines += ["from demkit.interactions.cylinder import wall_plane", ""]
         for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
             module, name = tuned.kernel
             lines += [f"from {module} import {name} as long_range_{q}"]

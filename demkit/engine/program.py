@@ -23,7 +23,7 @@ G_MEMBERS = 11
 M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX = range(7)
 M_COLUMNS = 7
 # effect rows
-E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE = range(7)
+E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE, E_GEOMETRY = range(8)
 # long-range sum rows
 S_KIND, S_SLOT, S_ENERGY = range(3)
 # ... and after the members, the row's own group and speed (read by a scene's own pieces, tier 2)
@@ -121,7 +121,8 @@ def program_of(plan, slots, kinds):
             own.append(type(effect).__name__)  # (a plane contact's guard is the shipped walls')
         row = program[effect_row(e)]
         row[E_KIND] = OWN if law is None else law.kind
-        row[E_PLANE] = bool(getattr(effect, "plane_contact", False))
+        row[E_PLANE] = bool(getattr(effect, "plane_contact", False)) and getattr(effect, "flat", True)
+        row[E_GEOMETRY] = slots.geometry_slot.get(e, -1)  # a cylinder's geometry block (-1: a plane's own)
         row[E_SLOT] = slots.effect_slot[e]
         row[E_TABLE] = slots.table_slot.get(e, -1)
         row[E_OFFSET] = offsets[e]

@@ -133,6 +133,12 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
                  "    return countdown - 1"]
 
 
+#: the plane a wall presents to sphere i (its own, or a cylinder's tangent plane there) and the
+#: surface's velocity, set by demkit.interactions.cylinder.wall_plane: the first seven parameters
+#: of every plane-contact law
+WALL_PLANE = ("wp", "wnx", "wny", "wnz", "wux", "wuy", "wuz")
+
+
 #: the speeds of a pair loop's members, for multiple time stepping: all of them, the fast, the slow
 SPEEDS = (None, "fast", "slow")
 

@@ -49,6 +49,12 @@ class SphereInteraction(Interaction):
         """The effect's table of floats (1-D float64; empty: no table, see the module docstring)."""
         return np.zeros(0)
 
+    def geometry_values(self):
+        """A wall's geometry block (1-D float64; empty for a plane wall and every other effect): a
+        :class:`demkit.Cylinder` gives its axis, radius, side and rate of turning, from which the
+        compiled loops find the plane each sphere touches (demkit.interactions.cylinder.wall_plane)."""
+        return np.zeros(0)
+
     def stop_hint(self, position):
         """Why a sphere now at ``position`` (None if not finite) made a run go non-finite because of
         this effect, as words completing "particle id <n> ..." (e.g. "left the region of ..."), or

@@ -238,6 +238,9 @@ class Wall(SphereInteraction):
     dissipative = True
     energy_kind = "wall"
     plane_contact = True
+    #: a plane (not a cylinder): the fall-height bound and VelocityVerlet(resolve_contacts=True)'s
+    #: contact events treat flat walls only
+    flat = True
     repeatable = True  # a box of walls
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None):
@@ -309,9 +312,29 @@ class Wall(SphereInteraction):
         k = int(np.argmax(overlap))
         if overlap[k] > MAX_INITIAL_OVERLAP:
             raise ValueError(f"particle {particles.ids[k]} at {particles.position[k].tolist()} starts "
-                             f"{'behind' if overlap[k] > 1 else 'deep inside'} the wall through {self.point.tolist()} "
-                             f"with normal {self.normal.tolist()} (overlap {overlap[k]:.3g} of its radius; at "
-                             f"most {MAX_INITIAL_OVERLAP} is accepted at the start)")
+                             f"{'behind' if overlap[k] > 1 else 'deep inside'} {self.where()} (overlap "
+                             f"{overlap[k]:.3g} of its radius; at most {MAX_INITIAL_OVERLAP} is accepted at the start)")
+
+    def where(self):
+        """The wall in words, for messages."""
+        return f"the wall through {self.point.tolist()} with normal {self.normal.tolist()}"
+
+    def normals(self, position):
+        """The unit normal where each sphere touches the wall, into the spheres' side (N, 3)."""
+        return np.tile(self.normal, (len(np.atleast_2d(position)), 1))
+
+    def surface_velocities(self, position):
+        """The velocity of the wall's surface where each sphere touches it (N, 3)."""
+        return np.tile(self.velocity, (len(np.atleast_2d(position)), 1))
+
+    def parameters_at(self, position):
+        """The parameter values the wall's compiled functions take for a sphere centred at ``position``
+        (a plane wall: its own, wherever the sphere is)."""
+        return self.parameter_values()
+
+    def surface_speed(self):
+        """The fastest the wall's surface moves."""
+        return float(np.linalg.norm(self.velocity))
 
     def max_time_step(self, particles):
         return self.law.max_time_step(particles)

@@ -306,10 +306,10 @@ def _interactions(d, src, scale=None):
         if name == "magnet_field":
             for k, table in enumerate(value):
                 out.append(_magnet_field(table, ("interactions", "magnet_field", k), src, scale))
-        if name == "wall":
+        if name in ("wall", "cylinder"):
             for k, wall in enumerate(value):
-                with _At(src, "interactions", "wall", k, keys=wall):
-                    out.append(I.Wall(**wall))
+                with _At(src, "interactions", name, k, keys=wall):
+                    out.append((I.Wall if name == "wall" else I.Cylinder)(**wall))
     return out
 
 

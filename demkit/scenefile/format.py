@@ -231,6 +231,15 @@ INTERACTIONS = Table({
         "normal": Key("vector", REQUIRED, "normal pointing to the spheres' side"),
         "velocity": Key("vector", [0.0, 0.0, 0.0], "in-plane velocity of the wall", dim="velocity")},
         "a plane wall with the scene's contact law (dk.Wall)"), "plane walls, [[interactions.wall]], any number"),
+    "cylinder": Tables(Table({
+        "point": Key("vector", REQUIRED, "a point of the axis", dim="length"),
+        "axis": Key("vector", REQUIRED, "direction of the axis"),
+        "radius": _n("radius of the cylinder", default=REQUIRED, check="positive", dim="length"),
+        "inside": Key("bool", True, "the spheres are inside (a tube, drum) or outside (a post)"),
+        "angular_velocity": _n("rate of turning about the axis (right-handed): a rotating drum", default=0.0,
+                               dim="angular_velocity")},
+        "a cylindrical wall with the scene's contact law (dk.Cylinder)"),
+        "cylindrical walls, [[interactions.cylinder]], any number"),
 }, "the interactions, each a named table", one_of=((("dipole", "power_law_dipole"), False),
                                                    (("kelvin_voigt", "hertz"), False)))
 
@@ -309,7 +318,7 @@ SCHEMA = Table({
 
 #: order in which the interactions enter the scene (the file's order does not matter)
 INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field",
-                     "magnet_field", "wall", "langevin")
+                     "magnet_field", "wall", "cylinder", "langevin")
 
 
 _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",

@@ -1,0 +1,168 @@
+"""Cylindrical walls: tubes, silos and rotating drums, with the scene's contact law.
+
+A cylinder of radius R_c about the axis through ``point`` along the unit ``axis`` a bounds the spheres
+inside it (``inside=True``: a tube or drum) or outside it (a post). A sphere at x touches it where the
+radial direction e = (r - (r.a) a) / |r - (r.a) a|, r = x - point, meets the surface, S = point + (r.a) a
++ R_c e. There the cylinder looks to the sphere like the plane through S with normal n = -e (inside) or
++e (outside), and the contact is exactly that plane wall's (:mod:`demkit.interactions.wall`): overlap
+delta = R - (x - S).n = R - (R_c - d) inside, R - (d - R_c) outside (d the centre's distance from the
+axis), the same normal and tangential laws, friction history per sphere (turned into the new tangent
+plane as the sphere moves round), rolling and twisting resistance. Only the Hertz law's contact
+radius ignores the wall's curvature (R* = R, as for a plane): the exact Hertz stiffness of a sphere in
+a tube of radius R_c differs by about R / (4 R_c) (2.5 % for R_c = 10 R).
+
+The cylinder may turn about its own axis at ``angular_velocity`` omega (rad per unit time, right-handed
+about a): its surface then moves at u = omega a x (S - point) = omega R_c (a x e), its geometry does not
+change, so a rotating drum is a cylinder with omega != 0. It is infinitely long: close it with plane
+walls (:class:`demkit.Wall`) for caps.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..engine.motion import KERNEL_OPTIONS
+from .sphere import vector
+from .wall import Wall
+
+#: the cylinder's numbers in the scene's parameters (its geometry block), in this order
+GEOMETRY = ("px", "py", "pz", "ax", "ay", "az", "radius", "side", "omega")
+
+
+@njit(**KERNEL_OPTIONS)
+def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
+    """(plane, nx, ny, nz, ux, uy, uz): the tangent plane x.n = plane of the cylinder (axis through p
+    along the unit a, radius rc, side +1 inside, -1 outside) where the sphere centred at (x, y, z)
+    meets it, and the surface's velocity there (turning at omega about a)."""
+    rx = x - px
+    ry = y - py
+    rz = z - pz
+    h = rx * ax + ry * ay + rz * az
+    dx = rx - h * ax
+    dy = ry - h * ay
+    dz = rz - h * az
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d > 0.0:
+        ex = dx / d
+        ey = dy / d
+        ez = dz / d
+    else:  # a centre on the axis: every radial direction is as near; take one across the axis
+        if abs(ax) < 0.9:
+            ex, ey, ez = 0.0, -az, ay
+        else:
+            ex, ey, ez = az, 0.0, -ax
+        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= norm
+        ey /= norm
+        ez /= norm
+    sx = px + h * ax + rc * ex
+    sy = py + h * ay + rc * ey
+    sz = pz + h * az + rc * ez
+    nx = -side * ex
+    ny = -side * ey
+    nz = -side * ez
+    speed = omega * rc
+    return (sx * nx + sy * ny + sz * nz, nx, ny, nz, speed * (ay * ez - az * ey), speed * (az * ex - ax * ez),
+            speed * (ax * ey - ay * ex))
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_plane(x, y, z, params, g, plane, nx, ny, nz, ux, uy, uz):
+    """The plane a wall presents to the sphere at (x, y, z), and its surface velocity: a plane wall's
+    own (``g`` < 0: plane, nx, ..., uz as given), or the tangent plane of the cylinder whose numbers
+    (:data:`GEOMETRY`) start at params[g]. The compiled loops call every plane-contact law this way."""
+    if g < 0:
+        return plane, nx, ny, nz, ux, uy, uz
+    return cylinder_plane(x, y, z, params[g], params[g + 1], params[g + 2], params[g + 3], params[g + 4],
+                          params[g + 5], params[g + 6], params[g + 7], params[g + 8])
+
+
+class Cylinder(Wall):
+    """A cylindrical wall (see the module docstring): a tube, silo or rotating drum.
+
+    point : a point of the axis; axis : its direction (any length > 0); radius : R_c > 0;
+    inside : the spheres are inside (a tube, drum; default) or outside (a post);
+    angular_velocity : the cylinder's rate of turning about its axis (right-handed; default 0);
+    contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own.
+    """
+
+    flat = False  # contact events (resolve_contacts) and the fall-height bound treat plane walls only
+
+    def __init__(self, point, axis, radius, inside=True, angular_velocity=0.0, contact=None):
+        point = vector("Cylinder point", point)
+        axis = vector("Cylinder axis", axis)
+        length = float(np.linalg.norm(axis))
+        if length == 0.0:
+            raise ValueError("Cylinder axis has zero length")
+        radius = float(radius)
+        if not math.isfinite(radius) or radius <= 0.0:
+            raise ValueError(f"Cylinder radius must be positive and finite, got {radius}")
+        if inside not in (True, False):
+            raise ValueError(f"Cylinder inside must be True or False, got {inside!r}")
+        omega = float(angular_velocity)
+        if not math.isfinite(omega):
+            raise ValueError(f"Cylinder angular_velocity must be finite, got {angular_velocity!r}")
+        # the plane wall's attributes: a placeholder plane (the compiled loops read the geometry block)
+        super().__init__(point, axis, contact=contact)
+        self.axis = self.normal
+        self.radius, self.inside, self.angular_velocity = radius, bool(inside), omega
+
+    def geometry_values(self):
+        """The geometry block (:data:`GEOMETRY`): axis point, unit axis, radius, side, angular velocity."""
+        return np.array([*self.point, *self.axis, self.radius, 1.0 if self.inside else -1.0,
+                         self.angular_velocity], dtype=np.float64)
+
+    def distances(self, position):
+        """Distance of each centre from the axis (the shape of ``position`` without its last axis)."""
+        r = np.asarray(position, dtype=float) - self.point
+        return np.linalg.norm(r - (r @ self.axis)[..., None] * self.axis, axis=-1)
+
+    def heights(self, position):
+        """Signed distance of each centre from the surface (positive on the spheres' side)."""
+        d = self.distances(position)
+        return self.radius - d if self.inside else d - self.radius
+
+    def normals(self, position):
+        """The unit normal of the surface where each sphere touches it, into the spheres' side (N, 3)."""
+        values = self.geometry_values()
+        planes = [cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float))]
+        return np.array([plane[1:4] for plane in planes]).reshape(-1, 3)
+
+    def surface_velocities(self, position):
+        """The velocity of the surface where each sphere touches it (N, 3)."""
+        values = self.geometry_values()
+        planes = [cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float))]
+        return np.array([plane[4:7] for plane in planes]).reshape(-1, 3)
+
+    def parameters_at(self, position):
+        """The parameter values for a sphere centred at ``position``: the tangent plane it meets and the
+        surface's velocity there in place of a plane wall's seven geometry values."""
+        values = np.array(self.parameter_values(), dtype=np.float64)
+        values[:7] = cylinder_plane(*np.asarray(position, dtype=float), *self.geometry_values())
+        return values
+
+    def surface_speed(self):
+        """The fastest the surface moves: |omega| R_c."""
+        return abs(self.angular_velocity) * self.radius
+
+    def where(self):
+        return (f"the cylinder of radius {self.radius:.6g} about the axis through {self.point.tolist()} along "
+                f"{self.axis.tolist()} ({'inside' if self.inside else 'outside'})")
+
+    def check(self, particles):
+        super().check(particles)
+        if self.angular_velocity != 0.0 and getattr(self.law, "rolling", None) is not None:
+            raise ValueError(f"{self!r} turns, and its contact law {self.law!r} has rolling resistance, which "
+                             f"acts on the sphere's spin against a wall that does not turn: not available for "
+                             f"a turning cylinder yet (leave out rolling, or the cylinder's angular_velocity)")
+        if self.inside and particles.radius.max() >= self.radius:
+            k = int(np.argmax(particles.radius))
+            raise ValueError(f"particle {particles.ids[k]} of radius {particles.radius[k]:.6g} does not fit inside the "
+                             f"cylinder of radius {self.radius:.6g}")
+
+    def __repr__(self):
+        return (f"Cylinder(point={self.point.tolist()}, axis={self.axis.tolist()}, radius={self.radius!r}, "
+                f"inside={self.inside}, angular_velocity={self.angular_velocity!r})")
+
