@@ -35,7 +35,8 @@ def small_scene(tier):
     law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
                          twisting=dk.TwistingResistance())
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0)),
-             dk.Cylinder((0.8, 0.8, 0.0), (0, 0, 1), 1.62, angular_velocity=0.5)]  # (pressing the first sphere)
+             dk.Cylinder((0.8, 0.8, 0.0), (0, 0, 1), 1.62, angular_velocity=0.5,  # (pressing the first sphere)
+                         contact=dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4)))]
     return dk.Scene(p, [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5), law, dk.Gravity((0, 0, -1.0)),
                         dk.UniformField((0.0, 0.05, 0.02)), *walls], tier=tier)
 
@@ -282,9 +283,14 @@ def test_program_layout():
     assert kinds == ["switched_dipole_force", "kelvin_voigt_twisting_force"]
     fast = program[layout.group_row(0, 1)]
     assert fast[layout.G_COUNT] == 1  # the contact law alone (the dipole is slow)
-    assert program[0, layout.H_EFFECTS] == 5
-    names = [effects[program[layout.effect_row(e), layout.E_KIND]].force_name for e in range(5)]
+    assert program[0, layout.H_EFFECTS] == 6
+    names = [effects[program[layout.effect_row(e), layout.E_KIND]].force_name for e in range(6)]
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
+    assert names[5] == "wall_kelvin_voigt_friction_force"  # the cylinder: a wall kind, with its geometry block
+    geometry = [program[layout.effect_row(e), layout.E_GEOMETRY] for e in range(6)]
+    assert geometry[:5] == [-1] * 5 and np.array_equal(scene.params[geometry[5]:geometry[5] + 9],
+                                                       scene.effects[5].geometry_values())
+    assert [program[layout.effect_row(e), layout.E_PLANE] for e in range(6)] == [0, 0, 1, 1, 1, 0]
 
 
 def shipped_interactions():
