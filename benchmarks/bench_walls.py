@@ -1,0 +1,105 @@
+"""What a wall costs per sphere touching it: a plane wall (dk.Wall) against a cylinder (dk.Cylinder),
+at rest and turning, on tier 1 and tier 2.
+
+    python3 benchmarks/bench_walls.py [--seconds S] [--rounds N]
+
+Each scene is N = 4000 fixed spheres (radius 0.5: their forces are computed every step and they stay
+where they are) with a Kelvin-Voigt contact law with friction over neighbour lists, spaced 3 radii
+apart so that no two touch, every one pressed 1e-3 into the wall: on a floor (the plane), on the
+inside of a drum of radius 60 with its axis along z (the cylinder, at rest or turning at 0.5 rad per
+unit time; a ring of spheres repeated along the axis). The same spheres without any wall are the baseline;
+(time a step - baseline) / N is the cost of one sphere touching one wall. Each figure is the
+median of ``rounds`` fresh processes, stepping for about S seconds after warming up (compiling
+excluded), the scenes taking turns. Results: benchmarks/results/walls.json.
+"""
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results" / "walls.json"
+
+CHILD = r"""
+import json, math, sys, time
+import numpy as np
+import demkit as dk
+kind, tier, seconds = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+n, R, gap = 4000, 0.5, 1.5
+law = dk.KelvinVoigt(1e4, 10.0, friction=dk.Friction(0.5))
+if kind in ("none", "plane"):
+    side = int(math.ceil(math.sqrt(n)))
+    k = np.arange(n)
+    position = np.stack([(k % side) * 2 * gap, np.full(n, R - 1e-3), (k // side) * 2 * gap], axis=1)
+    walls = [dk.Wall((0, 0, 0), (0, 1, 0))] if kind == "plane" else []
+else:  # a drum: rings of spheres around the axis (z), spaced 3 R along it
+    big = 60.0
+    ring = int(2 * math.pi * (big - R) / (2 * gap))
+    k = np.arange(n)
+    angle = 2 * math.pi * (k % ring) / ring
+    arm = big - R + 1e-3
+    position = np.stack([arm * np.cos(angle), arm * np.sin(angle), (k // ring) * 2 * gap], axis=1)
+    walls = [dk.Cylinder((0, 0, 0), (0, 0, 1), big, angular_velocity=0.5 if kind == "turning" else 0.0)]
+p = dk.Particles(position=position, radius=R, mass=1.0, fixed=np.ones(n, dtype=bool))  # held pressed in the wall
+scene = dk.Scene(p, [law, *walls], tier=tier)
+sim = dk.Simulation(scene, dk.VelocityVerlet(1e-4), notes=False)
+sim.run(duration=20e-4, progress=False)  # compile or load, first lists
+steps = 20
+while True:
+    t = time.perf_counter(); sim.run(duration=steps * 1e-4, progress=False); took = time.perf_counter() - t
+    if took > seconds:
+        break
+    steps = int(steps * min(10.0, 1.5 * seconds / max(took, 1e-3)))
+print("RESULT", json.dumps({"ns_per_step": took / steps * 1e9, "touching": int(len(scene.contacts().overlap)),
+                            "tier": sim.statistics["tier"]}))
+"""
+
+KINDS = ("none", "plane", "cylinder", "turning")
+
+
+def child(kind, tier, seconds):
+    env = dict(os.environ, DEMKIT_QUIET="1")
+    env.pop("DEMKIT_TIER", None)
+    done = subprocess.run([sys.executable, "-c", CHILD, kind, str(tier), str(seconds)], capture_output=True,
+                          text=True, env=env, timeout=1800)
+    if done.returncode:
+        raise SystemExit(done.stderr)
+    return json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT"))[6:])
+
+
+def main(argv):
+    seconds = float(argv[argv.index("--seconds") + 1]) if "--seconds" in argv else 3.0
+    rounds = int(argv[argv.index("--rounds") + 1]) if "--rounds" in argv else 3
+    runs = {(kind, tier): [] for kind in KINDS for tier in (1, 2)}
+    touching = {}
+    for tier in (1, 2):  # compile (or load) every scene's code once before timing
+        for kind in KINDS:
+            touching[kind] = child(kind, tier, 0.2)["touching"]
+    for r in range(rounds):
+        for tier in (1, 2):
+            for kind in (KINDS if r % 2 == 0 else KINDS[::-1]):
+                result = child(kind, tier, seconds)
+                assert result["tier"] == tier, result
+                runs[kind, tier].append(result["ns_per_step"])
+                print(kind, tier, round(result["ns_per_step"]), flush=True)
+    rows = []
+    for tier in (1, 2):
+        base = statistics.median(runs["none", tier])
+        for kind in KINDS[1:]:
+            step = statistics.median(runs[kind, tier])
+            rows.append({"wall": kind, "tier": tier, "touching": touching[kind], "ns_per_step": step,
+                         "baseline_ns_per_step": base, "ns_per_touching_sphere": (step - base) / touching[kind],
+                         "runs": runs[kind, tier], "baseline_runs": runs["none", tier]})
+            print(json.dumps({k: v for k, v in rows[-1].items() if "runs" not in k}), flush=True)
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps({"machine": {"cores": os.cpu_count(), "date": time.strftime("%Y-%m-%d %H:%M")},
+                                   "spheres": 4000, "rows": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
