@@ -1,6 +1,6 @@
 """Stepping speed of this tree against another revision, side by side: did a change cost speed?
 
-    python3 benchmarks/bench_side_by_side.py <revision> [scene,...] [--rounds N] [--seconds S]
+    python3 benchmarks/bench_side_by_side.py <revision> [scene,...] [--rounds N] [--seconds S] [--out NAME]
 
 For each scene of benchmarks/bench_latency.py (default: the paper's two magnets, the 600-sphere magnetic
 gas with Hertz contacts and friction, the 3000-sphere frictional pour onto walls), on tier 1 and on
@@ -8,7 +8,7 @@ tier 2, a fresh process of each tree steps for about S seconds after warming up 
 the two trees taking turns round after round so that a slow spell of the machine falls on both. The
 revision is checked out in a temporary git worktree; the two trees' compiled modules share one cache
 (their names differ by demkit's source fingerprint): DEMKIT_CACHE_DIR when set, else a temporary one. Medians and every run go to
-benchmarks/results/side_by_side.json. This machine's runs of the same code differ by 10-15 %.
+benchmarks/results/side_by_side.json (``--out NAME``: benchmarks/results/NAME.json). This machine's runs of the same code differ by 10-15 %.
 """
 from __future__ import annotations
 
@@ -84,9 +84,10 @@ def main(argv):
               f"ratio {row['ratio_this_to_base']:.3f}")
     result = {"machine": {"cores": os.cpu_count(), "date": time.strftime("%Y-%m-%d %H:%M")}, "this": this_commit,
               "base": base_commit, "rounds": rounds, "seconds": seconds, "rows": rows}
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"wrote {RESULTS}")
+    out = RESULTS.with_name(argv[argv.index("--out") + 1] + ".json") if "--out" in argv else RESULTS
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

@@ -117,10 +117,10 @@ def test_multiple_time_steps_with_lists_same_bits():
 
 
 def walled_pour(tier, n=72):
-    """Spheres falling in a box of five walls in open space: Hertz contacts with friction and twisting
-    resistance over neighbour lists, dipoles at every range over all pairs, one sphere in four
-    magnetisable (the induced moments solved before the forces of every step), gravity, a field and a
-    Langevin bath (tier 2: the scene's own pieces under the generic loops, its sphere loop a switch
+    """Spheres falling in a box of five walls with rounded corners (a cylinder) in open space: Hertz
+    contacts with friction and twisting resistance over neighbour lists, dipoles at every range over
+    all pairs, one sphere in four magnetisable (the induced moments solved before the forces of every
+    step), gravity, a field and a Langevin bath (tier 2: the scene's own pieces under the generic loops, its sphere loop a switch
     over its effects' kinds; with induced moments an open scene gets pieces, not a fused module)."""
     k = np.arange(n)
     rng = np.random.default_rng(6)
@@ -129,7 +129,8 @@ def walled_pour(tier, n=72):
                      mass=1.0, dipole=0.1 * rng.normal(size=(n, 3)), susceptibility=np.where(k % 4 == 1, 2.0, 0.0))
     law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5), twisting=dk.TwistingResistance())
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
-             dk.Wall((5.5, 5.5, 0), (-1, 0, 0)), dk.Wall((5.5, 5.5, 0), (0, -1, 0))]
+             dk.Wall((5.5, 5.5, 0), (-1, 0, 0)), dk.Wall((5.5, 5.5, 0), (0, -1, 0)),
+             dk.Cylinder((2.75, 2.75, 0.0), (0, 0, 1), 3.3)]  # (rounding the box's corners)
     effects = [dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0.1, 0.3)), dk.Langevin(drag=0.5, temperature=0.01, seed=4)]
     return dk.Scene(p, [dk.Dipole(prefactor=0.02), law, *effects, *walls], skin=0.4, tier=tier)
 
