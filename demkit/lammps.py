@@ -50,7 +50,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .integrators import VelocityVerlet
-from .interactions import (Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, PowerLawDipole, UniformField, Wall)
+from .interactions import (Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, PowerLawDipole, UniformField,
+                           Wall)
 
 #: tested LAMMPS version
 LAMMPS_VERSION = "29 Sep 2021"
@@ -188,6 +189,9 @@ class _Export:
             if kind is MagnetField:
                 raise ValueError("MagnetField (a tabulated field of real magnets) has no LAMMPS fix: it cannot be "
                                  "exported")
+            if kind is Cylinder:
+                raise ValueError(f"{effect!r}: LAMMPS' equivalent, fix wall/gran/region with a cylinder region (rotating "
+                                 f"with 'rotate'), is not exported yet; only plane walls are")
             if kind not in (Wall, Gravity, UniformField):
                 raise ValueError(f"{effect!r} ({kind.__name__}) has no LAMMPS equivalent the export knows: only "
                                  f"Wall, Gravity and UniformField can be exported")

@@ -229,3 +229,11 @@ def test_moving_walls_work_on_the_spheres_so_no_energy_balance_is_watched():
         sim.run(0.5, progress=False)
         assert not any("energy balance" in note for note in sim.statistics["notes"])
         assert sim.statistics.get("energy_drift") is None
+
+
+def test_the_lammps_export_names_what_a_cylinder_would_need(tmp_path):
+    """LAMMPS has fix wall/gran/region with a cylinder region; the export does not write it yet and
+    says so instead of writing a deck without the drum."""
+    with pytest.raises(ValueError, match="wall/gran/region"):
+        dk.export_lammps(drum_scene(omega=1.0), dk.VelocityVerlet(1e-4), tmp_path, duration=0.01)
+    assert not list(tmp_path.iterdir())  # nothing written
