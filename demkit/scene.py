@@ -624,6 +624,8 @@ class Scene(SceneDiagnostics):
             self._check_geometry()
         for effect in self.effects:  # walls: no sphere behind or deep inside one
             effect.check(p)
+            if self.box is not None and hasattr(effect, "check_box"):
+                effect.check_box(self.box)
         if len(p) < 2:
             return
         pairs = self.close_pairs(2.0 * float(np.max(p.radius)))

@@ -237,3 +237,18 @@ def test_the_lammps_export_names_what_a_cylinder_would_need(tmp_path):
     with pytest.raises(ValueError, match="wall/gran/region"):
         dk.export_lammps(drum_scene(omega=1.0), dk.VelocityVerlet(1e-4), tmp_path, duration=0.01)
     assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_a_cylinder_must_run_along_a_periodic_axis_or_fit_inside_the_box_across_it():
+    """A tube along z in a box periodic along z is a periodic pipe; one across x in a box periodic
+    along x must fit within the box (else the spheres' periodic copies sit on the wrong side)."""
+    p = dk.Particles(position=[[5.0, 5.0, 1.0]], radius=0.5, mass=1.0)
+    law = dk.KelvinVoigt(1e4, 1.0)
+    dk.Scene(p, [law, dk.Cylinder((5, 5, 0), (0, 0, 1), 3.0)], box=dk.Box(10.0, periodic=[False, False, True]))
+    dk.Scene(p, [law, dk.Cylinder((5, 5, 0), (0, 0, 1), 3.0)], box=dk.Box(10.0, periodic=[True, True, True]))
+    with pytest.raises(ValueError, match="periodic axis x"):
+        dk.Scene(p, [law, dk.Cylinder((5, 5, 0), (0, 0, 1), 6.0)], box=dk.Box(10.0, periodic=[True, False, False]))
+    with pytest.raises(ValueError, match="periodic axis y"):  # a post: outside it, the copies are everywhere
+        dk.Scene(dk.Particles(position=[[9.0, 5.0, 1.0]], radius=0.5, mass=1.0),
+                 [law, dk.Cylinder((5, 5, 0), (0, 0, 1), 3.0, inside=False)],
+                 box=dk.Box(10.0, periodic=[False, True, False]))

@@ -162,6 +162,18 @@ class Cylinder(Wall):
             raise ValueError(f"particle {particles.ids[k]} of radius {particles.radius[k]:.6g} does not fit inside the "
                              f"cylinder of radius {self.radius:.6g}")
 
+    def check_box(self, box):
+        """Along a periodic axis the spheres' images repeat: the cylinder must run along that axis, or lie
+        inside the box across it (a tube within the box), else a periodic copy of a sphere would be
+        on the wrong side of the wall."""
+        for k in np.flatnonzero(box.periodic):
+            along = abs(float(self.axis[k])) == 1.0
+            fits = self.inside and 0.0 <= self.point[k] - self.radius and self.point[k] + self.radius <= box.size[k]
+            if not (along or fits):
+                raise ValueError(f"{self!r} crosses the box's periodic axis {'xyz'[k]} (size {box.size[k]:.6g}): a "
+                                 f"cylinder in a periodic box must run along each periodic axis or, inside, fit "
+                                 f"within the box across it")
+
     def __repr__(self):
         return (f"Cylinder(point={self.point.tolist()}, axis={self.axis.tolist()}, radius={self.radius!r}, "
                 f"inside={self.inside}, angular_velocity={self.angular_velocity!r})")
