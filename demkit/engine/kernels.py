@@ -29,9 +29,9 @@ import numpy as np
 
 from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
-                       PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments, _pair_call,
-                       _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums, function_imports,
-                       piece_prelude)
+                       PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments,
+                       _pair_call, _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums,
+                       function_imports, piece_prelude)
 from .state import DEEP_OVERLAP_FRACTION
 
 
