@@ -252,3 +252,15 @@ def test_a_cylinder_must_run_along_a_periodic_axis_or_fit_inside_the_box_across_
         dk.Scene(dk.Particles(position=[[9.0, 5.0, 1.0]], radius=0.5, mass=1.0),
                  [law, dk.Cylinder((5, 5, 0), (0, 0, 1), 3.0, inside=False)],
                  box=dk.Box(10.0, periodic=[False, True, False]))
+
+
+def test_a_plane_wall_must_not_cut_a_periodic_axis():
+    """A floor across the periodic x and y of a box is fine; a wall whose normal leans along a periodic
+    axis would put the spheres' periodic copies behind it (LAMMPS refuses a wall in a periodic
+    dimension too): a ValueError naming the axis."""
+    p = dk.Particles(position=[[5.0, 5.0, 1.0]], radius=0.5, mass=1.0)
+    law = dk.KelvinVoigt(1e4, 1.0)
+    box = dk.Box(10.0, periodic=[True, True, False])
+    dk.Scene(p, [law, dk.Wall((0, 0, 0), (0, 0, 1))], box=box)
+    with pytest.raises(ValueError, match="periodic axis x"):
+        dk.Scene(p, [law, dk.Wall((0, 0, 0), (0.1, 0, 1))], box=box)

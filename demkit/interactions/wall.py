@@ -315,6 +315,14 @@ class Wall(SphereInteraction):
                              f"{'behind' if overlap[k] > 1 else 'deep inside'} {self.where()} (overlap "
                              f"{overlap[k]:.3g} of its radius; at most {MAX_INITIAL_OVERLAP} is accepted at the start)")
 
+    def check_box(self, box):
+        """A plane wall must not cut a periodic axis: its normal has no component along one (a sphere's
+        periodic copy would sit behind the wall; LAMMPS refuses a wall in a periodic dimension too)."""
+        for k in np.flatnonzero(box.periodic):
+            if abs(float(self.normal[k])) > 1e-12:
+                raise ValueError(f"{self!r} cuts the box's periodic axis {'xyz'[k]}: a wall's normal must have no "
+                                 f"component along a periodic axis (make the box open along {'xyz'[k]})")
+
     def where(self):
         """The wall in words, for messages."""
         return f"the wall through {self.point.tolist()} with normal {self.normal.tolist()}"
