@@ -108,7 +108,8 @@ def _fields(scene, reads):
 
 def _evaluate(law, first, fields, history, params):
     """Call a contact law's (or wall's) force function for each contact; rows (force 3, torque_i 3,
-    torque_j 3, power). ``first(k)`` gives the geometric arguments of contact k before the fields."""
+    torque_j 3, power). ``first(k)`` gives the geometric arguments of contact k before the fields;
+    ``params``: the parameter values, or one row of them per contact (a cylinder's tangent planes)."""
     force_function = law.pair_functions()[0]
     table = law.table_values() if hasattr(law, "table_values") else np.zeros(0)
     rows = np.zeros((len(history), 10))
@@ -118,7 +119,7 @@ def _evaluate(law, first, fields, history, params):
             args += [history, k, 0, False]
         if table.size:  # a wall of a law with twisting resistance: its table (demkit.interactions.wall)
             args += [table, 0]
-        out = force_function(*args, *(params(k) if callable(params) else params))
+        out = force_function(*args, *(params[k] if np.ndim(params) == 2 else params))
         rows[k, :3], rows[k, 9] = out[:3], out[-1]
         if len(out) == 10:  # a pair: torques on i and j
             rows[k, 3:9] = out[3:9]
@@ -182,8 +183,8 @@ def wall_contacts(scene, wall, number):
         i = int(spheres[k])
         return [i, x[i, 0], x[i, 1], x[i, 2]]
 
-    rows = _evaluate(wall, first, _fields(scene, wall.reads), history,
-                     lambda k: wall.parameters_at(x[spheres[k]]))  # (a cylinder: the plane each sphere meets)
+    # (a cylinder: each sphere's parameters hold the plane it meets)
+    rows = _evaluate(wall, first, _fields(scene, wall.reads), history, wall.parameters_at(x[spheres]))
     n = len(spheres)
     normal = wall.normals(x[spheres]).reshape(n, 3)
     point = x[spheres] - (p.radius[spheres] - overlap[spheres])[:, None] * normal

@@ -75,9 +75,11 @@ def _pair_call(law, kind, owner="i", prefix="", held=False):
     return f"law_{law.kind}_{kind}({', '.join(args)})"
 
 
-def wall_plane_line(values):
-    """The line that sets :data:`WALL_PLANE` for sphere i from a wall's seven geometry ``values``."""
-    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], {', '.join(values)})"
+def wall_plane_line():
+    """The line that sets :data:`WALL_PLANE` for sphere i from the wall's first seven parameters and its
+    row's geometry block."""
+    values = ", ".join(f"params[slot + {m}]" for m in range(len(WALL_PLANE)))
+    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], {values})"
 
 
 def _effect_call(law, kind):
@@ -351,7 +353,7 @@ class _Generic:
             body = [f"{', '.join(outs)} = {_effect_call(law, 'force')}"]
             lines = []
             if law.plane_contact:  # walls: plane, nx, ny, nz come first (see demkit.engine.kernels)
-                lines += [wall_plane_line([f"params[slot + {m}]" for m in range(len(WALL_PLANE))]),
+                lines += [wall_plane_line(),
                           "overlap = radius[i] - (x * wnx + y * wny + z * wnz - wp)",
                           "held = False",
                           "for h in range(off, off + program[er, E_SIZE]):",
@@ -374,7 +376,7 @@ class _Generic:
                   '    """Add the potential energies of the single-sphere effects to out[kind]."""']
         lines += piece_prelude("sphere_energies") + head
         lines += _switch(self.effects, " " * 12, lambda law: (
-            [wall_plane_line([f"params[slot + {m}]" for m in range(len(WALL_PLANE))])] if law.plane_contact else [])
+            [wall_plane_line()] if law.plane_contact else [])
             + [f"out[program[er, E_ENERGY]] += {_effect_call(law, 'energy')}"])
         lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",
                   "                out[program[er, E_ENERGY]] += own(e, i, x, y, z, s, history, off, False, slot, table)[0]"]

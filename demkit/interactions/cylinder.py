@@ -124,23 +124,22 @@ class Cylinder(Wall):
         d = self.distances(position)
         return self.radius - d if self.inside else d - self.radius
 
+    def planes(self, position):
+        """The tangent plane each centre meets and the surface's velocity there, (N, 7): plane, n, u (as
+        :func:`cylinder_plane`)."""
+        values = self.geometry_values()
+        return np.array([cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float))],
+                        dtype=np.float64).reshape(-1, 7)
+
     def normals(self, position):
         """The unit normal of the surface where each sphere touches it, into the spheres' side (N, 3)."""
-        values = self.geometry_values()
-        planes = [cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float))]
-        return np.array([plane[1:4] for plane in planes]).reshape(-1, 3)
-
-    def surface_velocities(self, position):
-        """The velocity of the surface where each sphere touches it (N, 3)."""
-        values = self.geometry_values()
-        planes = [cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float))]
-        return np.array([plane[4:7] for plane in planes]).reshape(-1, 3)
+        return self.planes(position)[:, 1:4]
 
     def parameters_at(self, position):
-        """The parameter values for a sphere centred at ``position``: the tangent plane it meets and the
-        surface's velocity there in place of a plane wall's seven geometry values."""
-        values = np.array(self.parameter_values(), dtype=np.float64)
-        values[:7] = cylinder_plane(*np.asarray(position, dtype=float), *self.geometry_values())
+        """The parameter values for spheres centred at ``position`` (N, P): the tangent plane each meets
+        and the surface's velocity there in place of a plane wall's seven geometry values."""
+        values = super().parameters_at(position)
+        values[:, :7] = self.planes(position)
         return values
 
     def surface_speed(self):

@@ -331,14 +331,10 @@ class Wall(SphereInteraction):
         """The unit normal where each sphere touches the wall, into the spheres' side (N, 3)."""
         return np.tile(self.normal, (len(np.atleast_2d(position)), 1))
 
-    def surface_velocities(self, position):
-        """The velocity of the wall's surface where each sphere touches it (N, 3)."""
-        return np.tile(self.velocity, (len(np.atleast_2d(position)), 1))
-
     def parameters_at(self, position):
-        """The parameter values the wall's compiled functions take for a sphere centred at ``position``
-        (a plane wall: its own, wherever the sphere is)."""
-        return self.parameter_values()
+        """The parameter values the wall's compiled functions take for spheres centred at ``position``,
+        (N, P): a plane wall's own, wherever the spheres are."""
+        return np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
 
     def surface_speed(self):
         """The fastest the wall's surface moves."""
