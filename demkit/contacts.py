@@ -171,7 +171,7 @@ def pair_contacts(scene, law):
 def wall_contacts(scene, wall, number):
     """Contacts of the spheres with one wall."""
     p = scene.particles
-    overlap = p.radius - wall.heights(p.position)
+    overlap = p.radius - wall.heights(p.position, scene.time)
     spheres = np.flatnonzero(overlap > 0.0)
     if wall.history_size:
         history = np.ascontiguousarray(scene.sphere_history(wall)[spheres])
@@ -184,9 +184,9 @@ def wall_contacts(scene, wall, number):
         return [i, x[i, 0], x[i, 1], x[i, 2]]
 
     # (a cylinder: each sphere's parameters hold the plane it meets)
-    rows = _evaluate(wall, first, _fields(scene, wall.reads), history, wall.parameters_at(x[spheres]))
+    rows = _evaluate(wall, first, _fields(scene, wall.reads), history, wall.parameters_at(x[spheres], scene.time))
     n = len(spheres)
-    normal = wall.normals(x[spheres]).reshape(n, 3)
+    normal = wall.normals(x[spheres], scene.time).reshape(n, 3)
     point = x[spheres] - (p.radius[spheres] - overlap[spheres])[:, None] * normal
     pairs = np.stack([np.full(n, -1), spheres], axis=1).astype(np.int64)
     return _table(pairs, np.full(n, number), point, normal, overlap[spheres], rows, _mu(wall.law))

@@ -171,7 +171,7 @@ def touching_now(scene, tree=None):
     else:
         tree = tree if tree is not None else centres_tree(scene)
         pairs = (int(tree.count_neighbors(tree, 2.0 * float(np.mean(p.radius)))) - len(p)) // 2
-    walls = sum(int(np.sum(w.heights(p.position) < p.radius)) for w in scene.effects if isinstance(w, Wall))
+    walls = sum(int(np.sum(w.heights(p.position, scene.time) < p.radius)) for w in scene.effects if isinstance(w, Wall))
     return pairs + walls
 
 

@@ -56,8 +56,8 @@ class Integrator:
         if self.resolve_contacts:
             curved = [e for e in scene.effects if not getattr(e, "flat", True)]
             if curved:
-                raise ValueError(f"{self!r} locates contacts with plane walls only, and this scene has {curved[0]!r}: "
-                                 f"use {type(self).__name__}(dt) without resolve_contacts")
+                raise ValueError(f"{self!r} locates contacts with plane walls that stand still only, and this scene has "
+                                 f"{curved[0]!r}: use {type(self).__name__}(dt) without resolve_contacts")
         if not self.history:
             kept = scene.history_keepers()
             if kept:

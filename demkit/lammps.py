@@ -25,9 +25,10 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   friction -> ``tangential mindlin NULL sqrt(4 G*/E*) mu``;
 * ``Wall`` (axis-aligned) -> ``fix wall/gran granular hooke ... xplane lo NULL`` (Hertz: the modulus
   2 E/(1 + nu) that LAMMPS' wall formula turns into demkit's E/(1 - nu^2)), an
-  in-plane velocity -> ``shear``; an oblique wall at rest -> ``region plane`` + ``fix
-  wall/gran/region`` (the same sphere-wall contact code); ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix
-  efield`` with E = B / sqrt(A) (torque mu x E);
+  in-plane velocity -> ``shear``, a vibration along its normal -> ``wiggle``; an oblique wall at
+  rest -> ``region plane`` + ``fix wall/gran/region`` (the same sphere-wall contact code);
+  ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix efield`` with E = B / sqrt(A) (torque
+  mu x E);
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
   a second-order splitting instead of demkit's exact rotation; ``dipole_update="euler"`` gives
   LAMMPS' default first-order step).
@@ -342,6 +343,11 @@ class _Export:
                          "torque")
         model = self.granular_model(wall.law, wall=True)
         moving = np.flatnonzero(wall.velocity != 0.0)
+        if wall.travels:  # LAMMPS moves a plane wall only by wiggle: A (1 - cos 2 pi t / period) along its normal
+            shaken = np.flatnonzero(wall.amplitude != 0.0)
+            if len(axes) > 1 or len(moving) or list(shaken) != [int(axes[0])]:
+                raise ValueError(f"{wall!r}: LAMMPS moves a wall only by 'wiggle' (a vibration along the normal of a "
+                                 f"wall normal to x, y or z, without a velocity); this motion cannot be exported")
         if len(axes) > 1:
             if len(moving):
                 raise ValueError(f"{wall!r}: an oblique wall that slides in its plane cannot be exported (LAMMPS' "
@@ -359,6 +365,8 @@ class _Export:
                              f"{len(moving)}")
         if len(moving) == 1:
             line += f" shear {'xyz'[int(moving[0])]} {g17(wall.velocity[moving[0]])}"
+        if wall.travels:
+            line += f" wiggle {'xyz'[a]} {g17(wall.amplitude[a])} {g17(1.0 / wall.frequency)}"
         return line
 
 

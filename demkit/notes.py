@@ -66,8 +66,9 @@ def _all_pairs(n):
     return np.triu_indices(n, k=1)
 
 
-def _relative(position, radius, box, pairs, walls):
-    """Relative overlaps (positive where touching) of frames (F, N, 3), as (frames, values) items:
+def _relative(position, radius, box, pairs, walls, times=None):
+    """Relative overlaps (positive where touching) of frames (F, N, 3) (at ``times``, for walls that
+    move; default 0), as (frames, values) items:
     (slice of every frame, (F, M) array) for the pairs up to FEW spheres and for the walls, and
     (frame k, (M,) array) for the pairs of each frame above FEW spheres (a k-d tree a frame)."""
     count, n = position.shape[:2]
@@ -78,7 +79,10 @@ def _relative(position, radius, box, pairs, walls):
             d = box.minimum_image(d)
         yield slice(None), (radius[i] + radius[j] - np.linalg.norm(d, axis=2)) / np.minimum(radius[i], radius[j])
     for wall in walls:
-        yield slice(None), (radius - wall.heights(position)) / radius
+        if getattr(wall, "travels", False) and times is not None:
+            yield slice(None), np.stack([(radius - wall.heights(x, t)) / radius for x, t in zip(position, times)])
+        else:
+            yield slice(None), (radius - wall.heights(position)) / radius
     if pairs and n > FEW:
         for k in range(count):
             touching, r = close_pairs(position[k], radius, box, distances=True)
@@ -114,19 +118,22 @@ class RunNotes:
         """The figures so far (JSON numbers), from which :class:`RunNotes` goes on after a resume."""
         return {name: getattr(self, name) for name in self.STATE}
 
-    def frames(self, position, energy, steps):
+    def frames(self, position, energy, steps, times=None):
         """Read frames covering ``steps`` steps of the run (all its frames at once, or the frames
         recorded since the last call): ``position`` (F, N, 3) as recorded, ``energy`` (F, K) rows
-        [kinetic, rotational, potentials..., dissipated]."""
+        [kinetic, rotational, potentials..., dissipated], ``times`` (F,) their times (where moving
+        walls stood; default 0)."""
         count, n = position.shape[:2]
         taken = min(SPHERE_FRAMES // max(n, 1), steps // STEPS_PER_FRAME)
         if (self.pairs or self.walls) and count and n and taken > 0:
             radius = np.asarray(self.scene.particles.radius, dtype=np.float64)
             if count > taken:
-                position = position[np.unique(np.linspace(0, count - 1, max(taken, 2)).round().astype(np.int64))]
+                kept = np.unique(np.linspace(0, count - 1, max(taken, 2)).round().astype(np.int64))
+                position = position[kept]
+                times = times[kept] if times is not None else None
             self.read += len(position)
             total, touching = np.zeros(len(position)), np.zeros(len(position))  # per frame
-            for frames, rel in _relative(position, radius, self.scene.box, self.pairs, self.walls):
+            for frames, rel in _relative(position, radius, self.scene.box, self.pairs, self.walls, times):
                 positive = np.maximum(rel, 0.0)
                 self.largest = max(self.largest, float(positive.max(initial=0.0)))
                 total[frames] += positive.sum(axis=-1)

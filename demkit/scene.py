@@ -152,6 +152,7 @@ class Scene(SceneDiagnostics):
         self.force = np.zeros((n, 3))
         self.torque = np.zeros((n, 3))
         self.accum = np.zeros(1)  # accum[0]: work dissipated so far
+        self.clock = np.zeros(1)  # clock[0]: the time the forces are evaluated at (see `time`)
         self._synced = None  # digest of the user's arrays when they last matched the kernels' (see push)
         self.stepping = False  # inside a Simulation.run: the arrays are the kernels' (push has nothing to do)
         self.stepped_by = None  # the Simulation whose run or resume last left the state as it is
@@ -447,7 +448,7 @@ class Scene(SceneDiagnostics):
             position=own(p.position), velocity=own(p.velocity), angular_velocity=own(omega), dipole=own(dipole),
             radius=own(p.radius), mass=mass, inertia=inertia, tag=np.arange(n, dtype=np.int64),
             image=own(image),
-            force=self.force, torque=self.torque, accum=self.accum, params=self.params,
+            force=self.force, torque=self.torque, accum=self.accum, clock=self.clock, params=self.params,
             box=self.box.size.copy() if self.box is not None else np.zeros(3),
             periodic=np.array(self.periodic), reference=np.full((n, 3), np.inf) if growing else empty_vectors(),
             skin=self.skin, status=np.zeros(4, dtype=np.int64),
@@ -587,6 +588,20 @@ class Scene(SceneDiagnostics):
         return float(self.accum[0])
 
     @property
+    def time(self):
+        """The time of the state: moving walls stand where they are at this time when the forces,
+        energies and contacts are evaluated. A Simulation sets it (steps taken times dt) and its runs
+        move it on; a new scene starts at 0."""
+        return float(self.clock[0])
+
+    @time.setter
+    def time(self, value):
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError(f"Scene time must be finite, got {value}")
+        self.clock[0] = value
+
+    @property
     def counters(self):
         return self.arrays["counters"]
 
@@ -622,8 +637,8 @@ class Scene(SceneDiagnostics):
         p.check_fixed()
         if self.box is not None:
             self._check_geometry()
-        for effect in self.effects:  # walls: no sphere behind or deep inside one
-            effect.check(p)
+        for effect in self.effects:  # walls: no sphere behind or deep inside one, where it stands now
+            effect.check(p, self.time) if getattr(effect, "plane_contact", False) else effect.check(p)
             if self.box is not None and hasattr(effect, "check_box"):
                 effect.check_box(self.box)
         if len(p) < 2:

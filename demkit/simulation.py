@@ -309,6 +309,7 @@ class Simulation(Recording, Stops):
         scene.set_time_step(self.integrator.contact_step)
         scene.counters[INNER_STEPS] = self.integrator.inner
         self.step = meta["step"]
+        scene.time = self.time  # the state saved is that of this time (moving walls stand where they did then)
         self.forces_valid = bool(meta.get("forces_valid"))
         origin = meta.get("energy_origin")
         self.energy_origin = tuple(origin) if origin is not None else None
@@ -356,6 +357,14 @@ class Simulation(Recording, Stops):
         is recomputed (O(N) re-entry). Returns whether the forces are ready."""
         scene = self.scene
         continuing = scene.in_sync and scene.stepped_by is self
+        if scene.time != self.time:  # another simulation moved the scene's clock on
+            travelling = [e for e in scene.effects if getattr(e, "travels", False)]
+            if travelling:
+                raise ValueError(f"the scene's clock stands at t = {scene.time:.6g} (another Simulation stepped it), this "
+                                 f"Simulation's at t = {self.time:.6g}: {travelling[0]!r} would jump to where it stands "
+                                 f"then. Go on with the Simulation that stepped the scene, or set scene.time = "
+                                 f"{self.time!r} to move the wall back on purpose")
+        scene.time = self.time  # the clock moving walls follow
         if not continuing:
             self.forces_valid = False
             scene.validate()
@@ -459,8 +468,9 @@ class Simulation(Recording, Stops):
         (``steps`` of the run's steps: the notes' sampling budget)."""
         notes, read = self._notes
         if count > read:
-            record = self._recording[0]
-            notes.frames(record[0][read:count], record[4][read:count], max(steps, 0))
+            record, first, stride = self._recording
+            times = np.minimum(first + np.arange(read, count) * stride, self.step) * self.integrator.dt
+            notes.frames(record[0][read:count], record[4][read:count], max(steps, 0), times)
             self._notes[1] = count
         return notes
 

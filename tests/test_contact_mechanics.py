@@ -430,7 +430,7 @@ def test_a_scene_without_friction_keeps_no_history_and_compiles_no_friction():
     (lambda: dk.Friction(coefficient=0.1, stiffness=0.0), "stiffness"),
     (lambda: dk.Wall(point=(0, 0, 0), normal=(0, 0, 0)), "zero length"),
     (lambda: dk.Wall(point=(0, 0), normal=(0, 0, 1)), "3-vector"),
-    (lambda: dk.Wall(point=(0, 0, 0), normal=(0, 0, 1), velocity=(0, 0, 1)), "plane"),
+    (lambda: dk.Wall(point=(0, 0, 0), normal=(0, 0, 1), frequency=2.0), "amplitude and a frequency"),
     (lambda: dk.UniformField((0, 1)), "3-vector"),
     (lambda: dk.UniformField((0, float("nan"), 1)), "finite"),
 ])

@@ -41,14 +41,14 @@ def test_the_tangent_plane_is_the_nearest_point_of_the_surface(rng):
         surface = point + np.outer(r @ axis, axis) + 2.5 * e
         normal = -e if inside else e
         for k in range(len(x)):
-            plane, nx, ny, nz, ux, uy, uz = cylinder_plane(*x[k], *cyl.geometry_values())
+            plane, nx, ny, nz, ux, uy, uz = cylinder_plane(*x[k], *cyl.shape_values())
             assert np.allclose([nx, ny, nz], normal[k], atol=1e-14)
             assert plane == pytest.approx(surface[k] @ normal[k], abs=1e-12)
             assert np.allclose([ux, uy, uz], -0.7 * np.cross(axis, surface[k] - point), atol=1e-13)
         assert np.allclose(cyl.heights(x), 2.5 - d if inside else d - 2.5, atol=1e-13)
         assert np.allclose(cyl.normals(x), normal, atol=1e-14)
     # a centre on the axis: some radial direction across the axis, a unit normal
-    plane, nx, ny, nz, *_ = cylinder_plane(*point, *dk.Cylinder(point, axis, 1.0).geometry_values())
+    plane, nx, ny, nz, *_ = cylinder_plane(*point, *dk.Cylinder(point, axis, 1.0).shape_values())
     assert math.hypot(nx, ny, nz) == pytest.approx(1.0) and abs(np.dot([nx, ny, nz], axis)) < 1e-15
 
 
@@ -68,7 +68,7 @@ def test_bad_cylinders_and_spheres_that_do_not_fit_are_refused():
     p = dk.Particles(position=[[2.9, 0.0, 0.0]], radius=0.5, mass=1.0)
     with pytest.raises(ValueError, match="deep inside the cylinder of radius 3"):
         dk.Scene(p, [law, dk.Cylinder((0, 0, 0), (0, 0, 1), 3.0)])
-    with pytest.raises(ValueError, match="plane walls only"):
+    with pytest.raises(ValueError, match="plane walls that stand still only"):
         dk.Simulation(drum_scene(), dk.VelocityVerlet(1e-4, resolve_contacts=True))
 
 

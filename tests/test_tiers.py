@@ -23,9 +23,9 @@ def automatic_tier(monkeypatch):
 
 
 def small_scene(tier):
-    """Six spheres in open space (all pairs, no lists) above a floor, between walls and inside a turning
-    cylinder: Kelvin-Voigt contacts with friction, rolling and twisting resistance, a switched
-    dipole, gravity and a field."""
+    """Six spheres in open space (all pairs, no lists) above a vibrated floor, between walls and inside a
+    turning, shaken cylinder: Kelvin-Voigt contacts with friction, rolling and twisting resistance, a
+    switched dipole, gravity and a field."""
     rng = np.random.default_rng(4)
     pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5],
                     [1.6, 0.4, 1.4]])
@@ -34,9 +34,11 @@ def small_scene(tier):
                      angular_velocity=rng.normal(size=(6, 3)), dipole=0.3 * d / np.linalg.norm(d, axis=1)[:, None])
     law = dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4), rolling=dk.RollingResistance(0.05),
                          twisting=dk.TwistingResistance())
-    walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)), dk.Wall((2.2, 2.2, 0), (-1, 0, 0)),
+    walls = [dk.Wall((0, 0, 0), (0, 0, 1), amplitude=(0, 0, 0.01), frequency=3.0), dk.Wall((-0.5, -0.5, 0), (1, 0, 0)),
+             dk.Wall((2.2, 2.2, 0), (-1, 0, 0)),
              dk.Cylinder((0.8, 0.8, 0.0), (0, 0, 1), 1.62, angular_velocity=0.5,  # (pressing the first sphere)
-                         contact=dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4)))]
+                         contact=dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4)), amplitude=(0.01, 0.0, 0.0),
+                         frequency=2.0)]
     return dk.Scene(p, [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5), law, dk.Gravity((0, 0, -1.0)),
                         dk.UniformField((0.0, 0.05, 0.02)), *walls], tier=tier)
 
@@ -117,7 +119,7 @@ def test_multiple_time_steps_with_lists_same_bits():
 
 
 def walled_pour(tier, n=72):
-    """Spheres falling in a box of five walls with rounded corners (a cylinder) in open space: Hertz
+    """Spheres falling in a box of five walls (one a piston) with rounded corners (a cylinder) in open space: Hertz
     contacts with friction and twisting resistance over neighbour lists, dipoles at every range over
     all pairs, one sphere in four magnetisable (the induced moments solved before the forces of every
     step), gravity, a field and a Langevin bath (tier 2: the scene's own pieces under the generic loops, its sphere loop a switch
@@ -129,7 +131,8 @@ def walled_pour(tier, n=72):
                      mass=1.0, dipole=0.1 * rng.normal(size=(n, 3)), susceptibility=np.where(k % 4 == 1, 2.0, 0.0))
     law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5), twisting=dk.TwistingResistance())
     walls = [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 0), (1, 0, 0)), dk.Wall((0, 0, 0), (0, 1, 0)),
-             dk.Wall((5.5, 5.5, 0), (-1, 0, 0)), dk.Wall((5.5, 5.5, 0), (0, -1, 0)),
+             dk.Wall((5.5, 5.5, 0), (-1, 0, 0), velocity=(-0.2, 0.0, 0.0)),  # (a piston)
+             dk.Wall((5.5, 5.5, 0), (0, -1, 0)),
              dk.Cylinder((2.75, 2.75, 0.0), (0, 0, 1), 3.3)]  # (rounding the box's corners)
     effects = [dk.Gravity((0, 0, -1.0)), dk.UniformField((0, 0.1, 0.3)), dk.Langevin(drag=0.5, temperature=0.01, seed=4)]
     return dk.Scene(p, [dk.Dipole(prefactor=0.02), law, *effects, *walls], skin=0.4, tier=tier)
@@ -289,9 +292,11 @@ def test_program_layout():
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
     assert names[5] == "wall_kelvin_voigt_friction_force"  # the cylinder: a wall kind, with its geometry block
     geometry = [program[layout.effect_row(e), layout.E_GEOMETRY] for e in range(6)]
-    assert geometry[:5] == [-1] * 5 and np.array_equal(scene.params[geometry[5]:geometry[5] + 9],
-                                                       scene.effects[5].geometry_values())
-    assert [program[layout.effect_row(e), layout.E_PLANE] for e in range(6)] == [0, 0, 1, 1, 1, 0]
+    # the vibrated floor (shape 0 and its motion: 8 numbers) and the cylinder (17) have blocks
+    assert geometry[:2] == [-1] * 2 and geometry[3:5] == [-1] * 2
+    for e, size in ((2, 8), (5, 17)):
+        assert np.array_equal(scene.params[geometry[e]:geometry[e] + size], scene.effects[e].geometry_values())
+    assert [program[layout.effect_row(e), layout.E_PLANE] for e in range(6)] == [0, 0, 0, 1, 1, 0]
 
 
 def shipped_interactions():

@@ -39,8 +39,8 @@ class _Switches:
         for effect in scene.effects:
             if isinstance(effect, Wall):
                 if not effect.flat:
-                    raise ValueError(f"the accuracy reference locates contacts with plane walls only, and this scene "
-                                     f"has {effect!r}")
+                    raise ValueError(f"the accuracy reference locates contacts with plane walls that stand still only, "
+                                     f"and this scene has {effect!r}")
                 law = effect.law
                 kink = None
                 if isinstance(law, KelvinVoigt) and law.no_tension and law.damping > 0:

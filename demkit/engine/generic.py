@@ -79,7 +79,7 @@ def wall_plane_line():
     """The line that sets :data:`WALL_PLANE` for sphere i from the wall's first seven parameters and its
     row's geometry block."""
     values = ", ".join(f"params[slot + {m}]" for m in range(len(WALL_PLANE)))
-    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], {values})"
+    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], clock[0], {values})"
 
 
 def _effect_call(law, kind):
@@ -565,7 +565,7 @@ class _Generic:
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
                  "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE,",
                  "                            E_GEOMETRY)",
-                 "from demkit.interactions.cylinder import wall_plane",
+                 "from demkit.interactions.wall_motion import wall_plane",
                  f"OWN = {OWN}",
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",

@@ -455,7 +455,7 @@ class _Source:
 
     def wall_plane_line(self, e, q):
         """The line setting the plane a cylinder (effect e) presents to sphere i (as tier 1's)."""
-        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {self.geometry_slot[e]}, "
+        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {self.geometry_slot[e]}, clock[0], "
                 f"{', '.join(q[:len(WALL_PLANE)])})")
 
     # ---- scene-level functions -----------------------------------------------------------------
@@ -653,7 +653,7 @@ class _Source:
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.engine.events import earliest_wall_crossing", ""]
         if self.geometry_slot:
-            lines += ["from demkit.interactions.cylinder import wall_plane", ""]
+            lines += ["from demkit.interactions.wall_motion import wall_plane", ""]
         for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
             module, name = tuned.kernel
             lines += [f"from {module} import {name} as long_range_{q}"]

@@ -6,7 +6,7 @@ from __future__ import annotations
 from .state import DEEP_OVERLAP_FRACTION
 
 
-ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status"
+ARRAYS = "position, velocity, angular_velocity, dipole, radius, mass, box, params, status, clock"
 LIST_ARRAYS = "start, end, partner, history"
 
 #: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
@@ -134,7 +134,7 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
 
 
 #: the plane a wall presents to sphere i (its own, or a cylinder's tangent plane there) and the
-#: surface's velocity, set by demkit.interactions.cylinder.wall_plane: the first seven parameters
+#: surface's velocity, set by demkit.interactions.wall_motion.wall_plane: the first seven parameters
 #: of every plane-contact law
 WALL_PLANE = ("wp", "wnx", "wny", "wnz", "wux", "wuy", "wuz")
 

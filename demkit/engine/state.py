@@ -50,7 +50,7 @@ REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START = 0, 1,
 
 PAIR_LIST_FIELDS = ("reach", "start", "end", "partner", "history", "bounds")
 STATE_FIELDS = ("position", "velocity", "angular_velocity", "dipole", "radius", "mass", "inertia",
-                "tag", "image", "force", "torque", "accum", "params", "box", "periodic", "reference",
+                "tag", "image", "force", "torque", "accum", "clock", "params", "box", "periodic", "reference",
                 "skin", "status", "counters", "lists", "thread_force", "thread_torque", "thread_power",
                 "scratch", "gather", "sphere_history", "stage", "program")
 
@@ -187,7 +187,7 @@ def pair_loop_arrays(s, g):
     demkit.engine.snippets.LIST_ARRAYS), and the program, from a state with neighbour lists."""
     pl = s.lists[g]
     return (s.position, s.velocity, s.angular_velocity, s.dipole, s.radius, s.mass, s.box, s.params, s.status,
-            pl.start, pl.end, pl.partner, pl.history, s.program)
+            s.clock, pl.start, pl.end, pl.partner, pl.history, s.program)
 
 
 def touch_getters(state):

@@ -13,8 +13,10 @@ a tube of radius R_c differs by about R / (4 R_c) (2.5 % for R_c = 10 R).
 
 The cylinder may turn about its own axis at ``angular_velocity`` omega (rad per unit time, right-handed
 about a): its surface then moves at u = omega a x (S - point) = omega R_c (a x e), its geometry does not
-change, so a rotating drum is a cylinder with omega != 0. It is infinitely long: close it with plane
-walls (:class:`demkit.Wall`) for caps.
+change, so a rotating drum is a cylinder with omega != 0. Like a plane wall it may also be carried by
+a translation D(t) = V t + A (1 - cos 2 pi f t) (``velocity``, ``amplitude``, ``frequency``; a shaken tube):
+the compiled loops find its tangent plane with demkit.interactions.wall_motion.wall_plane. It is
+infinitely long: close it with plane walls (:class:`demkit.Wall`) for caps.
 """
 from __future__ import annotations
 
@@ -27,7 +29,8 @@ from ..engine.motion import KERNEL_OPTIONS
 from .sphere import vector
 from .wall import Wall
 
-#: the cylinder's numbers in the scene's parameters (its geometry block), in this order
+#: the cylinder's numbers in its geometry block, in this order (after the shape code and the motion:
+#: demkit.interactions.wall_motion)
 GEOMETRY = ("px", "py", "pz", "ax", "ay", "az", "radius", "side", "omega")
 
 
@@ -68,29 +71,22 @@ def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
             speed * (ax * ey - ay * ex))
 
 
-@njit(**KERNEL_OPTIONS)
-def wall_plane(x, y, z, params, g, plane, nx, ny, nz, ux, uy, uz):
-    """The plane a wall presents to the sphere at (x, y, z), and its surface velocity: a plane wall's
-    own (``g`` < 0: plane, nx, ..., uz as given), or the tangent plane of the cylinder whose numbers
-    (:data:`GEOMETRY`) start at params[g]. The compiled loops call every plane-contact law this way."""
-    if g < 0:
-        return plane, nx, ny, nz, ux, uy, uz
-    return cylinder_plane(x, y, z, params[g], params[g + 1], params[g + 2], params[g + 3], params[g + 4],
-                          params[g + 5], params[g + 6], params[g + 7], params[g + 8])
-
-
 class Cylinder(Wall):
     """A cylindrical wall (see the module docstring): a tube, silo or rotating drum.
 
     point : a point of the axis; axis : its direction (any length > 0); radius : R_c > 0;
     inside : the spheres are inside (a tube, drum; default) or outside (a post);
     angular_velocity : the cylinder's rate of turning about its axis (right-handed; default 0);
-    contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own.
+    velocity, amplitude, frequency : a translation V t + A (1 - cos 2 pi f t) of the whole cylinder (default
+    none); contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own.
     """
 
     flat = False  # contact events (resolve_contacts) and the fall-height bound treat plane walls only
+    steady = False  # the compiled loops read its geometry block
+    shape = 1
 
-    def __init__(self, point, axis, radius, inside=True, angular_velocity=0.0, contact=None):
+    def __init__(self, point, axis, radius, inside=True, angular_velocity=0.0, contact=None,
+                 velocity=(0.0, 0.0, 0.0), amplitude=(0.0, 0.0, 0.0), frequency=0.0):
         point = vector("Cylinder point", point)
         axis = vector("Cylinder axis", axis)
         length = float(np.linalg.norm(axis))
@@ -105,53 +101,67 @@ class Cylinder(Wall):
         if not math.isfinite(omega):
             raise ValueError(f"Cylinder angular_velocity must be finite, got {angular_velocity!r}")
         # the plane wall's attributes: a placeholder plane (the compiled loops read the geometry block)
-        super().__init__(point, axis, contact=contact)
+        super().__init__(point, axis, velocity=velocity, contact=contact, amplitude=amplitude, frequency=frequency)
         self.axis = self.normal
         self.radius, self.inside, self.angular_velocity = radius, bool(inside), omega
 
-    def geometry_values(self):
-        """The geometry block (:data:`GEOMETRY`): axis point, unit axis, radius, side, angular velocity."""
+    @property
+    def travels(self):
+        """Is the cylinder carried by a translation (where it stands depends on the scene's clock)?"""
+        return bool(self.velocity.any() or self.amplitude.any())
+
+    def shape_values(self):
+        """The cylinder's numbers (:data:`GEOMETRY`): axis point at time 0, unit axis, radius, side,
+        angular velocity."""
         return np.array([*self.point, *self.axis, self.radius, 1.0 if self.inside else -1.0,
                          self.angular_velocity], dtype=np.float64)
 
-    def distances(self, position):
-        """Distance of each centre from the axis (the shape of ``position`` without its last axis)."""
-        r = np.asarray(position, dtype=float) - self.point
+    def geometry_values(self):
+        """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion)."""
+        return np.array([self.shape, *self.motion_values(), *self.shape_values()], dtype=np.float64)
+
+    def distances(self, position, time=0.0):
+        """Distance of each centre from the axis at ``time`` (the shape of ``position`` without its last axis)."""
+        r = np.asarray(position, dtype=float) - self.point - self.displacement(time)[0]
         return np.linalg.norm(r - (r @ self.axis)[..., None] * self.axis, axis=-1)
 
-    def heights(self, position):
-        """Signed distance of each centre from the surface (positive on the spheres' side)."""
-        d = self.distances(position)
+    def heights(self, position, time=0.0):
+        """Signed distance of each centre from the surface at ``time`` (positive on the spheres' side)."""
+        d = self.distances(position, time)
         return self.radius - d if self.inside else d - self.radius
 
-    def planes(self, position):
-        """The tangent plane each centre meets and the surface's velocity there, (N, 7): plane, n, u (as
-        :func:`cylinder_plane`)."""
-        values = self.geometry_values()
-        return np.array([cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float))],
+    def planes(self, position, time=0.0):
+        """The tangent plane each centre meets at ``time`` and the surface's velocity there, (N, 7):
+        plane, n, u (as demkit.interactions.wall_motion.wall_plane)."""
+        shift, speed = self.displacement(time)
+        values = self.shape_values()
+        rows = np.array([cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float)) - shift],
                         dtype=np.float64).reshape(-1, 7)
+        rows[:, 0] += rows[:, 1:4] @ shift
+        rows[:, 4:7] += speed
+        return rows
 
-    def normals(self, position):
+    def normals(self, position, time=0.0):
         """The unit normal of the surface where each sphere touches it, into the spheres' side (N, 3)."""
-        return self.planes(position)[:, 1:4]
+        return self.planes(position, time)[:, 1:4]
 
-    def parameters_at(self, position):
-        """The parameter values for spheres centred at ``position`` (N, P): the tangent plane each meets
-        and the surface's velocity there in place of a plane wall's seven geometry values."""
-        values = super().parameters_at(position)
-        values[:, :7] = self.planes(position)
+    def parameters_at(self, position, time=0.0):
+        """The parameter values for spheres centred at ``position`` at ``time`` (N, P): the tangent plane
+        each meets and the surface's velocity there in place of a plane wall's seven geometry values."""
+        values = np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
+        values[:, :7] = self.planes(position, time)
         return values
 
     def surface_speed(self):
-        """The fastest the surface moves: |omega| R_c."""
-        return abs(self.angular_velocity) * self.radius
+        """The fastest the surface moves: |omega| R_c + |V| + 2 pi f |A|."""
+        return abs(self.angular_velocity) * self.radius + super().surface_speed()
 
     def where(self):
         return (f"the cylinder of radius {self.radius:.6g} about the axis through {self.point.tolist()} along "
                 f"{self.axis.tolist()} ({'inside' if self.inside else 'outside'})")
 
-    def check(self, particles):
-        super().check(particles)
+    def check(self, particles, time=0.0):
+        super().check(particles, time)
         if self.angular_velocity != 0.0 and getattr(self.law, "rolling", None) is not None:
             raise ValueError(f"{self!r} turns, and its contact law {self.law!r} has rolling resistance, which "
                              f"acts on the sphere's spin against a wall that does not turn: not available for "
@@ -167,13 +177,14 @@ class Cylinder(Wall):
         on the wrong side of the wall."""
         for k in np.flatnonzero(box.periodic):
             along = abs(float(self.axis[k])) == 1.0
-            fits = self.inside and 0.0 <= self.point[k] - self.radius and self.point[k] + self.radius <= box.size[k]
+            fits = (self.inside and 0.0 <= self.point[k] - self.radius and self.point[k] + self.radius <= box.size[k]
+                    and self.velocity[k] == 0.0 and self.amplitude[k] == 0.0)
             if not (along or fits):
                 raise ValueError(f"{self!r} crosses the box's periodic axis {'xyz'[k]} (size {box.size[k]:.6g}): a "
                                  f"cylinder in a periodic box must run along each periodic axis or, inside, fit "
-                                 f"within the box across it")
+                                 f"within the box across it and not move along it")
 
     def __repr__(self):
         return (f"Cylinder(point={self.point.tolist()}, axis={self.axis.tolist()}, radius={self.radius!r}, "
-                f"inside={self.inside}, angular_velocity={self.angular_velocity!r})")
+                f"inside={self.inside}, angular_velocity={self.angular_velocity!r}{self.motion_repr()})")
 

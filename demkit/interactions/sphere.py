@@ -50,9 +50,10 @@ class SphereInteraction(Interaction):
         return np.zeros(0)
 
     def geometry_values(self):
-        """A wall's geometry block (1-D float64; empty for a plane wall and every other effect): a
-        :class:`demkit.Cylinder` gives its axis, radius, side and rate of turning, from which the
-        compiled loops find the plane each sphere touches (demkit.interactions.cylinder.wall_plane)."""
+        """A wall's geometry block (1-D float64; empty for a steady plane wall and every other effect): a
+        moving wall's motion, a :class:`demkit.Cylinder`'s axis, radius, side and rate of turning, from
+        which the compiled loops find the plane each sphere touches at the scene's clock
+        (demkit.interactions.wall_motion.wall_plane)."""
         return np.zeros(0)
 
     def stop_hint(self, position):

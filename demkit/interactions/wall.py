@@ -3,8 +3,13 @@
 A wall through ``point`` with unit ``normal`` n bounds the half-space (x - p).n > 0 where spheres
 live. A sphere of radius R at height h = (x - p).n overlaps it by delta = R - h; the contact is the
 pair contact with the wall as a partner of infinite mass and radius (R* = R, m* = m) whose
-material is rigid (Hertz: E* = E/(1 - nu^2), G* = G/(2 - nu)). The wall may slide in its own plane
-with ``velocity`` (a conveyor or shear plate; its geometry does not change). Friction keeps each
+material is rigid (Hertz: E* = E/(1 - nu^2), G* = G/(2 - nu)). The wall may move: it is carried by
+the displacement D(t) = V t + A (1 - cos 2 pi f t) (``velocity`` V, ``amplitude`` A, ``frequency`` f, any
+directions), so it stands at x.n = p.n + D(t).n and its surface moves at D'(t) = V + 2 pi f A sin(2 pi f t):
+a velocity in the plane slides it (a conveyor or shear plate), one along n is a piston, an amplitude
+along n vibrates it (a vibrated bed: it starts at rest at ``point`` and swings to point + 2 A and back,
+as LAMMPS' fix wall/gran ``wiggle``; peak acceleration (2 pi f)^2 |A|). Time is the scene's clock (:attr:`demkit.Scene.time`, set by the
+time loops at every force evaluation; demkit.interactions.wall_motion.wall_plane). Friction keeps each
 sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
 wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
 with twisting passes its rolling and twisting numbers to the wall functions as a table
@@ -18,6 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import checks
 from ..engine.motion import KERNEL_OPTIONS
 
 from .contact import KelvinVoigt, kelvin_voigt_normal
@@ -229,38 +235,43 @@ TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"
 class Wall(SphereInteraction):
     """An infinite plane wall (see module docstring).
 
-    point : a point of the plane; normal : points into the half-space of the spheres (any length
-    > 0); velocity : in-plane velocity of the wall surface (default at rest); contact : the contact
-    law (a :class:`KelvinVoigt` or :class:`Hertz`), default the scene's own (which must then have
-    exactly one).
+    point : a point of the plane at time 0; normal : points into the half-space of the spheres (any
+    length > 0); velocity : the wall's constant velocity (in its plane: it slides; along the normal:
+    a piston; default at rest); amplitude, frequency : a vibration A (1 - cos 2 pi f t) added to its
+    motion (length vector, cycles per unit time; default none); contact : the contact law (a
+    :class:`KelvinVoigt` or :class:`Hertz`), default the scene's own (which must then have exactly one).
     """
 
     dissipative = True
     energy_kind = "wall"
     plane_contact = True
-    #: a plane (not a cylinder): the fall-height bound and VelocityVerlet(resolve_contacts=True)'s
-    #: contact events treat flat walls only
-    flat = True
     repeatable = True  # a box of walls
+    #: the shape's code in the geometry block (demkit.interactions.wall_motion.SHAPES)
+    shape = 0
 
-    def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None):
-        self.point = vector("Wall point", point)
-        normal = vector("Wall normal", normal)
+    def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None, amplitude=(0.0, 0.0, 0.0),
+                 frequency=0.0):
+        name = type(self).__name__
+        self.point = vector(f"{name} point", point)
+        normal = vector(f"{name} normal", normal)
         length = float(np.linalg.norm(normal))
         if length == 0.0:
-            raise ValueError("Wall normal has zero length")
+            raise ValueError(f"{name} normal has zero length")
         self.normal = normal / length
-        self.velocity = vector("Wall velocity", velocity)
-        along = float(self.velocity @ self.normal)
-        if abs(along) > 1e-12 * max(1.0, float(np.linalg.norm(self.velocity))):
-            raise ValueError(f"Wall velocity must lie in the wall's plane (it has {along:.6g} along the normal): "
-                             f"an infinite plane can only slide in itself")
+        self.velocity = vector(f"{name} velocity", velocity)
+        self.amplitude = vector(f"{name} amplitude", amplitude)
+        self.frequency = checks.number(f"{name} frequency", frequency)
+        if not math.isfinite(self.frequency) or self.frequency < 0.0:
+            raise ValueError(f"{name} frequency must be finite and >= 0, got {frequency!r}")
+        if (self.frequency > 0.0) != bool(self.amplitude.any()):
+            raise ValueError(f"{name} vibrates with an amplitude and a frequency, both non-zero: got amplitude "
+                             f"{self.amplitude.tolist()} and frequency {self.frequency!r}")
         if contact is not None and not isinstance(contact, (KelvinVoigt, Hertz)):
             raise TypeError(f"Wall contact must be a KelvinVoigt or Hertz contact law, got {contact!r}")
         self.contact = contact
-        self.plane = float(self.point @ self.normal)  # the plane is x.n = plane
+        self.plane = float(self.point @ self.normal)  # the plane is x.n = plane (at time 0)
         self.nx, self.ny, self.nz = (float(c) for c in self.normal)
-        self.ux, self.uy, self.uz = (float(c) for c in self.velocity)
+        self.ux, self.uy, self.uz = (float(c) for c in self.velocity)  # (a moving wall's come from its block)
         if contact is not None:
             self._adopt(contact)
 
@@ -296,19 +307,57 @@ class Wall(SphereInteraction):
             self.young_eff = 2.0 * law.young_eff
             self.shear_eff = 2.0 * law.shear_eff
 
+    @property
+    def steady(self):
+        """Does the wall's geometry stay as it is (a plane at rest or sliding in itself)? Walls that are
+        not steady carry a geometry block (:meth:`geometry_values`) that the compiled loops read the
+        motion from, at the scene's clock."""
+        along = float(self.velocity @ self.normal)
+        return not self.amplitude.any() and abs(along) <= 1e-12 * max(1.0, float(np.linalg.norm(self.velocity)))
+
+    @property
+    def travels(self):
+        """Does the wall's geometry move with time (a piston, a vibrated plate): where it stands depends on
+        the scene's clock."""
+        return not self.steady
+
+    @property
+    def flat(self):
+        """A plane standing still along its normal: the fall-height bound, VelocityVerlet(resolve_contacts=True)'s
+        contact events and the accuracy reference treat only these (a plane that slides in itself is one)."""
+        return self.steady
+
+    def motion_values(self):
+        """The motion's part of the geometry block: velocity, amplitude, angular frequency 2 pi f."""
+        return np.array([*self.velocity, *self.amplitude, 2.0 * math.pi * self.frequency], dtype=np.float64)
+
+    def geometry_values(self):
+        """The geometry block of a moving plane (shape 0, then :meth:`motion_values`); empty for a steady
+        one (its plane is its parameters)."""
+        if self.steady:
+            return np.zeros(0)
+        return np.array([self.shape, *self.motion_values()], dtype=np.float64)
+
+    def displacement(self, time):
+        """(D, D'): how far the wall has moved from where it stood at time 0, and its velocity, at ``time``."""
+        w = 2.0 * math.pi * self.frequency
+        return (self.velocity * time + self.amplitude * (1.0 - math.cos(w * time)),
+                self.velocity + self.amplitude * (w * math.sin(w * time)))
+
     def table_values(self):
         """A twisting law's rolling and twisting numbers (see :data:`TWIST_TABLE`), else empty."""
         return getattr(self, "table", np.zeros(0))
 
-    def heights(self, position):
-        """Signed distance of each centre from the plane (positive on the spheres' side)."""
-        return (np.asarray(position) - self.point) @ self.normal
+    def heights(self, position, time=0.0):
+        """Signed distance of each centre from the plane at ``time`` (positive on the spheres' side)."""
+        return (np.asarray(position) - self.point - self.displacement(time)[0]) @ self.normal
 
-    def check(self, particles):
+    def check(self, particles, time=0.0):
+        """No sphere behind or deep inside the wall where it stands at ``time`` (the scene's clock)."""
         super().check(particles)
         if not hasattr(self, "law"):
             raise ValueError("Wall has no contact law yet: add it to a Scene with one, or pass contact=...")
-        overlap = (particles.radius - self.heights(particles.position)) / particles.radius
+        overlap = (particles.radius - self.heights(particles.position, time)) / particles.radius
         k = int(np.argmax(overlap))
         if overlap[k] > MAX_INITIAL_OVERLAP:
             raise ValueError(f"particle {particles.ids[k]} at {particles.position[k].tolist()} starts "
@@ -327,21 +376,34 @@ class Wall(SphereInteraction):
         """The wall in words, for messages."""
         return f"the wall through {self.point.tolist()} with normal {self.normal.tolist()}"
 
-    def normals(self, position):
+    def normals(self, position, time=0.0):
         """The unit normal where each sphere touches the wall, into the spheres' side (N, 3)."""
         return np.tile(self.normal, (len(np.atleast_2d(position)), 1))
 
-    def parameters_at(self, position):
-        """The parameter values the wall's compiled functions take for spheres centred at ``position``,
-        (N, P): a plane wall's own, wherever the spheres are."""
-        return np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
+    def parameters_at(self, position, time=0.0):
+        """The parameter values the wall's compiled functions take for spheres centred at ``position`` at
+        ``time``, (N, P): a plane wall's own wherever the spheres are, its plane and surface velocity
+        where its motion has taken it (as demkit.interactions.wall_motion.wall_plane)."""
+        values = np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
+        if not self.steady:
+            shift, speed = self.displacement(time)
+            values[:, 0] += float(shift @ self.normal)
+            values[:, 4:7] = speed
+        return values
 
     def surface_speed(self):
-        """The fastest the wall's surface moves."""
-        return float(np.linalg.norm(self.velocity))
+        """The fastest the wall's surface moves: |V| + 2 pi f |A|."""
+        return float(np.linalg.norm(self.velocity)) + 2.0 * math.pi * self.frequency * float(np.linalg.norm(self.amplitude))
 
     def max_time_step(self, particles):
         return self.law.max_time_step(particles)
 
+    def motion_repr(self):
+        """The motion's arguments for repr, those that are set."""
+        text = f", velocity={self.velocity.tolist()}" if self.velocity.any() else ""
+        if self.frequency > 0.0:
+            text += f", amplitude={self.amplitude.tolist()}, frequency={self.frequency!r}"
+        return text
+
     def __repr__(self):
-        return f"Wall(point={self.point.tolist()}, normal={self.normal.tolist()}, velocity={self.velocity.tolist()})"
+        return f"Wall(point={self.point.tolist()}, normal={self.normal.tolist()}{self.motion_repr()})"

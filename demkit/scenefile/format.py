@@ -123,6 +123,10 @@ MAGNET_SOURCES = {
                     "a point dipole (magpylib.misc.Dipole)", one_of=(_ONE_MAGNETISATION[1],), excludes=_ANGLE),
 }
 
+_WALL_MOTION = {"amplitude": Key("vector", [0.0, 0.0, 0.0], "vibration: the wall moves by amplitude (1 - cos 2 pi f t)",
+                                 dim="length"),
+                "frequency": _n("f of the vibration, cycles per time (0: none)", default=0.0, check="non_negative",
+                                dim="frequency")}
 _CUTOFF = {"cutoff": _n("centre distance beyond which pairs are ignored (none: never)", check="positive",
                         dim="length"),
            "switch_width": _n("smooth switch-off over [cutoff - width, cutoff] (none: plain cut)", check="positive",
@@ -229,7 +233,8 @@ INTERACTIONS = Table({
     "wall": Tables(Table({
         "point": Key("vector", REQUIRED, "a point of the plane", dim="length"),
         "normal": Key("vector", REQUIRED, "normal pointing to the spheres' side"),
-        "velocity": Key("vector", [0.0, 0.0, 0.0], "in-plane velocity of the wall", dim="velocity")},
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the wall: in its plane it slides, along the normal a "
+                        "piston", dim="velocity"), **_WALL_MOTION},
         "a plane wall with the scene's contact law (dk.Wall)"), "plane walls, [[interactions.wall]], any number"),
     "cylinder": Tables(Table({
         "point": Key("vector", REQUIRED, "a point of the axis", dim="length"),
@@ -237,7 +242,8 @@ INTERACTIONS = Table({
         "radius": _n("radius of the cylinder", default=REQUIRED, check="positive", dim="length"),
         "inside": Key("bool", True, "the spheres are inside (a tube, drum) or outside (a post)"),
         "angular_velocity": _n("rate of turning about the axis (right-handed): a rotating drum", default=0.0,
-                               dim="angular_velocity")},
+                               dim="angular_velocity"),
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cylinder", dim="velocity"), **_WALL_MOTION},
         "a cylindrical wall with the scene's contact law (dk.Cylinder)"),
         "cylindrical walls, [[interactions.cylinder]], any number"),
 }, "the interactions, each a named table", one_of=((("dipole", "power_law_dipole"), False),

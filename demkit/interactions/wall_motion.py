@@ -1,0 +1,52 @@
+"""The plane a wall presents to a sphere at the scene's clock: how the compiled loops see walls that move
+or are curved.
+
+Every plane-contact law (demkit.interactions.wall) takes the plane x.n = plane and the surface velocity u
+as its first seven parameters. A steady plane wall (at rest, or sliding in itself) passes its own. Any
+other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY column points to it):
+
+    shape, Vx, Vy, Vz, Ax, Ay, Az, w, <the shape's numbers>
+
+with shape 0 a plane (the law's own plane and normal at time 0) and 1 a cylinder
+(demkit.interactions.cylinder.GEOMETRY). The wall is carried by D(t) = V t + A (1 - cos w t)
+(w = 2 pi f; the vibration starts at rest, as LAMMPS' ``wiggle``): a sphere at x meets the shape as it
+stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
+D'(t) = V + A w sin(w t).
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from ..engine.motion import KERNEL_OPTIONS
+from .cylinder import cylinder_plane
+
+#: the shape codes of the geometry block
+SHAPES = {"plane": 0, "cylinder": 1}
+#: the motion's numbers, after the shape code
+MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
+    """(plane, nx, ny, nz, ux, uy, uz): the plane the wall presents to the sphere centred at (x, y, z) at
+    time t, and its surface's velocity there: a steady plane's own (``g`` < 0), else as the geometry
+    block at params[g] says (see the module docstring)."""
+    if g < 0:
+        return plane, nx, ny, nz, ux, uy, uz
+    w = params[g + 7]
+    swing = 1.0 - math.cos(w * t)
+    rate = w * math.sin(w * t)
+    dx = params[g + 1] * t + params[g + 4] * swing
+    dy = params[g + 2] * t + params[g + 5] * swing
+    dz = params[g + 3] * t + params[g + 6] * swing
+    vx = params[g + 1] + params[g + 4] * rate
+    vy = params[g + 2] + params[g + 5] * rate
+    vz = params[g + 3] + params[g + 6] * rate
+    if params[g] == 0.0:
+        return plane + (dx * nx + dy * ny + dz * nz), nx, ny, nz, vx, vy, vz
+    c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[g + 8], params[g + 9], params[g + 10],
+                                               params[g + 11], params[g + 12], params[g + 13], params[g + 14],
+                                               params[g + 15], params[g + 16])
+    return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
