@@ -212,7 +212,7 @@ class GenericKernels:
             if self.pieces is not None:
                 return function(*arrays, owners, partners, out)
             row = program[group_row(g, 0)]
-            position, velocity, spin, dipole, radius, mass, box, params, status, *lists = arrays
+            position, velocity, spin, dipole, radius, mass, box, params, status, clock, *lists = arrays
             n, partner, is_list = position.shape[0], lists[2], row[G_LIST] != 0
             entries = np.zeros((partner.shape[0] if is_list else n * (n - 1) // 2, out.shape[1]))
             status = status.copy()  # a deep overlap seen by a diagnostic stops no run
@@ -220,12 +220,12 @@ class GenericKernels:
                 members = G_MEMBERS + M_COLUMNS * np.arange(row[G_COUNT])
                 kinds = np.zeros(1 + int(row[members + M_ENERGY].max(initial=0)))  # the sums by kind, unused
                 own = self.calls_for(numba.typeof(s))[CALLS.index("own_pair_energies")]
-                function(position, velocity, spin, dipole, radius, mass, box, params, status, *lists, kinds, True,
+                function(position, velocity, spin, dipole, radius, mass, box, params, status, clock, *lists, kinds, True,
                          entries, row, s, own)
             else:
                 force, unused = np.zeros((n, 3)), np.zeros((9, 1))  # (the blocked loop's scratch and gather)
                 own = self.calls_for(numba.typeof(s))[CALLS.index("own_pair_forces")]
-                function(position, velocity, spin, dipole, radius, mass, box, params, status, force, force.copy(),
+                function(position, velocity, spin, dipole, radius, mass, box, params, status, clock, force, force.copy(),
                          *lists, unused, unused, False, 0, n, row, True, entries, s, own)
             # every entry, owner by owner (rows past the entries, if any, stay zero: the caller's size)
             if is_list:
