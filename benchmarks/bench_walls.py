@@ -1,11 +1,12 @@
-"""What a wall costs per sphere touching it: a plane wall (dk.Wall) against a cylinder (dk.Cylinder),
-at rest and turning, on tier 1 and tier 2.
+"""What a wall costs per sphere touching it: a plane wall (dk.Wall) at rest and vibrated, against a
+cylinder (dk.Cylinder) at rest and turning, on tier 1 and tier 2.
 
     python3 benchmarks/bench_walls.py [--seconds S] [--rounds N]
 
 Each scene is N = 4000 fixed spheres (radius 0.5: their forces are computed every step and they stay
 where they are) with a Kelvin-Voigt contact law with friction over neighbour lists, spaced 3 radii
-apart so that no two touch, every one pressed 1e-3 into the wall: on a floor (the plane), on the
+apart so that no two touch, every one pressed 1e-3 into the wall: on a floor (the plane; vibrated:
+the floor swinging by 4e-4 along its normal at frequency 5, so the spheres stay pressed), on the
 inside of a drum of radius 60 with its axis along z (the cylinder, at rest or turning at 0.5 rad per
 unit time; a ring of spheres repeated along the axis). The same spheres without any wall are the baseline;
 (time a step - baseline) / N is the cost of one sphere touching one wall. Each figure is the
@@ -32,11 +33,12 @@ import demkit as dk
 kind, tier, seconds = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
 n, R, gap = 4000, 0.5, 1.5
 law = dk.KelvinVoigt(1e4, 10.0, friction=dk.Friction(0.5))
-if kind in ("none", "plane"):
+if kind in ("none", "plane", "vibrated"):
     side = int(math.ceil(math.sqrt(n)))
     k = np.arange(n)
     position = np.stack([(k % side) * 2 * gap, np.full(n, R - 1e-3), (k // side) * 2 * gap], axis=1)
-    walls = [dk.Wall((0, 0, 0), (0, 1, 0))] if kind == "plane" else []
+    vibration = dict(amplitude=(0, 2e-4, 0), frequency=5.0) if kind == "vibrated" else {}
+    walls = [dk.Wall((0, 0, 0), (0, 1, 0), **vibration)] if kind != "none" else []
 else:  # a drum: rings of spheres around the axis (z), spaced 3 R along it
     big = 60.0
     ring = int(2 * math.pi * (big - R) / (2 * gap))
@@ -59,7 +61,7 @@ print("RESULT", json.dumps({"ns_per_step": took / steps * 1e9, "touching": int(l
                             "tier": sim.statistics["tier"]}))
 """
 
-KINDS = ("none", "plane", "cylinder", "turning")
+KINDS = ("none", "plane", "vibrated", "cylinder", "turning")
 
 
 def child(kind, tier, seconds):
