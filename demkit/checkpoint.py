@@ -119,6 +119,8 @@ def scene_hash(scene, integrator):
     params[scene.time_step_slots] = 0.0  # set by each run from the integrator
     if scene.induction_slot is not None:  # the induced-moment solver's key (a number of this process), its counts
         params[scene.induction_slot:scene.induction_slot + induction.STATISTICS] = 0.0
+    for _, state in scene.servo_slots():  # servo-controlled walls' state (saved with the state) and time step
+        params[state.start:state.stop + 1] = 0.0
     add("params", params)
     for name in ("radius", "mass", "inertia", "ids"):
         add(name, np.asarray(getattr(p, name)))
@@ -140,6 +142,8 @@ def state_arrays(scene):
     """Every array a checkpoint holds, by name (the scene's own arrays, not copies: written out or
     compared, never changed)."""
     arrays = {f"state.{name}": scene.arrays[name] for name in SAVED_ARRAYS}
+    for e, state in scene.servo_slots():
+        arrays[f"servo{e}.state"] = scene.params[state]
     for g in range(len(scene.plan.groups)):
         pl = scene._list(g)
         arrays[f"list{g}.reach"] = np.array([pl.reach])
@@ -319,6 +323,8 @@ def restore(scene, arrays):
     """Put the checkpoint's arrays into ``scene`` (already checked by :func:`check_compatible`)."""
     for name in SAVED_ARRAYS:
         scene.arrays[name][...] = arrays[f"state.{name}"]
+    for e, state in scene.servo_slots():
+        scene.params[state] = arrays[f"servo{e}.state"]
     lists = []
     for g in range(len(scene.plan.groups)):
         fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])

@@ -99,9 +99,11 @@ class RunNotes:
     def __init__(self, scene, state=None):
         self.scene = scene
         self.pairs = any(inter.contact_reach for inter in scene.interactions)
-        self.walls = [e for e in scene.effects if isinstance(e, Wall)]
+        walls = [e for e in scene.effects if isinstance(e, Wall)]
         # a moving wall's work and a thermostat's bath are not booked
-        self.balance = not any(w.surface_speed() > 0.0 for w in self.walls) and not scene.heat_baths
+        self.balance = not any(w.surface_speed() > 0.0 for w in walls) and not scene.heat_baths
+        # (a servo-controlled wall's past positions are not kept: its contacts are read by the run's guards only)
+        self.walls = [w for w in walls if getattr(w, "servo", None) is None]
         self.largest = self.drift = self.scale = 0.0
         self.typical_sum, self.typical_frames = 0.0, 0  # frames' mean overlaps summed; frames with contacts
         self.origin = None  # the balance at the run's first frame

@@ -37,6 +37,7 @@ from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
+from .interactions.wall import SERVO_STATE
 from .particles import Particles
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -404,7 +405,8 @@ class Scene(SceneDiagnostics):
         p, plan = self.particles, self.plan
         n = len(p)
         growing = plan.growing
-        self.program, self.program_refusal = layout.program_of(plan, _Source(plan, True), self.energy_kinds)
+        slots = _Source(plan, True)
+        self.program, self.program_refusal = layout.program_of(plan, slots, self.energy_kinds)
         self.tier = self._choose_tier()  # before the lists: the tier decides the state's form
         lists = []
         for group in plan.groups:
@@ -433,6 +435,9 @@ class Scene(SceneDiagnostics):
         # (the order kernels._Source gives their slots)
         self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
         self.induction_slot = len(self.params) - len(tables[-1]) if self.induction is not None else None
+        self.geometry_slots = dict(slots.geometry_slot)
+        for e, slot in slots.geometry_slot.items():  # walls read their state (a servo's) from their block
+            self.effects[e].block = self.params[slot:slot + np.size(self.effects[e].geometry_values())]
         if self.induction is not None:
             self.induction.bind(self.params, self.induction_slot)
         # slots of parameters named "dt": the integrator's time step, set by each run
@@ -679,8 +684,21 @@ class Scene(SceneDiagnostics):
         return [inter for inter in self.interactions + self.effects if inter.history_size]
 
     def set_time_step(self, dt):
-        """Hand the integrator's time step to the interactions that need it (parameter "dt")."""
+        """Hand the integrator's time step to the interactions that need it (parameter "dt") and to the
+        servo-controlled walls."""
         self.params[self.time_step_slots] = dt
+        for _, state in self.servo_slots():
+            self.params[state.stop] = dt
+
+    def servo_slots(self):
+        """(effect index, slice of params) of each servo-controlled wall's state (offset, speed, push,
+        stiffness: demkit.interactions.wall.SERVO_STATE); its time step follows the slice."""
+        slots = []
+        for e, effect in enumerate(self.effects):
+            if getattr(effect, "servo", None) is not None:
+                start = self.geometry_slots[e] + SERVO_STATE
+                slots.append((e, slice(start, start + 4)))
+        return slots
 
     def max_time_step(self):
         """Largest safe time step over all interactions (math.inf when none limits it)."""

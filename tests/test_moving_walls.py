@@ -234,3 +234,71 @@ duration = 0.01
     piston = dk.Wall((0, 0, 0), (0, 0, 1), velocity=(0, 0, 0.1))
     with pytest.raises(ValueError, match="only by 'wiggle'"):
         dk.export_lammps(dk.Scene(scene.particles, [contact, piston]), dk.VelocityVerlet(1e-3), tmp_path / "out2")
+
+
+def test_a_servo_lid_holds_its_force_on_a_sphere_and_on_a_packing():
+    """A servo-controlled lid (dk.Servo) pressing with a target force F. On one sphere resting on a
+    floor (no gravity): the lid comes down at its max speed, then settles where each contact carries
+    F, overlap F / k (to 1e-6). On a packing of 48 spheres under gravity in a box periodic along x
+    and y: after settling the lid's push is F (to 1e-3), and the floor, read from the contact table,
+    carries F plus the spheres' weight (force balance, 1e-3): an independent measure of what the
+    lid holds."""
+    k, force = 1e4, 20.0
+    p = dk.Particles(position=[[0.0, 0.0, 0.5]], radius=0.5, mass=1.0)
+    lid = dk.Wall((0, 0, 1.2), (0, 0, -1), servo=dk.Servo(force=force, max_speed=1.0))
+    scene = dk.Scene(p, [dk.KelvinVoigt(k, 2 * math.sqrt(k)), dk.Wall((0, 0, 0), (0, 0, 1)), lid])
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    sim.run(0.1, progress=False)
+    offset, speed, push, _ = lid.servo_state()
+    assert offset == pytest.approx(0.1, rel=1e-9) and speed == pytest.approx(1.0) and push == 0.0  # coming down
+    sim.run(3.0, progress=False)
+    offset, speed, push, stiffness = lid.servo_state()
+    assert push == pytest.approx(force, rel=1e-6) and stiffness == pytest.approx(k, rel=1e-3)
+    assert np.allclose(scene.contacts().overlap, force / k, rtol=1e-6)
+    assert offset == pytest.approx(0.2 + 2 * force / k, rel=1e-6)  # the lid stands at 1.2 - offset
+
+    # a packing under gravity
+    n, g = 48, 9.81
+    box = dk.Box((4.0, 3.0, 20.0), periodic=(True, True, False))
+    i = np.arange(n)
+    position = np.stack([0.5 + (i % 4), 0.5 + (i // 4) % 3, 0.6 + 1.1 * (i // 12)], axis=1)
+    rng = np.random.default_rng(1)
+    p = dk.Particles(position=position + rng.uniform(-0.05, 0.05, (n, 3)) * [1, 1, 0], radius=0.5, mass=1.0)
+    law = dk.KelvinVoigt(1e4, 50.0, friction=dk.Friction(0.3))
+    lid = dk.Wall((0, 0, 6.0), (0, 0, -1), servo=dk.Servo(force=100.0, max_speed=2.0))
+    scene = dk.Scene(p, [law, dk.Wall((0, 0, 0), (0, 0, 1)), lid, dk.Gravity((0, 0, -g))], box=box)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(5e-4))
+    sim.run(8.0, progress=False)
+    pushes = []
+    for _ in range(20):
+        sim.run(0.05, progress=False)
+        pushes.append(lid.servo_state()[2])
+    assert np.allclose(pushes, 100.0, rtol=1e-3)
+    c = scene.contacts()
+    floor = c.normal_force[c.wall == 0].sum()
+    assert floor == pytest.approx(100.0 + n * g, rel=1e-3)
+
+
+def test_a_servo_wall_restarts_exactly_and_refuses_motions_of_its_own(tmp_path):
+    """A run resumed from a checkpoint taken while the lid moves gives the bits of one run (the servo's
+    state is saved); a servo does not go with a vibration or a velocity along the normal."""
+    def fresh():
+        p = dk.Particles(position=[[0.0, 0.0, 0.5], [0.2, 0.1, 1.5]], radius=0.5, mass=1.0)
+        lid = dk.Wall((0, 0, 2.3), (0, 0, -1), servo=dk.Servo(force=5.0, max_speed=1.0, gain=0.3))
+        return dk.Scene(p, [dk.KelvinVoigt(1e4, 20.0), dk.Wall((0, 0, 0), (0, 0, 1)), lid, dk.Gravity((0, 0, -1))])
+
+    one = fresh()
+    dk.Simulation(one, dk.VelocityVerlet(1e-3)).run(1.0, progress=False)
+    first = fresh()
+    dk.Simulation(first, dk.VelocityVerlet(1e-3), checkpoint=dk.Checkpoint(tmp_path / "c.npz")).run(0.4, progress=False)
+    again = fresh()
+    dk.Simulation(again, dk.VelocityVerlet(1e-3)).resume(tmp_path / "c.npz").run(0.6, progress=False)
+    assert again.particles.position.tobytes() == one.particles.position.tobytes()
+    lids = [next(e for e in scene.effects if getattr(e, "servo", None)) for scene in (again, one)]
+    assert lids[0].servo_state() == lids[1].servo_state() and lids[0].servo_state()[2] > 0.0
+    with pytest.raises(ValueError, match="no vibration and no velocity along its normal"):
+        dk.Wall((0, 0, 0), (0, 0, 1), amplitude=(0, 0, 0.1), frequency=1.0, servo=dk.Servo(1.0, 1.0))
+    with pytest.raises(ValueError, match="gain must lie in"):
+        dk.Servo(1.0, 1.0, gain=2.0)
+    with pytest.raises(ValueError, match="Servo force"):
+        dk.Servo(-1.0, 1.0)

@@ -23,9 +23,9 @@ def automatic_tier(monkeypatch):
 
 
 def small_scene(tier):
-    """Six spheres in open space (all pairs, no lists) above a vibrated floor, between walls and inside a
-    turning, shaken cylinder: Kelvin-Voigt contacts with friction, rolling and twisting resistance, a
-    switched dipole, gravity and a field."""
+    """Six spheres in open space (all pairs, no lists) above a vibrated floor, under a servo-controlled
+    lid, between walls and inside a turning, shaken cylinder: Kelvin-Voigt contacts with friction,
+    rolling and twisting resistance, a switched dipole, gravity and a field."""
     rng = np.random.default_rng(4)
     pos = np.array([[0.0, 0.0, 0.6], [1.05, 0.1, 0.62], [0.1, 1.02, 0.7], [1.1, 1.1, 0.8], [0.5, 0.5, 1.5],
                     [1.6, 0.4, 1.4]])
@@ -38,7 +38,8 @@ def small_scene(tier):
              dk.Wall((2.2, 2.2, 0), (-1, 0, 0)),
              dk.Cylinder((0.8, 0.8, 0.0), (0, 0, 1), 1.62, angular_velocity=0.5,  # (pressing the first sphere)
                          contact=dk.KelvinVoigt(3000.0, 4.0, friction=dk.Friction(0.4)), amplitude=(0.01, 0.0, 0.0),
-                         frequency=2.0)]
+                         frequency=2.0),
+             dk.Wall((0, 0, 2.01), (0, 0, -1), servo=dk.Servo(force=0.5, max_speed=0.5))]  # (a lid coming down)
     return dk.Scene(p, [dk.Dipole(prefactor=0.05, cutoff=2.5, switch_width=0.5), law, dk.Gravity((0, 0, -1.0)),
                         dk.UniformField((0.0, 0.05, 0.02)), *walls], tier=tier)
 
@@ -287,16 +288,18 @@ def test_program_layout():
     assert kinds == ["switched_dipole_force", "kelvin_voigt_twisting_force"]
     fast = program[layout.group_row(0, 1)]
     assert fast[layout.G_COUNT] == 1  # the contact law alone (the dipole is slow)
-    assert program[0, layout.H_EFFECTS] == 6
+    assert program[0, layout.H_EFFECTS] == 7
     names = [effects[program[layout.effect_row(e), layout.E_KIND]].force_name for e in range(6)]
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
     assert names[5] == "wall_kelvin_voigt_friction_force"  # the cylinder: a wall kind, with its geometry block
     geometry = [program[layout.effect_row(e), layout.E_GEOMETRY] for e in range(6)]
-    # the vibrated floor (shape 0 and its motion: 8 numbers) and the cylinder (17) have blocks
+    # the vibrated floor (shape 0 and its motion: 8 numbers), the cylinder (17) and the lid (shape 2, the
+    # motion, the servo: 16) have blocks
+    geometry.append(program[layout.effect_row(6), layout.E_GEOMETRY])
     assert geometry[:2] == [-1] * 2 and geometry[3:5] == [-1] * 2
-    for e, size in ((2, 8), (5, 17)):
+    for e, size in ((2, 8), (5, 17), (6, 16)):
         assert np.array_equal(scene.params[geometry[e]:geometry[e] + size], scene.effects[e].geometry_values())
-    assert [program[layout.effect_row(e), layout.E_PLANE] for e in range(6)] == [0, 0, 0, 1, 1, 0]
+    assert [program[layout.effect_row(e), layout.E_PLANE] for e in range(7)] == [0, 0, 0, 1, 1, 0, 0]
 
 
 def shipped_interactions():

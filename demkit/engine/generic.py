@@ -346,7 +346,9 @@ class _Generic:
                 "            off = program[er, E_OFFSET]"]
         lines = ["", "", "@njit(**ENTRY)", f"def sphere_forces({PIECE_SIGNATURES['sphere_forces']}):",
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""']
-        lines += piece_prelude("sphere_forces") + ["    power = 0.0"] + head
+        lines += piece_prelude("sphere_forces") + ["    power = 0.0"]
+        lines += ["    for e in range(program[0, H_EFFECTS]):  # servo-controlled walls sum their push afresh",
+                  "        servo_clear(params, program[EFFECT_ROW + e, E_GEOMETRY])"] + head
 
         def branch(law):
             outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if law.torque else []) + (["w"] if law.dissipative else [])
@@ -362,6 +364,7 @@ class _Generic:
                           "        break",
                           "if overlap > 0.0 or held:"]
                 body += deep_wall_overlap("e")
+                body += ["servo_add(params, program[er, E_GEOMETRY], ax, ay, az, wnx, wny, wnz, overlap)"]
                 pad = "    "
             else:
                 pad = ""
@@ -544,6 +547,8 @@ class _Generic:
                   "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
         # record_frame through ``frame`` (a time loop's steps[...]): called, it would be linked into
         # end_step and optimised again there (2.5 CPU s at a scene's first step)
+        lines += ["    for e in range(s.program[0, H_EFFECTS]):  # servo-controlled walls move after the step",
+                  "        servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY])"]
         lines += [line.replace("record_frame(step", "frame(calls, step") for line in END_STEP_TAIL]
         return lines
 
@@ -565,7 +570,7 @@ class _Generic:
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
                  "                            M_COLUMNS, E_KIND, E_SLOT, E_TABLE, E_OFFSET, E_ENERGY, E_SIZE, E_PLANE,",
                  "                            E_GEOMETRY)",
-                 "from demkit.interactions.wall_motion import wall_plane",
+                 "from demkit.interactions.wall_motion import servo_add, servo_clear, servo_step, wall_plane",
                  f"OWN = {OWN}",
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",

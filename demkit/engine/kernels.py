@@ -427,6 +427,9 @@ class _Source:
                               f"if overlap > 0.0{held}:"]
                     pad = "    "
                     call += deep_wall_overlap(index)
+                    if getattr(effect, "servo", None) is not None:  # its push and stiffness, for its step
+                        call += [f"servo_add(params, {self.geometry_slot[e]}, ax, ay, az, {q[1]}, {q[2]}, {q[3]}, "
+                                 "overlap)"]
                 call += effect_sums(effect.torque, effect.dissipative)
                 return lines + [pad + line for line in call]
             return body
@@ -434,7 +437,7 @@ class _Source:
         lines = ["", "", "@njit(**INNER)",
                  f"def sphere_forces({ARRAYS}, force, torque, history, commit):",
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
-                 "    power = 0.0"] + head
+                 "    power = 0.0"] + [f"    servo_clear(params, {g})" for g in self.servo_slots()] + head
         for e, last in runs:
             lines += effect_lines(e, last, force_body(e))
         lines.append("    return power")
@@ -631,8 +634,13 @@ class _Source:
                 lines += ["        if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
+        lines += [f"    servo_step(s.params, {g})" for g in self.servo_slots()]  # servo-controlled walls move
         lines += END_STEP_TAIL
         return lines
+
+    def servo_slots(self):
+        """The geometry blocks of the servo-controlled walls, in the scene's order."""
+        return [g for e, g in sorted(self.geometry_slot.items()) if getattr(self.plan.effects[e], "servo", None)]
 
     def head(self):
         """The module's imports and the options of its functions."""
@@ -653,7 +661,7 @@ class _Source:
         if any(getattr(effect, "plane_contact", False) for effect in plan.effects):
             lines += ["from demkit.engine.events import earliest_wall_crossing", ""]
         if self.geometry_slot:
-            lines += ["from demkit.interactions.wall_motion import wall_plane", ""]
+            lines += ["from demkit.interactions.wall_motion import servo_add, servo_clear, servo_step, wall_plane", ""]
         for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
             module, name = tuned.kernel
             lines += [f"from {module} import {name} as long_range_{q}"]

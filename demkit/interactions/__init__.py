@@ -9,7 +9,7 @@ from .sphere import SphereInteraction
 from .fields import Gravity, UniformField
 from .magnets import MagnetField
 from .langevin import Langevin
-from .wall import Wall
+from .wall import Servo, Wall
 from .cylinder import Cylinder
 from .dipole import Dipole, PowerLawDipole
 from .ewald import Ewald
@@ -18,5 +18,5 @@ from .p3m import P3M
 from .induction import Induction
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance",
-           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Cylinder", "Langevin", "Ewald", "P3M", "FMM",
+           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Servo", "Cylinder", "Langevin", "Ewald", "P3M", "FMM",
            "Induction"]

@@ -232,6 +232,40 @@ TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
 
 
+#: where a servo's state (offset, speed, force, stiffness) starts in its wall's geometry block: after the
+#: shape code, the motion (7) and the servo's force, max speed and gain (demkit.interactions.wall_motion)
+SERVO_STATE = 11
+
+
+class Servo:
+    """A wall that moves along its normal to hold the spheres' push on it at ``force`` (oedometric and
+    triaxial tests, a packing under a set pressure: force = stress x area).
+
+    After every step the wall moves by gain (F - force) / K towards or away from the spheres (F: the
+    normal force they exert on it, K: the sum of the secant stiffnesses F_i / delta_i of its contacts,
+    so gain is the fraction of the error it corrects in one step when the packing responds like its
+    contacts), at most ``max_speed`` x dt; touching nothing it moves at max_speed towards them.
+    force > 0 (force units); max_speed > 0 (length per time); 0 < gain <= 1 (default 0.2).
+    """
+
+    def __init__(self, force, max_speed, gain=0.2):
+        self.force = checks.positive("Servo force", force)
+        self.max_speed = checks.positive("Servo max_speed", max_speed)
+        self.gain = checks.number("Servo gain", gain)
+        if not 0.0 < self.gain <= 1.0:
+            raise ValueError(f"Servo gain must lie in (0, 1], got {gain!r}: it is the fraction of the force error "
+                             f"corrected in one step")
+
+    def values(self):
+        """The servo's part of the geometry block (:data:`demkit.interactions.wall_motion.SERVO`): target
+        force, max speed, gain, then its state (offset and speed along the normal, the force and the
+        stiffness summed in the last force evaluation) and the time step (set by each run)."""
+        return np.array([self.force, self.max_speed, self.gain, 0.0, 0.0, 0.0, 0.0, 0.0], dtype=np.float64)
+
+    def __repr__(self):
+        return f"Servo(force={self.force!r}, max_speed={self.max_speed!r}, gain={self.gain!r})"
+
+
 class Wall(SphereInteraction):
     """An infinite plane wall (see module docstring).
 
@@ -239,7 +273,9 @@ class Wall(SphereInteraction):
     length > 0); velocity : the wall's constant velocity (in its plane: it slides; along the normal:
     a piston; default at rest); amplitude, frequency : a vibration A (1 - cos 2 pi f t) added to its
     motion (length vector, cycles per unit time; default none); contact : the contact law (a
-    :class:`KelvinVoigt` or :class:`Hertz`), default the scene's own (which must then have exactly one).
+    :class:`KelvinVoigt` or :class:`Hertz`), default the scene's own (which must then have exactly one);
+    servo : a :class:`Servo` that moves the wall along its normal to hold a force on it (a velocity
+    in its plane may go with it, not along its normal, nor a vibration).
     """
 
     dissipative = True
@@ -250,7 +286,7 @@ class Wall(SphereInteraction):
     shape = 0
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None, amplitude=(0.0, 0.0, 0.0),
-                 frequency=0.0):
+                 frequency=0.0, servo=None):
         name = type(self).__name__
         self.point = vector(f"{name} point", point)
         normal = vector(f"{name} normal", normal)
@@ -266,6 +302,14 @@ class Wall(SphereInteraction):
         if (self.frequency > 0.0) != bool(self.amplitude.any()):
             raise ValueError(f"{name} vibrates with an amplitude and a frequency, both non-zero: got amplitude "
                              f"{self.amplitude.tolist()} and frequency {self.frequency!r}")
+        if servo is not None:
+            if not isinstance(servo, Servo):
+                raise TypeError(f"{name} servo must be a demkit.Servo, got {servo!r}")
+            if self.amplitude.any() or abs(float(self.velocity @ self.normal)) > 1e-12 * max(
+                    1.0, float(np.linalg.norm(self.velocity))):
+                raise ValueError(f"{name} with a servo moves along its normal as the servo says: it takes no "
+                                 f"vibration and no velocity along its normal (a velocity in its plane may go with it)")
+        self.servo = servo
         if contact is not None and not isinstance(contact, (KelvinVoigt, Hertz)):
             raise TypeError(f"Wall contact must be a KelvinVoigt or Hertz contact law, got {contact!r}")
         self.contact = contact
@@ -313,7 +357,8 @@ class Wall(SphereInteraction):
         not steady carry a geometry block (:meth:`geometry_values`) that the compiled loops read the
         motion from, at the scene's clock."""
         along = float(self.velocity @ self.normal)
-        return not self.amplitude.any() and abs(along) <= 1e-12 * max(1.0, float(np.linalg.norm(self.velocity)))
+        return (not self.amplitude.any() and self.servo is None
+                and abs(along) <= 1e-12 * max(1.0, float(np.linalg.norm(self.velocity))))
 
     @property
     def travels(self):
@@ -332,17 +377,35 @@ class Wall(SphereInteraction):
         return np.array([*self.velocity, *self.amplitude, 2.0 * math.pi * self.frequency], dtype=np.float64)
 
     def geometry_values(self):
-        """The geometry block of a moving plane (shape 0, then :meth:`motion_values`); empty for a steady
-        one (its plane is its parameters)."""
+        """The geometry block of a moving plane (shape 0, then :meth:`motion_values`; with a servo shape 2,
+        then :meth:`Servo.values`); empty for a steady one (its plane is its parameters)."""
         if self.steady:
             return np.zeros(0)
+        if self.servo is not None:
+            return np.array([2.0, *self.motion_values(), *self.servo.values()], dtype=np.float64)
         return np.array([self.shape, *self.motion_values()], dtype=np.float64)
 
     def displacement(self, time):
-        """(D, D'): how far the wall has moved from where it stood at time 0, and its velocity, at ``time``."""
+        """(D, D'): how far the wall has moved from where it stood at time 0, and its velocity, at ``time``
+        (a servo's: where its scene's last step has taken it, see :meth:`servo_state`)."""
         w = 2.0 * math.pi * self.frequency
-        return (self.velocity * time + self.amplitude * (1.0 - math.cos(w * time)),
-                self.velocity + self.amplitude * (w * math.sin(w * time)))
+        shift = self.velocity * time + self.amplitude * (1.0 - math.cos(w * time))
+        speed = self.velocity + self.amplitude * (w * math.sin(w * time))
+        if self.servo is not None:  # (its quasi-static steps add no surface velocity: wall_motion)
+            shift = shift + self.servo_state()[0] * self.normal
+        return shift, speed
+
+    def servo_state(self):
+        """(offset, speed, force, stiffness) of a servo-controlled wall in the scene it was last built into:
+        how far it has moved along its normal from ``point``, its speed along it in the last step, the
+        normal force the spheres exerted on it and the sum of its contacts' secant stiffnesses in the
+        last force evaluation of a step (zeros before the first run)."""
+        if self.servo is None:
+            raise ValueError(f"{self!r} has no servo")
+        block = getattr(self, "block", None)
+        if block is None:
+            return 0.0, 0.0, 0.0, 0.0
+        return tuple(float(v) for v in block[SERVO_STATE:SERVO_STATE + 4])
 
     def table_values(self):
         """A twisting law's rolling and twisting numbers (see :data:`TWIST_TABLE`), else empty."""
@@ -392,8 +455,10 @@ class Wall(SphereInteraction):
         return values
 
     def surface_speed(self):
-        """The fastest the wall's surface moves: |V| + 2 pi f |A|."""
-        return float(np.linalg.norm(self.velocity)) + 2.0 * math.pi * self.frequency * float(np.linalg.norm(self.amplitude))
+        """The fastest the wall's surface moves: |V| + 2 pi f |A| (+ a servo's max_speed)."""
+        servo = self.servo.max_speed if self.servo is not None else 0.0
+        return (float(np.linalg.norm(self.velocity)) + 2.0 * math.pi * self.frequency * float(np.linalg.norm(self.amplitude))
+                + servo)
 
     def max_time_step(self, particles):
         return self.law.max_time_step(particles)
@@ -403,6 +468,8 @@ class Wall(SphereInteraction):
         text = f", velocity={self.velocity.tolist()}" if self.velocity.any() else ""
         if self.frequency > 0.0:
             text += f", amplitude={self.amplitude.tolist()}, frequency={self.frequency!r}"
+        if getattr(self, "servo", None) is not None:
+            text += f", servo={self.servo!r}"
         return text
 
     def __repr__(self):

@@ -7,11 +7,19 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
 
     shape, Vx, Vy, Vz, Ax, Ay, Az, w, <the shape's numbers>
 
-with shape 0 a plane (the law's own plane and normal at time 0) and 1 a cylinder
-(demkit.interactions.cylinder.GEOMETRY). The wall is carried by D(t) = V t + A (1 - cos w t)
+with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
+(demkit.interactions.cylinder.GEOMETRY) and 2 a plane moved by a servo (:data:`SERVO`). The wall is carried by D(t) = V t + A (1 - cos w t)
 (w = 2 pi f; the vibration starts at rest, as LAMMPS' ``wiggle``): a sphere at x meets the shape as it
 stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
 D'(t) = V + A w sin(w t).
+
+A servo's wall (shape 2) is moved along its normal n by its own state: the loops add to its block the
+normal force F the spheres exert on it and the secant stiffness F_i / delta_i of each contact
+(:func:`servo_add`, after :func:`servo_clear` at the start of each evaluation), and after each step
+:func:`servo_step` moves it by gain (F - target) / K away from the spheres (towards them when it
+touches nothing), at most max_speed dt. These steps are quasi-static: the surface velocity the
+contacts see is the wall's prescribed one only (a dashpot seeing the servo's speed would add c / dt to
+the stiffness it steers by, and the loop would swing from one limit to the other).
 """
 from __future__ import annotations
 
@@ -26,6 +34,8 @@ from .cylinder import cylinder_plane
 SHAPES = {"plane": 0, "cylinder": 1}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
+#: a servo's numbers, after the motion (its state from "offset" on: demkit.interactions.wall.SERVO_STATE)
+SERVO = ("force", "max_speed", "gain", "offset", "speed", "pushed", "stiffness", "dt")
 
 
 @njit(**KERNEL_OPTIONS)
@@ -46,7 +56,41 @@ def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
     vz = params[g + 3] + params[g + 6] * rate
     if params[g] == 0.0:
         return plane + (dx * nx + dy * ny + dz * nz), nx, ny, nz, vx, vy, vz
+    if params[g] == 2.0:  # a servo's plane: moved along its normal by its offset (quasi-static steps whose
+        # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
+        return plane + (dx * nx + dy * ny + dz * nz) + params[g + 11], nx, ny, nz, vx, vy, vz
     c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[g + 8], params[g + 9], params[g + 10],
                                                params[g + 11], params[g + 12], params[g + 13], params[g + 14],
                                                params[g + 15], params[g + 16])
     return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
+
+
+@njit(**KERNEL_OPTIONS)
+def servo_clear(params, g):
+    """Before a force evaluation: the servo's sums of force and stiffness start at zero (g < 0 or
+    another shape: nothing)."""
+    if g >= 0 and params[g] == 2.0:
+        params[g + 13] = 0.0
+        params[g + 14] = 0.0
+
+
+@njit(**KERNEL_OPTIONS)
+def servo_add(params, g, fx, fy, fz, nx, ny, nz, overlap):
+    """Add sphere i's contact with the wall to the servo's sums: the normal force (fx, fy, fz).n the wall
+    exerts on it, which the sphere exerts back, and its secant stiffness (that force / overlap)."""
+    if g >= 0 and params[g] == 2.0 and overlap > 0.0:
+        push = fx * nx + fy * ny + fz * nz
+        params[g + 13] += push
+        params[g + 14] += push / overlap
+
+
+@njit(**KERNEL_OPTIONS)
+def servo_step(params, g):
+    """After a step: move the servo's wall (see the module docstring); returns nothing."""
+    if g >= 0 and params[g] == 2.0:
+        limit = params[g + 9] * params[g + 15]
+        stiffness = params[g + 14]
+        move = params[g + 10] * (params[g + 13] - params[g + 8]) / stiffness if stiffness > 0.0 else -limit
+        move = min(max(move, -limit), limit)  # > 0: away from the spheres
+        params[g + 11] -= move
+        params[g + 12] = -move / params[g + 15]

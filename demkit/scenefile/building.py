@@ -309,6 +309,10 @@ def _interactions(d, src, scale=None):
         if name in ("wall", "cylinder"):
             for k, wall in enumerate(value):
                 with _At(src, "interactions", name, k, keys=wall):
+                    if wall.get("servo") is not None:
+                        wall = {**wall, "servo": I.Servo(**wall["servo"])}
+                    elif "servo" in wall:
+                        wall = {key: value for key, value in wall.items() if key != "servo"}
                     out.append((I.Wall if name == "wall" else I.Cylinder)(**wall))
     return out
 

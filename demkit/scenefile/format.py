@@ -234,7 +234,14 @@ INTERACTIONS = Table({
         "point": Key("vector", REQUIRED, "a point of the plane", dim="length"),
         "normal": Key("vector", REQUIRED, "normal pointing to the spheres' side"),
         "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the wall: in its plane it slides, along the normal a "
-                        "piston", dim="velocity"), **_WALL_MOTION},
+                        "piston", dim="velocity"), **_WALL_MOTION,
+        "servo": Table({
+            "force": _n("the normal force the spheres are to push the wall with (stress x area)", default=REQUIRED,
+                        check="positive", dim="force"),
+            "max_speed": _n("the fastest the wall moves", default=REQUIRED, check="positive", dim="velocity"),
+            "gain": _n("fraction of the force error corrected in a step, in (0, 1]", default=0.2, check="positive")},
+            "a servo moving the wall along its normal to hold a force on it (dk.Servo): oedometric tests, a "
+            "packing under a set pressure")},
         "a plane wall with the scene's contact law (dk.Wall)"), "plane walls, [[interactions.wall]], any number"),
     "cylinder": Tables(Table({
         "point": Key("vector", REQUIRED, "a point of the axis", dim="length"),

@@ -19,7 +19,7 @@ def si_scales(scales):
     m, length, t = units.mass, units.length, units.time
     k = m / t**2
     return units, {"length": length, "time": t, "mass": m, "velocity": length / t, "angular_velocity": 1 / t, "frequency": 1 / t,
-                   "acceleration": length / t**2, "stiffness": k, "damping": m / t, "energy": k * length**2,
+                   "acceleration": length / t**2, "force": m * length / t**2, "stiffness": k, "damping": m / t, "energy": k * length**2,
                    "angular_momentum": m * length**2 / t,
                    "pressure": k / length, "dipole": mu, "dipole_prefactor": k * length**5 / mu**2,
                    "field": k * length**2 / mu, "inverse_length": 1 / length}
