@@ -68,7 +68,7 @@ def test_contacts_page_example_runs_as_described():
     assert abs(ns["leaves"] - np.arccos(-1 / 3.0)) < 0.05 and 0.015 < ns["gap"].max() < 0.025
     # the servo lid: it holds 100 (1e-6 from t = 3 on), and the floor carries that and the weight
     assert all(abs(push - 100.0) < 1e-6 * 100.0 for t, _, push in ns["history"] if t >= 3.0)
-    c = ns["scene"].contacts()
+    c = ns["pile"].contacts()
     assert abs(c.normal_force[c.wall == 0].sum() - (100.0 + 48 * 9.81)) < 1e-3 * 570.9
 
 
