@@ -242,6 +242,7 @@ class Simulation(Recording, Stops):
                     self._fail(done + failed + 1, start_step, stride, record)
                 done += chunk
                 self.step = start_step + done
+                scene.time = self.time  # (the loops keep the clock only where walls move)
                 seconds = time.perf_counter() - began
                 first = self._rate is None  # the first chunk compiles (or loads) the code: not run time
                 if not first:  # (counted, a cold install's compile made a short run compile tier 2 too)

@@ -23,6 +23,7 @@ set ``DEMKIT_CACHE_DIR`` to move it, ``DEMKIT_NO_CACHE=1`` to disable it.
 from __future__ import annotations
 
 import inspect
+import re
 import textwrap
 
 import numpy as np
@@ -709,6 +710,8 @@ class _Source:
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
             src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
+            # the clock as a constant: kept where walls move, pruned where none does (tier 1 reads H_CLOCK)
+            src = re.sub(r"timed = s\.program\[0, H_CLOCK\] != 0.*", f"timed = {bool(self.geometry_slot)}", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         return "\n".join(lines) + "\n"
 

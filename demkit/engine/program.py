@@ -16,7 +16,7 @@ MAX_MEMBERS = 4
 MAX_EFFECTS = 16
 # header row
 (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT,
- H_INDUCTION_OFFSET, H_INDUCTION_ENERGY) = range(11)
+ H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, H_CLOCK) = range(12)
 # group rows: flags, then the members
 (G_COUNT, G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ, G_EXISTS) = range(11)
 G_MEMBERS = 11
@@ -122,7 +122,9 @@ def program_of(plan, slots, kinds):
         row = program[effect_row(e)]
         row[E_KIND] = OWN if law is None else law.kind
         row[E_PLANE] = bool(getattr(effect, "plane_contact", False)) and getattr(effect, "flat", True)
-        row[E_GEOMETRY] = slots.geometry_slot.get(e, -1)  # a cylinder's geometry block (-1: a plane's own)
+        row[E_GEOMETRY] = slots.geometry_slot.get(e, -1)  # a moving or curved wall's block (-1: a plane's own)
+        if row[E_GEOMETRY] >= 0:
+            program[0, H_CLOCK] = 1  # the time loops keep the clock (demkit.engine.templates)
         row[E_SLOT] = slots.effect_slot[e]
         row[E_TABLE] = slots.table_slot.get(e, -1)
         row[E_OFFSET] = offsets[e]

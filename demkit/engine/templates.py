@@ -7,9 +7,12 @@ so that many steps run in compiled code between Python-level events. A template 
 where ``s`` is the scene's named state (:mod:`demkit.engine.state`: ``s.position``, ``s.velocity``,
 ``s.angular_velocity``, ``s.dipole``, ``s.mass``, ``s.inertia``, ``s.force``, ``s.torque``,
 ``s.accum`` (accum[0]: dissipated work), ``s.clock`` (clock[0]: the time the next forces are evaluated
-at; moving walls read it), ...). It sets ``s.clock[0]`` before every call of a force function, to
-(global step + fraction of the step its positions have reached) * dt (the global step count of the
-chunk's start is s.counters[RUN_START] + first_step), and leaves it at the time of the state it returns. It may call ``forces_of(s, commit)`` (fills
+at; moving walls read it), ...). In scenes whose walls move (``timed``: the program's H_CLOCK on tier 1,
+a constant written into a fused module) it sets ``s.clock[0]`` before every call of a force function,
+to (global step + fraction of the step its positions have reached) * dt (the global step count of the
+chunk's start is s.counters[RUN_START] + first_step), and leaves it at the time of the state it
+returns; elsewhere the clock costs nothing (a store a step cost the two magnets' steps 20 %). It may
+call ``forces_of(s, commit)`` (fills
 ``s.force``/``s.torque`` and keeps neighbour lists up to date; returns the dissipated power),
 ``end_step(step, countdown, stride, s, record)`` (list upkeep, finiteness check and recording;
 returns the steps left until the next frame, or -1 when the run must stop) and the helpers of
@@ -25,19 +28,23 @@ from __future__ import annotations
 
 from .motion import (advance_spin, copy_vectors, drift, kick, kick_all, rk_finish, rk_save,  # noqa: F401
                      rk_stage, total_forces)
+from .program import H_CLOCK  # noqa: F401 (used by templates)
 from .state import INNER_STEPS, RUN_START  # noqa: F401 (used by templates)
 
 
 def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     countdown = stride - first_step % stride  # steps until the next recorded frame
     for n in range(nsteps):
-        s.clock[0] = (start + n) * dt
+        if timed:
+            s.clock[0] = (start + n) * dt
         s.accum[0] += dt * forces_of(s, True)  # noqa: F821 (defined in the generated module)
         kick(s.velocity, s.force, s.mass, dt)
         drift(s.position, s.velocity, dt)
         advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, dt, dt)
-        s.clock[0] = (start + n + 1) * dt
+        if timed:
+            s.clock[0] = (start + n + 1) * dt
         countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
         if countdown < 0:
             return n
@@ -46,6 +53,7 @@ def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, recor
 
 def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     half = 0.5 * dt
     countdown = stride - first_step % stride  # steps until the next recorded frame
     # one call of forces_of in the source (n = -1: the forces of the start): numba inlines each call
@@ -55,7 +63,8 @@ def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, re
         if n >= 0:
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, dt)
             drift(s.position, s.velocity, dt)
-        s.clock[0] = (start + n + 1) * dt
+        if timed:
+            s.clock[0] = (start + n + 1) * dt
         power = forces_of(s, n >= 0)  # noqa: F821
         if n >= 0:
             s.accum[0] += dt * power
@@ -69,6 +78,7 @@ def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, re
 
 def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     w1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
     w0 = 1.0 - 2.0 * w1
     countdown = stride - first_step % stride  # steps until the next recorded frame
@@ -81,7 +91,8 @@ def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, h)
             drift(s.position, s.velocity, h)
         # the positions have reached w1, w1 + w0, 1 of step m // 3 (m = -1: the end of the step before)
-        s.clock[0] = (start + m // 3 + (w1 if m % 3 == 0 else (w1 + w0 if m % 3 == 1 else 1.0))) * dt
+        if timed:
+            s.clock[0] = (start + m // 3 + (w1 if m % 3 == 0 else (w1 + w0 if m % 3 == 1 else 1.0))) * dt
         power = forces_of(s, False)  # noqa: F821
         if m >= 0:
             s.accum[0] += h * power
@@ -97,6 +108,7 @@ def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record
 
 def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     countdown = stride - first_step % stride  # steps until the next recorded frame
     # one call of forces_of in the source (see velocity_verlet_template): stage k = 0..3 of step n,
     # k = 4: the forces of the state reached (for writers and diagnostics), then return
@@ -108,10 +120,10 @@ def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
         k = 0
         rk_save(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole)
     while True:
-        if k < 4:  # stage k of step n is at 0, 1/2, 1/2, 1 of the step
-            s.clock[0] = (start + n + (0.0 if k == 0 else (0.5 if k < 3 else 1.0))) * dt
-        else:  # the state reached: the end of step n if it stopped the run, else n steps done
-            s.clock[0] = (start + n + (1 if result >= 0 else 0)) * dt
+        # stage k of step n is at 0, 1/2, 1/2, 1 of the step; k = 4, the state reached: the end of step n
+        # if it stopped the run, else n steps done
+        if timed:
+            s.clock[0] = (start + n + (0.0 if k == 0 else (0.5 if k < 3 else (1.0 if k == 3 or result >= 0 else 0.0)))) * dt
         power = forces_of(s, False)  # noqa: F821
         if k == 4:
             return result
@@ -137,6 +149,7 @@ def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
 
 def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque (kept between chunks).
     # One call of each force function in the source (see velocity_verlet_template); n = -1: the
     # forces of the start, one evaluation of each
@@ -154,14 +167,16 @@ def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s,
                 kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
                          s.mass, s.inertia, 0.5 * h, h)
                 drift(s.position, s.velocity, h)
-            s.clock[0] = (start + n) * dt + (m + 1) * h
+            if timed:
+                s.clock[0] = (start + n) * dt + (m + 1) * h
             power = fast_forces_of(s, s.stage[2], s.stage[3], n >= 0)  # noqa: F821
             if n >= 0:
                 s.accum[0] += h * power
                 kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
                          s.mass, s.inertia, 0.5 * h, 0.0)
             m += 1
-        s.clock[0] = (start + n + 1) * dt
+        if timed:
+            s.clock[0] = (start + n + 1) * dt
         power = slow_forces_of(s, s.stage[0], s.stage[1], n >= 0)  # noqa: F821
         if n >= 0:
             s.accum[0] += dt * power
@@ -179,6 +194,7 @@ def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s,
 
 def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     # s.stage[0], [1]: half-step velocities and spins; s.stage[2, 0, 0]: the dissipated power at the
     # last force evaluation (the trapezoidal rule sums the dissipated work). One call of forces_of
     # in the source (see velocity_verlet_template); n = -1: the forces of the start
@@ -203,7 +219,8 @@ def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready
                 copy_vectors(s.stage[0], s.velocity)
                 copy_vectors(s.stage[1], s.angular_velocity)
                 kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
-            s.clock[0] = (start + n + 1) * dt - (left - h)
+            if timed:
+                s.clock[0] = (start + n + 1) * dt - (left - h)
             power = forces_of(s, False)  # noqa: F821
             if n < 0:
                 s.stage[2, 0, 0] = power
@@ -226,6 +243,7 @@ def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready
 
 def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_ready, s, record):
     start = s.counters[RUN_START] + first_step  # the global step count at the start of the chunk
+    timed = s.program[0, H_CLOCK] != 0  # walls that move read the clock (tier 2: True or False, as written)
     # s.stage[0], [1]: slow force and torque; [2], [3]: fast force and torque; [4], [5]: half-step
     # velocities and spins; [6, 0, 0]: the fast dissipated power at the last evaluation. One call of
     # each force function in the source (see velocity_verlet_template); n = -1: the forces of the start
@@ -256,7 +274,8 @@ def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_re
                     copy_vectors(s.stage[5], s.angular_velocity)
                     kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[2], s.stage[3],
                              s.mass, s.inertia, 0.5 * h, 0.0)
-                s.clock[0] = (start + n) * dt + (m + 1) * (dt / inner) - (left - h)
+                if timed:
+                    s.clock[0] = (start + n) * dt + (m + 1) * (dt / inner) - (left - h)
                 power = fast_forces_of(s, s.stage[2], s.stage[3], False)  # noqa: F821
                 if n < 0:
                     s.stage[6, 0, 0] = power
@@ -271,7 +290,8 @@ def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_re
                 if not left > 0.0:
                     break
             m += 1
-        s.clock[0] = (start + n + 1) * dt
+        if timed:
+            s.clock[0] = (start + n + 1) * dt
         power = slow_forces_of(s, s.stage[0], s.stage[1], n >= 0)  # noqa: F821
         if n >= 0:
             s.accum[0] += dt * power
