@@ -547,8 +547,9 @@ class _Generic:
                   "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
         # record_frame through ``frame`` (a time loop's steps[...]): called, it would be linked into
         # end_step and optimised again there (2.5 CPU s at a scene's first step)
-        lines += ["    for e in range(s.program[0, H_EFFECTS]):  # servo-controlled walls move after the step",
-                  "        servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY])"]
+        lines += ["    if timed:  # servo-controlled walls move after the step (read no field of s otherwise: it costs)",
+                  "        for e in range(s.program[0, H_EFFECTS]):",
+                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY])"]
         lines += [line.replace("record_frame(step", "frame(calls, step") for line in END_STEP_TAIL]
         return lines
 

@@ -250,7 +250,7 @@ class GenericKernels:
             frame = self._wrapped(self.module.record_frame, (calls_type, types.int64, state_type, record_type))
             arguments = {"forces_of": (calls_type, state_type, types.boolean),
                          "end_step": (calls_type, numba.typeof(frame), types.int64, types.int64, types.int64,
-                                      state_type, record_type),
+                                      state_type, record_type, types.boolean),
                          "fast_forces_of": (calls_type, state_type, vector, vector, types.boolean)}
             arguments["slow_forces_of"] = arguments["fast_forces_of"]
             arguments["next_contact_event"] = (calls_type, state_type, vector, types.float64)

@@ -14,7 +14,8 @@ chunk's start is s.counters[RUN_START] + first_step), and leaves it at the time 
 returns; elsewhere the clock costs nothing (a store a step cost the two magnets' steps 20 %). It may
 call ``forces_of(s, commit)`` (fills
 ``s.force``/``s.torque`` and keeps neighbour lists up to date; returns the dissipated power),
-``end_step(step, countdown, stride, s, record)`` (list upkeep, finiteness check and recording;
+``end_step(step, countdown, stride, s, record, timed)`` (list upkeep, servo-controlled walls, finiteness
+check and recording;
 returns the steps left until the next frame, or -1 when the run must stop) and the helpers of
 :mod:`demkit.engine.motion`. Pass fields straight into calls (``kick(s.velocity, s.force, s.mass, h)``);
 binding them to local names makes numba count references at every use. It records frame
@@ -45,7 +46,7 @@ def euler_cromer_template(nsteps, first_step, stride, dt, forces_ready, s, recor
         advance_spin(s.angular_velocity, s.dipole, s.torque, s.inertia, dt, dt)
         if timed:
             s.clock[0] = (start + n + 1) * dt
-        countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+        countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
         if countdown < 0:
             return n
     return -1
@@ -69,7 +70,7 @@ def velocity_verlet_template(nsteps, first_step, stride, dt, forces_ready, s, re
         if n >= 0:
             s.accum[0] += dt * power
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, half, 0.0)
-            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
             if countdown < 0:
                 return n
         n += 1
@@ -99,7 +100,7 @@ def forest_ruth_template(nsteps, first_step, stride, dt, forces_ready, s, record
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.force, s.torque, s.mass, s.inertia, 0.5 * h, 0.0)
             if m % 3 == 2:
                 n = m // 3
-                countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+                countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
                 if countdown < 0:
                     return n
         m += 1
@@ -136,7 +137,7 @@ def rk4_template(nsteps, first_step, stride, dt, forces_ready, s, record):
         if k == 4:
             rk_finish(s.stage, s.position, s.velocity, s.angular_velocity, s.dipole, dt)
             s.accum[0] += dt * total / 6.0
-            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
             if countdown < 0:
                 result = n
             else:
@@ -182,7 +183,7 @@ def multiple_time_step_template(nsteps, first_step, stride, dt, forces_ready, s,
             s.accum[0] += dt * power
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
                      s.mass, s.inertia, 0.5 * dt, 0.0)
-            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
             if countdown < 0:
                 total_forces(s.force, s.torque, s.stage)
                 return n
@@ -234,7 +235,7 @@ def velocity_verlet_events_template(nsteps, first_step, stride, dt, forces_ready
             if not left > 0.0:
                 break
         if n >= 0:
-            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
             if countdown < 0:
                 return n
         n += 1
@@ -297,7 +298,7 @@ def multiple_time_step_events_template(nsteps, first_step, stride, dt, forces_re
             s.accum[0] += dt * power
             kick_all(s.velocity, s.angular_velocity, s.dipole, s.stage[0], s.stage[1],
                      s.mass, s.inertia, 0.5 * dt, 0.0)
-            countdown = end_step(first_step + n + 1, countdown, stride, s, record)  # noqa: F821
+            countdown = end_step(first_step + n + 1, countdown, stride, s, record, timed)  # noqa: F821
             if countdown < 0:
                 total_forces(s.force, s.torque, s.stage)
                 return n
