@@ -120,7 +120,7 @@ RECORD_FRAME = ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                 "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record, timed):",
                 '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
                 '    steps left until the next frame (recording frame step // stride when it is due); with',
-                '    ``timed`` (walls that move), servo-controlled walls take their step."""']
+                '    ``timed`` (the scene keeps its clock), the servos take their step."""']
 #: end_step after its list upkeep: stops, the finiteness check, the frame when due
 END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagged a stop",
                  "        s.status[2] = step", "        return -1",
