@@ -343,6 +343,9 @@ class _Export:
                          "torque")
         model = self.granular_model(wall.law, wall=True)
         moving = np.flatnonzero(wall.velocity != 0.0)
+        if wall.servo is not None:
+            raise ValueError(f"{wall!r}: LAMMPS' fix wall/gran has no servo (a wall moved to hold a force): it cannot "
+                             f"be exported")
         if wall.travels:  # LAMMPS moves a plane wall only by wiggle: A (1 - cos 2 pi t / period) along its normal
             shaken = np.flatnonzero(wall.amplitude != 0.0)
             if len(axes) > 1 or len(moving) or list(shaken) != [int(axes[0])]:

@@ -298,6 +298,8 @@ def test_a_servo_wall_restarts_exactly_and_refuses_motions_of_its_own(tmp_path):
     assert lids[0].servo_state() == lids[1].servo_state() and lids[0].servo_state()[2] > 0.0
     with pytest.raises(ValueError, match="no vibration and no velocity along its normal"):
         dk.Wall((0, 0, 0), (0, 0, 1), amplitude=(0, 0, 0.1), frequency=1.0, servo=dk.Servo(1.0, 1.0))
+    with pytest.raises(ValueError, match="no servo"):
+        dk.export_lammps(fresh(), dk.VelocityVerlet(1e-3), tmp_path / "out")
     with pytest.raises(ValueError, match="gain must lie in"):
         dk.Servo(1.0, 1.0, gain=2.0)
     with pytest.raises(ValueError, match="Servo force"):

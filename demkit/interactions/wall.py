@@ -8,8 +8,10 @@ the displacement D(t) = V t + A (1 - cos 2 pi f t) (``velocity`` V, ``amplitude`
 directions), so it stands at x.n = p.n + D(t).n and its surface moves at D'(t) = V + 2 pi f A sin(2 pi f t):
 a velocity in the plane slides it (a conveyor or shear plate), one along n is a piston, an amplitude
 along n vibrates it (a vibrated bed: it starts at rest at ``point`` and swings to point + 2 A and back,
-as LAMMPS' fix wall/gran ``wiggle``; peak acceleration (2 pi f)^2 |A|). Time is the scene's clock (:attr:`demkit.Scene.time`, set by the
-time loops at every force evaluation; demkit.interactions.wall_motion.wall_plane). Friction keeps each
+as LAMMPS' fix wall/gran ``wiggle``; peak acceleration (2 pi f)^2 |A|). Time is the scene's clock
+(:attr:`demkit.Scene.time`, set by the time loops at every force evaluation;
+demkit.interactions.wall_motion.wall_plane). A :class:`Servo` moves it instead to hold a force on it.
+Friction keeps each
 sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
 wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
 with twisting passes its rolling and twisting numbers to the wall functions as a table
@@ -355,16 +357,15 @@ class Wall(SphereInteraction):
     def steady(self):
         """Does the wall's geometry stay as it is (a plane at rest or sliding in itself)? Walls that are
         not steady carry a geometry block (:meth:`geometry_values`) that the compiled loops read the
-        motion from, at the scene's clock."""
-        along = float(self.velocity @ self.normal)
-        return (not self.amplitude.any() and self.servo is None
-                and abs(along) <= 1e-12 * max(1.0, float(np.linalg.norm(self.velocity))))
+        motion (at the scene's clock) or the servo's state from."""
+        return not self.travels and self.servo is None
 
     @property
     def travels(self):
         """Does the wall's geometry move with time (a piston, a vibrated plate): where it stands depends on
-        the scene's clock."""
-        return not self.steady
+        the scene's clock (a servo's wall moves with its scene's state instead)."""
+        along = float(self.velocity @ self.normal)
+        return bool(self.amplitude.any()) or abs(along) > 1e-12 * max(1.0, float(np.linalg.norm(self.velocity)))
 
     @property
     def flat(self):
