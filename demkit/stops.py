@@ -46,15 +46,18 @@ class Stops:
                 f"(dt = {dt:.6g}) or a larger skin. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         if code == DEEP_OVERLAP:
+            walls = ""
             if other < 0:  # a wall: status[3] = -1 - its index among the effects
-                what = f"particle id {p.ids[k]} overlaps {scene.effects[-1 - other]!r} by more than " \
-                       f"{DEEP_OVERLAP_FRACTION} of its radius"
+                wall = scene.effects[-1 - other]
+                what = f"particle id {p.ids[k]} overlaps {wall!r} by more than {DEEP_OVERLAP_FRACTION} of its radius"
+                if wall.surface_speed() > 0.0:  # a moving wall hits at its own speed too
+                    walls = f"; the wall's surface moves at up to {wall.surface_speed():.6g}"
             else:
                 what = f"particles id {p.ids[k]} and {p.ids[int(tag[other])]} overlap by more than " \
                        f"{DEEP_OVERLAP_FRACTION} of the smaller radius"
             raise SimulationError(
-                f"{what} at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}): the contact is too soft to "
-                f"stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
+                f"{what} at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}{walls}): the contact is too "
+                f"soft to stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
                 f"overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
                 f"docs/stability.md says how to size both. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)

@@ -77,11 +77,14 @@ def servo_clear(params, g):
 @njit(**KERNEL_OPTIONS)
 def servo_add(params, g, fx, fy, fz, nx, ny, nz, overlap):
     """Add sphere i's contact with the wall to the servo's sums: the normal force (fx, fy, fz).n the wall
-    exerts on it, which the sphere exerts back, and its secant stiffness (that force / overlap)."""
+    exerts on it, which the sphere exerts back, and its secant stiffness (that force / overlap) when it
+    pushes (a dashpot pulling as the sphere leaves has a negative secant, which would turn the servo's
+    step round)."""
     if g >= 0 and params[g] == 2.0 and overlap > 0.0:
         push = fx * nx + fy * ny + fz * nz
         params[g + 13] += push
-        params[g + 14] += push / overlap
+        if push > 0.0:
+            params[g + 14] += push / overlap
 
 
 @njit(**KERNEL_OPTIONS)
