@@ -62,7 +62,7 @@ class _Source:
             if size:
                 self.table_slot[e] = slot
                 slot += size
-        self.geometry_slot = {}  # walls' geometry blocks (a cylinder's) follow the tables
+        self.geometry_slot = {}  # geometry blocks of walls that move or curve follow the tables
         for e, effect in enumerate(plan.effects):
             size = np.size(effect.geometry_values())
             if size:
@@ -420,7 +420,7 @@ class _Source:
                     # a sphere clear of the wall, holding no history there, costs this test and no
                     # call (the law would return zeros: measured 13 ns a sphere and frictional wall)
                     held = "".join(f" or history[i, {offset} + {h}] != 0.0" for h in range(effect.history_size))
-                    if e in self.geometry_slot:  # a cylinder: the plane it presents to sphere i
+                    if e in self.geometry_slot:  # a moving or curved wall: the plane it presents to sphere i
                         lines += [self.wall_plane_line(e, q)]
                         q = self.plane_of(e, q)
                         call = [f"{', '.join(outs)} = {self.effect_call(e, effect, offset, 'force', q, table)}"]
@@ -453,12 +453,12 @@ class _Source:
         return lines
 
     def plane_of(self, e, q):
-        """The names of effect e's parameters, a cylinder's first seven replaced by the plane it
-        presents to sphere i (set by :meth:`wall_plane_line`)."""
+        """The names of effect e's parameters; for a wall with a geometry block, the first seven replaced
+        by the plane it presents to sphere i (set by :meth:`wall_plane_line`)."""
         return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if e in self.geometry_slot else q
 
     def wall_plane_line(self, e, q):
-        """The line setting the plane a cylinder (effect e) presents to sphere i (as tier 1's)."""
+        """The line setting the plane a wall with a geometry block (effect e) presents to sphere i (as tier 1's)."""
         return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {self.geometry_slot[e]}, clock[0], "
                 f"{', '.join(q[:len(WALL_PLANE)])})")
 

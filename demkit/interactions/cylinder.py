@@ -81,8 +81,7 @@ class Cylinder(Wall):
     none); contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own.
     """
 
-    flat = False  # contact events (resolve_contacts) and the fall-height bound treat plane walls only
-    steady = False  # the compiled loops read its geometry block
+    steady = False  # the compiled loops read its geometry block (so not flat: see Wall.flat)
     shape = 1
 
     def __init__(self, point, axis, radius, inside=True, angular_velocity=0.0, contact=None,

@@ -8,8 +8,9 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
     shape, Vx, Vy, Vz, Ax, Ay, Az, w, <the shape's numbers>
 
 with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
-(demkit.interactions.cylinder.GEOMETRY) and 2 a plane moved by a servo (:data:`SERVO`). The wall is carried by D(t) = V t + A (1 - cos w t)
-(w = 2 pi f; the vibration starts at rest, as LAMMPS' ``wiggle``): a sphere at x meets the shape as it
+(demkit.interactions.cylinder.GEOMETRY) and 2 a plane moved by a servo (:data:`SERVO`). The wall is
+carried by D(t) = V t + A (1 - cos w t) (w = 2 pi f; the vibration starts at rest, as LAMMPS'
+``wiggle``): a sphere at x meets the shape as it
 stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
 D'(t) = V + A w sin(w t).
 
@@ -31,7 +32,7 @@ from ..engine.motion import KERNEL_OPTIONS
 from .cylinder import cylinder_plane
 
 #: the shape codes of the geometry block
-SHAPES = {"plane": 0, "cylinder": 1}
+SHAPES = {"plane": 0, "cylinder": 1, "servo": 2}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 #: a servo's numbers, after the motion (its state from "offset" on: demkit.interactions.wall.SERVO_STATE)
