@@ -364,15 +364,16 @@ class _Source:
         """The effects in runs (first, last) of consecutive effects of one law: the same functions,
         parameters, history size and table size, their parameters, history and tables side by side. A
         run's effects share one call site in a loop (a box of five walls: one copy of the wall law,
-        not five, for numba and LLVM to compile), in the scene's order."""
+        not five, for numba and LLVM to compile), in the scene's order. Walls that move or curve join
+        the run of their law: the loop reads each one's geometry block (-1 for a steady plane, which
+        :func:`demkit.interactions.wall_motion.wall_plane` returns as it is)."""
         plan, runs = self.plan, []
         for e, effect in enumerate(plan.effects):
             if runs:
                 first, last = runs[-1]
                 one = plan.effects[first]
                 tables = self.table_slot.get(first), self.table_slot.get(e), np.size(one.table_values())
-                if (e not in self.geometry_slot and first not in self.geometry_slot
-                        and effect.pair_functions() == one.pair_functions() and effect.parameters == one.parameters
+                if (effect.pair_functions() == one.pair_functions() and effect.parameters == one.parameters
                         and effect.history_size == one.history_size and effect.energy_kind == one.energy_kind
                         and np.size(effect.table_values()) == tables[2]
                         and (tables[0] is None) == (tables[1] is None)
@@ -394,24 +395,32 @@ class _Source:
                                                           "        y = position[i, 1]", "        z = position[i, 2]"]
 
         def effect_lines(e, last, body_of):
-            """Lines for the effects e..last (a run: a loop whose parameters and history offset follow e)."""
+            """Lines for the effects e..last (a run: a loop whose parameters and history offset follow e;
+            ``body_of(index, offset, q, table, geometry)``, geometry: the expression of the geometry
+            block's slot, None when no effect of the run has one)."""
             effect = plan.effects[e]
+            moving = any(k in self.geometry_slot for k in range(e, last + 1))
             if e == last:
                 return [" " * 8 + line for line in body_of(str(e), str(offsets[e]), [f"q{e}_{m}" for m in range(
-                    len(effect.parameters))], None)]
+                    len(effect.parameters))], None, str(self.geometry_slot[e]) if moving else None)]
             size, width = len(effect.parameters), effect.history_size
             lines = [f"        for e in range({e}, {last + 1}):",
                      f"            qb = {self.effect_slot[e]} + {size} * (e - {e})",
                      f"            ob = {offsets[e]} + {width} * (e - {e})"]
             if e in self.table_slot:
                 lines.append(f"            tb = {self.table_slot[e]} + {np.size(effect.table_values())} * (e - {e})")
+            if moving:
+                slots = ", ".join(str(self.geometry_slot.get(k, -1)) for k in range(e, last + 1))
+                lines.append(f"            gb = ({slots})[e - {e}]")
             lines += [f"            u{m} = params[qb + {m}]" for m in range(size)]
-            return lines + [" " * 12 + line for line in body_of("e", "ob", [f"u{m}" for m in range(size)], "tb")]
+            return lines + [" " * 12 + line for line in body_of("e", "ob", [f"u{m}" for m in range(size)], "tb",
+                                                                "gb" if moving else None)]
 
-        def force_body(e):
+        def force_body(e, last):
             effect = plan.effects[e]
+            servo = any(getattr(plan.effects[k], "servo", None) is not None for k in range(e, last + 1))
 
-            def body(index, offset, q, table):
+            def body(index, offset, q, table, geometry):
                 outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if effect.torque else []) + (
                     ["w"] if effect.dissipative else [])
                 lines, pad = [], ""
@@ -420,17 +429,16 @@ class _Source:
                     # a sphere clear of the wall, holding no history there, costs this test and no
                     # call (the law would return zeros: measured 13 ns a sphere and frictional wall)
                     held = "".join(f" or history[i, {offset} + {h}] != 0.0" for h in range(effect.history_size))
-                    if e in self.geometry_slot:  # a moving or curved wall: the plane it presents to sphere i
-                        lines += [self.wall_plane_line(e, q)]
-                        q = self.plane_of(e, q)
+                    if geometry is not None:  # a moving or curved wall: the plane it presents to sphere i
+                        lines += [self.wall_plane_line(geometry, q)]
+                        q = self.plane_of(geometry, q)
                         call = [f"{', '.join(outs)} = {self.effect_call(e, effect, offset, 'force', q, table)}"]
                     lines += [f"overlap = radius[i] - (x * {q[1]} + y * {q[2]} + z * {q[3]} - {q[0]})",
                               f"if overlap > 0.0{held}:"]
                     pad = "    "
                     call += deep_wall_overlap(index)
-                    if getattr(effect, "servo", None) is not None:  # its push and stiffness, for its step
-                        call += [f"servo_add(params, {self.geometry_slot[e]}, ax, ay, az, {q[1]}, {q[2]}, {q[3]}, "
-                                 "overlap)"]
+                    if servo:  # its push and stiffness, for its step (servo_add: nothing for the others)
+                        call += [f"servo_add(params, {geometry}, ax, ay, az, {q[1]}, {q[2]}, {q[3]}, overlap)"]
                 call += effect_sums(effect.torque, effect.dissipative)
                 return lines + [pad + line for line in call]
             return body
@@ -440,26 +448,30 @@ class _Source:
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
                  "    power = 0.0"] + [f"    servo_clear(params, {g})" for g in self.servo_slots()] + head
         for e, last in runs:
-            lines += effect_lines(e, last, force_body(e))
+            lines += effect_lines(e, last, force_body(e, last))
         lines.append("    return power")
         lines += ["", "", "@njit(**INNER)", f"def sphere_energies({ARRAYS}, history, out):",
                   '    """Add the potential energies of the single-sphere effects to out[2 + kind]."""'] + head
         for e, last in runs:
             effect = plan.effects[e]
             slot = 2 + self.kinds.index(effect.energy_kind)
-            lines += effect_lines(e, last, lambda index, offset, q, table, e=e, effect=effect, slot=slot: (
-                [self.wall_plane_line(e, q)] if e in self.geometry_slot else []) + [
-                f"out[{slot}] += {self.effect_call(e, effect, offset, 'energy', self.plane_of(e, q), table)}"])
+            lines += effect_lines(e, last, lambda index, offset, q, table, geometry, e=e, effect=effect, slot=slot: (
+                [self.wall_plane_line(geometry, q)] if geometry is not None else []) + [
+                f"out[{slot}] += {self.effect_call(e, effect, offset, 'energy', self.plane_of(geometry, q), table)}"])
         return lines
 
-    def plane_of(self, e, q):
-        """The names of effect e's parameters; for a wall with a geometry block, the first seven replaced
-        by the plane it presents to sphere i (set by :meth:`wall_plane_line`)."""
-        return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if e in self.geometry_slot else q
+    @staticmethod
+    def plane_of(geometry, q):
+        """The names of an effect's parameters; for walls with a geometry block (``geometry``: the
+        expression of its slot, or None), the first seven replaced by the plane the wall presents to
+        sphere i (set by :meth:`wall_plane_line`)."""
+        return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if geometry is not None else q
 
-    def wall_plane_line(self, e, q):
-        """The line setting the plane a wall with a geometry block (effect e) presents to sphere i (as tier 1's)."""
-        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {self.geometry_slot[e]}, clock[0], "
+    @staticmethod
+    def wall_plane_line(geometry, q):
+        """The line setting the plane a wall whose geometry block is at ``geometry`` presents to sphere i
+        (as tier 1's)."""
+        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {geometry}, clock[0], "
                 f"{', '.join(q[:len(WALL_PLANE)])})")
 
     # ---- scene-level functions -----------------------------------------------------------------

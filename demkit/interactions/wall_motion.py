@@ -39,7 +39,14 @@ MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 SERVO = ("force", "max_speed", "gain", "offset", "speed", "pushed", "stiffness", "dt")
 
 
-@njit(**KERNEL_OPTIONS)
+#: wall_plane is compiled once and called, not inlined into the IR of every wall law's call site: the
+#: cylinder's geometry copied and typed again at each site made a sphere loop of a shaken cylinder, a
+#: piston and a servo lid (tier 2) compile for 49 CPU s. Strict IEEE arithmetic, as the generated
+#: modules that call it (the same bits on both tiers, whether LLVM inlines it or not)
+PLANE_OPTIONS = dict(KERNEL_OPTIONS, inline="never", fastmath=False)
+
+
+@njit(**PLANE_OPTIONS)
 def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
     """(plane, nx, ny, nz, ux, uy, uz): the plane the wall presents to the sphere centred at (x, y, z) at
     time t, and its surface's velocity there: a steady plane's own (``g`` < 0), else as the geometry
