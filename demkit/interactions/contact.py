@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..engine.motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS, LAW_OPTIONS
 
 from .base import PairInteraction, flag, non_negative, positive
 from .friction import HISTORY, Friction, pair_friction, release, springs_energy
@@ -68,7 +68,7 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
     return 0.5 * stiffness * overlap * overlap
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
     """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
@@ -95,7 +95,7 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, power + lost
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                  commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
     """Elastic energy of the normal spring, of the tangential spring and of the rolling spring."""
@@ -106,7 +106,7 @@ def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocit
     return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
                                 eta_tw, lever_tw, dt):
@@ -135,7 +135,7 @@ def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     return fx, fy, fz, tix + mx, tiy + my, tiz + mz, tjx - mx, tjy - my, tjz - mz, power + lost
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def kelvin_voigt_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                  commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r,
                                  k_tw, eta_tw, lever_tw, dt):

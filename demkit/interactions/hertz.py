@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..engine.motion import KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS, LAW_OPTIONS
 
 from .base import PairInteraction, number, positive
 from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
@@ -94,7 +94,7 @@ def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_
     return 8.0 / 15.0 * young_eff * math.sqrt(radius_eff) * overlap ** 2.5
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
                          eta_r_fixed, dt):
@@ -125,7 +125,7 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, (fn - elastic) * rate + lost
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                           young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
                           eta_r_fixed, dt):
@@ -138,7 +138,7 @@ def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radi
     return 8.0 / 15.0 * young_eff * math.sqrt(radius_eff) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
                          k_tw, eta_tw, lever_tw, dt):
@@ -171,7 +171,7 @@ def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     return fx, fy, fz, tix + mx, tiy + my, tiz + mz, tjx - mx, tjy - my, tjz - mz, power + lost
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**LAW_OPTIONS)
 def hertz_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                           young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
                           k_tw, eta_tw, lever_tw, dt):
