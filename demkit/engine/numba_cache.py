@@ -22,7 +22,6 @@ and by the system when a process dies; a wait longer than :data:`LOCK_WAIT` seco
 from __future__ import annotations
 
 import hashlib
-import importlib.machinery
 import os
 import time
 from pathlib import Path
@@ -86,6 +85,7 @@ def preload_blas_table():
     pointers that the extension module holds alone (0.03 s). Registered under its own name, the
     module is the one numba (and ``scipy.linalg``, if a program imports it later) finds. Nothing is
     done when ``scipy.linalg`` is imported already or the file is not where SciPy keeps it."""
+    import importlib.machinery
     import importlib.util
     import sys
     name = "scipy.linalg.cython_blas"
