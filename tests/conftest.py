@@ -215,9 +215,3 @@ def same_bits_on_two_threads_and_one(make_scene, duration):
         numba.set_num_threads(before)
     assert forces[0].tobytes() == forces[1].tobytes()
     assert runs[0].tobytes() == runs[1].tobytes()
-
-
-def pytest_sessionstart(session):
-    """Each worker of ``pytest -n N`` compiles its share of tier 1 first (tests/warm_up.py)."""
-    from warm_up import warm_up
-    warm_up()

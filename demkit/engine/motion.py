@@ -26,12 +26,6 @@ KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath=FASTMATH, error_model="nu
 #: re-type and re-lower the same code in every kernel: a Hertz + friction + rolling + wall scene
 #: compiled in 43 s instead of 15 s, and ran no faster (LLVM still inlines them where it pays).
 HELPER_OPTIONS = dict(KERNEL_OPTIONS, inline="never")
-#: options of the laws with contact history (friction, rolling, twisting) and of every wall law: compiled
-#: once and called by the pair and sphere loops, not copied into the IR of each loop that switches over
-#: them (tier 1's full family compiled its pair and sphere loops in 45 CPU s, each wall kind of a tier-2
-#: scene added seconds). They run only for spheres in contact, where a call costs little beside the law.
-#: Strict IEEE arithmetic, as the generated loops: the same bits whether LLVM inlines them or not
-LAW_OPTIONS = dict(KERNEL_OPTIONS, inline="never", fastmath=False)
 
 
 @njit(**KERNEL_OPTIONS)

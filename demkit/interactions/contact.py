@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..engine.motion import KERNEL_OPTIONS, LAW_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, flag, non_negative, positive
 from .friction import HISTORY, Friction, pair_friction, release, springs_energy
@@ -71,23 +71,12 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
-    """Apart (r >= R_i + R_j): the contact's springs released, nothing else; touching:
-    :func:`kelvin_voigt_friction_touching` (compiled once and called: the test stays in the pair loop, the law's body
-    out of it)."""
+    """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
+    Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
-    return kelvin_voigt_friction_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p,
-        offset, commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt)
-
-
-@njit(**LAW_OPTIONS)
-def kelvin_voigt_friction_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
-    """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
-    Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0."""
-    reach = radius[i] + radius[j]
     r = math.sqrt(r2)
     inv_r = 1.0 / r
     nx = dx * inv_r
@@ -106,7 +95,7 @@ def kelvin_voigt_friction_touching(i, j, dx, dy, dz, r2, velocity, angular_veloc
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, power + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                  commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
     """Elastic energy of the normal spring, of the tangential spring and of the rolling spring."""
@@ -121,30 +110,17 @@ def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocit
 def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
                                 eta_tw, lever_tw, dt):
-    """Apart (r >= R_i + R_j): the contact's springs released, nothing else; touching:
-    :func:`kelvin_voigt_twisting_touching` (compiled once and called: the test stays in the pair loop, the law's body
-    out of it)."""
-    reach = radius[i] + radius[j]
-    if r2 >= reach * reach:
-        lost = (release(history, p, offset, 2 if mu_r > 0.0 else 1, dt)
-                + twist_release(history, p, offset + (2 * HISTORY if mu_r > 0.0 else HISTORY), dt)) if commit else 0.0
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
-    return kelvin_voigt_twisting_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p,
-        offset, commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw, eta_tw,
-        lever_tw, dt)
-
-
-@njit(**LAW_OPTIONS)
-def kelvin_voigt_twisting_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
-                                eta_tw, lever_tw, dt):
     """:func:`kelvin_voigt_friction_force` plus twisting resistance (:mod:`.twisting`; history after
     the friction and rolling springs; Marshall's coefficient where the given one is -1)."""
-    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = kelvin_voigt_friction_touching(
+    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = kelvin_voigt_friction_force(
         i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset, commit, stiffness, damping,
         no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt)
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        if commit:
+            power += twist_release(history, p, o, dt)
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power
     r = math.sqrt(r2)
     nx = dx / r
     ny = dy / r
@@ -159,7 +135,7 @@ def kelvin_voigt_twisting_touching(i, j, dx, dy, dz, r2, velocity, angular_veloc
     return fx, fy, fz, tix + mx, tiy + my, tiz + mz, tjx - mx, tjy - my, tjz - mz, power + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def kelvin_voigt_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                  commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r,
                                  k_tw, eta_tw, lever_tw, dt):

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..engine.motion import KERNEL_OPTIONS, LAW_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, number, positive
 from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
@@ -98,26 +98,13 @@ def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_
 def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
                          eta_r_fixed, dt):
-    """Apart (r >= R_i + R_j): the contact's springs released, nothing else; touching:
-    :func:`hertz_friction_touching` (compiled once and called: the test stays in the pair loop, the law's body
-    out of it)."""
-    reach = radius[i] + radius[j]
-    if r2 >= reach * reach:
-        lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
-    return hertz_friction_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p,
-        offset, commit, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
-        dt)
-
-
-@njit(**LAW_OPTIONS)
-def hertz_friction_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
-                         eta_r_fixed, dt):
     """Force on j, torques on i and j and dissipated power of a Hertz contact with friction
     (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0) and rolling
     resistance when mu_r > 0 (k_r = 2.25 mu_r^2 S_n when kr_fixed is 0, damping ratio likewise)."""
     reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     r = math.sqrt(r2)
     nx = dx / r
     ny = dy / r
@@ -138,7 +125,7 @@ def hertz_friction_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, ra
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tix, tiy, tiz, tjx, tjy, tjz, (fn - elastic) * rate + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                           young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
                           eta_r_fixed, dt):
@@ -155,30 +142,17 @@ def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radi
 def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
                          k_tw, eta_tw, lever_tw, dt):
-    """Apart (r >= R_i + R_j): the contact's springs released, nothing else; touching:
-    :func:`hertz_twisting_touching` (compiled once and called: the test stays in the pair loop, the law's body
-    out of it)."""
-    reach = radius[i] + radius[j]
-    if r2 >= reach * reach:
-        lost = (release(history, p, offset, 2 if mu_r > 0.0 else 1, dt)
-                + twist_release(history, p, offset + (2 * HISTORY if mu_r > 0.0 else HISTORY), dt)) if commit else 0.0
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
-    return hertz_twisting_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p,
-        offset, commit, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
-        k_tw, eta_tw, lever_tw, dt)
-
-
-@njit(**LAW_OPTIONS)
-def hertz_twisting_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                         young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
-                         k_tw, eta_tw, lever_tw, dt):
     """:func:`hertz_friction_force` plus twisting resistance (:mod:`.twisting`: Marshall's k_t a^2/2,
     eta_t a^2/2, (2/3) mu a with the contact's own k_t and eta_t where the given value is -1)."""
-    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = hertz_friction_touching(
+    fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = hertz_friction_force(
         i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit, young_eff,
         shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt)
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     reach = radius[i] + radius[j]
+    if r2 >= reach * reach:
+        if commit:
+            power += twist_release(history, p, o, dt)
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power
     r = math.sqrt(r2)
     nx = dx / r
     ny = dy / r
@@ -197,7 +171,7 @@ def hertz_twisting_touching(i, j, dx, dy, dz, r2, velocity, angular_velocity, ra
     return fx, fy, fz, tix + mx, tiy + my, tiz + mz, tjx - mx, tjy - my, tjz - mz, power + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def hertz_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                           young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
                           k_tw, eta_tw, lever_tw, dt):

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .. import checks
-from ..engine.motion import KERNEL_OPTIONS, LAW_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 from .contact import KelvinVoigt, kelvin_voigt_normal
 from .friction import HISTORY, release, springs_energy, wall_friction
@@ -48,7 +48,7 @@ def _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz):
     return overlap, -(vx * nx + vy * ny + vz * nz), vx, vy, vz
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz, stiffness, damping,
                             no_tension):
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
@@ -58,14 +58,14 @@ def wall_kelvin_voigt_force(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux,
     return fn * nx, fn * ny, fn * nz, (fn - elastic) * rate
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz, stiffness, damping,
                              no_tension):
     overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     return 0.5 * stiffness * overlap * overlap if overlap > 0.0 else 0.0
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                      plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
                                      eta_t, style, mu_r, kr, eta_r, dt):
@@ -80,7 +80,7 @@ def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, rad
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                       plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
                                       eta_t, style, mu_r, kr, eta_r, dt):
@@ -90,7 +90,7 @@ def wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, ra
     return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_hertz_force(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
                      gamma):
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
@@ -100,7 +100,7 @@ def wall_hertz_force(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux, 
     return fn * nx, fn * ny, fn * nz, (fn - elastic) * rate
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
                       gamma):
     overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
@@ -109,7 +109,7 @@ def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux,
     return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
                               eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
@@ -126,7 +126,7 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                                plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
                                eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
@@ -145,7 +145,7 @@ def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, 
     return -mx, -my, -mz, lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                      params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
                                      mu, kt, eta_t, style, dt):
@@ -168,7 +168,7 @@ def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, rad
     return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                       params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
                                       mu, kt, eta_t, style, dt):
@@ -181,7 +181,7 @@ def wall_kelvin_voigt_twisting_energy(i, x, y, z, velocity, angular_velocity, ra
             + twist_energy(history, p, o))
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
                               kt_fixed, eta_t_fixed, style, dt):
@@ -207,7 +207,7 @@ def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, ma
     return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
 
 
-@njit(**LAW_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_hertz_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                                params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
                                kt_fixed, eta_t_fixed, style, dt):
