@@ -39,20 +39,27 @@ MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 SERVO = ("force", "max_speed", "gain", "offset", "speed", "pushed", "stiffness", "dt")
 
 
-#: wall_plane is compiled once and called, not inlined into the IR of every wall law's call site: the
-#: cylinder's geometry copied and typed again at each site made a sphere loop of a shaken cylinder, a
-#: piston and a servo lid (tier 2) compile for 49 CPU s. Strict IEEE arithmetic, as the generated
-#: modules that call it (the same bits on both tiers, whether LLVM inlines it or not)
+#: the planes of walls with a geometry block are computed by a function compiled once and called, not
+#: copied into the IR of each wall law's call site: the cylinder's geometry typed again at each site made
+#: a sphere loop of a shaken cylinder, a piston and a servo lid (tier 2) compile for 49 CPU s. Strict IEEE
+#: arithmetic, as the generated modules that call it (the same bits on both tiers, inlined by LLVM or not)
 PLANE_OPTIONS = dict(KERNEL_OPTIONS, inline="never", fastmath=False)
 
 
-@njit(**PLANE_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
     """(plane, nx, ny, nz, ux, uy, uz): the plane the wall presents to the sphere centred at (x, y, z) at
-    time t, and its surface's velocity there: a steady plane's own (``g`` < 0), else as the geometry
-    block at params[g] says (see the module docstring)."""
+    time t, and its surface's velocity there: a steady plane's own (``g`` < 0: a test, inlined into the
+    loop), else :func:`geometry_plane`'s."""
     if g < 0:
         return plane, nx, ny, nz, ux, uy, uz
+    return geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz)
+
+
+@njit(**PLANE_OPTIONS)
+def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
+    """The plane and surface velocity of a wall whose geometry block is at params[g] (``g`` >= 0; see the
+    module docstring): a moving plane, a servo's, or a cylinder's tangent plane."""
     w = params[g + 7]
     swing = 1.0 - math.cos(w * t)
     rate = w * math.sin(w * t)
