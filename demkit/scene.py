@@ -37,7 +37,7 @@ from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
-from .interactions.wall import SERVO_STATE
+from .interactions.wall_motion import SERVO_STATE
 from .particles import Particles
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -692,7 +692,7 @@ class Scene(SceneDiagnostics):
 
     def servo_slots(self):
         """(effect index, slice of params) of each servo-controlled wall's state (offset, speed, push,
-        stiffness: demkit.interactions.wall.SERVO_STATE); its time step follows the slice."""
+        stiffness: demkit.interactions.wall_motion.SERVO_STATE); its time step follows the slice."""
         slots = []
         for e, effect in enumerate(self.effects):
             if getattr(effect, "servo", None) is not None:

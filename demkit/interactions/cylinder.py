@@ -23,52 +23,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from ..engine.motion import KERNEL_OPTIONS
 from .sphere import vector
 from .wall import Wall
+from .wall_motion import cylinder_plane
 
 #: the cylinder's numbers in its geometry block, in this order (after the shape code and the motion:
 #: demkit.interactions.wall_motion)
 GEOMETRY = ("px", "py", "pz", "ax", "ay", "az", "radius", "side", "omega")
-
-
-@njit(**KERNEL_OPTIONS)
-def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
-    """(plane, nx, ny, nz, ux, uy, uz): the tangent plane x.n = plane of the cylinder (axis through p
-    along the unit a, radius rc, side +1 inside, -1 outside) where the sphere centred at (x, y, z)
-    meets it, and the surface's velocity there (turning at omega about a)."""
-    rx = x - px
-    ry = y - py
-    rz = z - pz
-    h = rx * ax + ry * ay + rz * az
-    dx = rx - h * ax
-    dy = ry - h * ay
-    dz = rz - h * az
-    d = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if d > 0.0:
-        ex = dx / d
-        ey = dy / d
-        ez = dz / d
-    else:  # a centre on the axis: every radial direction is as near; take one across the axis
-        if abs(ax) < 0.9:
-            ex, ey, ez = 0.0, -az, ay
-        else:
-            ex, ey, ez = az, 0.0, -ax
-        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
-        ex /= norm
-        ey /= norm
-        ez /= norm
-    sx = px + h * ax + rc * ex
-    sy = py + h * ay + rc * ey
-    sz = pz + h * az + rc * ez
-    nx = -side * ex
-    ny = -side * ey
-    nz = -side * ez
-    speed = omega * rc
-    return (sx * nx + sy * ny + sz * nz, nx, ny, nz, speed * (ay * ez - az * ey), speed * (az * ex - ax * ez),
-            speed * (ax * ey - ay * ex))
 
 
 class Cylinder(Wall):

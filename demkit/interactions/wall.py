@@ -33,6 +33,7 @@ from .friction import HISTORY, release, springs_energy, wall_friction
 from .hertz import Hertz, hertz_normal, tangential_springs
 from .sphere import SphereInteraction, vector
 from .twisting import twist_energy, twist_release, twisting_on_i
+from .wall_motion import SERVO_STATE
 
 #: a sphere may start overlapping a wall by at most this fraction of its radius
 MAX_INITIAL_OVERLAP = 0.5
@@ -234,9 +235,6 @@ TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
 
 
-#: where a servo's state (offset, speed, force, stiffness) starts in its wall's geometry block: after the
-#: shape code, the motion (7) and the servo's force, max speed and gain (demkit.interactions.wall_motion)
-SERVO_STATE = 11
 
 
 class Servo:

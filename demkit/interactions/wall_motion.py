@@ -29,14 +29,56 @@ import math
 from numba import njit
 
 from ..engine.motion import KERNEL_OPTIONS
-from .cylinder import cylinder_plane
 
 #: the shape codes of the geometry block
 SHAPES = {"plane": 0, "cylinder": 1, "servo": 2}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
-#: a servo's numbers, after the motion (its state from "offset" on: demkit.interactions.wall.SERVO_STATE)
+#: a servo's numbers, after the motion (its state from "offset" on: :data:`SERVO_STATE`)
 SERVO = ("force", "max_speed", "gain", "offset", "speed", "pushed", "stiffness", "dt")
+#: where the shape's numbers (a cylinder's, a servo's) start in the block: after the shape code and the motion
+SHAPE_AT = 1 + len(MOTION)
+#: where each of a servo's numbers sits in its block
+S_FORCE, S_MAX_SPEED, S_GAIN, S_OFFSET, S_SPEED, S_PUSHED, S_STIFFNESS, S_DT = range(SHAPE_AT, SHAPE_AT + len(SERVO))
+#: where a servo's state (offset, speed, push, stiffness: what a checkpoint keeps) starts in its block
+SERVO_STATE = S_OFFSET
+
+
+@njit(**KERNEL_OPTIONS)
+def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
+    """(plane, nx, ny, nz, ux, uy, uz): the tangent plane x.n = plane of the cylinder (axis through p
+    along the unit a, radius rc, side +1 inside, -1 outside) where the sphere centred at (x, y, z)
+    meets it, and the surface's velocity there (turning at omega about a)."""
+    rx = x - px
+    ry = y - py
+    rz = z - pz
+    h = rx * ax + ry * ay + rz * az
+    dx = rx - h * ax
+    dy = ry - h * ay
+    dz = rz - h * az
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d > 0.0:
+        ex = dx / d
+        ey = dy / d
+        ez = dz / d
+    else:  # a centre on the axis: every radial direction is as near; take one across the axis
+        if abs(ax) < 0.9:
+            ex, ey, ez = 0.0, -az, ay
+        else:
+            ex, ey, ez = az, 0.0, -ax
+        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= norm
+        ey /= norm
+        ez /= norm
+    sx = px + h * ax + rc * ex
+    sy = py + h * ay + rc * ey
+    sz = pz + h * az + rc * ez
+    nx = -side * ex
+    ny = -side * ey
+    nz = -side * ez
+    speed = omega * rc
+    return (sx * nx + sy * ny + sz * nz, nx, ny, nz, speed * (ay * ez - az * ey), speed * (az * ex - ax * ez),
+            speed * (ax * ey - ay * ex))
 
 
 #: the planes of walls with a geometry block are computed by a function compiled once and called, not
@@ -73,10 +115,11 @@ def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
         return plane + (dx * nx + dy * ny + dz * nz), nx, ny, nz, vx, vy, vz
     if params[g] == 2.0:  # a servo's plane: moved along its normal by its offset (quasi-static steps whose
         # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
-        return plane + (dx * nx + dy * ny + dz * nz) + params[g + 11], nx, ny, nz, vx, vy, vz
-    c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[g + 8], params[g + 9], params[g + 10],
-                                               params[g + 11], params[g + 12], params[g + 13], params[g + 14],
-                                               params[g + 15], params[g + 16])
+        return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz
+    k = g + SHAPE_AT  # the cylinder's numbers (demkit.interactions.cylinder.GEOMETRY)
+    c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
+                                               params[k + 3], params[k + 4], params[k + 5], params[k + 6],
+                                               params[k + 7], params[k + 8])
     return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
 
 
@@ -85,8 +128,8 @@ def servo_clear(params, g):
     """Before a force evaluation: the servo's sums of force and stiffness start at zero (g < 0 or
     another shape: nothing)."""
     if g >= 0 and params[g] == 2.0:
-        params[g + 13] = 0.0
-        params[g + 14] = 0.0
+        params[g + S_PUSHED] = 0.0
+        params[g + S_STIFFNESS] = 0.0
 
 
 @njit(**KERNEL_OPTIONS)
@@ -97,18 +140,18 @@ def servo_add(params, g, fx, fy, fz, nx, ny, nz, overlap):
     step round)."""
     if g >= 0 and params[g] == 2.0 and overlap > 0.0:
         push = fx * nx + fy * ny + fz * nz
-        params[g + 13] += push
+        params[g + S_PUSHED] += push
         if push > 0.0:
-            params[g + 14] += push / overlap
+            params[g + S_STIFFNESS] += push / overlap
 
 
 @njit(**KERNEL_OPTIONS)
 def servo_step(params, g):
     """After a step: move the servo's wall (see the module docstring); returns nothing."""
     if g >= 0 and params[g] == 2.0:
-        limit = params[g + 9] * params[g + 15]
-        stiffness = params[g + 14]
-        move = params[g + 10] * (params[g + 13] - params[g + 8]) / stiffness if stiffness > 0.0 else -limit
+        limit = params[g + S_MAX_SPEED] * params[g + S_DT]
+        stiffness = params[g + S_STIFFNESS]
+        move = params[g + S_GAIN] * (params[g + S_PUSHED] - params[g + S_FORCE]) / stiffness if stiffness > 0.0 else -limit
         move = min(max(move, -limit), limit)  # > 0: away from the spheres
-        params[g + 11] -= move
-        params[g + 12] = -move / params[g + 15]
+        params[g + S_OFFSET] -= move
+        params[g + S_SPEED] = -move / params[g + S_DT]
