@@ -364,9 +364,8 @@ class _Source:
         """The effects in runs (first, last) of consecutive effects of one law: the same functions,
         parameters, history size and table size, their parameters, history and tables side by side. A
         run's effects share one call site in a loop (a box of five walls: one copy of the wall law,
-        not five, for numba and LLVM to compile), in the scene's order. Walls that move or curve join
-        the run of their law: the loop reads each one's geometry block (-1 for a steady plane, which
-        :func:`demkit.interactions.wall_motion.wall_plane` returns as it is)."""
+        not five, for numba and LLVM to compile), in the scene's order. Walls that move or curve join the
+        run of their law: the loop reads each one's geometry slot (-1: a steady plane, passed as it is)."""
         plan, runs = self.plan, []
         for e, effect in enumerate(plan.effects):
             if runs:
@@ -395,9 +394,8 @@ class _Source:
                                                           "        y = position[i, 1]", "        z = position[i, 2]"]
 
         def effect_lines(e, last, body_of):
-            """Lines for the effects e..last (a run: a loop whose parameters and history offset follow e;
-            ``body_of(index, offset, q, table, geometry)``, geometry: the expression of the geometry
-            block's slot, None when no effect of the run has one)."""
+            """Lines for the effects e..last (a run: a loop whose parameters and history offset follow e);
+            ``body_of(index, offset, q, table, geometry)``, geometry: the block's slot, or None (no block)."""
             effect = plan.effects[e]
             moving = any(k in self.geometry_slot for k in range(e, last + 1))
             if e == last:
@@ -462,15 +460,13 @@ class _Source:
 
     @staticmethod
     def plane_of(geometry, q):
-        """The names of an effect's parameters; for walls with a geometry block (``geometry``: the
-        expression of its slot, or None), the first seven replaced by the plane the wall presents to
-        sphere i (set by :meth:`wall_plane_line`)."""
+        """An effect's parameter names ``q``; with a geometry block (``geometry``: its slot's expression, or
+        None) the first seven replaced by the plane the wall presents to sphere i (:meth:`wall_plane_line`)."""
         return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if geometry is not None else q
 
     @staticmethod
     def wall_plane_line(geometry, q):
-        """The line setting the plane a wall whose geometry block is at ``geometry`` presents to sphere i
-        (as tier 1's)."""
+        """The line setting the plane presented to sphere i by a wall with its block at ``geometry`` (as tier 1's)."""
         return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {geometry}, clock[0], "
                 f"{', '.join(q[:len(WALL_PLANE)])})")
 
