@@ -57,8 +57,8 @@ class Stops:
                        f"{DEEP_OVERLAP_FRACTION} of the smaller radius"
             raise SimulationError(
                 f"{what} at step {self.step} (t = {self.time:.6g}; speed {speed:.6g}{walls}): the contact is too "
-                f"soft to stop the sphere, which would pass through. Use a stiffer contact law for speeds like this (the "
-                f"overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
+                f"soft to stop the sphere, which would pass through. Use a stiffer contact law for speeds like this "
+                f"(the overlap of a linear contact is about v sqrt(m/k)) or a smaller time step (dt = {dt:.6g}); "
                 f"docs/stability.md says how to size both. {kept}.",
                 step=self.step, time=self.time, particle=int(p.ids[k]), trajectory=self.trajectory)
         if code == LEFT_LAYER:

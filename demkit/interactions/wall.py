@@ -11,8 +11,7 @@ along n vibrates it (a vibrated bed: it starts at rest at ``point`` and swings t
 as LAMMPS' fix wall/gran ``wiggle``; peak acceleration (2 pi f)^2 |A|). Time is the scene's clock
 (:attr:`demkit.Scene.time`, set by the time loops at every force evaluation;
 demkit.interactions.wall_motion.wall_plane). A :class:`Servo` moves it instead to hold a force on it.
-Friction keeps each
-sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
+Friction keeps each sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
 wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
 with twisting passes its rolling and twisting numbers to the wall functions as a table
 (:meth:`Wall.table_values`, :data:`TWIST_TABLE`): one more scalar each would exceed the number of
@@ -233,8 +232,6 @@ _TWISTING = {KelvinVoigt: (wall_kelvin_voigt_twisting_force, wall_kelvin_voigt_t
 #: a twisting law's parameters that its walls take from their table instead, in the table's order
 TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"),
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
-
-
 
 
 class Servo:

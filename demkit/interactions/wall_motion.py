@@ -151,7 +151,8 @@ def servo_step(params, g):
     if g >= 0 and params[g] == 2.0:
         limit = params[g + S_MAX_SPEED] * params[g + S_DT]
         stiffness = params[g + S_STIFFNESS]
-        move = params[g + S_GAIN] * (params[g + S_PUSHED] - params[g + S_FORCE]) / stiffness if stiffness > 0.0 else -limit
+        error = params[g + S_PUSHED] - params[g + S_FORCE]
+        move = params[g + S_GAIN] * error / stiffness if stiffness > 0.0 else -limit
         move = min(max(move, -limit), limit)  # > 0: away from the spheres
         params[g + S_OFFSET] -= move
         params[g + S_SPEED] = -move / params[g + S_DT]
