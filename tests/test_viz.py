@@ -359,6 +359,7 @@ RENDER_MANY = """
     lines = np.asarray(trails.lines).reshape(-1, 3)[:, 1:]
     step = np.linalg.norm(np.diff(np.asarray(trails.points)[lines], axis=1)[:, 0], axis=1)
     print("TRAILS", len(lines), step.max())
+    dk.viz.snapshot(out + "/walled", out + "/walls.png", view="xz", arrows=False, color_by="id", **size)
 """
 
 
@@ -368,6 +369,9 @@ def many(tmp_path_factory):
     folder = tmp_path_factory.mktemp("many")
     dk.write_series(exploded(), folder / "exploded", trails=False)
     dk.write_series(straddling(), folder / "straddling", trails=False)
+    walled = dk.Scene(dk.Particles(position=[[0.0, 0.0, 0.5], [1.0, 0.0, 0.5]], radius=0.5, mass=1.0),
+                      [dk.KelvinVoigt(1e3, 5.0), dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 1.1), (0, 0, -1))])
+    dk.Simulation(walled, dk.VelocityVerlet(1e-3), writers=[dk.VTKWriter(folder / "walled", every=0.1)]).run(0.1)
     done = run_child(RENDER_MANY.format(out=str(folder)))
     assert done.returncode == 0, done.stdout + done.stderr
     return folder, done.stdout
@@ -413,6 +417,17 @@ def test_periodic_box_outline_and_trails_without_jumps(many):
     grey = (np.abs(pixels - pixels[..., :1]).sum(axis=2) < 10) & (pixels[..., 0] < 200) & (pixels[..., 0] > 60)
     rows, cols = np.nonzero(grey)
     assert np.ptp(rows) > 250 and np.ptp(cols) > 250  # the outline spans the picture
+
+
+def test_the_walls_of_a_series_are_drawn_with_their_rims(many):
+    """Two spheres on a floor under a lid, seen along y: the two walls' rims are dark grey lines across the
+    picture below and above the spheres (demkit.io.walls, demkit.viz.render)."""
+    folder, _ = many
+    pixels = np.asarray(Image.open(folder / "walls.png").convert("RGB"), dtype=int)
+    rim = (np.abs(pixels - np.array([80, 80, 80])).sum(axis=2) < 40).mean(axis=1)  # fraction of each row
+    rows = np.flatnonzero(rim > 0.5)
+    spheres = np.flatnonzero((np.abs(pixels - pixels[..., :1]).sum(axis=2) > 60).any(axis=1))  # coloured rows
+    assert len(rows) and rows.min() < spheres.min() and rows.max() > spheres.max()
 
 
 def test_rings_and_chains_are_told_apart():

@@ -1,4 +1,5 @@
-"""Trajectories as polylines: one VTK poly-line per particle through its recorded centres.
+"""VTK XML PolyData files: trajectories as polylines (one VTK poly-line per particle through its recorded
+centres), contact lines, and polygons (the walls, :mod:`demkit.io.walls`).
 
 The file is VTK XML PolyData (.vtp) with raw binary appended data (optionally zlib-compressed),
 written here directly because meshio has no poly-line cells. Point data: ``time`` (the time of
@@ -39,9 +40,21 @@ def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False
     point_data {name: (P,) or (P,k)}; cell_data {name: (L,) or (L,k)}; field_data {name: (k,)}.
     """
     points = np.asarray(points, dtype=np.float64)
-    lengths = np.asarray(lengths, dtype=np.int64)
+    return _write_vtp(path, points, "Lines", np.arange(len(points), dtype=np.int64),
+                      np.cumsum(np.asarray(lengths, dtype=np.int64)), point_data, cell_data, compress, field_data)
+
+
+def write_vtp_polygons(path, points, connectivity, offsets, cell_data, compress=False, field_data=None):
+    """Write polygons to the .vtp ``path``: polygon k has the points ``connectivity[offsets[k-1]:offsets[k]]``
+    (offsets (K,): where each polygon's point indices end), cell_data {name: (K,) or (K,k)}."""
+    return _write_vtp(path, np.asarray(points, dtype=np.float64), "Polys", np.asarray(connectivity, dtype=np.int64),
+                      np.asarray(offsets, dtype=np.int64), {}, cell_data, compress, field_data)
+
+
+def _write_vtp(path, points, kind, connectivity, offsets, point_data, cell_data, compress, field_data):
+    """A VTK XML PolyData file of ``kind`` cells ("Lines" or "Polys"), written to a temporary file and renamed."""
     arrays, offset = [], 0
-    xml = {"FieldData": [], "PointData": [], "CellData": [], "Points": [], "Lines": []}
+    xml = {"FieldData": [], "PointData": [], "CellData": [], "Points": [], kind: []}
 
     def add(section, name, value):
         nonlocal offset
@@ -63,8 +76,8 @@ def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False
     for name, value in cell_data.items():
         add("CellData", name, value)
     add("Points", "Points", points)
-    add("Lines", "connectivity", np.arange(len(points), dtype=np.int64))
-    add("Lines", "offsets", np.cumsum(lengths))
+    add(kind, "connectivity", connectivity)
+    add(kind, "offsets", offsets)
     compressor = ' compressor="vtkZLibDataCompressor"' if compress else ""
     head = [
         '<?xml version="1.0"?>',
@@ -72,10 +85,11 @@ def write_vtp_lines(path, points, lengths, point_data, cell_data, compress=False
         "<PolyData>"]
     if xml["FieldData"]:
         head += ["<FieldData>"] + xml["FieldData"] + ["</FieldData>"]
+    lines, polys = (len(offsets), 0) if kind == "Lines" else (0, len(offsets))
     head += [
-        f'<Piece NumberOfPoints="{len(points)}" NumberOfVerts="0" NumberOfLines="{len(lengths)}" '
-        'NumberOfStrips="0" NumberOfPolys="0">']
-    for section in ("PointData", "CellData", "Points", "Lines"):
+        f'<Piece NumberOfPoints="{len(points)}" NumberOfVerts="0" NumberOfLines="{lines}" '
+        f'NumberOfStrips="0" NumberOfPolys="{polys}">']
+    for section in ("PointData", "CellData", "Points", kind):
         head += [f"<{section}>"] + xml[section] + [f"</{section}>"]
     head += ["</Piece>", "</PolyData>", '<AppendedData encoding="raw">', "_"]
     path = Path(path)

@@ -163,11 +163,18 @@ def read_box(path):
     return read_entries(path)[1]
 
 
+#: the series a VTKWriter may write beside its particles' (demkit.io.writer): not what a folder is read for
+COMPANIONS = ("contacts", "walls")
+
+
 def find_pvd(source):
-    """The .pvd file named by ``source``: the file itself, or the only .pvd in a folder."""
+    """The .pvd file named by ``source``: the file itself, or the only .pvd in a folder (not counting the
+    contacts' and walls' series written beside a series, ``<name>_contacts.pvd`` and ``<name>_walls.pvd``)."""
     source = Path(source)
     if source.is_dir():
         found = sorted(source.glob("*.pvd"))
+        stems = {p.stem for p in found}
+        found = [p for p in found if not any(p.stem == f"{stem}_{part}" for stem in stems for part in COMPANIONS)]
         if len(found) != 1:
             what = "no .pvd file" if not found else f"{len(found)} .pvd files ({', '.join(p.name for p in found)})"
             raise ValueError(f"folder {source} holds {what}; pass the .pvd file itself")

@@ -173,16 +173,19 @@ class SeriesData:
 
     time (T,); position (T,N,3); velocity, angular_velocity, dipole, force, torque (T,N,3) or
     None when the series lacks them; ids, radius, mass (N,); files: the .vtu paths; pvd: its path;
-    image (T,N,3) int64 periodic image counts and box (a :class:`demkit.Box`), or None.
+    image (T,N,3) int64 periodic image counts and box (a :class:`demkit.Box`), or None; walls: the
+    walls' .vtp file of each frame (:mod:`demkit.io.walls`; None for a frame without), or None when the
+    series has no walls series beside it.
     """
 
-    def __init__(self, time, position, fields, ids, radius, mass, files, pvd, image=None, box=None):
+    def __init__(self, time, position, fields, ids, radius, mass, files, pvd, image=None, box=None, walls=None):
         self.time, self.position = time, position
         for name in VECTOR_FIELDS:
             setattr(self, name, fields.get(name))
         self.ids, self.radius, self.mass = ids, radius, mass
         self.files, self.pvd = files, pvd
         self.image, self.box = image, box
+        self.walls = walls
 
     def unwrapped(self):
         """Positions (T,N,3) continued across periodic boundaries: position + image * box size."""
@@ -234,7 +237,21 @@ def read_series(source, frames=None):
     fields = {k: np.stack(v) for k, v in vectors.items() if len(v) == len(entries)}
     return SeriesData(np.array([t for t, _ in entries]), np.stack(positions), fields, ids,
                       constant["radius"], constant["mass"], [f for _, f in entries], pvd,
-                      image=fields.get("image"), box=read_box(pvd))
+                      image=fields.get("image"), box=read_box(pvd), walls=wall_frames(pvd, [t for t, _ in entries]))
+
+
+def wall_frames(pvd, times):
+    """The walls' .vtp file at each of ``times`` from the series ``<name>_walls.pvd`` beside the series
+    ``pvd`` (None where it has no frame at that time), or None when there is no such series."""
+    walls = pvd.with_name(pvd.stem + "_walls.pvd")
+    if not walls.exists():
+        return None
+    listed = read_pvd(walls)
+    found = []
+    for t in times:
+        match = [f for time, f in listed if abs(time - t) <= TIME_TOLERANCE * max(1.0, abs(t)) and f.exists()]
+        found.append(match[0] if match else None)
+    return found
 
 
 def write_series(trajectory, folder, name="particles", compress=False, dtype="float64",

@@ -89,6 +89,12 @@ class VTKWriter:
     resume : accept a folder holding this series already, for a run resumed from a checkpoint:
         :meth:`resume` (instead of ``open``) keeps its frames up to the checkpoint's time and
         continues it. ``open`` still refuses to overwrite it.
+    walls : also write the scene's walls at every frame, when it has any (default True): a series
+        ``<name>_walls.pvd`` of ``<name>_walls_000000.vtp``, ... with each plane as a rectangle over
+        the region of the spheres and each cylinder as a tube, where each stands at the frame's time
+        (pistons, vibrated plates and servo lids moved, drums turned), with cell data ``wall`` and
+        ``force`` (the spheres' push on the wall); see :mod:`demkit.io.walls`. Written only by a
+        Simulation (``write``), which knows the scene.
     measures : per-sphere measurements to add to every frame (:func:`demkit.measure.sphere_arrays`):
         ``"pressure"`` (array ``pressure_volume``: each sphere's share of the pressure times the
         volume), ``"coordination"`` (contacts of each sphere), ``"field"`` (``local_field``, the
@@ -97,7 +103,7 @@ class VTKWriter:
     """
 
     def __init__(self, folder, every, compress=False, trails=True, fields=None, dtype="float64",
-                 name="particles", overwrite=False, contacts=False, resume=False, measures=()):
+                 name="particles", overwrite=False, contacts=False, resume=False, measures=(), walls=True):
         try:
             every = float(every)
         except (TypeError, ValueError):
@@ -117,6 +123,9 @@ class VTKWriter:
         self.series = SeriesFolder(folder, name, overwrite, resume=resume)
         self.contact_series = (SeriesFolder(folder, name + "_contacts", overwrite, extension="vtp", resume=resume)
                                if contacts else None)
+        self.wall_series = (SeriesFolder(folder, name + "_walls", overwrite, extension="vtp", resume=resume)
+                            if walls else None)
+        self._walls = None  # the scene's WallSurfaces, when it has walls (set by open/resume)
         self.trails = bool(trails)
         self._trails = None
         self.fields = None
@@ -126,15 +135,26 @@ class VTKWriter:
     # ---- writer protocol ---------------------------------------------------------------------
     def open(self, simulation):
         """Start the series for ``simulation``'s scene (called by the simulation)."""
+        surfaces = self._wall_surfaces(simulation.scene)
+        if surfaces is not None:
+            self.wall_series.check_unclaimed()
         self.begin(simulation.scene.particles, **self._scene_options(simulation.scene))
+        self._walls = surfaces
 
     def resume(self, simulation):
         """Continue the series in the folder for ``simulation`` resumed from a checkpoint at
         ``simulation.time``, instead of :meth:`open` (see :meth:`continue_series`). Returns True
         when the current state is to be written now (call :meth:`write`), False when the series
         has a frame at that time already."""
-        return self.continue_series(simulation.time, simulation.scene.particles,
-                                    **self._scene_options(simulation.scene))
+        surfaces = self._wall_surfaces(simulation.scene)
+        if surfaces is not None:
+            kept, later = self.wall_series.frames_until(float(simulation.time), missing_ok=True)
+        write = self.continue_series(simulation.time, simulation.scene.particles,
+                                     **self._scene_options(simulation.scene))
+        if surfaces is not None:
+            self.wall_series.take_over(kept, later)
+            self._walls = surfaces
+        return write
 
     def write(self, simulation):
         """Write the current state of ``simulation`` as the next frame (called by the simulation)."""
@@ -153,6 +173,22 @@ class VTKWriter:
             particles = simulation.scene.particles
             self.contact_series.add_frame(simulation.time, lambda path: contacts.write_vtk(
                 path, particles, compress=bool(self._frames.compression)))
+        if self._walls is not None:
+            from .polylines import write_vtp_polygons
+            points, connectivity, offsets, cells = self._walls.at(simulation.time)
+            self.wall_series.add_frame(simulation.time, lambda path: write_vtp_polygons(
+                path, points, connectivity, offsets, cells, compress=bool(self._frames.compression)))
+
+    def _wall_surfaces(self, scene):
+        """The scene's walls as surfaces (demkit.io.walls), or None: no walls, or not asked for."""
+        if self.wall_series is None:
+            return None
+        from .walls import WallSurfaces
+        surfaces = WallSurfaces(scene)
+        if not surfaces.walls:
+            return None
+        self.wall_series.box = getattr(scene, "box", None)
+        return surfaces
 
     def close(self):
         """Finish the series: write the trails file (once). The frames and .pvd are complete already."""
@@ -244,7 +280,8 @@ class VTKWriter:
         Counts the frame files, the .pvd (created or grown by ~90 bytes per frame), the trails
         file (written at close; it holds every frame of the run) and, with ``contacts=True``, the
         contact frames (``contacts_per_particle`` contacts per sphere; 3 in a dense packing).
-        The fields are this writer's once it is opened; before that every field the particles
+        The walls' frames are counted once the writer is opened on its scene. The fields are this
+        writer's once it is opened; before that every field the particles
         have plus force, and torque when they spin. Sizes are those of uncompressed output: with
         compression the files are 20-30 % smaller (simulation data compresses poorly).
         """
@@ -276,6 +313,10 @@ class VTKWriter:
             # two points and their connectivity, an offset, 16 numbers per contact (see Contacts.write_vtk)
             size += frames * (2000 + int(c * (2 * 3 * 8 + 2 * 8 + 8 + 16 * 8)) + 90)
             files += frames + (not self.contact_series.pvd.exists())
+        if self._walls is not None and frames > 0:  # (known once the writer is opened on its scene)
+            points, connectivity, offsets, _ = self._walls.at(0.0, forces=False)
+            size += frames * (1000 + 90 + 24 * len(points) + 8 * len(connectivity) + 40 * len(offsets))
+            files += frames + (not self.wall_series.pvd.exists())
         return int(files), int(size)
 
     # ---- helpers -----------------------------------------------------------------------------

@@ -1,5 +1,5 @@
 """Drawing frames with pyvista: spheres to scale coloured by a field (with a colour bar), dipole
-arrows, fading trails, the box outline, a time label. What to draw is decided in :mod:`.plan`.
+arrows, fading trails, the box outline, the walls of a series written with them, a time label. What to draw is decided in :mod:`.plan`.
 
 pyvista is imported only inside these functions (after the backend probe has chosen the OpenGL
 window class), never at ``import demkit``.
@@ -17,6 +17,8 @@ BAR_SPACE = 0.16  # fraction of the window width kept free for the colour bar
 TITLE_OVERHANG = 0.07
 #: opacity of the faded spheres around a cluster framed in 3-D (Plan.drawn)
 FADED_OPACITY = 0.12
+#: opacity of the walls (demkit.io.walls): the spheres behind a wall stay in sight
+WALL_OPACITY = 0.25
 
 
 def load(source):
@@ -155,6 +157,12 @@ class FrameDrawer:
             arrows = centres.glyph(geom=self.arrow, orient="dipole", scale="radius", factor=1.0) if len(index) else None
             self._show("arrows", arrows, color="#202020")
         self._show("trails", self._trails(k, index), scalars="colour", rgb=True, line_width=3)
+        walls = self._walls(k)
+        self._show("walls", walls, color="#8a8a8a", opacity=WALL_OPACITY, smooth_shading=False)
+        # their rims as lines: a plane seen edge-on in a plane view is a line, not nothing
+        rims = walls.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False,
+                                           non_manifold_edges=False) if walls is not None else None
+        self._show("wall rims", rims, color="#505050", line_width=2)
         if self.style.label:
             text = time_label(f.time, k) if np.isfinite(f.time[k]) else Path(f.files[k]).name
             if "label" not in self._actors:
@@ -258,6 +266,13 @@ class FrameDrawer:
         mesh = self.pv.PolyData(pts.reshape(-1, 3), lines=lines)
         mesh.point_data["colour"] = colours.reshape(-1, 3).astype(np.uint8)
         return mesh
+
+    def _walls(self, k):
+        """The walls of frame k (a series written with them, demkit.io.walls), or None."""
+        files = getattr(self.frames, "walls", None)
+        if not files or files[k] is None:
+            return None
+        return self.pv.read(files[k])
 
     def close(self):
         self.plotter.close()
