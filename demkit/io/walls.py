@@ -3,10 +3,10 @@
 An infinite plane is drawn as the rectangle of it that faces the region the spheres fill
 (:meth:`WallSurfaces.region`: their bounding box, grown and rounded out to whole multiples of four of
 the largest radii; along a periodic axis the box itself); a :class:`demkit.Cylinder` as a tube of
-:data:`FACETS` facets over that region's reach along its axis. Each moves as the wall does: a piston or a vibrated plate
-is where its motion has taken it at the frame's time, a servo-controlled wall where its servo stands
-(so frames must be drawn as the run reaches them: :class:`demkit.VTKWriter` does), and a turning
-cylinder's facets turn with it (omega t about its axis).
+:data:`FACETS` facets over that region's reach along its axis. Each moves as the wall does: a piston or
+a vibrated plate is where its motion has taken it at the frame's time, a servo-controlled wall where
+its servo stands (so frames must be drawn as the run reaches them: :class:`demkit.VTKWriter` does), and
+a turning cylinder's facets turn with it (omega t about its axis).
 
 Each polygon carries cell data ``wall`` (the wall's number among the scene's effects, as in
 :meth:`demkit.Scene.contacts`) and ``force``, the force the spheres exert on the wall at that time (the
@@ -86,7 +86,8 @@ class WallSurfaces:
         first, second = _in_plane_axes(wall.normal)
         centre = 0.5 * (lo + hi)
         corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)]) - centre
-        a0, a1, b0, b1 = (corners @ first).min(), (corners @ first).max(), (corners @ second).min(), (corners @ second).max()
+        a, b = corners @ first, corners @ second
+        a0, a1, b0, b1 = a.min(), a.max(), b.min(), b.max()
         point = wall.point + shift
         foot = centre - ((centre - point) @ wall.normal) * wall.normal  # the region's centre on the plane
         corners = np.array([foot + a * first + b * second for a, b in ((a0, b0), (a1, b0), (a1, b1), (a0, b1))])

@@ -1,5 +1,6 @@
 """Drawing frames with pyvista: spheres to scale coloured by a field (with a colour bar), dipole
-arrows, fading trails, the box outline, the walls of a series written with them, a time label. What to draw is decided in :mod:`.plan`.
+arrows, fading trails, the box outline, the walls of a series written with them, a time label.
+What to draw is decided in :mod:`.plan`.
 
 pyvista is imported only inside these functions (after the backend probe has chosen the OpenGL
 window class), never at ``import demkit``.
