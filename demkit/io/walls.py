@@ -39,7 +39,7 @@ class WallSurfaces:
 
     def __init__(self, scene):
         self.scene = scene
-        self.walls = [(e, effect) for e, effect in enumerate(scene.effects) if isinstance(effect, Wall)]
+        self.walls = [(e, effect) for e, effect in enumerate(getattr(scene, "effects", ())) if isinstance(effect, Wall)]
 
     def region(self):
         """(lo, hi): the box the spheres fill now, grown by two of the largest radii and out to whole
