@@ -5,8 +5,8 @@
 Spheres with permanent moments settle under gravity onto a floor in a box periodic across (no side
 walls: the layer is confined sideways by its own copies, the oedometer's zero lateral strain), once
 with their moments free and once in a vertical field that stands them up. A piston then comes down
-on each pile at a slow constant speed and presses it: the stress on the piston against the strain of
-the pile is the packing's oedometric response. Writes into DIR (default ``output/`` next to this
+on each settled pile (a new scene of its spheres) at a slow constant speed and presses it: the stress
+on the piston against the strain of the pile is the packing's oedometric response. Writes into DIR (default ``output/`` next to this
 script) ``stress_strain.png``, ``stress_strain.csv``, a VTK series of each run with its walls
 (``vtk_field_<B>/``) and ``final.png``, and prints a summary.
 
@@ -50,17 +50,11 @@ def build(n_side, layers, moment, field, seed):
     return particles, dk.Box((side, side, 4.0 * layers), periodic=(True, True, False))
 
 
-def press(n_side, layers, moment, field, speed, settle, strain_max, seed, folder):
-    """Settle the pile, press it with the piston; returns rows of (time, piston height, piston force,
-    floor force) every 0.05 time units once the piston is near, and the settled pile's height."""
+def press(n_side, layers, moment, field, speed, settle, strain_max, seed, folder, dt=5e-4):
+    """Settle the pile on the floor for ``settle`` time units, then press it with a piston that starts
+    a quarter diameter above it; returns the pressing scene, rows of (time, piston height, piston
+    force, floor force) every 0.05 time units of the pressing, and the floor's load when settled."""
     particles, box = build(n_side, layers, moment, field, seed)
-    n = len(particles.radius)
-    # where the pile will stand (a random close packing, volume fraction ~0.6): the piston starts
-    # one diameter above it and arrives once the pile has settled
-    height = n * math.pi / 6 / (box.size[0] * box.size[1] * 0.6)
-    start = max(height + 1.0, particles.position[:, 2].max() + R + 0.2) + speed * settle
-    piston = dk.Wall((0, 0, start), (0, 0, -1), velocity=(0, 0, -speed))
-    floor = dk.Wall((0, 0, 0), (0, 0, 1))
     # contacts: stiff enough that the magnetic pull of two touching spheres, Bo m g, squeezes them by
     # 0.03 % of d (3e-4 Bo), damped to a restitution of 0.3 (the settling is over in ~10 time units),
     # Coulomb friction 0.4
@@ -69,14 +63,26 @@ def press(n_side, layers, moment, field, speed, settle, strain_max, seed, folder
     interactions = [dk.KelvinVoigt(stiffness, damping, friction=dk.Friction(0.4)),
                     # dipoles cut at 3 d (at most 0.45 of the box across, for the minimum image), switched off smoothly
                     dk.Dipole(prefactor=1.0, cutoff=min(3.0, 0.45 * box.size[0]), switch_width=0.5),
-                    dk.Gravity((0, 0, -1.0)), floor, piston]
+                    dk.Gravity((0, 0, -1.0))]
     if field:
         interactions.append(dk.UniformField((0.0, 0.0, field)))
-    scene = dk.Scene(particles, interactions, box=box)
+    floor = dk.Wall((0, 0, 0), (0, 0, 1))
+    pile = dk.Scene(particles, interactions + [floor], box=box)
+    dk.Simulation(pile, dk.VelocityVerlet(dt)).run(settle, progress=False)  # (5e-4: 45 steps a contact)
+    settled = pile.contacts()
+    carried = settled.normal_force[settled.wall == pile.effects.index(floor)].sum()
+    # the piston: a new scene of the settled spheres (their contacts' friction springs start afresh: the pile
+    # settles again in the 5 time units the piston takes to arrive)
+    p = pile.particles
+    start = p.position[:, 2].max() + R + 0.25
+    piston = dk.Wall((0, 0, start), (0, 0, -1), velocity=(0, 0, -speed))
+    floor = dk.Wall((0, 0, 0), (0, 0, 1))
+    again = dk.Particles(position=p.position.copy(), velocity=p.velocity.copy(), radius=R, mass=1.0,
+                         dipole=p.dipole.copy(), angular_velocity=p.angular_velocity.copy())
+    scene = dk.Scene(again, interactions + [floor, piston], box=box)
     writer = dk.VTKWriter(folder, every=0.5, overwrite=True, trails=False)
-    sim = dk.Simulation(scene, dk.VelocityVerlet(5e-4), writers=[writer])  # 45 steps a contact
+    sim = dk.Simulation(scene, dk.VelocityVerlet(dt), writers=[writer])
     lid, ground = scene.effects.index(piston), scene.effects.index(floor)
-    sim.run(settle, progress=False)  # the piston is then about one diameter above the pile
     rows = []
     while True:
         sim.run(0.05, progress=False)
@@ -89,7 +95,7 @@ def press(n_side, layers, moment, field, speed, settle, strain_max, seed, folder
         if touched and (touched[0][1] - top) / touched[0][1] > strain_max:
             break
     sim.close()
-    return scene, np.array(rows)
+    return scene, np.array(rows), carried
 
 
 def curve(rows, area):
@@ -111,31 +117,36 @@ def main(argv=None):
     parser.add_argument("--speed", type=float, default=0.05, help="the piston's speed")
     parser.add_argument("--strain", type=float, default=0.03, help="press until this strain")
     parser.add_argument("--seed", type=int, default=2)
-    parser.add_argument("--quick", action="store_true", help="3 x 3 x 4 spheres to 2 %% strain (for tests)")
+    parser.add_argument("--quick", action="store_true",
+                        help="3 x 3 x 4 spheres, dt = 1e-3, to 2 %% strain (for tests)")
     args = parser.parse_args([] if argv is None else argv)
+    settle, dt = 14.0, 5e-4
     if args.quick:
         args.n_side, args.layers, args.strain = 3, 4, 0.02
+        dt = 1e-3
     args.output.mkdir(parents=True, exist_ok=True)
     moment = math.sqrt(args.bond / 6.0)
     area = (SPACING * args.n_side) ** 2
-    settle = 14.0
     results, curves = {}, {}
     for field in (0.0, args.field):
         folder = args.output / f"vtk_field_{field:g}"
-        scene, rows = press(args.n_side, args.layers, moment, field, args.speed, settle, args.strain, args.seed,
-                            folder)
+        scene, rows, carried = press(args.n_side, args.layers, moment, field, args.speed, settle, args.strain,
+                                     args.seed, folder, dt)
         n = len(scene.particles.radius)
         strain, stress, h0 = curve(rows, area)
-        before = rows[int(np.argmax(rows[:, 2] > 0.0)) - 1]  # the last record before the piston touched
+        before = rows[int(np.argmax(rows[:, 2] > 0.0)) - 1]  # the last record before the piston touched (> 0:
+        # the piston starts above the pile)
         end = rows[-1]
         fraction = n * math.pi / 6 / (area * h0)
         at = {s: float(np.interp(s, strain, stress)) for s in (0.005, 0.01, 0.02)}
         results[field] = {"spheres": n, "height": float(h0), "volume_fraction": fraction,
-                          "floor_before": float(before[3]), "weight": float(n),
+                          "floor_settled": float(carried), "floor_before": float(before[3]),
+                          "weight": float(n),
                           "balance": float((end[3] - end[2]) / n), "stress": at, "vtk": str(folder / "particles.pvd")}
         curves[field] = (strain, stress)
-        print(f"field {field:g}: {n} spheres settle to a pile {h0 - 0.0:.3f} high (volume fraction {fraction:.3f}); "
-              f"before the piston the floor carries {before[3]:.2f} (their weight {n}); at strain "
+        print(f"field {field:g}: {n} spheres settle to a pile {h0:.3f} high (volume fraction {fraction:.3f}); "
+              f"the floor carries {carried:.2f} settled and {before[3]:.2f} as the piston arrives (their weight "
+              f"{n}); at strain "
               f"{strain[-1]:.3f} the floor carries {end[3]:.1f} = weight + piston's {end[2]:.1f} "
               f"{'+' if end[3] - end[2] - n >= 0 else '-'} {abs(end[3] - end[2] - n):.1f}; stress at 0.5 / 1 / 2 % "
               f"strain: {at[0.005]:.2f} / {at[0.01]:.2f} / {at[0.02]:.2f}")
