@@ -6,9 +6,9 @@ Spheres with permanent moments settle under gravity onto a floor in a box period
 walls: the layer is confined sideways by its own copies, the oedometer's zero lateral strain), once
 with their moments free and once in a vertical field that stands them up. A piston then comes down
 on each settled pile (a new scene of its spheres) at a slow constant speed and presses it: the stress
-on the piston against the strain of the pile is the packing's oedometric response. Writes into DIR (default ``output/`` next to this
-script) ``stress_strain.png``, ``stress_strain.csv``, a VTK series of each run with its walls
-(``vtk_field_<B>/``) and ``final.png``, and prints a summary.
+on the piston against the strain of the pile is the packing's oedometric response. Writes into DIR
+(default ``output/`` next to this script) ``stress_strain.png``, ``stress_strain.csv``, a VTK series
+of each run with its walls (``vtk_field_<B>/``) and ``final.png``, and prints a summary.
 
 Units: sphere diameter d = 1, mass m = 1, gravity g = 1 (time unit sqrt(d/g)). The dipole prefactor
 is 1; a moment mu gives the pull of two touching spheres head to tail, 6 mu^2 / d^4, in units of their
