@@ -13,11 +13,13 @@ class Trajectory:
     total, dissipated); angular_momentum (T,3) about the origin (orbital + spin); and the constant
     particle properties radius, mass, inertia, ids (N,). In a periodic box, positions are wrapped
     into it, ``image`` (T,N,3) holds the integer image counts and ``box`` the :class:`demkit.Box`
-    (both None in open space); :meth:`unwrapped` gives continuous paths.
+    (both None in open space); :meth:`unwrapped` gives continuous paths. ``walls``: (number, wall) of the
+    scene's walls whose place at a time their motion gives (not a servo's: it keeps no past positions),
+    which pictures draw (:mod:`demkit.io.walls`).
     """
 
     def __init__(self, time, position, velocity, angular_velocity, dipole, energy,
-                 angular_momentum, radius, mass, inertia, ids, image=None, box=None):
+                 angular_momentum, radius, mass, inertia, ids, image=None, box=None, walls=()):
         self.time = time
         self.position = position
         self.velocity = velocity
@@ -27,6 +29,7 @@ class Trajectory:
         self.angular_momentum = angular_momentum
         self.radius, self.mass, self.inertia, self.ids = radius, mass, inertia, ids
         self.image, self.box = image, box
+        self.walls = list(walls)
 
     def unwrapped(self):
         """Positions (T,N,3) continued across periodic boundaries: position + image * box size."""
@@ -58,7 +61,7 @@ class Trajectory:
                                "image")}
         energy = {key: joined([np.asarray(p.energy[key]) for p in parts]) for key in first.energy}
         return cls(energy=energy, radius=first.radius, mass=first.mass, inertia=first.inertia,
-                   ids=first.ids, box=first.box, **fields)
+                   ids=first.ids, box=first.box, walls=first.walls, **fields)
 
     def linear_momentum(self):
         """Total linear momentum per frame, (T,3)."""

@@ -360,6 +360,10 @@ RENDER_MANY = """
     step = np.linalg.norm(np.diff(np.asarray(trails.points)[lines], axis=1)[:, 0], axis=1)
     print("TRAILS", len(lines), step.max())
     dk.viz.snapshot(out + "/walled", out + "/walls.png", view="xz", arrows=False, color_by="id", **size)
+    walled = dk.Scene(dk.Particles(position=[[0.0, 0.0, 0.5], [1.0, 0.0, 0.5]], radius=0.5, mass=1.0),
+                      [dk.KelvinVoigt(1e3, 5.0), dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, 1.1), (0, 0, -1))])
+    traj = dk.Simulation(walled, dk.VelocityVerlet(1e-3)).run(0.1, record_every=0.1, progress=False)
+    dk.viz.snapshot(traj, out + "/walls_trajectory.png", view="xz", arrows=False, color_by="id", **size)
 """
 
 
@@ -428,6 +432,9 @@ def test_the_walls_of_a_series_are_drawn_with_their_rims(many):
     rows = np.flatnonzero(rim > 0.5)
     spheres = np.flatnonzero((np.abs(pixels - pixels[..., :1]).sum(axis=2) > 60).any(axis=1))  # coloured rows
     assert len(rows) and rows.min() < spheres.min() and rows.max() > spheres.max()
+    # the run's Trajectory draws the same walls where their motion has them (the same picture)
+    again = np.asarray(Image.open(folder / "walls_trajectory.png").convert("RGB"), dtype=int)
+    assert np.mean(np.abs(again - pixels).sum(axis=2) > 30) < 0.002
 
 
 def test_rings_and_chains_are_told_apart():

@@ -33,82 +33,97 @@ def _in_plane_axes(normal):
     return first, np.cross(normal, first)
 
 
+def region(position, radius, box):
+    """(lo, hi): the box the spheres at ``position`` fill, grown by two of the largest radii and out to
+    whole multiples of four of them (a surface keeps its size while the spheres move less than that, and
+    it depends on the state of its frame alone: a resumed run draws what the whole run drew); along a
+    periodic axis of ``box`` (a demkit.Box or None) the box."""
+    step = 4.0 * float(np.max(radius))
+    lo = np.floor((np.min(position, axis=0) - 0.5 * step) / step) * step
+    hi = np.ceil((np.max(position, axis=0) + 0.5 * step) / step) * step
+    if box is not None:
+        lo = np.where(box.periodic, 0.0, lo)
+        hi = np.where(box.periodic, box.size, hi)
+    return lo, hi
+
+
+def walls_of(scene):
+    """(number, wall) of each wall among the scene's effects (none for a scene without effects)."""
+    return [(e, effect) for e, effect in enumerate(getattr(scene, "effects", ())) if isinstance(effect, Wall)]
+
+
+def surfaces(walls, time, lo, hi, push=None):
+    """(points (P,3), connectivity, offsets, cell data) of the (number, wall) pairs ``walls`` at ``time``
+    over the region lo..hi; ``push``: number -> the force on that wall (cell data ``force``), or None."""
+    points, connectivity, offsets, numbers, pushes = [], [], [], [], []
+    for e, wall in walls:
+        shift = wall.displacement(time)[0]
+        if isinstance(wall, Cylinder):
+            corners, polygons = _tube(wall, shift, lo, hi, time)
+        else:
+            corners, polygons = _rectangle(wall, shift, lo, hi)
+        base = sum(len(c) for c in points)
+        points.append(corners)
+        for polygon in polygons:
+            connectivity.extend(base + k for k in polygon)
+            offsets.append(len(connectivity))
+            numbers.append(e)
+            if push is not None:
+                pushes.append(push[e])
+    if not points:
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), {}
+    cells = {"wall": np.array(numbers, dtype=np.int64)}
+    if push is not None:
+        cells["force"] = np.array(pushes, dtype=np.float64)
+    return np.concatenate(points), np.array(connectivity, dtype=np.int64), np.array(offsets, dtype=np.int64), cells
+
+
 class WallSurfaces:
     """The walls of ``scene`` (none: :attr:`walls` is empty) as polygons (see the module docstring);
     :meth:`at` gives them at a time."""
 
     def __init__(self, scene):
         self.scene = scene
-        self.walls = [(e, effect) for e, effect in enumerate(getattr(scene, "effects", ())) if isinstance(effect, Wall)]
+        self.walls = walls_of(scene)
 
     def region(self):
-        """(lo, hi): the box the spheres fill now, grown by two of the largest radii and out to whole
-        multiples of four of them (a surface keeps its size while the spheres move less than that, and
-        it depends on the state of its frame alone: a resumed run draws what the whole run drew);
-        along a periodic axis the box."""
+        """(lo, hi): the region the scene's spheres fill now (:func:`region`)."""
         p = self.scene.particles
-        step = 4.0 * float(np.max(p.radius))
-        lo = np.floor((p.position.min(axis=0) - 0.5 * step) / step) * step
-        hi = np.ceil((p.position.max(axis=0) + 0.5 * step) / step) * step
-        box = getattr(self.scene, "box", None)
-        if box is not None:
-            lo = np.where(box.periodic, 0.0, lo)
-            hi = np.where(box.periodic, box.size, hi)
-        return lo, hi
+        return region(p.position, p.radius, getattr(self.scene, "box", None))
 
     def at(self, time, forces=True):
         """(points (P,3), connectivity, offsets, cell data) of every wall at ``time`` (the scene's state
         must be that of ``time`` for a servo's wall and for ``forces``, the spheres' push on each wall)."""
-        points, connectivity, offsets, numbers, pushes = [], [], [], [], []
-        lo, hi = self.region()
-        for e, wall in self.walls:
-            shift = wall.displacement(time)[0]
-            if isinstance(wall, Cylinder):
-                corners, polygons = self._tube(wall, shift, lo, hi, time)
-            else:
-                corners, polygons = self._rectangle(wall, shift, lo, hi)
-            push = 0.0 - self._force_on_sphere(wall, e) if forces else np.zeros(3)  # (0.0 -: no -0.0)
-            base = sum(len(c) for c in points)
-            points.append(corners)
-            for polygon in polygons:
-                connectivity.extend(base + k for k in polygon)
-                offsets.append(len(connectivity))
-                numbers.append(e)
-                pushes.append(push)
-        if not points:
-            return np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), {}
-        cells = {"wall": np.array(numbers, dtype=np.int64), "force": np.array(pushes, dtype=np.float64)}
-        return np.concatenate(points), np.array(connectivity, dtype=np.int64), np.array(offsets, dtype=np.int64), cells
-
-    @staticmethod
-    def _rectangle(wall, shift, lo, hi):
-        """The plane's rectangle facing the box lo..hi (its shadow on the plane)."""
-        first, second = _in_plane_axes(wall.normal)
-        centre = 0.5 * (lo + hi)
-        corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)]) - centre
-        a, b = corners @ first, corners @ second
-        a0, a1, b0, b1 = a.min(), a.max(), b.min(), b.max()
-        point = wall.point + shift
-        foot = centre - ((centre - point) @ wall.normal) * wall.normal  # the region's centre on the plane
-        corners = np.array([foot + a * first + b * second for a, b in ((a0, b0), (a1, b0), (a1, b1), (a0, b1))])
-        return corners, [(0, 1, 2, 3)]
-
-    @staticmethod
-    def _tube(wall, shift, lo, hi, time):
-        """The cylinder's facets over the reach of the box lo..hi along its axis."""
-        corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)])
-        along = (corners - wall.point - shift) @ wall.axis
-        extent = along.min(), along.max()
-        first, second = _in_plane_axes(wall.axis)
-        turn = wall.angular_velocity * time
-        angle = turn + 2.0 * math.pi * np.arange(FACETS) / FACETS
-        ring = wall.radius * (np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second)
-        start, end = (wall.point + shift + s * wall.axis for s in extent)
-        corners = np.concatenate([start + ring, end + ring])
-        polygons = [(k, (k + 1) % FACETS, FACETS + (k + 1) % FACETS, FACETS + k) for k in range(FACETS)]
-        return corners, polygons
-
-    def _force_on_sphere(self, wall, number):
-        """The sum of the wall's contact forces on the spheres now (3,)."""
         from ..contacts import wall_contacts
-        return wall_contacts(self.scene, wall, number).force.sum(axis=0)
+        lo, hi = self.region()
+        push = {e: 0.0 - wall_contacts(self.scene, wall, e).force.sum(axis=0) if forces else np.zeros(3)
+                for e, wall in self.walls}  # (0.0 -: no -0.0)
+        return surfaces(self.walls, time, lo, hi, push)
+
+
+def _rectangle(wall, shift, lo, hi):
+    """The plane's rectangle facing the box lo..hi (its shadow on the plane)."""
+    first, second = _in_plane_axes(wall.normal)
+    centre = 0.5 * (lo + hi)
+    corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)]) - centre
+    a, b = corners @ first, corners @ second
+    a0, a1, b0, b1 = a.min(), a.max(), b.min(), b.max()
+    point = wall.point + shift
+    foot = centre - ((centre - point) @ wall.normal) * wall.normal  # the region's centre on the plane
+    corners = np.array([foot + a * first + b * second for a, b in ((a0, b0), (a1, b0), (a1, b1), (a0, b1))])
+    return corners, [(0, 1, 2, 3)]
+
+
+def _tube(wall, shift, lo, hi, time):
+    """The cylinder's facets over the reach of the box lo..hi along its axis."""
+    corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)])
+    along = (corners - wall.point - shift) @ wall.axis
+    extent = along.min(), along.max()
+    first, second = _in_plane_axes(wall.axis)
+    turn = wall.angular_velocity * time
+    angle = turn + 2.0 * math.pi * np.arange(FACETS) / FACETS
+    ring = wall.radius * (np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second)
+    start, end = (wall.point + shift + s * wall.axis for s in extent)
+    corners = np.concatenate([start + ring, end + ring])
+    polygons = [(k, (k + 1) % FACETS, FACETS + (k + 1) % FACETS, FACETS + k) for k in range(FACETS)]
+    return corners, polygons

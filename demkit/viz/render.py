@@ -269,11 +269,20 @@ class FrameDrawer:
         return mesh
 
     def _walls(self, k):
-        """The walls of frame k (a series written with them, demkit.io.walls), or None."""
-        files = getattr(self.frames, "walls", None)
-        if not files or files[k] is None:
+        """The walls of frame k, or None: a series' walls file of that frame (written with it), or a
+        trajectory's walls where their motion has them at its time (demkit.io.walls)."""
+        walls, f = getattr(self.frames, "walls", None), self.frames
+        if not walls:
             return None
-        return self.pv.read(files[k])
+        if isinstance(walls[0], tuple):  # a Trajectory's (number, wall) pairs
+            from ..io.walls import region, surfaces
+            lo, hi = region(f.position[k], f.radius, getattr(f, "box", None))
+            points, connectivity, offsets, cells = surfaces(walls, float(f.time[k]), lo, hi)
+            faces = np.insert(connectivity, np.concatenate([[0], offsets[:-1]]), np.diff(offsets, prepend=0))
+            mesh = self.pv.PolyData(points, faces=faces)
+            mesh.cell_data["wall"] = cells["wall"]
+            return mesh
+        return self.pv.read(walls[k]) if walls[k] is not None else None
 
     def close(self):
         self.plotter.close()
