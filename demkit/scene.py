@@ -37,7 +37,7 @@ from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
-from .interactions.wall_motion import SERVO_STATE
+from .interactions.wall_motion import S_FORCE, S_GAIN, S_MAX_SPEED, SERVO_STATE
 from .particles import Particles
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -644,6 +644,8 @@ class Scene(SceneDiagnostics):
             self._check_geometry()
         for effect in self.effects:  # walls: no sphere behind or deep inside one, where it stands now
             effect.check(p, self.time) if getattr(effect, "plane_contact", False) else effect.check(p)
+            if getattr(effect, "servo", None) is not None:
+                effect.servo.target(effect, self.box)  # (a stress needs the wall's area)
             if self.box is not None and hasattr(effect, "check_box"):
                 effect.check_box(self.box)
         if len(p) < 2:
@@ -685,9 +687,14 @@ class Scene(SceneDiagnostics):
 
     def set_time_step(self, dt):
         """Hand the integrator's time step to the interactions that need it (parameter "dt") and to the
-        servo-controlled walls."""
+        servo-controlled walls, with their servos' targets as they are now (changed between runs: staged
+        loading)."""
         self.params[self.time_step_slots] = dt
-        for _, state in self.servo_slots():
+        for e, state in self.servo_slots():
+            wall, g = self.effects[e], self.geometry_slots[e]
+            self.params[g + S_FORCE] = wall.servo.target(wall, self.box)
+            self.params[g + S_MAX_SPEED] = wall.servo.max_speed
+            self.params[g + S_GAIN] = wall.servo.gain
             self.params[state.stop] = dt
 
     def servo_slots(self):

@@ -304,3 +304,48 @@ def test_a_servo_wall_restarts_exactly_and_refuses_motions_of_its_own(tmp_path):
         dk.Servo(1.0, 1.0, gain=2.0)
     with pytest.raises(ValueError, match="Servo force"):
         dk.Servo(-1.0, 1.0)
+
+
+def test_a_servo_holds_a_stress_over_the_box_cross_section_and_follows_staged_targets():
+    """The packing of the test above under a lid holding a stress: 100 / 12 on the 4 x 3 cross-section
+    of the box is the force 100, held to 1e-3; the stress doubled between runs (staged loading), the
+    lid holds 200 and the floor carries 200 plus the weight (force balance, read from the contact
+    table); halved again, 100. A stress needs a box periodic along the wall's plane."""
+    n, g = 48, 9.81
+    box = dk.Box((4.0, 3.0, 20.0), periodic=(True, True, False))
+    i = np.arange(n)
+    position = np.stack([0.5 + (i % 4), 0.5 + (i // 4) % 3, 0.6 + 1.1 * (i // 12)], axis=1)
+    rng = np.random.default_rng(1)
+    p = dk.Particles(position=position + rng.uniform(-0.05, 0.05, (n, 3)) * [1, 1, 0], radius=0.5, mass=1.0)
+    lid = dk.Wall((0, 0, 6.0), (0, 0, -1), servo=dk.Servo(stress=100.0 / 12.0, max_speed=2.0))
+    scene = dk.Scene(p, [dk.KelvinVoigt(1e4, 50.0, friction=dk.Friction(0.3)), dk.Wall((0, 0, 0), (0, 0, 1)), lid,
+                         dk.Gravity((0, 0, -g))], box=box)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(5e-4))
+    for stress, settle in ((100.0 / 12.0, 8.0), (200.0 / 12.0, 4.0), (100.0 / 12.0, 4.0)):
+        lid.servo.stress = stress
+        sim.run(settle, progress=False)
+        pushes = []
+        for _ in range(10):
+            sim.run(0.05, progress=False)
+            pushes.append(lid.servo_state()[2])
+        assert np.allclose(pushes, 12.0 * stress, rtol=1e-3)
+        c = scene.contacts()
+        assert c.normal_force[c.wall == 0].sum() == pytest.approx(12.0 * stress + n * g, rel=1e-3)
+    assert repr(lid.servo) == f"Servo(stress={100.0 / 12.0!r}, max_speed=2.0, gain=0.2)"
+    # refusals: no box, a wall across a periodic axis's plane, both targets, neither, a bad value set later
+    sphere = dk.Particles(position=[[0.0, 0.0, 0.5]], radius=0.5, mass=1.0)
+    with pytest.raises(ValueError, match="holds a stress.*no box.*give the Servo a force"):
+        dk.Scene(sphere, [dk.KelvinVoigt(1e4, 1.0), dk.Wall((0, 0, 2.0), (0, 0, -1), servo=dk.Servo(stress=1.0,
+                                                                                                   max_speed=1.0))])
+    with pytest.raises(ValueError, match="holds a stress"):
+        dk.Scene(sphere, [dk.KelvinVoigt(1e4, 1.0), dk.Wall((0, 0, 2.0), (0, 0, -1), servo=dk.Servo(stress=1.0,
+                                                                                                   max_speed=1.0))],
+                 box=dk.Box((4.0, 3.0, 20.0), periodic=(True, False, False)))
+    with pytest.raises(ValueError, match="force or a stress.*one of them"):
+        dk.Servo(force=1.0, stress=1.0, max_speed=1.0)
+    with pytest.raises(ValueError, match="force or a stress"):
+        dk.Servo(max_speed=1.0)
+    with pytest.raises(ValueError, match="needs max_speed"):
+        dk.Servo(force=1.0)
+    with pytest.raises(ValueError, match="Servo stress"):
+        lid.servo.stress = -1.0

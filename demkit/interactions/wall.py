@@ -235,32 +235,95 @@ TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"
 
 
 class Servo:
-    """A wall that moves along its normal to hold the spheres' push on it at ``force`` (oedometric and
-    triaxial tests, a packing under a set pressure: force = stress x area).
+    """A wall that moves along its normal to hold the spheres' push on it at a target: ``force``, or
+    ``stress`` (force per area: the wall's area in a box periodic along both axes of its plane, that box's
+    cross-section), for oedometric and triaxial tests and a packing under a set pressure.
 
-    After every step the wall moves by gain (F - force) / K towards or away from the spheres (F: the
+    After every step the wall moves by gain (F - target) / K towards or away from the spheres (F: the
     normal force they exert on it, K: the sum of the secant stiffnesses F_i / delta_i of its contacts,
     so gain is the fraction of the error it corrects in one step when the packing responds like its
     contacts), at most ``max_speed`` x dt; touching nothing it moves at max_speed towards them.
-    force > 0 (force units); max_speed > 0 (length per time); 0 < gain <= 1 (default 0.2).
+    force or stress > 0 (one of them); max_speed > 0 (length per time); 0 < gain <= 1 (default 0.2).
+    Each may be changed between runs (staged loading: ``wall.servo.stress = 2 * wall.servo.stress``);
+    a run holds the values it starts with.
     """
 
-    def __init__(self, force, max_speed, gain=0.2):
-        self.force = checks.positive("Servo force", force)
-        self.max_speed = checks.positive("Servo max_speed", max_speed)
-        self.gain = checks.number("Servo gain", gain)
-        if not 0.0 < self.gain <= 1.0:
-            raise ValueError(f"Servo gain must lie in (0, 1], got {gain!r}: it is the fraction of the force error "
+    def __init__(self, force=None, max_speed=None, gain=0.2, stress=None):
+        if (force is None) == (stress is None):
+            raise ValueError(f"Servo holds a force or a stress (force per area of the wall in a periodic box), one "
+                             f"of them: got force={force!r}, stress={stress!r}")
+        if max_speed is None:
+            raise ValueError("Servo needs max_speed, the fastest the wall moves")
+        self._force = self._stress = None
+        if force is not None:
+            self.force = force
+        else:
+            self.stress = stress
+        self.max_speed = max_speed
+        self.gain = gain
+
+    @property
+    def force(self):
+        """The target force (None when the target is a stress)."""
+        return self._force
+
+    @force.setter
+    def force(self, value):
+        self._force, self._stress = checks.positive("Servo force", value), None
+
+    @property
+    def stress(self):
+        """The target stress (None when the target is a force)."""
+        return self._stress
+
+    @stress.setter
+    def stress(self, value):
+        self._stress, self._force = checks.positive("Servo stress", value), None
+
+    @property
+    def max_speed(self):
+        return self._max_speed
+
+    @max_speed.setter
+    def max_speed(self, value):
+        self._max_speed = checks.positive("Servo max_speed", value)
+
+    @property
+    def gain(self):
+        return self._gain
+
+    @gain.setter
+    def gain(self, value):
+        gain = checks.number("Servo gain", value)
+        if not 0.0 < gain <= 1.0:
+            raise ValueError(f"Servo gain must lie in (0, 1], got {value!r}: it is the fraction of the force error "
                              f"corrected in one step")
+        self._gain = gain
+
+    def target(self, wall, box):
+        """The force to hold for ``wall`` in ``box`` (a demkit.Box or None): ``force``, or ``stress`` times
+        the wall's area, the box's cross-section across its normal (the normal along a closed axis, the
+        two others periodic)."""
+        if self._stress is None:
+            return self._force
+        axes = np.flatnonzero(np.abs(wall.normal) > 1e-12)
+        if box is None or len(axes) != 1 or sum(box.periodic) != 2 or box.periodic[axes[0]]:
+            raise ValueError(f"{wall!r} holds a stress: its area is the cross-section of a box periodic along both "
+                             f"axes of its plane, so its normal must lie along the box's one closed axis (got "
+                             f"{'no box' if box is None else box!r}); give the Servo a force instead")
+        across = [a for a in range(3) if a != axes[0]]
+        return self._stress * float(box.size[across[0]] * box.size[across[1]])
 
     def values(self):
         """The servo's part of the geometry block (:data:`demkit.interactions.wall_motion.SERVO`): target
-        force, max speed, gain, then its state (offset and speed along the normal, the force and the
-        stiffness summed in the last force evaluation) and the time step (set by each run)."""
-        return np.array([self.force, self.max_speed, self.gain, 0.0, 0.0, 0.0, 0.0, 0.0], dtype=np.float64)
+        force (set by each run, :meth:`target`), max speed, gain, then its state (offset and speed along
+        the normal, the force and the stiffness summed in the last force evaluation) and the time step
+        (set by each run)."""
+        return np.array([self._force or 0.0, self.max_speed, self.gain, 0.0, 0.0, 0.0, 0.0, 0.0], dtype=np.float64)
 
     def __repr__(self):
-        return f"Servo(force={self.force!r}, max_speed={self.max_speed!r}, gain={self.gain!r})"
+        target = f"force={self._force!r}" if self._stress is None else f"stress={self._stress!r}"
+        return f"Servo({target}, max_speed={self.max_speed!r}, gain={self.gain!r})"
 
 
 class Wall(SphereInteraction):

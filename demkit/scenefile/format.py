@@ -236,8 +236,10 @@ INTERACTIONS = Table({
         "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the wall: in its plane it slides, along the normal a "
                         "piston", dim="velocity"), **_WALL_MOTION,
         "servo": Table({
-            "force": _n("the normal force the spheres are to push the wall with (stress x area)", default=REQUIRED,
-                        check="positive", dim="force"),
+            "force": _n("the normal force the spheres are to push the wall with (or stress)", check="positive",
+                        dim="force"),
+            "stress": _n("the normal stress instead: force per area of the wall in a box periodic along its "
+                         "plane", check="positive", dim="pressure"),
             "max_speed": _n("the fastest the wall moves", default=REQUIRED, check="positive", dim="velocity"),
             "gain": _n("fraction of the force error corrected in a step, in (0, 1]", default=0.2, check="positive")},
             "a servo moving the wall along its normal to hold a force on it (dk.Servo): oedometric tests, a "
