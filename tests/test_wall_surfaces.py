@@ -147,3 +147,18 @@ def test_surfaces_of_a_periodic_box_span_it_along_its_periodic_axes():
     np.testing.assert_allclose(np.sort(points[:, 0]), [0.0, 0.0, 4.0, 4.0], atol=1e-12)
     np.testing.assert_allclose(np.sort(points[:, 1]), [0.0, 0.0, 5.0, 5.0], atol=1e-12)
     np.testing.assert_allclose(points[:, 2], 0.0, atol=1e-12)
+
+
+def test_a_trajectory_written_after_the_run_has_the_walls_the_writer_wrote(tmp_path):
+    pv = pytest.importorskip("pyvista")
+    scene, floor, piston, drum = walled_scene()
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3), writers=[dk.VTKWriter(tmp_path / "live", every=0.25)])
+    traj = sim.run(1.0, record_every=0.25, progress=False)
+    assert [w for _, w in traj.walls] == [floor, piston, drum]
+    dk.write_series(traj, tmp_path / "after")
+    live, after = read_series(tmp_path / "live"), read_series(tmp_path / "after")
+    assert np.allclose(live.time, after.time) and len(after.walls) == 5
+    for a, b in zip(live.walls, after.walls):
+        a, b = pv.read(a), pv.read(b)
+        np.testing.assert_allclose(b.points, a.points, atol=1e-12)  # where the run's writer drew them
+        assert np.array_equal(a.cell_data["wall"], b.cell_data["wall"]) and "force" not in b.cell_data
