@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from .diagnostics import energy_dict
-from .io.walls import walls_of
+from .interactions.wall import Wall
 from .trajectory import Trajectory
 
 #: a run that will write more files or bytes than this is announced (LargeOutputWarning)
@@ -72,7 +72,8 @@ class Recording:
             energy=energy_dict(energy[:, :-1], self.scene.energy_kinds, energy[:, -1]),
             angular_momentum=momentum, radius=p.radius.copy(), mass=p.mass.copy(),
             inertia=p.inertia.copy(), ids=p.ids.copy(), image=image if p.image is not None else None,
-            box=self.scene.box, walls=[(e, w) for e, w in walls_of(self.scene) if getattr(w, "servo", None) is None])
+            box=self.scene.box, walls=[(e, w) for e, w in enumerate(self.scene.effects)
+                                       if isinstance(w, Wall) and w.servo is None])
 
 
 def _frame_of(record, k):

@@ -236,6 +236,19 @@ duration = 0.01
         dk.export_lammps(dk.Scene(scene.particles, [contact, piston]), dk.VelocityVerlet(1e-3), tmp_path / "out2")
 
 
+def packing_under_a_lid(servo, n, g):
+    """n spheres on a loose lattice in a 4 x 3 box periodic across, on a floor under gravity g, a lid with
+    ``servo`` above them (Kelvin-Voigt contacts with friction): the scene and the lid."""
+    box = dk.Box((4.0, 3.0, 20.0), periodic=(True, True, False))
+    i = np.arange(n)
+    position = np.stack([0.5 + (i % 4), 0.5 + (i // 4) % 3, 0.6 + 1.1 * (i // 12)], axis=1)
+    rng = np.random.default_rng(1)
+    p = dk.Particles(position=position + rng.uniform(-0.05, 0.05, (n, 3)) * [1, 1, 0], radius=0.5, mass=1.0)
+    lid = dk.Wall((0, 0, 6.0), (0, 0, -1), servo=servo)
+    law = dk.KelvinVoigt(1e4, 50.0, friction=dk.Friction(0.3))
+    return dk.Scene(p, [law, dk.Wall((0, 0, 0), (0, 0, 1)), lid, dk.Gravity((0, 0, -g))], box=box), lid
+
+
 def test_a_servo_lid_holds_its_force_on_a_sphere_and_on_a_packing():
     """A servo-controlled lid (dk.Servo) pressing with a target force F. On one sphere resting on a
     floor (no gravity): the lid comes down at its max speed, then settles where each contact carries
@@ -259,14 +272,7 @@ def test_a_servo_lid_holds_its_force_on_a_sphere_and_on_a_packing():
 
     # a packing under gravity
     n, g = 48, 9.81
-    box = dk.Box((4.0, 3.0, 20.0), periodic=(True, True, False))
-    i = np.arange(n)
-    position = np.stack([0.5 + (i % 4), 0.5 + (i // 4) % 3, 0.6 + 1.1 * (i // 12)], axis=1)
-    rng = np.random.default_rng(1)
-    p = dk.Particles(position=position + rng.uniform(-0.05, 0.05, (n, 3)) * [1, 1, 0], radius=0.5, mass=1.0)
-    law = dk.KelvinVoigt(1e4, 50.0, friction=dk.Friction(0.3))
-    lid = dk.Wall((0, 0, 6.0), (0, 0, -1), servo=dk.Servo(force=100.0, max_speed=2.0))
-    scene = dk.Scene(p, [law, dk.Wall((0, 0, 0), (0, 0, 1)), lid, dk.Gravity((0, 0, -g))], box=box)
+    scene, lid = packing_under_a_lid(dk.Servo(force=100.0, max_speed=2.0), n, g)
     sim = dk.Simulation(scene, dk.VelocityVerlet(5e-4))
     sim.run(8.0, progress=False)
     pushes = []
@@ -312,14 +318,7 @@ def test_a_servo_holds_a_stress_over_the_box_cross_section_and_follows_staged_ta
     lid holds 200 and the floor carries 200 plus the weight (force balance, read from the contact
     table); halved again, 100. A stress needs a box periodic along the wall's plane."""
     n, g = 48, 9.81
-    box = dk.Box((4.0, 3.0, 20.0), periodic=(True, True, False))
-    i = np.arange(n)
-    position = np.stack([0.5 + (i % 4), 0.5 + (i // 4) % 3, 0.6 + 1.1 * (i // 12)], axis=1)
-    rng = np.random.default_rng(1)
-    p = dk.Particles(position=position + rng.uniform(-0.05, 0.05, (n, 3)) * [1, 1, 0], radius=0.5, mass=1.0)
-    lid = dk.Wall((0, 0, 6.0), (0, 0, -1), servo=dk.Servo(stress=100.0 / 12.0, max_speed=2.0))
-    scene = dk.Scene(p, [dk.KelvinVoigt(1e4, 50.0, friction=dk.Friction(0.3)), dk.Wall((0, 0, 0), (0, 0, 1)), lid,
-                         dk.Gravity((0, 0, -g))], box=box)
+    scene, lid = packing_under_a_lid(dk.Servo(stress=100.0 / 12.0, max_speed=2.0), n, g)
     sim = dk.Simulation(scene, dk.VelocityVerlet(5e-4))
     for stress, settle in ((100.0 / 12.0, 8.0), (200.0 / 12.0, 4.0), (100.0 / 12.0, 4.0)):
         lid.servo.stress = stress

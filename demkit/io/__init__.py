@@ -6,7 +6,8 @@ from pathlib import Path
 
 from .frames import VECTOR_FIELDS, read_frame
 from .pvd import read_pvd, write_pvd
-from .series import SeriesData, read_series, write_polylines, write_series
+from .series import SeriesData, read_series, write_polylines
+from .walls import write_series
 from .writer import VTKWriter
 
 __all__ = ["VTKWriter", "write_polylines", "write_series", "read_series", "SeriesData",

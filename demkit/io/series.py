@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, read_frame
-from .polylines import box_fields, write_vtp_lines, write_vtp_polygons
+from .polylines import box_fields, write_vtp_lines
 from .pvd import GrowingPvd, find_pvd, read_box, read_entries, read_pvd
 
 #: relative tolerance on times when a series is continued from a time
@@ -260,14 +260,10 @@ def write_series(trajectory, folder, name="particles", compress=False, dtype="fl
 
     Writes position, velocity and, when recorded, angular_velocity, dipole and the periodic image
     counts (a trajectory holds no forces), the box into the .pvd, plus the polyline trails file
-    (unwrapped paths) when ``trails``, and the walls the trajectory carries (``trajectory.walls``:
-    those whose motion is prescribed) as ``<name>_walls.pvd`` (:mod:`demkit.io.walls`, without the
-    ``force`` array: a trajectory holds no forces). Returns the .pvd path.
+    (unwrapped paths) when ``trails``. Returns the .pvd path. (``dk.write_series``,
+    :func:`demkit.io.walls.write_series`, adds the walls the trajectory carries.)
     """
-    box = getattr(trajectory, "box", None)
-    series = SeriesFolder(folder, name, overwrite, box=box)
-    walls = list(getattr(trajectory, "walls", None) or ())
-    wall_series = SeriesFolder(folder, name + "_walls", overwrite, box=box, extension="vtp") if walls else None
+    series = SeriesFolder(folder, name, overwrite, box=getattr(trajectory, "box", None))
     image = getattr(trajectory, "image", None)
     writer = FrameWriter(compress, dtype)
     constant = {"id": np.asarray(trajectory.ids, dtype=np.int64),
@@ -281,10 +277,6 @@ def write_series(trajectory, folder, name="particles", compress=False, dtype="fl
         if image is not None:
             data["image"] = np.asarray(image[k], dtype=np.int64)
         series.add_frame(time, lambda path: writer.write(path, trajectory.position[k], data))
-        if wall_series is not None:
-            from .walls import region, surfaces
-            mesh = surfaces(walls, float(time), *region(trajectory.position[k], trajectory.radius, box))
-            wall_series.add_frame(time, lambda path: write_vtp_polygons(path, *mesh, compress=bool(writer.compression)))
     if trails:
         write_polylines(trajectory, series.trails, compress=bool(writer.compression))
     return series.pvd

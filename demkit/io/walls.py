@@ -20,6 +20,9 @@ import numpy as np
 
 from ..interactions.cylinder import Cylinder
 from ..interactions.wall import Wall
+from .polylines import write_vtp_polygons
+from .series import SeriesFolder
+from .series import write_series as write_particle_series
 
 #: facets around a cylinder
 FACETS = 64
@@ -127,3 +130,20 @@ def _tube(wall, shift, lo, hi, time):
     corners = np.concatenate([start + ring, end + ring])
     polygons = [(k, (k + 1) % FACETS, FACETS + (k + 1) % FACETS, FACETS + k) for k in range(FACETS)]
     return corners, polygons
+
+
+def write_series(trajectory, folder, name="particles", compress=False, dtype="float64", overwrite=False,
+                 trails=True):
+    """Write a recorded :class:`demkit.Trajectory` as a series (:func:`demkit.io.series.write_series`: one
+    .vtu per frame + .pvd, the trails) and the walls it carries (``trajectory.walls``: those whose motion
+    is prescribed) as ``<name>_walls.pvd``, each frame's surfaces over the region of that frame's spheres
+    (without the ``force`` array: a trajectory holds no forces). Returns the particles' .pvd path."""
+    walls = list(getattr(trajectory, "walls", None) or ())
+    box = getattr(trajectory, "box", None)
+    # (claimed before the particles are written: a folder holding them would be refused as not empty)
+    wall_series = SeriesFolder(folder, name + "_walls", overwrite, box=box, extension="vtp") if walls else None
+    pvd = write_particle_series(trajectory, folder, name, compress, dtype, overwrite, trails)
+    for k, time in enumerate(trajectory.time if wall_series is not None else ()):
+        mesh = surfaces(walls, float(time), *region(trajectory.position[k], trajectory.radius, box))
+        wall_series.add_frame(time, lambda path: write_vtp_polygons(path, *mesh, compress=bool(compress)))
+    return pvd
