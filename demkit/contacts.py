@@ -26,7 +26,7 @@ import numpy as np
 
 from .interactions.contact import KelvinVoigt
 from .interactions.hertz import Hertz
-from .interactions.wall import Wall
+from .interactions.wall import numbered_walls
 
 #: a friction force within this fraction of the Coulomb limit counts as sliding
 SLIDING_TOLERANCE = 1e-9
@@ -195,5 +195,5 @@ def wall_contacts(scene, wall, number):
 def contacts_of(scene):
     """:class:`Contacts` of a scene (see :meth:`demkit.Scene.contacts`)."""
     parts = [pair_contacts(scene, inter) for inter in scene.interactions if isinstance(inter, (KelvinVoigt, Hertz))]
-    parts += [wall_contacts(scene, effect, e) for e, effect in enumerate(scene.effects) if isinstance(effect, Wall)]
+    parts += [wall_contacts(scene, wall, e) for e, wall in numbered_walls(scene.effects)]
     return _concatenate(parts)

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from .diagnostics import energy_dict
-from .interactions.wall import Wall
+from .interactions.wall import numbered_walls
 from .trajectory import Trajectory
 
 #: a run that will write more files or bytes than this is announced (LargeOutputWarning)
@@ -72,8 +72,7 @@ class Recording:
             energy=energy_dict(energy[:, :-1], self.scene.energy_kinds, energy[:, -1]),
             angular_momentum=momentum, radius=p.radius.copy(), mass=p.mass.copy(),
             inertia=p.inertia.copy(), ids=p.ids.copy(), image=image if p.image is not None else None,
-            box=self.scene.box, walls=[(e, w) for e, w in enumerate(self.scene.effects)
-                                       if isinstance(w, Wall) and w.servo is None])
+            box=self.scene.box, walls=[(e, w) for e, w in numbered_walls(self.scene.effects) if w.servo is None])
 
 
 def _frame_of(record, k):

@@ -234,6 +234,12 @@ TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
 
 
+def numbered_walls(effects):
+    """(number, wall) of each wall among ``effects``, a scene's single-sphere effects, numbered as the
+    scene numbers them (``Scene.contacts().wall``)."""
+    return [(e, effect) for e, effect in enumerate(effects) if isinstance(effect, Wall)]
+
+
 class Servo:
     """A wall that moves along its normal to hold the spheres' push on it at a target: ``force``, or
     ``stress`` (force per area: the wall's area in a box periodic along both axes of its plane, that box's

@@ -247,9 +247,12 @@ def wall_frames(pvd, times):
     if not walls.exists():
         return None
     listed = read_pvd(walls)
+    stamps = np.array([time for time, _ in listed])  # (in time order, as a series is written)
     found = []
     for t in times:
-        match = [f for time, f in listed if abs(time - t) <= TIME_TOLERANCE * max(1.0, abs(t)) and f.exists()]
+        k = int(np.searchsorted(stamps, t))
+        match = [listed[j][1] for j in (k - 1, k) if 0 <= j < len(listed)
+                 and abs(stamps[j] - t) <= TIME_TOLERANCE * max(1.0, abs(t)) and listed[j][1].exists()]
         found.append(match[0] if match else None)
     return found
 

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ..interactions.cylinder import Cylinder
-from ..interactions.wall import Wall
+from ..interactions.wall import numbered_walls
 from .polylines import write_vtp_polygons
 from .series import SeriesFolder
 from .series import write_series as write_particle_series
@@ -48,11 +48,6 @@ def region(position, radius, box):
         lo = np.where(box.periodic, 0.0, lo)
         hi = np.where(box.periodic, box.size, hi)
     return lo, hi
-
-
-def walls_of(scene):
-    """(number, wall) of each wall among the scene's effects (none for a scene without effects)."""
-    return [(e, effect) for e, effect in enumerate(getattr(scene, "effects", ())) if isinstance(effect, Wall)]
 
 
 def surfaces(walls, time, lo, hi, push=None):
@@ -87,7 +82,7 @@ class WallSurfaces:
 
     def __init__(self, scene):
         self.scene = scene
-        self.walls = walls_of(scene)
+        self.walls = numbered_walls(getattr(scene, "effects", ()))  # (none for a stand-in without effects)
 
     def region(self):
         """(lo, hi): the region the scene's spheres fill now (:func:`region`)."""
@@ -104,11 +99,16 @@ class WallSurfaces:
         return surfaces(self.walls, time, lo, hi, push)
 
 
+def _corners(lo, hi):
+    """The eight corners of the box lo..hi, (8, 3)."""
+    return np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)])
+
+
 def _rectangle(wall, shift, lo, hi):
     """The plane's rectangle facing the box lo..hi (its shadow on the plane)."""
     first, second = _in_plane_axes(wall.normal)
     centre = 0.5 * (lo + hi)
-    corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)]) - centre
+    corners = _corners(lo, hi) - centre
     a, b = corners @ first, corners @ second
     a0, a1, b0, b1 = a.min(), a.max(), b.min(), b.max()
     point = wall.point + shift
@@ -119,8 +119,7 @@ def _rectangle(wall, shift, lo, hi):
 
 def _tube(wall, shift, lo, hi, time):
     """The cylinder's facets over the reach of the box lo..hi along its axis."""
-    corners = np.array([[(hi if k >> a & 1 else lo)[a] for a in range(3)] for k in range(8)])
-    along = (corners - wall.point - shift) @ wall.axis
+    along = (_corners(lo, hi) - wall.point - shift) @ wall.axis
     extent = along.min(), along.max()
     first, second = _in_plane_axes(wall.axis)
     turn = wall.angular_velocity * time

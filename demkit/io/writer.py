@@ -24,8 +24,10 @@ import weakref
 import numpy as np
 
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, choose_fields, read_frame
+from .polylines import write_vtp_polygons
 from .series import write_polylines
 from .series import TIME_TOLERANCE, SeriesFolder
+from .walls import WallSurfaces
 
 
 class _Trails:
@@ -174,7 +176,6 @@ class VTKWriter:
             self.contact_series.add_frame(simulation.time, lambda path: contacts.write_vtk(
                 path, particles, compress=bool(self._frames.compression)))
         if self._walls is not None:
-            from .polylines import write_vtp_polygons
             points, connectivity, offsets, cells = self._walls.at(simulation.time)
             self.wall_series.add_frame(simulation.time, lambda path: write_vtp_polygons(
                 path, points, connectivity, offsets, cells, compress=bool(self._frames.compression)))
@@ -183,7 +184,6 @@ class VTKWriter:
         """The scene's walls as surfaces (demkit.io.walls), or None: no walls, or not asked for."""
         if self.wall_series is None:
             return None
-        from .walls import WallSurfaces
         surfaces = WallSurfaces(scene)
         if not surfaces.walls:
             return None

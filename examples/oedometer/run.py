@@ -83,26 +83,25 @@ def press(n_side, layers, moment, field, speed, settle, strain_max, seed, folder
     writer = dk.VTKWriter(folder, every=0.5, overwrite=True, trails=False)
     sim = dk.Simulation(scene, dk.VelocityVerlet(dt), writers=[writer])
     lid, ground = scene.effects.index(piston), scene.effects.index(floor)
-    rows = []
-    while True:
+    rows, touched = [], None  # (the piston's height when it first touched)
+    while touched is None or (touched - rows[-1][1]) / touched <= strain_max:
         sim.run(0.05, progress=False)
         contacts = scene.contacts()
         push = contacts.normal_force[contacts.wall == lid].sum()
         weight_on_floor = contacts.normal_force[contacts.wall == ground].sum()
-        top = start - speed * sim.time
-        rows.append((sim.time, top, push, weight_on_floor))
-        touched = [r for r in rows if r[2] > 0.0]
-        if touched and (touched[0][1] - top) / touched[0][1] > strain_max:
-            break
+        rows.append((sim.time, start - speed * sim.time, push, weight_on_floor))
+        if touched is None and push > 0.0:
+            touched = rows[-1][1]
     sim.close()
     return scene, np.array(rows), carried
 
 
 def curve(rows, area):
-    """(strain, stress) from the piston's first touch: strain (h0 - h) / h0, stress push / area."""
+    """(strain, stress, h0, first) from the piston's first touch, record ``first`` at height h0: strain
+    (h0 - h) / h0, stress push / area."""
     first = int(np.argmax(rows[:, 2] > 0.0))
     h0 = rows[first, 1]
-    return (h0 - rows[first:, 1]) / h0, rows[first:, 2] / area, h0
+    return (h0 - rows[first:, 1]) / h0, rows[first:, 2] / area, h0, first
 
 
 def main(argv=None):
@@ -133,9 +132,8 @@ def main(argv=None):
         scene, rows, carried = press(args.n_side, args.layers, moment, field, args.speed, settle, args.strain,
                                      args.seed, folder, dt)
         n = len(scene.particles.radius)
-        strain, stress, h0 = curve(rows, area)
-        before = rows[int(np.argmax(rows[:, 2] > 0.0)) - 1]  # the last record before the piston touched (> 0:
-        # the piston starts above the pile)
+        strain, stress, h0, first = curve(rows, area)
+        before = rows[first - 1]  # the last record before the piston touched (first > 0: it starts above the pile)
         end = rows[-1]
         fraction = n * math.pi / 6 / (area * h0)
         at = {s: float(np.interp(s, strain, stress)) for s in (0.005, 0.01, 0.02)}
