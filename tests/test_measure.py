@@ -191,16 +191,17 @@ def test_vtk_frames_carry_the_per_sphere_measurements(tmp_path):
         dk.VTKWriter(tmp_path / "other", every=1.0, measures=["stress"])
 
 
-def ewald_gas(method, n=40, side=5.0, seed=7, scale=1.0):
+def ewald_gas(method, n=40, side=5.0, seed=7, scale=1.0, stiffness=1000.0):
     """A periodic magnetic gas with elastic contacts, its dipoles summed by ``method`` (a settings
-    object): the spheres and box stretched by ``scale`` (a number or three)."""
+    object): the spheres and box stretched by ``scale`` (a number or three); ``stiffness``: of the
+    contacts (a run needs 2e4 to hold the touching pairs)."""
     rng = np.random.default_rng(seed)
     box = dk.Box(side, periodic=True)
     pos = dk.build.random_packing(n, 0.4, box, seed=seed)
     dip = rng.normal(size=(n, 3))
     stretch = np.broadcast_to(np.asarray(scale, dtype=float), (3,))
     p = dk.Particles(position=pos * stretch, radius=0.4, mass=1.0, dipole=dip)
-    return dk.Scene(p, [dk.Dipole(prefactor=0.5, cutoff=2.4, long_range=method), dk.KelvinVoigt(1000.0)],
+    return dk.Scene(p, [dk.Dipole(prefactor=0.5, cutoff=2.4, long_range=method), dk.KelvinVoigt(stiffness)],
                     box=dk.Box(side * stretch, periodic=True))
 
 
@@ -399,3 +400,83 @@ def test_the_contact_stress_of_an_ewald_scene_keeps_the_friction_history_of_its_
     assert s.per_sphere.sum(axis=0) == pytest.approx(s.volume * s.pressure_tensor, rel=1e-10, abs=1e-10)
     rebuilt = dk.Scene(p.copy(), [dk.Dipole(1.0, long_range=dk.Ewald(1e-4)), contact], box=box)
     assert np.abs(measure.stress(rebuilt).virial["KelvinVoigt"] - by_hand).max() > 0.05 * scale
+
+
+def test_sweep_observables_measure_a_p3m_scene_file_at_the_end(tmp_path):
+    """A scene file of 40 magnets in a periodic box, their dipoles by P3M: run as a sweep point runs
+    it, its observables are dk.measure's of the scene it ended in (the same evaluation: to 1e-12),
+    the pressure tensor's nine columns with the mesh part's virial in them (it moves the pressure
+    by about 9 % here, asserted > 1 %: an observable that left it out would fail by 1e10 tolerances)."""
+    import sys
+    sweep = sys.modules["demkit.sweep"]  # dk.sweep is the function
+    start = ewald_gas(None)
+    p = start.particles
+    velocity = np.random.default_rng(8).normal(size=(len(p), 3))
+    text = f"""
+[particles]
+position = {p.position.tolist()}
+dipole = {p.dipole.tolist()}
+velocity = {velocity.tolist()}
+radius = 0.4
+[box]
+size = 5.0
+periodic = true
+[interactions.dipole]
+prefactor = 0.5
+cutoff = 2.4
+[interactions.dipole.p3m]
+accuracy = 1e-3
+[interactions.kelvin_voigt]
+stiffness = 20000.0
+[integrator]
+dt = 0.001
+[run]
+duration = 0.005
+"""
+    loaded = dk.parse_scene(text)
+    loaded.outputs = {}
+    trajectory = loaded.run(progress=False, out_dir=tmp_path)
+    names = ["pressure", "pressure_tensor", "magnetisation", "coordination"]
+    out = sweep.observe(names, loaded, trajectory)
+    scene = loaded.scene
+    assert scene.long_range and type(scene.long_range[0]).__name__ == "TunedP3M" and scene.time == pytest.approx(0.005)
+    s = measure.stress(scene)
+    assert out["pressure"] == pytest.approx(s.pressure, rel=1e-12)
+    for i, a in enumerate("xyz"):
+        for k, b in enumerate("xyz"):
+            assert out[f"pressure_tensor_{a}{b}"] == pytest.approx(s.pressure_tensor[i, k], rel=1e-12, abs=1e-14), a + b
+    mesh = scene.long_range[0].virial(scene.particles, scene.box)[0]
+    assert abs(np.trace(mesh) / (3 * s.volume)) > 1e-2 * abs(s.pressure)
+    m = scene.particles.dipole.sum(axis=0) / s.volume
+    assert [out[f"magnetisation_{a}"] for a in "xyz"] == pytest.approx(m, rel=1e-12)
+    assert out["coordination"] == pytest.approx(np.mean(measure.coordination(scene)))
+
+
+def test_vtk_frames_of_an_ewald_scene_carry_its_per_sphere_measurements(tmp_path):
+    """VTK frames of an Ewald scene's run carry each sphere's share of the pressure (its reciprocal
+    and real-space virial with the contacts', trace / 3) and its local field (every image): those of
+    dk.measure on the state the run ended in (1e-12: the same evaluation written and read back); the
+    shares add up to p V (1e-10), and the field is the one whose torques the kernels exert, m x B
+    (1e-10 of the largest: two evaluations of the same Ewald sum, round-off; measured 3e-16). The
+    reciprocal sum's own shares are 0.6 of the largest share: frames without them would fail."""
+    scene = ewald_gas(dk.Ewald(1e-5), stiffness=2e4)
+    writer = dk.VTKWriter(tmp_path / "vtk", every=1e-3, measures=["pressure", "coordination", "field"])
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3), writers=[writer])
+    sim.run(duration=2e-3, progress=False)
+    from demkit.io.frames import read_frame
+    frames = sorted((tmp_path / "vtk").glob("particles_*.vtu"))
+    assert len(frames) == 3
+    _, data = read_frame(frames[-1])
+    order = np.argsort(data["id"])
+    s = measure.stress(sim.scene)
+    shares = np.trace(s.per_sphere, axis1=1, axis2=2) / 3.0
+    np.testing.assert_allclose(np.asarray(data["pressure_volume"])[order], shares, rtol=1e-12, atol=1e-12)
+    assert shares.sum() == pytest.approx(s.pressure * s.volume, rel=1e-10)
+    reciprocal = np.trace(sim.scene.long_range[0].virial(sim.scene.particles, sim.scene.box)[1], axis1=1, axis2=2) / 3
+    assert np.abs(reciprocal).max() > 1e-2 * np.abs(shares).max()  # the sum's own shares are in them
+    field = np.asarray(data["local_field"])[order]
+    np.testing.assert_allclose(field, measure.local_field(sim.scene), rtol=1e-12, atol=1e-12)
+    torque = sim.scene.forces()[1]
+    np.testing.assert_allclose(np.cross(sim.scene.particles.dipole, field), torque, rtol=0,
+                               atol=1e-10 * np.abs(torque).max())
+    assert np.array_equal(np.asarray(data["coordination"])[order], measure.coordination(sim.scene))
