@@ -9,7 +9,7 @@ import numpy as np
 import demkit as dk
 
 
-def gas(n=120, friction=True, parallel=None, sort_every=40, seed=3, walls=False):
+def gas(n=120, friction=True, parallel=None, sort_every=40, seed=3, walls=False, long_range=None):
     rng = np.random.default_rng(seed)
     radius = 0.5
     box = dk.build.box_for(n, radius, 0.25, periodic=(True, True, not walls))
@@ -19,7 +19,8 @@ def gas(n=120, friction=True, parallel=None, sort_every=40, seed=3, walls=False)
     p = dk.Particles(position=x, velocity=v, radius=radius, mass=1.0, dipole=mu,
                      angular_velocity=np.zeros((n, 3)))
     contact = dk.KelvinVoigt(2000.0, 3.0, friction=dk.Friction(0.4) if friction else None)
-    interactions = [dk.Dipole(prefactor=1.0, cutoff=3.0), contact]
+    # (a long-range sum: the settings object, its real-space cutoff 3.0)
+    interactions = [dk.Dipole(prefactor=1.0, cutoff=3.0, long_range=long_range), contact]
     if walls:
         side = float(box.size[2])
         interactions += [dk.Wall((0, 0, 0), (0, 0, 1)), dk.Wall((0, 0, side), (0, 0, -1)), dk.Gravity((0, 0, -1.0))]
