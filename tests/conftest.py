@@ -193,7 +193,9 @@ def demkit_in_process(*args, cwd):
 
 def same_bits_on_two_threads_and_one(make_scene, duration):
     """``make_scene()`` built, its forces (a serial scene) and a run on threads (``parallel=True``) on
-    two of numba's threads and on one: the same bits each, and the runs give numba's setting back."""
+    two of numba's threads and on one: the same bits each (positions, spins and, where the scene
+    has them, moments: induced ones change), and the runs give numba's setting back. The scene is
+    rebuilt from its spheres, interactions and effects (fields, walls)."""
     import numba
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")
@@ -203,14 +205,16 @@ def same_bits_on_two_threads_and_one(make_scene, duration):
         for threads in (2, 1):
             numba.set_num_threads(threads)
             scene = make_scene()
-            serial = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=False)
+            parts = list(scene.interactions) + list(scene.effects)
+            serial = dk.Scene(scene.particles, parts, box=scene.box, parallel=False)
             forces.append(np.concatenate([a.ravel() for a in serial.forces()]))  # on `threads` threads
-            scene = dk.Scene(scene.particles, scene.interactions, box=scene.box, parallel=True)
+            scene = dk.Scene(scene.particles, parts, box=scene.box, parallel=True)
             sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
             traj = sim.run(duration=duration, record_every=duration / 2, progress=False)
             assert sim.statistics["threads"] == threads
             assert numba.get_num_threads() == threads  # given back, whatever the run's chunks set
-            runs.append(np.concatenate([traj.position.ravel(), traj.angular_velocity.ravel()]))
+            moments = [] if traj.dipole is None else [traj.dipole.ravel()]
+            runs.append(np.concatenate([traj.position.ravel(), traj.angular_velocity.ravel(), *moments]))
     finally:
         numba.set_num_threads(before)
     assert forces[0].tobytes() == forces[1].tobytes()

@@ -370,3 +370,25 @@ def test_long_range_sums_bound_the_field_error_of_magnetisable_spheres():
         # the same everywhere, the mesh's depends on where the sphere sits between mesh points
         spread = 0.3 if isinstance(method, dk.P3M) else 0.05
         assert 1e-7 < error < accuracy and error == pytest.approx(tuned.estimated_error, rel=spread), (method, error)
+
+
+@pytest.mark.parametrize("make_sum", [lambda: dk.Ewald(1e-6), lambda: dk.P3M(1e-3)], ids=["Ewald", "P3M"])
+def test_magnetisable_spheres_with_a_long_range_sum_on_two_threads_give_the_bits_of_one(make_sum):
+    """27 magnetisable spheres near a lattice in a field, in a periodic box, their moments solved
+    every step through an Ewald or P3M sum (the real-space pairs in fixed chunks on the threads, the
+    mesh's planes too): the forces, and a run's positions, spins and induced moments, on two of
+    numba's threads are the bits of one thread (equality: the truth is the one-thread run). P3M at
+    1e-3: a 15^3 mesh (1e-5 takes 64^3, four times the test's time, for nothing more to see)."""
+    from conftest import same_bits_on_two_threads_and_one
+    g = (np.arange(3) * 4.0 / 3 + 0.5) * R
+    positions = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    positions += np.random.default_rng(3).uniform(-0.05, 0.05, positions.shape) * R
+
+    def make():
+        p = dk.Particles(positions, radius=0.4 * R, mass=1e-3, susceptibility=10.0, angular_velocity=np.zeros((27, 3)))
+        return dk.Scene(p, [dk.Dipole(A, long_range=make_sum(), induction=dk.Induction(1e-12)),
+                            dk.UniformField((0.0, 0.3 * B0, B0))], box=dk.Box([4.0 * R] * 3, periodic=True))
+
+    scene = make()
+    assert scene.induction is not None and scene.effects and scene.long_range
+    same_bits_on_two_threads_and_one(make, 0.004)
