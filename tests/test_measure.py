@@ -338,8 +338,8 @@ def test_the_stress_of_a_p3m_sum_is_minus_its_own_energy_derivative_to_its_accur
     energy, so the two agree to the sum's accuracy, not to round-off: that accuracy bounds the RMS
     force error per sphere, accuracy x pull, and the virial sums N such errors times lever arms up
     to L/2, sqrt(N) accuracy pull L/2 if uncorrelated. Bound: twice that (2.1e-4 of the largest
-    component here; measured 0.41 of the bound with either surface, and 0.52 at accuracy 1e-4: the
-    gap falls with the accuracy asked). The mesh and surface terms' own virial is 0.2 (metallic) and
+    component here). Measured: 0.41 of sqrt(N) accuracy pull L/2 with either surface, 0.52 at
+    accuracy 1e-4 (the gap falls with the accuracy asked). The mesh and surface terms' own virial is 0.2 (metallic) and
     0.4 (vacuum) of the largest component: leaving either out would miss by about a thousand bounds."""
     from demkit.interactions.ewald import scales
     accuracy = 1e-5
