@@ -111,3 +111,53 @@ def test_a_checkpoint_between_two_frames_adds_no_frame_to_the_resumed_series(tmp
     assert np.array_equal(np.load(tmp_path / "final.npy"), scene.particles.position)
     series = dk.read_series(tmp_path / "series" / "particles.pvd")
     assert np.allclose(series.time, np.arange(21) * FRAME_EVERY), series.time
+
+
+def test_a_child_killed_while_it_holds_numbas_thread_lock_stops_no_one():
+    """numba takes a lock shared with forked processes whenever a run asks for or sets its thread
+    count (every chunk). A child killed while holding it made its parent and every later sibling wait
+    forever (found: this file's kills hung a test worker). Each forked child now takes a lock of its
+    own (demkit.engine.threads): the lock a child holds when it dies is its own."""
+    import numba
+    import numba.np.ufunc.parallel as parallel
+
+    def short_run():
+        dk.Simulation(gas(n=N), dk.VelocityVerlet(DT)).run(duration=5 * DT, progress=False)
+
+    short_run()  # compiled here, inherited by the children
+    assert numba.get_num_threads() >= 1 and parallel._backend_init_process_lock is not None
+    pid = os.fork()
+    if pid == 0:  # the child: dies holding whatever lock numba uses in it
+        try:
+            numba.get_num_threads()
+            parallel._backend_init_process_lock.acquire()
+            os.kill(os.getpid(), signal.SIGKILL)
+        finally:
+            os._exit(1)
+    _, status = os.waitpid(pid, 0)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
+    lock = parallel._backend_init_process_lock  # the parent's: free (a wait of 10 s, not forever)
+    assert lock.acquire(timeout=10.0), "the killed child left numba's lock taken"
+    lock.release()
+    pid = os.fork()
+    if pid == 0:  # a later sibling runs
+        code = 1
+        try:
+            short_run()
+            code = 0
+        except BaseException:  # noqa: BLE001 (report anything, never return into pytest)
+            import traceback
+            traceback.print_exc()
+        finally:
+            os._exit(code)
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        raise AssertionError("a sibling forked after the kill hung")
+    assert os.waitstatus_to_exitcode(status) == 0

@@ -33,6 +33,7 @@ after :data:`RECHECK_SECONDS` as above (see ``_CHOSEN``).
 from __future__ import annotations
 
 import atexit
+import os
 import sys
 import threading
 import time
@@ -40,6 +41,22 @@ import time
 import numba
 
 from .notice import BACKGROUND
+
+
+def _own_numba_start_lock():
+    """In a forked child: a lock of its own for the start of numba's threading layer.
+
+    numba guards that start with a lock shared by every process forked from one parent (a
+    multiprocessing RLock, made at its first use) and takes it in every ``numba.get_num_threads`` and
+    ``set_num_threads``: a run's chunks call them. A child killed while holding it (``kill -9`` at a
+    chunk boundary, a sweep's worker stopped) left it taken for its parent and every later sibling,
+    whose next run then waited forever. Unset here, numba makes a new one at the child's first use."""
+    parallel = sys.modules.get("numba.np.ufunc.parallel")
+    if parallel is not None and getattr(parallel, "_backend_init_process_lock", None) is not None:
+        parallel._backend_init_process_lock = None
+
+
+os.register_at_fork(after_in_child=_own_numba_start_lock)
 
 #: rough serial cost of one pair and of one sphere in a force evaluation (seconds; measured on the
 #: 2-core project machine with examples/magnetic_cluster/cluster.toml: 400 dipoles, all pairs,
