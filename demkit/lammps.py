@@ -26,7 +26,9 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
 * ``Wall`` (axis-aligned) -> ``fix wall/gran granular hooke ... xplane lo NULL`` (Hertz: the modulus
   2 E/(1 + nu) that LAMMPS' wall formula turns into demkit's E/(1 - nu^2)), an
   in-plane velocity -> ``shear``, a vibration along its normal -> ``wiggle``; an oblique wall at
-  rest -> ``region plane`` + ``fix wall/gran/region`` (the same sphere-wall contact code);
+  rest -> ``region plane`` + ``fix wall/gran/region`` (the same sphere-wall contact code); a
+  ``Cylinder`` along x, y or z -> ``region cylinder ... INF INF side in|out``, turned by ``rotate``
+  through omega t when it turns, + ``fix wall/gran/region``;
   ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix efield`` with E = B / sqrt(A) (torque
   mu x E);
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
@@ -190,12 +192,9 @@ class _Export:
             if kind is MagnetField:
                 raise ValueError("MagnetField (a tabulated field of real magnets) has no LAMMPS fix: it cannot be "
                                  "exported")
-            if kind is Cylinder:
-                raise ValueError(f"{effect!r}: LAMMPS' equivalent, fix wall/gran/region with a cylinder region (rotating "
-                                 f"with 'rotate'), is not exported yet; only plane walls are")
-            if kind not in (Wall, Gravity, UniformField):
+            if kind not in (Wall, Cylinder, Gravity, UniformField):
                 raise ValueError(f"{effect!r} ({kind.__name__}) has no LAMMPS equivalent the export knows: only "
-                                 f"Wall, Gravity and UniformField can be exported")
+                                 f"Wall, Cylinder, Gravity and UniformField can be exported")
         if self.dipole is not None:
             self.scale = math.sqrt(self.dipole.prefactor)
         for law in [self.contact] + [w.law for w in scene.effects if type(w) is Wall]:
@@ -326,7 +325,42 @@ class _Export:
                              + ("   # E = B / sqrt(A): the moments are scaled by sqrt(A)" if self.scale != 1 else ""))
             elif type(effect) is Wall:
                 lines.append(self.wall_line(k, effect, periodic))
+            elif type(effect) is Cylinder:
+                lines.append(self.cylinder_lines(k, effect))
         return lines
+
+    def cylinder_lines(self, k, cylinder):
+        """The deck lines of a cylinder along x, y or z: an infinite ``region cylinder`` (side in for a
+        tube, out for a post), turned by ``rotate`` through the angle omega t about its axis, and ``fix
+        wall/gran/region`` on it (LAMMPS takes the wall's velocity at a contact from the region's motion)."""
+        axes = np.flatnonzero(cylinder.axis != 0.0)
+        if len(axes) != 1:
+            raise ValueError(f"{cylinder!r}: LAMMPS' cylinder region runs along x, y or z; this axis cannot be exported")
+        if cylinder.travels:
+            raise ValueError(f"{cylinder!r}: a cylinder carried by a velocity or a vibration cannot be exported (only "
+                             f"a cylinder at rest or turning about its axis)")
+        if cylinder.law.friction is not None:
+            self.differs(f"{cylinder!r} with friction", "LAMMPS' wall friction torque has the lever arm R, demkit's "
+                         "R - delta (the contact point on the wall): spins differ by O(delta/R) of the friction torque")
+        if isinstance(cylinder.law, Hertz):
+            self.differs(f"{cylinder!r} with Hertz contacts", "LAMMPS' region walls take the cylinder's curvature into "
+                         "the contact radius, demkit keeps a plane's (R* = R): the stiffness differs by about "
+                         "R/(4 R_c)")
+        a = int(axes[0])
+        across = [i for i in range(3) if i != a]
+        centre = " ".join(g17(cylinder.point[i]) for i in across)
+        side = "in" if cylinder.inside else "out"
+        lines = []
+        turn = ""
+        if cylinder.angular_velocity != 0.0:
+            lines.append(f"variable    turn{k} equal {g17(cylinder.angular_velocity)}*time")
+            point, axis = " ".join(map(g17, cylinder.point)), " ".join(map(g17, cylinder.axis))
+            turn = f" rotate v_turn{k} {point} {axis}"
+        lines.append(f"region      drum{k} cylinder {'xyz'[a]} {centre} {g17(cylinder.radius)} INF INF side {side} "
+                     f"units box{turn}")
+        lines.append(f"fix         wall{k} mobile wall/gran/region granular {self.granular_model(cylinder.law, wall=True)} "
+                     f"region drum{k}")
+        return "\n".join(lines)
 
     def wall_line(self, k, wall, periodic):
         """The deck line(s) of a wall: ``fix wall/gran ... xplane`` for one normal to an axis, else a

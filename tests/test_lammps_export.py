@@ -471,3 +471,69 @@ def test_twisting_against_a_wall_agrees_with_lammps_to_round_off(tmp_path):
     (dx, dv, dw, _), traj = differences(spinning_on_a_wall(dk.TwistingResistance()), run_lammps(files))
     assert abs(traj.angular_velocity[-1, 0, 2] - 4.0) > 0.01  # the table slowed the spin
     assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12  # measured 0, 8e-17, 0
+
+
+def drum_scene(friction):
+    """Three spheres dropped just above the bottom of a drum (axis z, radius 3) turning at 2 rad/s
+    under gravity -y: they land within 0.1 time units and are carried up its side; with friction
+    (LAMMPS' rules) or without. None touches the drum at the start: LAMMPS takes a region's velocity
+    from its motion since the step before, so at step 0 a turning region stands still (its first
+    force on a sphere touching it at once lacks the friction of the turning, measured: the first
+    velocity 4.9e-3 against 8.1e-3, then the same increments)."""
+    pos = 0.985 * np.array([[0.0, -2.5, 0.0], [0.95, -2.33, 0.1], [-0.9, -2.36, -0.05]])
+    p = dk.Particles(position=pos, radius=[0.5, 0.48, 0.5], mass=[1.0, 0.9, 1.1],
+                     velocity=[[0.1, 0, 0], [0, 0, 0.05], [0, 0.02, 0]], angular_velocity=[[0, 0, 1.0], [0, 0, 0], [0.5, 0, 0]])
+    f = dk.Friction(0.5, slip_radius="full", sliding="lammps") if friction else None
+    law = dk.KelvinVoigt(2000.0, 2.0, friction=f)
+    drum = dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, angular_velocity=2.0)
+    return dk.Scene(p, [law, drum, dk.Gravity([0, -9.81, 0])])
+
+
+
+@needs_lammps
+def test_spheres_in_a_rotating_drum_agree_with_lammps_rotating_region(tmp_path):
+    """A turning dk.Cylinder against LAMMPS' fix wall/gran/region on a cylinder region turned by
+    'rotate' through omega t, frictionless Hooke contacts (between the spheres and with the drum),
+    300 steps: to round-off (measured 3e-15 in position, 2e-14 in velocity)."""
+    scene = drum_scene(False)
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=3 * STEPS * DT, record_every=DT)
+    deck = files.deck.read_text()
+    assert "region      drum0 cylinder z 0 0 3 INF INF side in units box rotate v_turn0 0 0 0 0 0 1" in deck
+    assert "variable    turn0 equal 2*time" in deck and "wall/gran/region granular hooke 2000 2 " in deck
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files), steps=3 * STEPS)
+    assert np.hypot(*traj.position[-1, :, :2].T).max() > 2.45  # they reached the drum and bounced
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12
+
+
+@needs_lammps
+def test_a_sphere_carried_by_a_rotating_drum_with_friction_agrees_with_lammps_to_the_lever_arms_order(tmp_path):
+    """A sphere dropped onto the bottom of a drum turning at 0.5 rad/s, friction 0.5: the drum's
+    friction carries it up its side (5 degrees in one time unit), bouncing. LAMMPS' wall friction
+    torque has the lever arm R, demkit's R - delta (the contact point on the wall; the export notes
+    it), so the two differ by O(delta/R) of the friction torque: a contact 100 times stiffer (delta
+    10 times smaller) must bring them 10 times closer. Measured over the run (every 10th step): spins
+    6.2e-2 and 1.9e-3 apart at most, positions 6.4e-3 and 5.2e-4 (k = 2e3 and 2e5)."""
+    def scene(stiffness, damping):
+        p = dk.Particles(position=[[0.0, -2.45, 0.0]], radius=0.5, velocity=[[0.1, 0, 0]],
+                         angular_velocity=[[0, 0, 1.0]])
+        law = dk.KelvinVoigt(stiffness, damping, friction=dk.Friction(0.5, slip_radius="full", sliding="lammps"))
+        return dk.Scene(p, [law, dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, angular_velocity=0.5),
+                            dk.Gravity([0, -9.81, 0])])
+
+    apart = []
+    for stiffness, damping, dt in ((2e3, 2.0, 1e-3), (2e5, 20.0, 1e-4)):
+        steps = int(round(1.0 / dt))
+        files = dk.export_lammps(scene(stiffness, damping), dk.VelocityVerlet(dt), tmp_path / f"k{stiffness:g}",
+                                 duration=1.0, record_every=10 * dt, strict=False)
+        assert any("lever arm" in note for note in files.notes)
+        dumped = run_lammps(files)
+        frames = [dumped[step] for step in sorted(dumped)]  # every 10th step
+        traj = dk.Simulation(scene(stiffness, damping), dk.VelocityVerlet(dt)).run(duration=1.0, record_every=10 * dt)
+        assert len(frames) == len(traj.time) == steps // 10 + 1
+        x = traj.unwrapped()
+        assert np.degrees(np.arctan2(x[-1, 0, 0], -x[-1, 0, 1])) > 3.0  # carried up the rising side
+        apart.append((max(np.abs(x[k] - frames[k][:, 1:4]).max() for k in range(len(frames))),
+                      max(np.abs(traj.angular_velocity[k] - frames[k][:, 7:10]).max() for k in range(len(frames)))))
+    (x_soft, w_soft), (x_stiff, w_stiff) = apart
+    assert w_soft < 0.1 and x_soft < 0.01  # O(delta/R) of the motion (delta/R ~ 4 % at impact)
+    assert w_stiff < w_soft / 8 and x_stiff < x_soft / 8
