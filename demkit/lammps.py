@@ -40,8 +40,8 @@ MagnetField, custom pair or sphere interactions, inertia factors other than 2/5,
 slide, walls with a normal component along a periodic axis, Hertz friction or rolling whose stiffness or damping LAMMPS
 cannot scale like demkit. With ``strict=True`` (default) also what would run but not reproduce
 demkit exactly: friction with demkit's own sliding rule or contact-point slip radius (use
-``Friction(..., slip_radius="full", sliding="lammps")``), wall friction (LAMMPS' torque arm is R,
-demkit's R - delta), integrators other than plain VelocityVerlet, stored contact history;
+``Friction(..., slip_radius="full", sliding="lammps")``, which also gives walls LAMMPS' lever arm R),
+integrators other than plain VelocityVerlet, stored contact history;
 ``strict=False`` exports those with a note in the deck.
 """
 from __future__ import annotations
@@ -329,6 +329,15 @@ class _Export:
                 lines.append(self.cylinder_lines(k, effect))
         return lines
 
+    def wall_friction_note(self, wall):
+        """LAMMPS' wall friction takes the lever arm R in the slip and the torque: demkit's with
+        ``slip_radius="full"``; with the contact point's R - delta a note (strict=True: refused)."""
+        friction = wall.law.friction
+        if friction is not None and friction.slip_radius != "full":
+            self.differs(f"{wall!r} with friction", "LAMMPS' wall friction has the lever arm R, demkit's with "
+                         "slip_radius='contact' R - delta (the contact point on the wall): spins differ by O(delta/R) "
+                         "of the friction torque; Friction(slip_radius='full') takes R, as LAMMPS")
+
     def cylinder_lines(self, k, cylinder):
         """The deck lines of a cylinder along x, y or z: an infinite ``region cylinder`` (side in for a
         tube, out for a post), turned by ``rotate`` through the angle omega t about its axis, and ``fix
@@ -339,9 +348,7 @@ class _Export:
         if cylinder.travels:
             raise ValueError(f"{cylinder!r}: a cylinder carried by a velocity or a vibration cannot be exported (only "
                              f"a cylinder at rest or turning about its axis)")
-        if cylinder.law.friction is not None:
-            self.differs(f"{cylinder!r} with friction", "LAMMPS' wall friction torque has the lever arm R, demkit's "
-                         "R - delta (the contact point on the wall): spins differ by O(delta/R) of the friction torque")
+        self.wall_friction_note(cylinder)
         if isinstance(cylinder.law, Hertz):
             self.differs(f"{cylinder!r} with Hertz contacts", "LAMMPS' region walls take the cylinder's curvature into "
                          "the contact radius, demkit keeps a plane's (R* = R): the stiffness differs by about "
@@ -371,10 +378,7 @@ class _Export:
             if periodic[a]:
                 raise ValueError(f"{wall!r}: a wall across the periodic axis {'xyz'[a]} cannot be exported (LAMMPS "
                                  f"refuses walls in periodic dimensions); make that axis open")
-        if wall.law.friction is not None:
-            self.differs(f"{wall!r} with friction", "LAMMPS' wall friction torque has the lever arm R, demkit's "
-                         "R - delta (the contact point on the wall): spins differ by O(delta/R) of the friction "
-                         "torque")
+        self.wall_friction_note(wall)
         model = self.granular_model(wall.law, wall=True)
         moving = np.flatnonzero(wall.velocity != 0.0)
         if wall.servo is not None:

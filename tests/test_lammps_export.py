@@ -475,8 +475,8 @@ def test_twisting_against_a_wall_agrees_with_lammps_to_round_off(tmp_path):
 
 def drum_scene(friction):
     """Three spheres dropped just above the bottom of a drum (axis z, radius 3) turning at 2 rad/s
-    under gravity -y: they land within 0.1 time units and are carried up its side; with friction
-    (LAMMPS' rules) or without. None touches the drum at the start: LAMMPS takes a region's velocity
+    under gravity -y: they land within 0.1 time units and bounce; with friction (LAMMPS' rules and
+    lever arms) or without. None touches the drum at the start: LAMMPS takes a region's velocity
     from its motion since the step before, so at step 0 a turning region stands still (its first
     force on a sphere touching it at once lacks the friction of the turning, measured: the first
     velocity 4.9e-3 against 8.1e-3, then the same increments)."""
@@ -490,12 +490,15 @@ def drum_scene(friction):
 
 
 
+
 @needs_lammps
-def test_spheres_in_a_rotating_drum_agree_with_lammps_rotating_region(tmp_path):
+@pytest.mark.parametrize("friction", [False, True], ids=["frictionless", "friction"])
+def test_spheres_in_a_rotating_drum_agree_with_lammps_rotating_region_to_round_off(tmp_path, friction):
     """A turning dk.Cylinder against LAMMPS' fix wall/gran/region on a cylinder region turned by
-    'rotate' through omega t, frictionless Hooke contacts (between the spheres and with the drum),
-    300 steps: to round-off (measured 3e-15 in position, 2e-14 in velocity)."""
-    scene = drum_scene(False)
+    'rotate' through omega t, Hooke contacts between the spheres and with the drum, frictionless or
+    with friction (slip_radius="full": the lever arm R on the wall, as LAMMPS), 300 steps: to
+    round-off (measured 3e-15 in position and 2e-14 in velocity without friction, 5e-15 with it)."""
+    scene = drum_scene(friction)
     files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=3 * STEPS * DT, record_every=DT)
     deck = files.deck.read_text()
     assert "region      drum0 cylinder z 0 0 3 INF INF side in units box rotate v_turn0 0 0 0 0 0 1" in deck
@@ -506,34 +509,28 @@ def test_spheres_in_a_rotating_drum_agree_with_lammps_rotating_region(tmp_path):
 
 
 @needs_lammps
-def test_a_sphere_carried_by_a_rotating_drum_with_friction_agrees_with_lammps_to_the_lever_arms_order(tmp_path):
-    """A sphere dropped onto the bottom of a drum turning at 0.5 rad/s, friction 0.5: the drum's
-    friction carries it up its side (5 degrees in one time unit), bouncing. LAMMPS' wall friction
-    torque has the lever arm R, demkit's R - delta (the contact point on the wall; the export notes
-    it), so the two differ by O(delta/R) of the friction torque: a contact 100 times stiffer (delta
-    10 times smaller) must bring them 10 times closer. Measured over the run (every 10th step): spins
-    6.2e-2 and 1.9e-3 apart at most, positions 6.4e-3 and 5.2e-4 (k = 2e3 and 2e5)."""
-    def scene(stiffness, damping):
-        p = dk.Particles(position=[[0.0, -2.45, 0.0]], radius=0.5, velocity=[[0.1, 0, 0]],
-                         angular_velocity=[[0, 0, 1.0]])
-        law = dk.KelvinVoigt(stiffness, damping, friction=dk.Friction(0.5, slip_radius="full", sliding="lammps"))
-        return dk.Scene(p, [law, dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, angular_velocity=0.5),
-                            dk.Gravity([0, -9.81, 0])])
-
-    apart = []
-    for stiffness, damping, dt in ((2e3, 2.0, 1e-3), (2e5, 20.0, 1e-4)):
-        steps = int(round(1.0 / dt))
-        files = dk.export_lammps(scene(stiffness, damping), dk.VelocityVerlet(dt), tmp_path / f"k{stiffness:g}",
-                                 duration=1.0, record_every=10 * dt, strict=False)
-        assert any("lever arm" in note for note in files.notes)
-        dumped = run_lammps(files)
-        frames = [dumped[step] for step in sorted(dumped)]  # every 10th step
-        traj = dk.Simulation(scene(stiffness, damping), dk.VelocityVerlet(dt)).run(duration=1.0, record_every=10 * dt)
-        assert len(frames) == len(traj.time) == steps // 10 + 1
-        x = traj.unwrapped()
-        assert np.degrees(np.arctan2(x[-1, 0, 0], -x[-1, 0, 1])) > 3.0  # carried up the rising side
-        apart.append((max(np.abs(x[k] - frames[k][:, 1:4]).max() for k in range(len(frames))),
-                      max(np.abs(traj.angular_velocity[k] - frames[k][:, 7:10]).max() for k in range(len(frames)))))
-    (x_soft, w_soft), (x_stiff, w_stiff) = apart
-    assert w_soft < 0.1 and x_soft < 0.01  # O(delta/R) of the motion (delta/R ~ 4 % at impact)
-    assert w_stiff < w_soft / 8 and x_stiff < x_soft / 8
+@pytest.mark.parametrize("wall", ["drum", "plane", "sliding plane"])
+def test_a_sphere_driven_by_a_frictional_wall_agrees_with_lammps_to_round_off(tmp_path, wall):
+    """A sphere dropped onto a wall with friction 0.5 (slip_radius="full": the lever arm R for the slip
+    and the torque, LAMMPS' wall) over 1000 steps: the bottom of a drum turning at 0.5 rad/s (it is
+    carried 5 degrees up the side in one time unit, bouncing), a plane at rest and a plane sliding at
+    0.4 (conveyor). Measured 5e-15 in position, 2e-14 in velocity, 3e-14 in spin for the drum. (With
+    slip_radius="contact" the lever is R - delta and the spins differ by O(delta/R): 3e-2 here.)"""
+    friction = dk.Friction(0.5, slip_radius="full", sliding="lammps")
+    law = dk.KelvinVoigt(2e3, 2.0, friction=friction)
+    if wall == "drum":
+        p = dk.Particles(position=[[0.0, -2.45, 0.0]], radius=0.5, velocity=[[0.1, 0, 0]], angular_velocity=[[0, 0, 1.0]])
+        scene = dk.Scene(p, [law, dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, angular_velocity=0.5), dk.Gravity([0, -9.81, 0])])
+    else:
+        p = dk.Particles(position=[[0.0, 0.0, 0.52]], radius=0.5, velocity=[[0.3, 0.1, 0]], angular_velocity=[[0, 0, 2.0]])
+        plane = dk.Wall([0, 0, 0], [0, 0, 1], velocity=[0.4, 0, 0] if wall == "sliding plane" else [0, 0, 0])
+        scene = dk.Scene(p, [law, plane, dk.Gravity([0, 0, -9.81])], box=dk.Box([4, 4, 4], periodic=(True, True, False)))
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=10 * STEPS * DT, record_every=DT)
+    assert files.notes == ()
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files), steps=10 * STEPS)
+    if wall == "drum":
+        x = traj.position[-1, 0]
+        assert np.degrees(np.arctan2(x[0], -x[1])) > 3.0  # carried up the rising side
+    else:
+        assert np.abs(traj.angular_velocity[-1, 0, :2]).max() > 0.1  # friction set it rolling
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12

@@ -51,8 +51,9 @@ class Friction:
     damping : eta_t >= 0, tangential dashpot (force per velocity); None: the same damping ratio as
         the normal dashpot, eta_t = eta_n sqrt(k_t / k_n).
     slip_radius : "contact" (lever arms R - delta/2 in the slip velocity, energy-consistent with the
-        torques) or "full" (R, LAMMPS' convention; the energy balance is then off by O(delta/R) of the
-        rolling work).
+        torques; R - delta on a wall) or "full" (R in the slip, LAMMPS' convention; between spheres the
+        energy balance is then off by O(delta/R) of the rolling work; on a wall the torque takes R too,
+        as LAMMPS' wall does, and the balance stays exact).
     sliding : "coulomb" (while sliding the spring holds the whole Coulomb force) or "lammps" (it holds
         the Coulomb force minus the dashpot's part, xi = -(F_t + eta_t v_t)/k_t, as LAMMPS'
         linear_history and rolling sds: for side-by-side comparisons; see the module docstring).
@@ -128,14 +129,15 @@ def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, style, norma
 @njit(**HELPER_OPTIONS)
 def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, style, normal, mu, kt, eta, mu_r, kr, eta_r,
                   history, p, o, commit, dt):
-    """:func:`friction_on_j` for sphere i on a rigid wall (the contact point lies on the wall, R - delta
-    from the centre; the slip uses R when ``style`` is odd; LAMMPS' sliding rule when >= 2), with
-    rolling resistance when mu_r > 0 (rolling radius R): force, torque on the sphere, power."""
-    a = radius[i] - overlap
-    b = radius[i] if style % 2.0 > 0.0 else a
+    """:func:`friction_on_j` for sphere i on a rigid wall: the lever arm is R - delta (the contact
+    point lies on the wall), or R when ``style`` is odd (``slip_radius="full"``: LAMMPS' wall takes
+    R for both the slip and the torque); LAMMPS' sliding rule when ``style`` >= 2. With rolling
+    resistance when mu_r > 0 (rolling radius R). Returns the force, the torque on the sphere and the
+    power. The slip and the torque share their arm, so the friction's work is booked exactly."""
+    a = radius[i] if style % 2.0 > 0.0 else radius[i] - overlap
     share = 1.0 if style >= 2.0 else 0.0
-    fx, fy, fz, _, _, _, tx, ty, tz, lost = friction_on_j(nx, ny, nz, vx, vy, vz, b * w[i, 0], b * w[i, 1],
-                                                          b * w[i, 2], 0.0, a, normal, mu, kt, eta, share, history,
+    fx, fy, fz, _, _, _, tx, ty, tz, lost = friction_on_j(nx, ny, nz, vx, vy, vz, a * w[i, 0], a * w[i, 1],
+                                                          a * w[i, 2], 0.0, a, normal, mu, kt, eta, share, history,
                                                           p, o, commit, dt)
     if mu_r > 0.0:  # the wall is "i" (no spin), the sphere "j"
         mx, my, mz, rolled = rolling_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], radius[i], normal, mu_r, kr,
