@@ -197,7 +197,7 @@ class _Export:
                                  f"Wall, Cylinder, Gravity and UniformField can be exported")
         if self.dipole is not None:
             self.scale = math.sqrt(self.dipole.prefactor)
-        for law in [self.contact] + [w.law for w in scene.effects if type(w) is Wall]:
+        for law in [self.contact] + [w.law for w in scene.effects if type(w) in (Wall, Cylinder)]:
             if law is not None and law.friction is not None:
                 f = law.friction
                 if f.sliding != "lammps" or f.slip_radius != "full":

@@ -233,11 +233,14 @@ def test_moving_walls_work_on_the_spheres_so_no_energy_balance_is_watched():
 
 def test_the_lammps_export_refuses_the_cylinders_lammps_cannot_draw(tmp_path):
     """LAMMPS' cylinder region runs along x, y or z and the export turns it (rotate) but does not carry
-    it: an oblique or a travelling cylinder is refused with the reason, nothing written. (A turning
+    it: an oblique or a travelling cylinder is refused with the reason, and so is one whose own contact
+    law has demkit's friction rules (strict export), nothing written. (A turning
     one along an axis is compared with LAMMPS in tests/test_lammps_export.py.)"""
     p = dk.Particles(position=[[0.0, -1.0, 0.0]], radius=0.5, mass=1.0)
     for cylinder, reason in ((dk.Cylinder([0, 0, 0], [0, 1, 1], 3.0), "runs along x, y or z"),
-                             (dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, velocity=[0.1, 0, 0]), "carried by a velocity")):
+                             (dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, velocity=[0.1, 0, 0]), "carried by a velocity"),
+                             (dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, contact=dk.KelvinVoigt(1e3, 1.0, friction=dk.Friction(0.5))),
+                              "sliding='lammps'")):  # its own law with demkit's friction rules (strict)
         scene = dk.Scene(p.copy(), [dk.KelvinVoigt(1e3, 1.0), cylinder])
         with pytest.raises(ValueError, match=reason):
             dk.export_lammps(scene, dk.VelocityVerlet(1e-4), tmp_path, duration=0.01)
