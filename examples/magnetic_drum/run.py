@@ -70,8 +70,9 @@ def run_drum(bond, direction, drum_radius, length, n, omega, settle, measure, se
     pos, radius = fill(drum_radius, length, n, seed)
     centre = np.array([drum_radius + 1.0, drum_radius + 1.0, 0.0])  # the box's open axes: [0, 2 R_c + 2)
     box = dk.Box((2 * drum_radius + 2.0, 2 * drum_radius + 2.0, length), periodic=(False, False, True))
-    p = dk.Particles(position=pos + centre, radius=radius, mass=(2 * radius) ** 3, susceptibility=CHI,
-                     velocity=np.zeros((n, 3)), angular_velocity=np.zeros((n, 3)))
+    magnetisable = {"susceptibility": CHI} if bond > 0 else {}  # (no field: plain spheres, no moments)
+    p = dk.Particles(position=pos + centre, radius=radius, mass=(2 * radius) ** 3, velocity=np.zeros((n, 3)),
+                     angular_velocity=np.zeros((n, 3)), **magnetisable)
     # contacts stiffer as the field grows: the pull of two touching magnetised spheres (up to about 1.8 Bo
     # weights, more in a chain) and the energy they release snapping together must be held within a
     # fraction of a radius (the run's guards check it); damped to a restitution of 0.3; friction 0.5.
@@ -87,9 +88,6 @@ def run_drum(bond, direction, drum_radius, length, n, omega, settle, measure, se
         # the moments' field cut off at 3 d, switched off smoothly (the solve needs a smooth field)
         interactions += [dk.Dipole(prefactor=1.0, cutoff=min(3.0, 0.45 * length), switch_width=0.5),
                          dk.UniformField(b)]
-    else:
-        p = dk.Particles(position=p.position, radius=radius, mass=p.mass, velocity=p.velocity,
-                         angular_velocity=p.angular_velocity)
     scene = dk.Scene(p, interactions, box=box)
     sampler = Sampler(settle, centre, b)
     sim = dk.Simulation(scene, dk.VelocityVerlet(dt), writers=[dk.VTKWriter(folder, every=1.0, trails=False, overwrite=True),
