@@ -162,8 +162,12 @@ class Simulation(Recording, Stops):
         if nsteps == 0:
             return self._already_there()
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
-        with compile_notice(lambda: compile_estimate(self.scene.plan, "run", self._tiers.tier)) as notice:  # ended after the first chunk
-            return self._advance(nsteps, stride, progress, notice)
+        # Ctrl-C is caught from here to the run's end (CatchInterrupt): also while the run prepares and
+        # after its last chunk, where compiled calls (the first frame, the writers' end frames) run. A
+        # KeyboardInterrupt raised inside numba's call machinery came out as a TypeError.
+        with CatchInterrupt() as interrupt, \
+                compile_notice(lambda: compile_estimate(self.scene.plan, "run", self._tiers.tier)) as notice:  # ended after the first chunk
+            return self._advance(nsteps, stride, progress, notice, interrupt)
 
     def _already_there(self):
         """run(until=t) of a simulation resumed at t: the script that checkpoints and resumes (see
@@ -178,8 +182,8 @@ class Simulation(Recording, Stops):
         self._measure(0, 0.0, 0)
         return self._keep(record, self.step, [0])
 
-    def _advance(self, nsteps, stride, progress, notice):
-        """The body of :meth:`run`."""
+    def _advance(self, nsteps, stride, progress, notice, interrupt):
+        """The body of :meth:`run` (``interrupt``: its CatchInterrupt)."""
         nframes = nsteps // stride + 1
         extra_final = nsteps % stride != 0
         self._check_record_size(nframes + extra_final)
@@ -222,7 +226,7 @@ class Simulation(Recording, Stops):
         dt = self.integrator.dt
         bar = Progress(nsteps, progress, desc="demkit run", unit="step", unit_scale=True, scale=dt,
                        start=self.time, span=self.time + nsteps * dt)
-        with CatchInterrupt() as interrupt, _Stepping(scene), bar, _MeasuredOnStop(self, start_step, clock, rebuilds):
+        with _Stepping(scene), bar, _MeasuredOnStop(self, start_step, clock, rebuilds):
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
                 for every in writer_steps + ([check_steps] if check_steps else []):
@@ -282,7 +286,7 @@ class Simulation(Recording, Stops):
         if self.checkpoint is not None and self.checkpoint.saved_step != self.step:
             self._save_checkpoint()
         self._notes, self._last_notes = None, notes.state()
-        if interrupt.caught:  # Ctrl-C during the last chunk: the run is complete, still honour it
+        if interrupt.caught:  # Ctrl-C during the last chunk or the end's work: the run is complete, still honour it
             self._close_on_interrupt()
             raise KeyboardInterrupt(f"run interrupted at its end (step {self.step}, t = {self.time:.6g})")
         return self.trajectory

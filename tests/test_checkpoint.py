@@ -248,6 +248,42 @@ def test_ctrl_c_ends_a_run_cleanly_keeping_frames_state_and_a_checkpoint(tmp_pat
     assert np.array_equal(scene2.particles.angular_velocity, scene.particles.angular_velocity)
 
 
+def test_ctrl_c_while_the_end_frame_is_written_finishes_the_run_then_stops_it(tmp_path):
+    """A Ctrl-C after the run's last chunk, while its writers write the end frame (compiled calls:
+    the frame's forces), is caught like one during the chunks: the end's work is done (the frame
+    written, the trajectory kept, the checkpoint saved) and the run then stops with a
+    KeyboardInterrupt that says so. (Found in CI: a Ctrl-C that landed there was raised inside numba's
+    call machinery and came out of `demkit run` as a TypeError; it was outside the catcher.)"""
+    import signal
+
+    class InterruptingWriter:
+        every = 1e-3  # not a divisor of the run below: the end frame is written after the last chunk
+
+        def __init__(self):
+            self.forces = []
+
+        def open(self, simulation):
+            pass
+
+        def close(self):
+            pass
+
+        def write(self, simulation):
+            if simulation.step == 25:  # the end frame
+                os.kill(os.getpid(), signal.SIGINT)
+            self.forces.append(simulation.scene.forces()[0].copy())  # a compiled call after the signal
+
+    path = tmp_path / "end.ckpt"
+    writer = InterruptingWriter()
+    sim = dk.Simulation(_two_spheres(), dk.VelocityVerlet(1e-4), writers=[writer], checkpoint=dk.Checkpoint(path))
+    with pytest.raises(KeyboardInterrupt, match="interrupted at its end"):
+        sim.run(2.5e-3, record_every=1e-3)
+    assert sim.step == 25 and len(writer.forces) == 4 and np.isfinite(writer.forces[-1]).all()  # steps 0, 10, 20, 25
+    assert np.allclose(sim.trajectory.time, [0.0, 1e-3, 2e-3, 2.5e-3])
+    meta, _ = ckpt_module.load(path)
+    assert meta["step"] == 25
+
+
 def test_a_kill_before_the_end_frame_leaves_a_checkpoint_from_which_the_rerun_writes_it(tmp_path, monkeypatch):
     """A run ending between two frames writes an end frame after its last chunk. A checkpoint due at
     that last step is saved after the end frame, so a kill in between leaves an earlier checkpoint:
