@@ -10,7 +10,7 @@ beta = chi / (chi + 3) (``dk.Particles(susceptibility=...)``), and the balls mag
 solved self-consistently before every force evaluation (``dk.Dipole(..., induction=dk.Induction())``).
 The dipoles are cut off at CUTOFF diameters (``--sum cutoff``, the default), which misses the
 layer's demagnetising field, or summed over every periodic copy of the cell in x and y by a slab
-Ewald sum (``--sum slab``: an infinitely wide layer; 16 times the time per step at 60 balls, as
+Ewald sum (``--sum slab``: an infinitely wide layer; about 20 times the time per step at 60 balls, as
 the induced-moment solve evaluates the wave-vector sum 4-5 times a step). Either way, the moments
 of the last positions are then also solved with the slab sum and checked against a dense solve
 over every copy of the cell.
