@@ -108,7 +108,8 @@ class Sampler:
         self.times, self.angles, self.torques = [], [], []
 
     def open(self, simulation):
-        pass
+        effects = simulation.scene.effects
+        self.drum = [k for k, e in enumerate(effects) if isinstance(e, dk.Cylinder)][0]  # its number in contacts().wall
 
     def close(self):
         pass
@@ -123,14 +124,14 @@ class Sampler:
         # bed up its +x side, so the centre of mass sits at +x of the lowest point
         self.times.append(scene.time)
         self.angles.append(math.degrees(math.atan2(cm[0], -cm[1])))
-        self.torques.append(torque_balance(scene, self.centre, cm, p.mass.sum(), self.field))
+        self.torques.append(torque_balance(scene, self.drum, self.centre, cm, p.mass.sum(), self.field))
 
 
-def torque_balance(scene, centre, cm, mass, field):
-    """The torques about the drum's axis (z) on the whole bed at this moment: (the drum's, through its
-    contacts, gravity's, -M g x_cm, and the field's on the moments, sum of (m x B0)_z). The spheres'
-    own forces (contacts between them, dipoles) exert none on the bed as a whole."""
-    drum = [k for k, e in enumerate(scene.effects) if isinstance(e, dk.Cylinder)][0]  # its number in contacts().wall
+def torque_balance(scene, drum, centre, cm, mass, field):
+    """The torques about the drum's axis (z) on the whole bed at this moment: (the drum's, number
+    ``drum`` in ``scene.effects``, through its contacts, gravity's, -M g x_cm, and the field's on the
+    moments, sum of (m x B0)_z). The spheres' own forces (contacts between them, dipoles) exert none on
+    the bed as a whole."""
     c = scene.contacts()
     on = c.wall == drum
     arm = c.point[on, :2] - centre[:2]
