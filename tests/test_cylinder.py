@@ -1,6 +1,6 @@
 """Cylindrical walls (demkit.Cylinder): tubes, posts and rotating drums, checked against their geometry,
 the rolling of a sphere in a drum (a pendulum of period 2 pi sqrt(7 (R_c - R) / 5 g)), the angle a turning
-drum carries a sphere to (tan theta = mu_r), energy conservation, and the plane wall's law they reuse."""
+drum carries a sliding block to (tan theta = mu), energy conservation, and the plane wall's law they reuse."""
 import math
 
 import numpy as np
@@ -128,6 +128,36 @@ def test_a_turning_drum_rolls_a_sphere_without_slip_at_the_surface_speed():
     assert traj.energy["dissipated"][-1] > 0.01  # (it slid first)
     c = scene.contacts()
     assert not c.sliding[0] and c.normal_force[0] > 0.0
+
+
+@pytest.mark.parametrize("mu", [0.3, 0.6])
+def test_a_turning_drum_carries_a_sliding_block_to_tan_theta_mu_and_it_swings_about_there(mu):
+    """A sphere that cannot turn (inertia 2.5e8 times a ball's: a sliding block) carried by a slowly
+    turning drum (omega = 0.01 rad/s) sticks to the wall until the friction it needs, m g sin theta,
+    reaches mu N = mu m g cos theta (the centripetal part is 6e-6 of it): it slips at tan theta = mu.
+    Kinetic friction mu N then pushes it up the wall at every angle, so it swings undamped about
+    theta* = atan mu, at Omega^2 = g / ((R_c - R) cos theta*), with the amplitude its speed when it
+    slipped gives, A = theta'_stuck / Omega (theta'_stuck = omega R_c / (R_c - R): its point of
+    contact moving with the wall). Measured: carried with the wall to 1.7e-4 of theta* (the tangential
+    spring's stretch), the middle of the swing within 2.4e-5 of atan mu, the amplitude within 0.02 %;
+    bounds 1e-3, 1e-3 and 1 % (the nonlinear pendulum's asymmetry is O(A^2) ~ 4e-5)."""
+    omega, k = 0.01, 1e5
+    arm = RC - R + G / k
+    stuck = omega * RC / (RC - R)  # the centre's angular rate while the sphere moves with the wall
+    p = dk.Particles(position=[[0.0, -arm, 0.0]], velocity=[[stuck * arm, 0.0, 0.0]], radius=R, mass=1.0,
+                     inertia_factor=1e8)
+    law = dk.KelvinVoigt(k, 2 * math.sqrt(k), friction=dk.Friction(mu))
+    scene = dk.Scene(p, [law, dk.Cylinder((0, 0, 0), (0, 0, 1), RC, angular_velocity=omega), dk.Gravity((0, -G, 0))])
+    star = math.atan(mu)
+    swing = math.sqrt(G / ((RC - R) * math.cos(star)))
+    duration = 1.15 * star / stuck + 2 * (2 * math.pi / swing)  # carried up, then two swings
+    traj = dk.Simulation(scene, dk.VelocityVerlet(1e-4)).run(duration, record_every=0.01, progress=False)
+    theta = np.arctan2(traj.position[:, 0, 0], -traj.position[:, 0, 1])
+    carried = traj.time < 0.95 * star / stuck
+    assert theta[carried] == pytest.approx(stuck * traj.time[carried], abs=1e-3 * star)  # moving with the wall
+    swinging = theta[traj.time > 1.15 * star / stuck]
+    assert 0.5 * (swinging.max() + swinging.min()) == pytest.approx(star, rel=1e-3)
+    assert 0.5 * (swinging.max() - swinging.min()) == pytest.approx(stuck / swing, rel=0.01)
 
 
 def test_rolling_resistance_against_a_turning_cylinder_is_refused():
