@@ -160,6 +160,32 @@ def test_a_turning_drum_carries_a_sliding_block_to_tan_theta_mu_and_it_swings_ab
     assert 0.5 * (swinging.max() - swinging.min()) == pytest.approx(stuck / swing, rel=0.01)
 
 
+def test_a_rolling_sphere_in_a_turning_drum_swings_about_the_bottom_spinning_with_the_wall():
+    """A ball at rest at the bottom of a drum that turns at omega = 0.5 rad/s under gravity slides until it
+    rolls, then rolls without slip: no friction is needed at the bottom once it spins at omega R_c / R,
+    so it swings about theta = 0 as the rolling pendulum of period 2 pi sqrt(7 (R_c - R) / 5 g), its
+    mean spin omega R_c / R, and nothing more is dissipated. Measured after 1 s: the middle of the
+    swing 8e-8 rad from the bottom (amplitude 0.10 rad), the periods within 0.19 % (crossings read
+    from frames 0.005 apart: 0.13 % of a period; the amplitude's correction A^2/16 is 6e-4), the
+    mean spin over whole swings 6.5e-5, the dissipated energy constant to 1.8e-6; bounds 1e-5 rad,
+    0.3 %, 1e-3, 1e-5."""
+    omega, k = 0.5, 1e5
+    p = dk.Particles(position=[[0.0, -(RC - R + G / k), 0.0]], radius=R, mass=1.0)
+    law = dk.KelvinVoigt(k, 2 * math.sqrt(k), friction=dk.Friction(0.5))
+    scene = dk.Scene(p, [law, dk.Cylinder((0, 0, 0), (0, 0, 1), RC, angular_velocity=omega), dk.Gravity((0, -G, 0))])
+    period = 2 * math.pi * math.sqrt(7 * (RC - R) / (5 * G))
+    traj = dk.Simulation(scene, dk.VelocityVerlet(1e-4)).run(1.0 + 3 * period, record_every=0.005, progress=False)
+    late = traj.time > 1.0
+    theta, t = np.arctan2(traj.position[late, 0, 0], -traj.position[late, 0, 1]), traj.time[late]
+    assert abs(0.5 * (theta.max() + theta.min())) < 1e-5 and theta.max() > 0.05
+    up = t[1:][(theta[:-1] < 0) & (theta[1:] >= 0)]  # upward crossings of the bottom
+    assert np.diff(up) == pytest.approx(period, rel=3e-3)
+    whole = (t >= up[0]) & (t < up[-1])
+    assert traj.angular_velocity[late, 0, 2][whole].mean() == pytest.approx(omega * RC / R, rel=1e-3)
+    assert np.ptp(traj.energy["dissipated"][late]) < 1e-5 * traj.energy["dissipated"][-1]
+    assert not scene.contacts().sliding[0]
+
+
 def test_rolling_resistance_against_a_turning_cylinder_is_refused():
     """The wall's rolling resistance acts on the sphere's spin relative to a wall that does not
     turn: against a turning drum it would brake the wrong rotation, so the scene says so."""
