@@ -8,7 +8,8 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
     shape, Vx, Vy, Vz, Ax, Ay, Az, w, <the shape's numbers>
 
 with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
-(demkit.interactions.cylinder.GEOMETRY) and 2 a plane moved by a servo (:data:`SERVO`). The wall is
+(demkit.interactions.cylinder.GEOMETRY), 2 a plane moved by a servo (:data:`SERVO`) and 3 a cone
+(demkit.interactions.cone.GEOMETRY). The wall is
 carried by D(t) = V t + A (1 - cos w t) (w = 2 pi f; the vibration starts at rest, as LAMMPS'
 ``wiggle``): a sphere at x meets the shape as it
 stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
@@ -31,12 +32,12 @@ from numba import njit
 from ..engine.motion import KERNEL_OPTIONS
 
 #: the shape codes of the geometry block
-SHAPES = {"plane": 0, "cylinder": 1, "servo": 2}
+SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "cone": 3}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 #: a servo's numbers, after the motion (its state from "offset" on: :data:`SERVO_STATE`)
 SERVO = ("force", "max_speed", "gain", "offset", "speed", "pushed", "stiffness", "dt")
-#: where the shape's numbers (a cylinder's, a servo's) start in the block: after the shape code and the motion
+#: where the shape's numbers (a cylinder's, a cone's, a servo's) start in the block: after the shape code and the motion
 SHAPE_AT = 1 + len(MOTION)
 #: where each of a servo's numbers sits in its block
 S_FORCE, S_MAX_SPEED, S_GAIN, S_OFFSET, S_SPEED, S_PUSHED, S_STIFFNESS, S_DT = range(SHAPE_AT, SHAPE_AT + len(SERVO))
@@ -81,6 +82,77 @@ def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
             speed * (ax * ey - ay * ex))
 
 
+@njit(**KERNEL_OPTIONS)
+def cone_plane(x, y, z, px, py, pz, ax, ay, az, sn, cs, s0, s1, side, omega):
+    """(plane, nx, ny, nz, ux, uy, uz): the plane the cone presents to the sphere centred at (x, y, z)
+    and the surface's velocity there (demkit.interactions.cone): apex p, unit axis a, half-angle alpha
+    (sn = sin alpha, cs = cos alpha), its generators running from s0 to s1 from the apex, side +1
+    inside, -1 outside, turning at omega about a.
+
+    In the meridian half-plane of the centre (its height h = r.a along the axis, distance d from it,
+    r = x - p, radial unit e) the generator is the ray p + s g, g = cs a + sn e, and the nearest point
+    of it is s = t = h cs + d sn. For s0 <= t <= s1 it lies on the face: the tangent plane contains the
+    generator (so it passes through the apex) and its normal is side (sn a - cs e). Else the nearest
+    point Q is the end of the generator (the rim circle at s0 or s1, the apex when s0 = 0 and t < 0):
+    an edge or vertex contact with normal (x - Q)/|x - Q|. A centre on the axis takes one direction
+    across the axis (every one is as near)."""
+    rx = x - px
+    ry = y - py
+    rz = z - pz
+    h = rx * ax + ry * ay + rz * az
+    dx = rx - h * ax
+    dy = ry - h * ay
+    dz = rz - h * az
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d > 0.0:
+        ex = dx / d
+        ey = dy / d
+        ez = dz / d
+    else:  # a centre on the axis: every radial direction is as near; take one across the axis
+        if abs(ax) < 0.9:
+            ex, ey, ez = 0.0, -az, ay
+        else:
+            ex, ey, ez = az, 0.0, -ax
+        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ex /= norm
+        ey /= norm
+        ez /= norm
+    # (a centre within rounding of the axis has a radial direction of rounding noise, not across the
+    # axis: take its part across, so that the normal below is a unit vector)
+    across = ex * ax + ey * ay + ez * az
+    ex -= across * ax
+    ey -= across * ay
+    ez -= across * az
+    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+    ex /= norm
+    ey /= norm
+    ez /= norm
+    t = h * cs + d * sn
+    nx = side * (sn * ax - cs * ex)
+    ny = side * (sn * ay - cs * ey)
+    nz = side * (sn * az - cs * ez)
+    if t < s0 or t > s1:  # beyond the face: the nearest point is the rim (or the apex)
+        s = s0 if t < s0 else s1
+        qx = px + s * (cs * ax + sn * ex)
+        qy = py + s * (cs * ay + sn * ey)
+        qz = pz + s * (cs * az + sn * ez)
+        vx = x - qx
+        vy = y - qy
+        vz = z - qz
+        q = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if q > 0.0:
+            nx = vx / q
+            ny = vy / q
+            nz = vz / q
+        plane = qx * nx + qy * ny + qz * nz
+    else:
+        s = t
+        plane = px * nx + py * ny + pz * nz
+    speed = omega * s * sn  # omega times the contact point's distance from the axis
+    return (plane, nx, ny, nz, speed * (ay * ez - az * ey), speed * (az * ex - ax * ez),
+            speed * (ax * ey - ay * ex))
+
+
 #: the planes of walls with a geometry block are computed by a function compiled once and called, not
 #: copied into the IR of each wall law's call site: the cylinder's geometry typed again at each site made
 #: a sphere loop of a shaken cylinder, a piston and a servo lid (tier 2) compile for 49 CPU s. Strict IEEE
@@ -101,7 +173,7 @@ def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
 @njit(**PLANE_OPTIONS)
 def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
     """The plane and surface velocity of a wall whose geometry block is at params[g] (``g`` >= 0; see the
-    module docstring): a moving plane, a servo's, or a cylinder's tangent plane."""
+    module docstring): a moving plane, a servo's, or a cylinder's or a cone's tangent plane."""
     w = params[g + 7]
     swing = 1.0 - math.cos(w * t)
     rate = w * math.sin(w * t)
@@ -116,7 +188,13 @@ def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
     if params[g] == 2.0:  # a servo's plane: moved along its normal by its offset (quasi-static steps whose
         # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
         return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz
-    k = g + SHAPE_AT  # the cylinder's numbers (demkit.interactions.cylinder.GEOMETRY)
+    k = g + SHAPE_AT  # the shape's numbers (demkit.interactions.cylinder.GEOMETRY, .cone.GEOMETRY)
+    if params[g] == 3.0:
+        c, cx, cy, cz, wx, wy, wz = cone_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
+                                               params[k + 3], params[k + 4], params[k + 5], params[k + 6],
+                                               params[k + 7], params[k + 8], params[k + 9], params[k + 10],
+                                               params[k + 11])
+        return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
     c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
                                                params[k + 3], params[k + 4], params[k + 5], params[k + 6],
                                                params[k + 7], params[k + 8])
