@@ -299,3 +299,34 @@ def test_spheres_in_a_turning_hopper_agree_with_lammps_region_cone_to_round_off(
     assert touched.any(axis=0).all()  # each sphere reached the cone
     if friction:
         assert np.abs(traj.angular_velocity[-1, :, 2]).max() > 0.5  # carried round
+
+
+def elliptical_hertz_radius(a, b):
+    """The exact Hertz contact radius R_x of two bodies whose gap is A x^2 + B y^2 (A <= B): the force
+    at approach delta is 4/3 E* sqrt(R_x) delta^(3/2). From Johnson's elliptical solution (Contact
+    Mechanics 4.2): the eccentricity e of the contact ellipse solves B/A = (E(e)/(1 - e^2) - K(e)) /
+    (K(e) - E(e)); its semi-axis a_x = sqrt(delta (K - E) / (K e^2 A)) and P = (2 pi / 3) E* delta a_x / K."""
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipk
+    if b - a < 1e-12 * b:
+        return 1.0 / (2.0 * a)
+    m = brentq(lambda m: (ellipe(m) / (1 - m) - ellipk(m)) / (ellipk(m) - ellipe(m)) - b / a, 1e-12, 1 - 1e-12)
+    k, e = ellipk(m), ellipe(m)
+    return (math.pi / 2 * math.sqrt((k - e) / (k * m * a)) / k) ** 2
+
+
+@pytest.mark.parametrize("ratio", [5.0, 10.0, 20.0])
+def test_a_curved_wall_s_hertz_stiffness_differs_from_the_plane_s_as_the_docs_say(ratio):
+    """The Hertz law on a cylinder or cone takes the plane's contact radius R (docs/contacts.md). A sphere
+    in a tube of radius R_c (surface curvatures 0 along the axis, -1/R_c across; +1/R_c outside) has the
+    exact elliptical Hertz stiffness of radius R_x: the plane's stiffness, sqrt(R / R_x), is off by about
+    -R/(4 R_c) inside and +R/(4 R_c) outside (measured at R_c = 10 R: -2.62 %, +2.39 %). The
+    equivalent radius sqrt(R' R'') would be within 0.03 % there (Johnson), LAMMPS' mean curvature
+    1/R_e = 1/R -+ 1/(2 R_c) within 0.1 %."""
+    for side in (-1.0, 1.0):
+        a, b = sorted((0.5, 0.5 * (1.0 + side / ratio)))  # (R = 1)
+        exact = elliptical_hertz_radius(a, b)
+        plane = math.sqrt(1.0 / exact) - 1.0
+        assert plane == pytest.approx(side / (4.0 * ratio), rel=0.15)
+        assert abs(math.sqrt(math.sqrt(1.0 / (4 * a * b)) / exact) - 1.0) < 0.03 / ratio ** 2
+        assert abs(math.sqrt(1.0 / (a + b) / exact) - 1.0) < 0.12 / ratio ** 2
