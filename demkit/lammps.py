@@ -351,6 +351,9 @@ class _Export:
         if cylinder.travels:
             raise ValueError(f"{cylinder!r}: a cylinder carried by a velocity or a vibration cannot be exported (only "
                              f"a cylinder at rest or turning about its axis)")
+        if cylinder.servo is not None:
+            raise ValueError(f"{cylinder!r}: LAMMPS' regions have no servo (a radius moved to hold a stress): it cannot "
+                             f"be exported")
         self.wall_friction_note(cylinder)
         if isinstance(cylinder.law, Hertz):
             self.differs(f"{cylinder!r} with Hertz contacts", "LAMMPS' region walls take the cylinder's curvature into "

@@ -691,7 +691,8 @@ class Scene(SceneDiagnostics):
         loading)."""
         self.params[self.time_step_slots] = dt
         for e, state in self.servo_slots():
-            wall, g = self.effects[e], self.geometry_slots[e]
+            wall = self.effects[e]
+            g = self.geometry_slots[e] + wall.servo_after  # (a servo cylinder's follow the cylinder's numbers)
             self.params[g + S_FORCE] = wall.servo.target(wall, self.box)
             self.params[g + S_MAX_SPEED] = wall.servo.max_speed
             self.params[g + S_GAIN] = wall.servo.gain
@@ -703,7 +704,7 @@ class Scene(SceneDiagnostics):
         slots = []
         for e, effect in enumerate(self.effects):
             if getattr(effect, "servo", None) is not None:
-                start = self.geometry_slots[e] + SERVO_STATE
+                start = self.geometry_slots[e] + effect.servo_after + SERVO_STATE
                 slots.append((e, slice(start, start + 4)))
         return slots
 

@@ -272,3 +272,59 @@ def test_a_plane_wall_must_not_cut_a_periodic_axis():
     dk.Scene(p, [law, dk.Wall((0, 0, 0), (0, 0, 1))], box=box)
     with pytest.raises(ValueError, match="periodic axis x"):
         dk.Scene(p, [law, dk.Wall((0, 0, 0), (0.1, 0, 1))], box=box)
+
+
+def confined_column(sigma=4.0, checkpoint=None):
+    """Nine spheres (three layers of three) in a tube periodic along its axis (L = 3.3), no gravity, the
+    tube's radius servo-controlled to hold the stress sigma on its side."""
+    ang = 2 * math.pi * np.arange(3) / 3
+    pos = [[2.0 + 0.75 * math.cos(a), 2.0 + 0.75 * math.sin(a), 0.55 + 1.1 * layer]
+           for layer in range(3) for a in ang + layer * math.pi / 3]
+    p = dk.Particles(position=pos, radius=R, mass=1.0)
+    tube = dk.Cylinder((2.0, 2.0, 0.0), (0, 0, 1), 1.8, servo=dk.Servo(stress=sigma, max_speed=1.0))
+    return dk.Scene(p, [dk.KelvinVoigt(1e4, 20.0, friction=dk.Friction(0.3)), tube],
+                    box=dk.Box((4.0, 4.0, 3.3), periodic=(False, False, True))), tube
+
+
+def test_a_servo_cylinder_holds_a_confining_stress_on_a_column_of_spheres(tmp_path):
+    """A tube whose radius a servo moves to hold sigma = 4 on its side (a triaxial cell's membrane): it
+    closes in at max_speed (1.0) until it touches the column, then holds the push F = sigma 2 pi R_c L at
+    the radius it has reached. Its time series (servo_state and current_radius between runs): the radius
+    falls by 0.25 a quarter time unit, the push reaches its target to 2.5e-3 at t = 1 and 1e-12 from
+    t = 1.5 (tolerance 1e-9); the contact table's normal forces on the tube sum to it (1e-12); each sphere
+    is at rest (pair forces balance the tube's: the column is squeezed, not pushed). A run resumed from a
+    checkpoint gives the bits of one run; a servo cylinder holding a force, or outside a box periodic along
+    its axis, or moving, is refused; the LAMMPS export refuses it."""
+    sigma, L = 4.0, 3.3
+    scene, tube = confined_column(sigma)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(5e-4))
+    radii, pushes = [], []
+    for _ in range(8):
+        sim.run(0.25, progress=False)
+        radii.append(tube.current_radius())
+        pushes.append(tube.servo_state()[2])
+    assert radii[0] == pytest.approx(1.55, abs=1e-12) and radii[1] == pytest.approx(1.30, abs=1e-12)
+    target = sigma * 2 * math.pi * radii[-1] * L
+    assert 0.9 < radii[-1] < 1.3 and pushes[-1] == pytest.approx(target, rel=1e-9)
+    assert pushes[-3] == pytest.approx(sigma * 2 * math.pi * radii[-3] * L, rel=1e-9)
+    c = scene.contacts()
+    assert c.normal_force[c.wall == 0].sum() == pytest.approx(target, rel=1e-12)
+    assert np.abs(scene.particles.velocity).max() < 1e-6
+    one, _ = confined_column(sigma)
+    dk.Simulation(one, dk.VelocityVerlet(5e-4)).run(1.2, progress=False)
+    first, _ = confined_column(sigma)
+    dk.Simulation(first, dk.VelocityVerlet(5e-4), checkpoint=dk.Checkpoint(tmp_path / "c.npz")).run(0.9, progress=False)
+    again, tube = confined_column(sigma)
+    dk.Simulation(again, dk.VelocityVerlet(5e-4)).resume(tmp_path / "c.npz").run(0.3, progress=False)
+    assert again.particles.position.tobytes() == one.particles.position.tobytes()
+    assert tube.servo_state() == one.effects[-1].servo_state()
+    p = dk.Particles(position=[[2.0, 2.0, 1.0]], radius=R, mass=1.0)
+    with pytest.raises(ValueError, match="holds a stress on its side"):
+        dk.Cylinder((2, 2, 0), (0, 0, 1), 1.8, servo=dk.Servo(force=1.0, max_speed=1.0))
+    with pytest.raises(ValueError, match="no velocity"):
+        dk.Cylinder((2, 2, 0), (0, 0, 1), 1.8, velocity=(0.1, 0, 0), servo=dk.Servo(stress=1.0, max_speed=1.0))
+    with pytest.raises(ValueError, match="periodic along its axis"):
+        dk.Scene(p, [dk.KelvinVoigt(1e4, 1.0), dk.Cylinder((2, 2, 0), (0, 0, 1), 1.8,
+                                                          servo=dk.Servo(stress=1.0, max_speed=1.0))])
+    with pytest.raises(ValueError, match="no servo"):
+        dk.export_lammps(confined_column()[0], dk.VelocityVerlet(5e-4), tmp_path / "out", strict=False)

@@ -17,6 +17,14 @@ change, so a rotating drum is a cylinder with omega != 0. Like a plane wall it m
 a translation D(t) = V t + A (1 - cos 2 pi f t) (``velocity``, ``amplitude``, ``frequency``; a shaken tube):
 the compiled loops find its tangent plane with demkit.interactions.wall_motion.wall_plane. It is
 infinitely long: close it with plane walls (:class:`demkit.Wall`) for caps.
+
+A :class:`demkit.Servo` holding a ``stress`` moves its radius instead (a confining pressure on a column of
+spheres: a triaxial cell's membrane in its simplest form): after every step the radius moves by
+gain (F - sigma 2 pi R_c L) / K away from the spheres or towards them, F the normal force they push on
+it with, K the sum of its contacts' secant stiffnesses, L the length of the periodic box along the
+axis (the cylinder must run along a periodic axis), at most max_speed dt a step (the plane servo's rule,
+demkit.interactions.wall_motion.servo_step). :meth:`Cylinder.servo_state` and :meth:`current_radius` read
+it between runs.
 """
 from __future__ import annotations
 
@@ -25,8 +33,8 @@ import math
 import numpy as np
 
 from .sphere import vector
-from .wall import Wall
-from .wall_motion import cylinder_plane
+from .wall import Servo, Wall
+from .wall_motion import SHAPES, cylinder_plane
 
 #: the cylinder's numbers in its geometry block, in this order (after the shape code and the motion:
 #: demkit.interactions.wall_motion)
@@ -40,14 +48,16 @@ class Cylinder(Wall):
     inside : the spheres are inside (a tube, drum; default) or outside (a post);
     angular_velocity : the cylinder's rate of turning about its axis (right-handed; default 0);
     velocity, amplitude, frequency : a translation V t + A (1 - cos 2 pi f t) of the whole cylinder (default
-    none); contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own.
+    none); contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own;
+    servo : a :class:`Servo` holding a ``stress`` on the cylinder's side by moving its radius (module
+    docstring; with neither a translation nor a vibration).
     """
 
     steady = False  # the compiled loops read its geometry block (so not flat: see Wall.flat)
-    shape = 1
+    shape = SHAPES["cylinder"]
 
     def __init__(self, point, axis, radius, inside=True, angular_velocity=0.0, contact=None,
-                 velocity=(0.0, 0.0, 0.0), amplitude=(0.0, 0.0, 0.0), frequency=0.0):
+                 velocity=(0.0, 0.0, 0.0), amplitude=(0.0, 0.0, 0.0), frequency=0.0, servo=None):
         point = vector("Cylinder point", point)
         axis = vector("Cylinder axis", axis)
         length = float(np.linalg.norm(axis))
@@ -65,6 +75,17 @@ class Cylinder(Wall):
         super().__init__(point, axis, velocity=velocity, contact=contact, amplitude=amplitude, frequency=frequency)
         self.axis = self.normal
         self.radius, self.inside, self.angular_velocity = radius, bool(inside), omega
+        if servo is not None:
+            if not isinstance(servo, Servo):
+                raise TypeError(f"Cylinder servo must be a demkit.Servo, got {servo!r}")
+            if servo.stress is None:
+                raise ValueError(f"a Cylinder's servo holds a stress on its side (a confining pressure), not a "
+                                 f"force: give Servo(stress=..., max_speed=...), got {servo!r}")
+            if self.travels:
+                raise ValueError("a Cylinder with a servo moves its radius only: it takes no velocity and no "
+                                 "vibration")
+            self.shape, self.servo_after = SHAPES["servo cylinder"], len(GEOMETRY)
+        self.servo = servo
 
     @property
     def travels(self):
@@ -78,8 +99,26 @@ class Cylinder(Wall):
                          self.angular_velocity], dtype=np.float64)
 
     def geometry_values(self):
-        """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion)."""
-        return np.array([self.shape, *self.motion_values(), *self.shape_values()], dtype=np.float64)
+        """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion),
+        then a servo's numbers (:meth:`Servo.values`)."""
+        servo = self.servo.values() if self.servo is not None else ()
+        return np.array([self.shape, *self.motion_values(), *self.shape_values(), *servo], dtype=np.float64)
+
+    def current_radius(self):
+        """The radius now: a servo's where its scene's last step has taken it (R_c - side offset), else R_c."""
+        if self.servo is None:
+            return self.radius
+        return self.radius - (1.0 if self.inside else -1.0) * self.servo_state()[0]
+
+    def servo_target(self, servo, box):
+        """The force per unit radius a servo's stress asks of the cylinder in ``box``: sigma 2 pi L, L the box's
+        length along the axis (which must be periodic)."""
+        axes = np.flatnonzero(np.abs(self.axis) > 1e-12)
+        if box is None or len(axes) != 1 or not box.periodic[axes[0]]:
+            raise ValueError(f"{self!r} holds a stress on its side: its area 2 pi R_c L needs the length L of a box "
+                             f"periodic along its axis, which must lie along x, y or z (got "
+                             f"{'no box' if box is None else box!r})")
+        return servo.stress * 2.0 * math.pi * float(box.size[axes[0]])
 
     def distances(self, position, time=0.0):
         """Distance of each centre from the axis at ``time`` (the shape of ``position`` without its last axis)."""
@@ -89,13 +128,15 @@ class Cylinder(Wall):
     def heights(self, position, time=0.0):
         """Signed distance of each centre from the surface at ``time`` (positive on the spheres' side)."""
         d = self.distances(position, time)
-        return self.radius - d if self.inside else d - self.radius
+        radius = self.current_radius()
+        return radius - d if self.inside else d - radius
 
     def planes(self, position, time=0.0):
         """The tangent plane each centre meets at ``time`` and the surface's velocity there, (N, 7):
         plane, n, u (as demkit.interactions.wall_motion.wall_plane)."""
         shift, speed = self.displacement(time)
         values = self.shape_values()
+        values[6] = self.current_radius()
         rows = np.array([cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float)) - shift],
                         dtype=np.float64).reshape(-1, 7)
         rows[:, 0] += rows[:, 1:4] @ shift
@@ -127,10 +168,10 @@ class Cylinder(Wall):
             raise ValueError(f"{self!r} turns, and its contact law {self.law!r} has rolling resistance, which "
                              f"acts on the sphere's spin against a wall that does not turn: not available for "
                              f"a turning cylinder yet (leave out rolling, or the cylinder's angular_velocity)")
-        if self.inside and particles.radius.max() >= self.radius:
+        if self.inside and particles.radius.max() >= self.current_radius():
             k = int(np.argmax(particles.radius))
             raise ValueError(f"particle {particles.ids[k]} of radius {particles.radius[k]:.6g} does not fit inside the "
-                             f"cylinder of radius {self.radius:.6g}")
+                             f"cylinder of radius {self.current_radius():.6g}")
 
     def check_box(self, box):
         """Along a periodic axis the spheres' images repeat: the cylinder must run along that axis, or lie

@@ -310,6 +310,8 @@ class Servo:
         """The force to hold for ``wall`` in ``box`` (a demkit.Box or None): ``force``, or ``stress`` times
         the wall's area, the box's cross-section across its normal (the normal along a closed axis, the
         two others periodic)."""
+        if hasattr(wall, "radius"):  # a cylinder: a stress on its side, per unit radius (wall_motion.servo_step)
+            return wall.servo_target(self, box)
         if self._stress is None:
             return self._force
         axes = np.flatnonzero(np.abs(wall.normal) > 1e-12)
@@ -350,6 +352,8 @@ class Wall(SphereInteraction):
     repeatable = True  # a box of walls
     #: the shape's code in the geometry block (demkit.interactions.wall_motion.SHAPES)
     shape = 0
+    #: how many of the shape's numbers come before a servo's in its block (wall_motion.SERVO_AFTER)
+    servo_after = 0
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None, amplitude=(0.0, 0.0, 0.0),
                  frequency=0.0, servo=None):
@@ -456,7 +460,7 @@ class Wall(SphereInteraction):
         w = 2.0 * math.pi * self.frequency
         shift = self.velocity * time + self.amplitude * (1.0 - math.cos(w * time))
         speed = self.velocity + self.amplitude * (w * math.sin(w * time))
-        if self.servo is not None:  # (its quasi-static steps add no surface velocity: wall_motion)
+        if self.servo is not None and self.shape == 0:  # (its quasi-static steps add no surface velocity)
             shift = shift + self.servo_state()[0] * self.normal
         return shift, speed
 
@@ -470,7 +474,8 @@ class Wall(SphereInteraction):
         block = getattr(self, "block", None)
         if block is None:
             return 0.0, 0.0, 0.0, 0.0
-        return tuple(float(v) for v in block[SERVO_STATE:SERVO_STATE + 4])
+        start = SERVO_STATE + self.servo_after
+        return tuple(float(v) for v in block[start:start + 4])
 
     def table_values(self):
         """A twisting law's rolling and twisting numbers (see :data:`TWIST_TABLE`), else empty."""

@@ -8,8 +8,9 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
     shape, Vx, Vy, Vz, Ax, Ay, Az, w, <the shape's numbers>
 
 with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
-(demkit.interactions.cylinder.GEOMETRY), 2 a plane moved by a servo (:data:`SERVO`) and 3 a cone
-(demkit.interactions.cone.GEOMETRY). The wall is
+(demkit.interactions.cylinder.GEOMETRY), 2 a plane moved by a servo (:data:`SERVO`), 3 a cone
+(demkit.interactions.cone.GEOMETRY) and 5 a cylinder whose radius a servo moves (the cylinder's
+numbers, then the servo's). The wall is
 carried by D(t) = V t + A (1 - cos w t) (w = 2 pi f; the vibration starts at rest, as LAMMPS'
 ``wiggle``): a sphere at x meets the shape as it
 stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
@@ -19,7 +20,10 @@ A servo's wall (shape 2) is moved along its normal n by its own state: the loops
 normal force F the spheres exert on it and the secant stiffness F_i / delta_i of each contact
 (:func:`servo_add`, after :func:`servo_clear` at the start of each evaluation), and after each step
 :func:`servo_step` moves it by gain (F - target) / K away from the spheres (towards them when it
-touches nothing), at most max_speed dt. These steps are quasi-static: the surface velocity the
+touches nothing), at most max_speed dt. A servo cylinder (shape 5) moves its radius the same way (its
+offset along the local normal: the radius R_c - side offset), and its target is a stress, the force
+per unit radius held in its block times the radius it has reached (the side's area 2 pi R_c L grows
+with it). These steps are quasi-static: the surface velocity the
 contacts see is the wall's prescribed one only (a dashpot seeing the servo's speed would add c / dt to
 the stiffness it steers by, and the loop would swing from one limit to the other).
 """
@@ -32,7 +36,10 @@ from numba import njit
 from ..engine.motion import KERNEL_OPTIONS
 
 #: the shape codes of the geometry block
-SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "cone": 3}
+SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "cone": 3, "servo cylinder": 5}
+#: how many numbers of its shape a servo's block holds before the servo's (a servo cylinder: the
+#: cylinder's nine, demkit.interactions.cylinder.GEOMETRY)
+SERVO_AFTER = {2: 0, 5: 9}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 #: a servo's numbers, after the motion (its state from "offset" on: :data:`SERVO_STATE`)
@@ -189,25 +196,42 @@ def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
         # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
         return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz
     k = g + SHAPE_AT  # the shape's numbers (demkit.interactions.cylinder.GEOMETRY, .cone.GEOMETRY)
-    if params[g] == 3.0:
+    rc = params[k + 6]
+    if params[g] == 5.0:  # a servo cylinder: its radius moved by the servo's offset along the normal
+        rc = rc - params[k + 7] * params[g + 9 + S_OFFSET]
+    elif params[g] == 3.0:
         c, cx, cy, cz, wx, wy, wz = cone_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
                                                params[k + 3], params[k + 4], params[k + 5], params[k + 6],
                                                params[k + 7], params[k + 8], params[k + 9], params[k + 10],
                                                params[k + 11])
         return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
     c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
-                                               params[k + 3], params[k + 4], params[k + 5], params[k + 6],
+                                               params[k + 3], params[k + 4], params[k + 5], rc,
                                                params[k + 7], params[k + 8])
     return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
+
+
+@njit(**KERNEL_OPTIONS)
+def servo_base(params, g):
+    """Where the servo's numbers of the block at params[g] are offset by (its S_* indices count from
+    there): 0 for a servo plane, 9 for a servo cylinder; -1 for no servo (or g < 0)."""
+    if g < 0:
+        return -1
+    if params[g] == 2.0:
+        return 0
+    if params[g] == 5.0:
+        return 9
+    return -1
 
 
 @njit(**KERNEL_OPTIONS)
 def servo_clear(params, g):
     """Before a force evaluation: the servo's sums of force and stiffness start at zero (g < 0 or
     another shape: nothing)."""
-    if g >= 0 and params[g] == 2.0:
-        params[g + S_PUSHED] = 0.0
-        params[g + S_STIFFNESS] = 0.0
+    b = servo_base(params, g)
+    if b >= 0:
+        params[g + b + S_PUSHED] = 0.0
+        params[g + b + S_STIFFNESS] = 0.0
 
 
 @njit(**KERNEL_OPTIONS)
@@ -216,21 +240,27 @@ def servo_add(params, g, fx, fy, fz, nx, ny, nz, overlap):
     exerts on it, which the sphere exerts back, and its secant stiffness (that force / overlap) when it
     pushes (a dashpot pulling as the sphere leaves has a negative secant, which would turn the servo's
     step round)."""
-    if g >= 0 and params[g] == 2.0 and overlap > 0.0:
+    b = servo_base(params, g)
+    if b >= 0 and overlap > 0.0:
         push = fx * nx + fy * ny + fz * nz
-        params[g + S_PUSHED] += push
+        params[g + b + S_PUSHED] += push
         if push > 0.0:
-            params[g + S_STIFFNESS] += push / overlap
+            params[g + b + S_STIFFNESS] += push / overlap
 
 
 @njit(**KERNEL_OPTIONS)
 def servo_step(params, g):
     """After a step: move the servo's wall (see the module docstring); returns nothing."""
-    if g >= 0 and params[g] == 2.0:
-        limit = params[g + S_MAX_SPEED] * params[g + S_DT]
-        stiffness = params[g + S_STIFFNESS]
-        error = params[g + S_PUSHED] - params[g + S_FORCE]
-        move = params[g + S_GAIN] * error / stiffness if stiffness > 0.0 else -limit
+    b = servo_base(params, g)
+    if b >= 0:
+        h = g + b
+        limit = params[h + S_MAX_SPEED] * params[h + S_DT]
+        stiffness = params[h + S_STIFFNESS]
+        target = params[h + S_FORCE]
+        if b > 0:  # a servo cylinder holds a stress: the force per unit radius times the radius now
+            target *= params[g + SHAPE_AT + 6] - params[g + SHAPE_AT + 7] * params[h + S_OFFSET]
+        error = params[h + S_PUSHED] - target
+        move = params[h + S_GAIN] * error / stiffness if stiffness > 0.0 else -limit
         move = min(max(move, -limit), limit)  # > 0: away from the spheres
-        params[g + S_OFFSET] -= move
-        params[g + S_SPEED] = -move / params[g + S_DT]
+        params[h + S_OFFSET] -= move
+        params[h + S_SPEED] = -move / params[h + S_DT]

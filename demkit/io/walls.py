@@ -129,7 +129,7 @@ def _tube(wall, shift, lo, hi, time):
     first, second = _in_plane_axes(wall.axis)
     turn = wall.angular_velocity * time
     angle = turn + 2.0 * math.pi * np.arange(FACETS) / FACETS
-    ring = wall.radius * (np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second)
+    ring = wall.current_radius() * (np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second)
     start, end = (wall.point + shift + s * wall.axis for s in extent)
     corners = np.concatenate([start + ring, end + ring])
     polygons = [(k, (k + 1) % FACETS, FACETS + (k + 1) % FACETS, FACETS + k) for k in range(FACETS)]

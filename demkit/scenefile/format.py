@@ -252,7 +252,13 @@ INTERACTIONS = Table({
         "inside": Key("bool", True, "the spheres are inside (a tube, drum) or outside (a post)"),
         "angular_velocity": _n("rate of turning about the axis (right-handed): a rotating drum", default=0.0,
                                dim="angular_velocity"),
-        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cylinder", dim="velocity"), **_WALL_MOTION},
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cylinder", dim="velocity"), **_WALL_MOTION,
+        "servo": Table({
+            "stress": _n("the normal stress the spheres are to push the side with (force per area 2 pi R_c L, L the "
+                         "periodic box's length along the axis)", default=REQUIRED, check="positive", dim="pressure"),
+            "max_speed": _n("the fastest the radius moves", default=REQUIRED, check="positive", dim="velocity"),
+            "gain": _n("fraction of the force error corrected in a step, in (0, 1]", default=0.2, check="positive")},
+            "a servo moving the cylinder's radius to hold a stress on its side (dk.Servo): a confining membrane")},
         "a cylindrical wall with the scene's contact law (dk.Cylinder)"),
         "cylindrical walls, [[interactions.cylinder]], any number"),
     "cone": Tables(Table({
