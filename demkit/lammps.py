@@ -341,6 +341,16 @@ class _Export:
                          "slip_radius='contact' R - delta (the contact point on the wall): spins differ by O(delta/R) "
                          "of the friction torque; Friction(slip_radius='full') takes R, as LAMMPS")
 
+    def turning_note(self, wall):
+        """LAMMPS' region walls roll and twist against the sphere's own spin (fix_wall_gran: relrot = omega,
+        "TODO: incorporate wall angular velocity"); demkit's against its spin relative to a turning wall's."""
+        law = wall.law
+        if wall.angular_velocity != 0.0 and (getattr(law, "rolling", None) is not None
+                                             or getattr(law, "twisting", None) is not None):
+            self.differs(f"{wall!r} with rolling or twisting resistance", "LAMMPS' wall rolling and twisting act on "
+                         "the sphere's spin alone, demkit's on its spin relative to the turning wall's (a sphere "
+                         "turning with the wall feels none in demkit)")
+
     def cylinder_lines(self, k, cylinder):
         """The deck lines of a cylinder along x, y or z: an infinite ``region cylinder`` (side in for a
         tube, out for a post), turned by ``rotate`` through the angle omega t about its axis, and ``fix
@@ -355,6 +365,7 @@ class _Export:
             raise ValueError(f"{cylinder!r}: LAMMPS' regions have no servo (a radius moved to hold a stress): it cannot "
                              f"be exported")
         self.wall_friction_note(cylinder)
+        self.turning_note(cylinder)
         if isinstance(cylinder.law, Hertz):
             self.differs(f"{cylinder!r} with Hertz contacts", "LAMMPS' region walls take the cylinder's curvature into "
                          "the contact radius, demkit keeps a plane's (R* = R): the stiffness differs by about "
@@ -398,6 +409,7 @@ class _Export:
             raise ValueError(f"{cone!r}: LAMMPS' cone region has two ends; give the Cone an upper end (upper=...) "
                              f"to export it")
         self.wall_friction_note(cone)
+        self.turning_note(cone)
         if isinstance(cone.law, Hertz):
             self.differs(f"{cone!r} with Hertz contacts", "LAMMPS' region walls take the cone's curvature into the "
                          "contact radius, demkit keeps a plane's (R* = R)")

@@ -86,8 +86,7 @@ def test_bad_cones_are_refused():
     law = dk.KelvinVoigt(1e4, 10.0, friction=dk.Friction(0.5), rolling=dk.RollingResistance(0.1))
     with pytest.raises(ValueError, match="no upper end"):
         dk.Scene(p, [dk.KelvinVoigt(1e4, 1.0), dk.Cone((0, 0, 0), (0, 0, 1), ALPHA, angular_velocity=1.0)])
-    with pytest.raises(ValueError, match="rolling resistance"):
-        dk.Scene(p, [law, dk.Cone((0, 0, 0), (0, 0, 1), ALPHA, upper=3.0, angular_velocity=1.0)])
+    dk.Scene(p, [law, dk.Cone((0, 0, 0), (0, 0, 1), ALPHA, upper=3.0, angular_velocity=1.0)])  # (rolling: fine)
     with pytest.raises(ValueError, match="behind"):  # a sphere outside a hopper
         dk.Scene(dk.Particles(position=[[3.0, 0.0, 1.0]], radius=R, mass=1.0),
                  [dk.KelvinVoigt(1e4, 1.0), dk.Cone((0, 0, 0), (0, 0, 1), ALPHA)])
@@ -258,6 +257,10 @@ def test_the_lammps_export_writes_an_axis_aligned_cone_and_refuses_the_others(tm
     tan = math.tan(ALPHA)
     assert (f"region      cone0 cone z 0 0 {3 * tan:.17g} {0.5 * tan:.17g} -3 -0.5 side in open 1 open 2 units box "
             f"rotate v_turn0 0 0 0 0 0 -1") in deck
+    rolling = dk.KelvinVoigt(2000.0, 2.0, friction=dk.Friction(0.5, slip_radius="full", sliding="lammps"),
+                             rolling=dk.RollingResistance(0.1, 10.0, 1.0))
+    with pytest.raises(ValueError, match="relative to the turning wall's"):  # (LAMMPS' wall rolls against w alone)
+        dk.export_lammps(dk.Scene(p, [rolling, cone]), dk.VelocityVerlet(1e-3), tmp_path / "r", duration=1e-2)
     for bad, reason in ((dk.Cone((0, 0, 0), (0, 1, 1), ALPHA, upper=3.0), "runs along x, y or z"),
                         (dk.Cone((0, 0, 0), (0, 0, -1), ALPHA), "upper end"),
                         (dk.Cone((0, 0, 0), (0, 0, -1), ALPHA, upper=3.0, velocity=(0.1, 0, 0)), "carried by")):

@@ -92,6 +92,7 @@ class Cone(Wall):
         omega = float(angular_velocity)
         if not math.isfinite(omega):
             raise ValueError(f"Cone angular_velocity must be finite, got {angular_velocity!r}")
+        self.angular_velocity = omega  # (before the contact law is adopted: a turning wall's functions)
         super().__init__(apex, axis, velocity=velocity, contact=contact, amplitude=amplitude, frequency=frequency)
         self.apex, self.axis = self.point, self.normal
         self.half_angle, self.inside, self.angular_velocity = alpha, bool(inside), omega
@@ -153,6 +154,11 @@ class Cone(Wall):
         turning = abs(self.angular_velocity) * self.rim_radius() if self.angular_velocity != 0.0 else 0.0
         return turning + super().surface_speed()
 
+    def spin(self):
+        """The wall's own angular velocity, omega a (rolling and twisting resistance act on the sphere's
+        spin relative to it)."""
+        return self.angular_velocity * self.axis
+
     def where(self):
         reach = f"{self.lower:.6g} to {'inf' if self.upper is None else f'{self.upper:.6g}'}"
         return (f"the cone with apex {self.apex.tolist()} along {self.axis.tolist()}, half-angle "
@@ -160,10 +166,6 @@ class Cone(Wall):
 
     def check(self, particles, time=0.0):
         super().check(particles, time)
-        if self.angular_velocity != 0.0 and getattr(self.law, "rolling", None) is not None:
-            raise ValueError(f"{self!r} turns, and its contact law {self.law!r} has rolling resistance, which "
-                             f"acts on the sphere's spin against a wall that does not turn: not available for "
-                             f"a turning cone yet (leave out rolling, or the cone's angular_velocity)")
         if self.angular_velocity != 0.0 and self.upper is None:
             raise ValueError(f"{self!r} turns and has no upper end: its surface would move ever faster away from "
                              f"the apex; give it upper=... (the guards bound the time step by its fastest point)")

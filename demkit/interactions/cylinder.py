@@ -72,6 +72,7 @@ class Cylinder(Wall):
         if not math.isfinite(omega):
             raise ValueError(f"Cylinder angular_velocity must be finite, got {angular_velocity!r}")
         # the plane wall's attributes: a placeholder plane (the compiled loops read the geometry block)
+        self.angular_velocity = omega  # (before the contact law is adopted: a turning wall's functions)
         super().__init__(point, axis, velocity=velocity, contact=contact, amplitude=amplitude, frequency=frequency)
         self.axis = self.normal
         self.radius, self.inside, self.angular_velocity = radius, bool(inside), omega
@@ -158,16 +159,17 @@ class Cylinder(Wall):
         """The fastest the surface moves: |omega| R_c + |V| + 2 pi f |A|."""
         return abs(self.angular_velocity) * self.radius + super().surface_speed()
 
+    def spin(self):
+        """The wall's own angular velocity, omega a (rolling and twisting resistance act on the sphere's
+        spin relative to it)."""
+        return self.angular_velocity * self.axis
+
     def where(self):
         return (f"the cylinder of radius {self.radius:.6g} about the axis through {self.point.tolist()} along "
                 f"{self.axis.tolist()} ({'inside' if self.inside else 'outside'})")
 
     def check(self, particles, time=0.0):
         super().check(particles, time)
-        if self.angular_velocity != 0.0 and getattr(self.law, "rolling", None) is not None:
-            raise ValueError(f"{self!r} turns, and its contact law {self.law!r} has rolling resistance, which "
-                             f"acts on the sphere's spin against a wall that does not turn: not available for "
-                             f"a turning cylinder yet (leave out rolling, or the cylinder's angular_velocity)")
         if self.inside and particles.radius.max() >= self.current_radius():
             k = int(np.argmax(particles.radius))
             raise ValueError(f"particle {particles.ids[k]} of radius {particles.radius[k]:.6g} does not fit inside the "

@@ -14,8 +14,11 @@ demkit.interactions.wall_motion.wall_plane). A :class:`Servo` moves it instead t
 Friction keeps each sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
 wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
 with twisting passes its rolling and twisting numbers to the wall functions as a table
-(:meth:`Wall.table_values`, :data:`TWIST_TABLE`): one more scalar each would exceed the number of
-arguments a compiled call can take.
+(:meth:`Wall.table_values`, :data:`TABLE`): one more scalar each would exceed the number of
+arguments a compiled call can take. The table also holds the wall's own spin (a turning cylinder's or
+cone's), which rolling and twisting resistance measure the sphere's spin against: a sphere turning with
+the wall as one rigid body feels neither; a rolling law against a turning wall takes the table's
+functions too.
 """
 from __future__ import annotations
 
@@ -66,9 +69,12 @@ def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                     plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                     eta_t, style, mu_r, kr, eta_r, dt):
+def _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx,
+                           ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt, rolling):
+    """:func:`wall_kelvin_voigt_friction_force` against a wall spinning at (ox, oy, oz) (its rolling
+    resistance acts on the sphere's spin relative to the wall's); ``rolling`` = (mu_r, kr, eta_r, ox, oy,
+    oz), one tuple: a call of more than 30 arguments is not compiled (CPython passes them as *args)."""
+    mu_r, kr, eta_r, ox, oy, oz = rolling
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -76,8 +82,17 @@ def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, rad
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
                                                     style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
-                                                    commit, dt)
+                                                    commit, dt, ox, oy, oz)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                     plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
+                                     eta_t, style, mu_r, kr, eta_r, dt):
+    return _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane,
+                                  nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt,
+                                  (mu_r, kr, eta_r, 0.0, 0.0, 0.0))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -113,6 +128,17 @@ def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux,
 def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
                               eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
+    return _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane,
+                           nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
+                           (mu_r, kr_fixed, eta_r_fixed, 0.0, 0.0, 0.0))
+
+
+@njit(**KERNEL_OPTIONS)
+def _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny,
+                    nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt, rolling):
+    """:func:`wall_hertz_friction_force` against a wall spinning at (ox, oy, oz); ``rolling`` = (mu_r,
+    kr_fixed, eta_r_fixed, ox, oy, oz) (see :func:`_kelvin_voigt_friction`)."""
+    mu_r, kr_fixed, eta_r_fixed, ox, oy, oz = rolling
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -122,7 +148,7 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
                                               radius[i], overlap, stiffness, eta)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
                                                     style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
-                                                    commit, dt)
+                                                    commit, dt, ox, oy, oz)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
@@ -137,11 +163,13 @@ def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, m
 
 
 @njit(**KERNEL_OPTIONS)
-def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, style, history, p, o, commit, dt):
+def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, style, history, p, o, commit, dt,
+                ox, oy, oz):
     """Twisting torque on sphere i (contact radius a) and dissipated power (the wall, "i" of
-    :func:`.twisting.twisting_on_i`, does not spin)."""
-    mx, my, mz, lost = twisting_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], fn, a, mu, kt, eta_t, k_tw, eta_tw,
-                                     lever_tw, 1.0 if style >= 2.0 else 0.0, history, p, o, commit, dt)
+    :func:`.twisting.twisting_on_i`, spins at (ox, oy, oz): a turning cone's spin about the normal)."""
+    mx, my, mz, lost = twisting_on_i(nx, ny, nz, -(w[i, 0] - ox), -(w[i, 1] - oy), -(w[i, 2] - oz), fn, a, mu, kt,
+                                     eta_t, k_tw, eta_tw, lever_tw, 1.0 if style >= 2.0 else 0.0, history, p, o,
+                                     commit, dt)
     return -mx, -my, -mz, lost
 
 
@@ -149,12 +177,17 @@ def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, 
 def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                      params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
                                      mu, kt, eta_t, style, dt):
-    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance; params[start:start + 6] holds
-    (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw)."""
+    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance; params[start:start + 10] holds
+    (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE` (twist 0: rolling resistance
+    alone, against a turning wall)."""
     mu_r = params[start]
-    fx, fy, fz, tx, ty, tz, power = wall_kelvin_voigt_friction_force(
+    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
+    fx, fy, fz, tx, ty, tz, power = _kelvin_voigt_friction(
         i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx, ny, nz, ux, uy, uz,
-        stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, params[start + 1], params[start + 2], dt)
+        stiffness, damping, no_tension, mu, kt, eta_t, style, dt, (mu_r, params[start + 1], params[start + 2], ox, oy,
+                                                                   oz))
+    if params[start + 6] == 0.0:  # no twisting
+        return fx, fy, fz, tx, ty, tz, power
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -164,7 +197,7 @@ def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, rad
     fn, _ = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     mx, my, mz, lost = _wall_twist(nx, ny, nz, angular_velocity, i, math.sqrt(radius[i] * overlap), fn, kt, eta_t,
                                    mu, params[start + 3], params[start + 4], params[start + 5], style, history, p, o,
-                                   commit, dt)
+                                   commit, dt, ox, oy, oz)
     return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
 
 
@@ -177,21 +210,24 @@ def wall_kelvin_voigt_twisting_energy(i, x, y, z, velocity, angular_velocity, ra
         return 0.0
     mu_r = params[start]
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    return (0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
-            + twist_energy(history, p, o))
+    twist = twist_energy(history, p, o) if params[start + 6] != 0.0 else 0.0
+    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r) + twist
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
                               kt_fixed, eta_t_fixed, style, dt):
-    """:func:`wall_hertz_friction_force` with twisting resistance; params[start:start + 6] holds
-    (mu_r, k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw)."""
+    """:func:`wall_hertz_friction_force` with twisting resistance; params[start:start + 10] holds
+    (mu_r, k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE`."""
     mu_r = params[start]
-    fx, fy, fz, tx, ty, tz, power = wall_hertz_friction_force(
+    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
+    fx, fy, fz, tx, ty, tz, power = _hertz_friction(
         i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny, nz, ux, uy,
-        uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, params[start + 1],
-        params[start + 2], dt)
+        uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
+        (mu_r, params[start + 1], params[start + 2], ox, oy, oz))
+    if params[start + 6] == 0.0:  # no twisting
+        return fx, fy, fz, tx, ty, tz, power
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -203,7 +239,7 @@ def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, ma
                                          stiffness, eta)
     mx, my, mz, lost = _wall_twist(nx, ny, nz, angular_velocity, i, math.sqrt(radius[i] * overlap), fn, kt, eta_t,
                                    mu, params[start + 3], params[start + 4], params[start + 5], style, history, p, o,
-                                   commit, dt)
+                                   commit, dt, ox, oy, oz)
     return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
 
 
@@ -216,8 +252,8 @@ def wall_hertz_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, m
         return 0.0
     mu_r = params[start]
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    return (8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
-            + twist_energy(history, p, o))
+    twist = twist_energy(history, p, o) if params[start + 6] != 0.0 else 0.0
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r) + twist
 
 
 _GEOMETRY = ("plane", "nx", "ny", "nz", "ux", "uy", "uz")
@@ -232,6 +268,10 @@ _TWISTING = {KelvinVoigt: (wall_kelvin_voigt_twisting_force, wall_kelvin_voigt_t
 #: a twisting law's parameters that its walls take from their table instead, in the table's order
 TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"),
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
+#: a wall's table (:meth:`Wall.table_values`): those six, then whether the law twists (1) or not (0: rolling
+#: resistance alone, against a turning wall) and the wall's own spin (ox, oy, oz), which the rolling and
+#: twisting springs measure the sphere's spin against (a turning cylinder's or cone's omega a)
+TABLE = ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw", "twist", "ox", "oy", "oz")
 
 
 def numbered_walls(effects):
@@ -409,10 +449,12 @@ class Wall(SphereInteraction):
         self.history_size = law.history_size
         names = list(law.parameters)
         self.table = np.zeros(0)
-        if getattr(law, "twisting", None) is not None:
+        turning = getattr(self, "angular_velocity", 0.0) != 0.0
+        if getattr(law, "twisting", None) is not None or (getattr(law, "rolling", None) is not None and turning):
+            # twisting, or rolling against a turning wall: the functions that take a table (the wall's spin)
             self.force_function, self.energy_function = _TWISTING[base]
             table = TWIST_TABLE[base]
-            self.table = np.array([getattr(law, name) for name in table], dtype=np.float64)
+            self.table = np.array([getattr(law, name, 0.0) for name in table], dtype=np.float64)
             names = [name for name in names if name not in table]
         self.parameters = _GEOMETRY + tuple(names)
         for name in names:
@@ -478,8 +520,17 @@ class Wall(SphereInteraction):
         return tuple(float(v) for v in block[start:start + 4])
 
     def table_values(self):
-        """A twisting law's rolling and twisting numbers (see :data:`TWIST_TABLE`), else empty."""
-        return getattr(self, "table", np.zeros(0))
+        """A twisting law's rolling and twisting numbers, or a rolling law's against a turning wall, with
+        the wall's spin (see :data:`TABLE`), else empty."""
+        table = getattr(self, "table", np.zeros(0))
+        if not np.size(table):
+            return table
+        twist = 1.0 if getattr(self.law, "twisting", None) is not None else 0.0
+        return np.concatenate([table, [twist], self.spin()])
+
+    def spin(self):
+        """The wall's own angular velocity (a plane's: none)."""
+        return np.zeros(3)
 
     def heights(self, position, time=0.0):
         """Signed distance of each centre from the plane at ``time`` (positive on the spheres' side)."""
