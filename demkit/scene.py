@@ -37,7 +37,7 @@ from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
-from .interactions.wall_motion import S_FORCE, S_GAIN, S_MAX_SPEED, SERVO_STATE
+from .interactions.wall_motion import SERVO_STATE
 from .particles import Particles
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -692,10 +692,7 @@ class Scene(SceneDiagnostics):
         self.params[self.time_step_slots] = dt
         for e, state in self.servo_slots():
             wall = self.effects[e]
-            g = self.geometry_slots[e] + wall.servo_after  # (a servo cylinder's follow the cylinder's numbers)
-            self.params[g + S_FORCE] = wall.servo.target(wall, self.box)
-            self.params[g + S_MAX_SPEED] = wall.servo.max_speed
-            self.params[g + S_GAIN] = wall.servo.gain
+            wall.servo.write(wall.block[wall.servo_after:], wall, self.box)  # (a view of params)
             self.params[state.stop] = dt
 
     def servo_slots(self):

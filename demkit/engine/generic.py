@@ -549,7 +549,7 @@ class _Generic:
         # end_step and optimised again there (2.5 CPU s at a scene's first step)
         lines += ["    if timed:  # servo-controlled walls move after the step (read no field of s otherwise: it costs)",
                   "        for e in range(s.program[0, H_EFFECTS]):",
-                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY])"]
+                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY], s.clock[0])"]
         lines += [line.replace("record_frame(step", "frame(calls, step") for line in END_STEP_TAIL]
         return lines
 

@@ -643,7 +643,7 @@ class _Source:
                 lines += ["        if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += [f"    servo_step(s.params, {g})" for g in self.servo_slots()]  # servo-controlled walls move
+        lines += [f"    servo_step(s.params, {g}, s.clock[0])" for g in self.servo_slots()]  # servo-controlled walls move
         lines += END_STEP_TAIL
         return lines
 

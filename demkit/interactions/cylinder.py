@@ -111,15 +111,15 @@ class Cylinder(Wall):
             return self.radius
         return self.radius - (1.0 if self.inside else -1.0) * self.servo_state()[0]
 
-    def servo_target(self, servo, box):
-        """The force per unit radius a servo's stress asks of the cylinder in ``box``: sigma 2 pi L, L the box's
-        length along the axis (which must be periodic)."""
+    def servo_factor(self, box):
+        """What a servo's stress is multiplied by for the force per unit radius it asks of the cylinder in
+        ``box``: 2 pi L, L the box's length along the axis (which must be periodic)."""
         axes = np.flatnonzero(np.abs(self.axis) > 1e-12)
         if box is None or len(axes) != 1 or not box.periodic[axes[0]]:
             raise ValueError(f"{self!r} holds a stress on its side: its area 2 pi R_c L needs the length L of a box "
                              f"periodic along its axis, which must lie along x, y or z (got "
                              f"{'no box' if box is None else box!r})")
-        return servo.stress * 2.0 * math.pi * float(box.size[axes[0]])
+        return 2.0 * math.pi * float(box.size[axes[0]])
 
     def distances(self, position, time=0.0):
         """Distance of each centre from the axis at ``time`` (the shape of ``position`` without its last axis)."""

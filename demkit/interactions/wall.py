@@ -35,7 +35,7 @@ from .friction import HISTORY, release, springs_energy, wall_friction
 from .hertz import Hertz, hertz_normal, tangential_springs
 from .sphere import SphereInteraction, vector
 from .twisting import twist_energy, twist_release, twisting_on_i
-from .wall_motion import SERVO_STATE
+from .wall_motion import S_DT, S_FORCE, S_GAIN, S_MAX_SPEED, S_POINTS, SERVO_STATE
 
 #: a sphere may start overlapping a wall by at most this fraction of its radius
 MAX_INITIAL_OVERLAP = 0.5
@@ -280,6 +280,23 @@ def numbered_walls(effects):
     return [(e, effect) for e, effect in enumerate(effects) if isinstance(effect, Wall)]
 
 
+def _target(name, value):
+    """A servo's target: a positive number, or (time, value) points with increasing times and positive
+    values, as a tuple of pairs."""
+    if np.ndim(value) == 0:
+        return checks.positive(f"Servo {name}", value)
+    try:
+        points = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        points = None
+    if points is None or points.ndim != 2 or points.shape[1] != 2 or len(points) == 0 or not np.isfinite(points).all():
+        raise ValueError(f"Servo {name} must be a positive number or a list of (time, value) points, got {value!r}")
+    if np.any(np.diff(points[:, 0]) <= 0.0) or np.any(points[:, 1] <= 0.0):
+        raise ValueError(f"Servo {name}'s (time, value) points need increasing times and positive values, got "
+                         f"{points.tolist()}")
+    return tuple((float(t), float(v)) for t, v in points)
+
+
 class Servo:
     """A wall that moves along its normal to hold the spheres' push on it at a target: ``force``, or
     ``stress`` (force per area: the wall's area in a box periodic along both axes of its plane, that box's
@@ -290,8 +307,12 @@ class Servo:
     so gain is the fraction of the error it corrects in one step when the packing responds like its
     contacts), at most ``max_speed`` x dt; touching nothing it moves at max_speed towards them.
     force or stress > 0 (one of them); max_speed > 0 (length per time); 0 < gain <= 1 (default 0.2).
-    Each may be changed between runs (staged loading: ``wall.servo.stress = 2 * wall.servo.stress``);
-    a run holds the values it starts with.
+    The target may change within a run: force or stress a list of (time, value) points (times of the
+    scene's clock, increasing), the target the piecewise-linear function through them, held at the first
+    value before its time and at the last after (a ramp: two points; stages: pairs of points at the same
+    value). Each may be changed between runs (staged loading: ``wall.servo.stress = 2 * wall.servo.stress``),
+    a list of points for one of at most as many as the scene was built with; a run holds the values it
+    starts with.
     """
 
     def __init__(self, force=None, max_speed=None, gain=0.2, stress=None):
@@ -310,21 +331,36 @@ class Servo:
 
     @property
     def force(self):
-        """The target force (None when the target is a stress)."""
+        """The target force, a number or (time, value) points (None when the target is a stress)."""
         return self._force
 
     @force.setter
     def force(self, value):
-        self._force, self._stress = checks.positive("Servo force", value), None
+        self._force, self._stress = _target("force", value), None
 
     @property
     def stress(self):
-        """The target stress (None when the target is a force)."""
+        """The target stress, a number or (time, value) points (None when the target is a force)."""
         return self._stress
 
     @stress.setter
     def stress(self, value):
-        self._stress, self._force = checks.positive("Servo stress", value), None
+        self._stress, self._force = _target("stress", value), None
+
+    @property
+    def points(self):
+        """The (time, value) points of a target that changes within a run, as a (K, 2) array; None for a
+        fixed target."""
+        given = self._force if self._stress is None else self._stress
+        return None if np.ndim(given) == 0 else np.array(given, dtype=np.float64)
+
+    def target_at(self, time):
+        """The target (a force or a stress, as given) at the scene's ``time``."""
+        given = self._force if self._stress is None else self._stress
+        if np.ndim(given) == 0:
+            return given
+        points = np.array(given)
+        return float(np.interp(time, points[:, 0], points[:, 1]))
 
     @property
     def max_speed(self):
@@ -346,28 +382,53 @@ class Servo:
                              f"corrected in one step")
         self._gain = gain
 
-    def target(self, wall, box):
-        """The force to hold for ``wall`` in ``box`` (a demkit.Box or None): ``force``, or ``stress`` times
-        the wall's area, the box's cross-section across its normal (the normal along a closed axis, the
-        two others periodic)."""
-        if hasattr(wall, "radius"):  # a cylinder: a stress on its side, per unit radius (wall_motion.servo_step)
-            return wall.servo_target(self, box)
+    def factor(self, wall, box):
+        """What the target's values are multiplied by in the compiled loops: 1 for a force; for a stress the
+        wall's area, the cross-section of ``box`` (a demkit.Box or None) across its normal (the normal along
+        a closed axis, the two others periodic); a cylinder's 2 pi L (per unit radius: wall_motion.servo_step)."""
+        if hasattr(wall, "radius"):  # a cylinder: a stress on its side, per unit radius
+            return wall.servo_factor(box)
         if self._stress is None:
-            return self._force
+            return 1.0
         axes = np.flatnonzero(np.abs(wall.normal) > 1e-12)
         if box is None or len(axes) != 1 or sum(box.periodic) != 2 or box.periodic[axes[0]]:
             raise ValueError(f"{wall!r} holds a stress: its area is the cross-section of a box periodic along both "
                              f"axes of its plane, so its normal must lie along the box's one closed axis (got "
                              f"{'no box' if box is None else box!r}); give the Servo a force instead")
         across = [a for a in range(3) if a != axes[0]]
-        return self._stress * float(box.size[across[0]] * box.size[across[1]])
+        return float(box.size[across[0]] * box.size[across[1]])
+
+    def target(self, wall, box, time=0.0):
+        """The force to hold for ``wall`` in ``box`` at ``time``: ``force``, or ``stress`` times the wall's
+        area (:meth:`factor`; a cylinder's: per unit radius)."""
+        return self.target_at(time) * self.factor(wall, box)
+
+    def write(self, block, wall, box):
+        """Write the targets, max speed and gain into the servo's part of its wall's geometry block (at each
+        run's start: they may change between runs); a list of points longer than the block holds is refused."""
+        points = self.points
+        room = (len(block) - (S_DT + 1)) // 2
+        count = 0 if points is None else len(points)
+        if count > room:
+            raise ValueError(f"{wall!r}: its servo's target has {count} (time, value) points, but its scene was built "
+                             f"for {room}; build the scene again with it (a scene keeps the size of its walls' blocks)")
+        factor = self.factor(wall, box)
+        block[S_FORCE] = (0.0 if count else self.target_at(0.0)) * factor
+        block[S_MAX_SPEED] = self.max_speed
+        block[S_GAIN] = self.gain
+        block[S_POINTS] = count
+        if count:
+            block[S_DT + 1:S_DT + 1 + 2 * count] = (points * [1.0, factor]).ravel()
 
     def values(self):
         """The servo's part of the geometry block (:data:`demkit.interactions.wall_motion.SERVO`): target
-        force (set by each run, :meth:`target`), max speed, gain, then its state (offset and speed along
-        the normal, the force and the stiffness summed in the last force evaluation) and the time step
-        (set by each run)."""
-        return np.array([self._force or 0.0, self.max_speed, self.gain, 0.0, 0.0, 0.0, 0.0, 0.0], dtype=np.float64)
+        force (set by each run, :meth:`write`), max speed, gain, the number of (time, target) points, then
+        its state (offset and speed along the normal, the force and the stiffness summed in the last force
+        evaluation), the time step (set by each run) and the points (times and targets, set by each run)."""
+        points = self.points
+        count = 0 if points is None else len(points)
+        return np.array([0.0, self.max_speed, self.gain, count, 0.0, 0.0, 0.0, 0.0, 0.0, *([0.0] * (2 * count))],
+                        dtype=np.float64)
 
     def __repr__(self):
         target = f"force={self._force!r}" if self._stress is None else f"stress={self._stress!r}"

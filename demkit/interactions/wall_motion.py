@@ -20,7 +20,10 @@ A servo's wall (shape 2) is moved along its normal n by its own state: the loops
 normal force F the spheres exert on it and the secant stiffness F_i / delta_i of each contact
 (:func:`servo_add`, after :func:`servo_clear` at the start of each evaluation), and after each step
 :func:`servo_step` moves it by gain (F - target) / K away from the spheres (towards them when it
-touches nothing), at most max_speed dt. A servo cylinder (shape 5) moves its radius the same way (its
+touches nothing), at most max_speed dt. A servo whose target changes within a run holds ``points``
+K > 0 pairs (time, target) after its numbers: the target at the scene's clock is the piecewise-linear
+function through them, held at the first before its time and at the last after (:func:`scheduled`). A
+servo cylinder (shape 5) moves its radius the same way (its
 offset along the local normal: the radius R_c - side offset), and its target is a stress, the force
 per unit radius held in its block times the radius it has reached (the side's area 2 pi R_c L grows
 with it). These steps are quasi-static: the surface velocity the
@@ -43,11 +46,12 @@ SERVO_AFTER = {2: 0, 5: 9}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 #: a servo's numbers, after the motion (its state from "offset" on: :data:`SERVO_STATE`)
-SERVO = ("force", "max_speed", "gain", "offset", "speed", "pushed", "stiffness", "dt")
+SERVO = ("force", "max_speed", "gain", "points", "offset", "speed", "pushed", "stiffness", "dt")
 #: where the shape's numbers (a cylinder's, a cone's, a servo's) start in the block: after the shape code and the motion
 SHAPE_AT = 1 + len(MOTION)
 #: where each of a servo's numbers sits in its block
-S_FORCE, S_MAX_SPEED, S_GAIN, S_OFFSET, S_SPEED, S_PUSHED, S_STIFFNESS, S_DT = range(SHAPE_AT, SHAPE_AT + len(SERVO))
+S_FORCE, S_MAX_SPEED, S_GAIN, S_POINTS, S_OFFSET, S_SPEED, S_PUSHED, S_STIFFNESS, S_DT = range(SHAPE_AT,
+                                                                                         SHAPE_AT + len(SERVO))
 #: where a servo's state (offset, speed, push, stiffness: what a checkpoint keeps) starts in its block
 SERVO_STATE = S_OFFSET
 
@@ -249,14 +253,31 @@ def servo_add(params, g, fx, fy, fz, nx, ny, nz, overlap):
 
 
 @njit(**KERNEL_OPTIONS)
-def servo_step(params, g):
-    """After a step: move the servo's wall (see the module docstring); returns nothing."""
+def scheduled(params, at, k, t):
+    """The piecewise-linear function through the k points (time, value) at params[at:at + 2 k] at time t
+    (the first value before the first time, the last after the last)."""
+    if t <= params[at]:
+        return params[at + 1]
+    for m in range(k - 1):
+        t1 = params[at + 2 * m + 2]
+        if t < t1:
+            t0 = params[at + 2 * m]
+            v0 = params[at + 2 * m + 1]
+            return v0 + (params[at + 2 * m + 3] - v0) * ((t - t0) / (t1 - t0))
+    return params[at + 2 * k - 1]
+
+
+@njit(**KERNEL_OPTIONS)
+def servo_step(params, g, t):
+    """After a step that has reached time t: move the servo's wall (see the module docstring); returns
+    nothing."""
     b = servo_base(params, g)
     if b >= 0:
         h = g + b
         limit = params[h + S_MAX_SPEED] * params[h + S_DT]
         stiffness = params[h + S_STIFFNESS]
-        target = params[h + S_FORCE]
+        points = int(params[h + S_POINTS])
+        target = params[h + S_FORCE] if points == 0 else scheduled(params, h + S_DT + 1, points, t)
         if b > 0:  # a servo cylinder holds a stress: the force per unit radius times the radius now
             target *= params[g + SHAPE_AT + 6] - params[g + SHAPE_AT + 7] * params[h + S_OFFSET]
         error = params[h + S_PUSHED] - target
