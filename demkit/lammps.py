@@ -366,10 +366,6 @@ class _Export:
                              f"be exported")
         self.wall_friction_note(cylinder)
         self.turning_note(cylinder)
-        if isinstance(cylinder.law, Hertz):
-            self.differs(f"{cylinder!r} with Hertz contacts", "LAMMPS' region walls take the cylinder's curvature into "
-                         "the contact radius, demkit keeps a plane's (R* = R): the stiffness differs by about "
-                         "R/(4 R_c)")
         a = int(axes[0])
         across = [i for i in range(3) if i != a]
         centre = " ".join(g17(cylinder.point[i]) for i in across)
@@ -411,8 +407,9 @@ class _Export:
         self.wall_friction_note(cone)
         self.turning_note(cone)
         if isinstance(cone.law, Hertz):
-            self.differs(f"{cone!r} with Hertz contacts", "LAMMPS' region walls take the cone's curvature into the "
-                         "contact radius, demkit keeps a plane's (R* = R)")
+            self.differs(f"{cone!r} with Hertz contacts", "LAMMPS' cone puts the curvature 1/r of its circle into the "
+                         "contact radius (r the contact point's distance from the axis), demkit the surface's, "
+                         "cos(alpha)/r")
         a = int(axes[0])
         across = [i for i in range(3) if i != a]
         centre = " ".join(g17(cone.apex[i]) for i in across)

@@ -76,10 +76,11 @@ def _pair_call(law, kind, owner="i", prefix="", held=False):
 
 
 def wall_plane_line():
-    """The line that sets :data:`WALL_PLANE` for sphere i from the wall's first seven parameters and its
+    """The line that sets :data:`WALL_PLANE` for sphere i from the wall's first nine parameters and its
     row's geometry block."""
     values = ", ".join(f"params[slot + {m}]" for m in range(len(WALL_PLANE)))
-    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], clock[0], {values})"
+    return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, radius[i], params, program[er, E_GEOMETRY], clock[0], "
+            f"{values})")
 
 
 def _effect_call(law, kind):

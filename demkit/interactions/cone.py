@@ -38,8 +38,9 @@ The cone may turn about its own axis at ``angular_velocity`` omega: its surface 
 u = omega a x (S - apex) = omega s sin(alpha) (a x e) where the sphere touches it, and, like a plane
 wall, it may be carried by a translation D(t) = V t + A (1 - cos 2 pi f t) (``velocity``, ``amplitude``,
 ``frequency``). The compiled loops find its tangent plane with
-demkit.interactions.wall_motion.wall_plane (shape code 3). As for a cylinder, Hertz contacts take the
-sphere's radius as the contact radius (a plane's); see docs/contacts.md for the curvature's size.
+demkit.interactions.wall_motion.wall_plane (shape code 3). A Hertz law takes the contact radius of the
+face's curvature across, 1/R_e = 1/R - side cos(alpha) / (2 r) (r the contact point's distance from the
+axis; on a rim or the apex the sphere's own: demkit.interactions.wall_motion.contact_radius_factor).
 """
 from __future__ import annotations
 
@@ -47,9 +48,10 @@ import math
 
 import numpy as np
 
+from .hertz import Hertz
 from .sphere import vector
 from .wall import Wall
-from .wall_motion import SHAPES, cone_plane
+from .wall_motion import SHAPES, cone_curvature, cone_plane, contact_radius_factor
 
 #: the cone's numbers in its geometry block, in this order (after the shape code and the motion:
 #: demkit.interactions.wall_motion): apex, unit axis, sin and cos of the half-angle, the generator's
@@ -112,7 +114,8 @@ class Cone(Wall):
 
     def geometry_values(self):
         """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion)."""
-        return np.array([self.shape, *self.motion_values(), *self.shape_values()], dtype=np.float64)
+        hertz = 1.0 if isinstance(getattr(self, "law", None), Hertz) else 0.0
+        return np.array([self.shape, *self.motion_values(), *self.shape_values(), hertz], dtype=np.float64)
 
     def planes(self, position, time=0.0):
         """The plane each centre meets at ``time`` and the surface's velocity there, (N, 7): plane, n, u
@@ -136,11 +139,19 @@ class Cone(Wall):
         """The unit normal where each sphere touches the cone, into the spheres' side (N, 3)."""
         return self.planes(position, time)[:, 1:4]
 
-    def parameters_at(self, position, time=0.0):
-        """The parameter values for spheres centred at ``position`` at ``time`` (N, P): the plane each
-        meets and the surface's velocity there in place of a plane wall's seven geometry values."""
-        values = np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
-        values[:, :7] = self.planes(position, time)
+    def parameters_at(self, position, time=0.0, radius=None):
+        """The parameter values for spheres centred at ``position`` (of ``radius``) at ``time`` (N, P): the
+        plane each meets and the surface's velocity there in place of a plane wall's seven geometry values;
+        a Hertz law's E*, G* scaled to the contact radius of the face's curvature (as the kernels)."""
+        x = np.atleast_2d(np.asarray(position, dtype=float))
+        values = np.tile(self.parameter_values(), (len(x), 1))
+        values[:, :7] = self.planes(x, time)
+        if isinstance(self.law, Hertz):
+            shape = self.shape_values()
+            shift = self.displacement(time)[0]
+            factor = np.array([contact_radius_factor(r, cone_curvature(*(c - shift), *shape[:-1]))
+                               for c, r in zip(x, np.broadcast_to(radius, len(x)))])
+            values[:, 7:9] *= factor[:, None]
         return values
 
     def rim_radius(self):

@@ -7,9 +7,9 @@ radial direction e = (r - (r.a) a) / |r - (r.a) a|, r = x - point, meets the sur
 +e (outside), and the contact is exactly that plane wall's (:mod:`demkit.interactions.wall`): overlap
 delta = R - (x - S).n = R - (R_c - d) inside, R - (d - R_c) outside (d the centre's distance from the
 axis), the same normal and tangential laws, friction history per sphere (turned into the new tangent
-plane as the sphere moves round), rolling and twisting resistance. Only the Hertz law's contact
-radius ignores the wall's curvature (R* = R, as for a plane): the exact Hertz stiffness of a sphere in
-a tube of radius R_c differs by about R / (4 R_c) (2.5 % for R_c = 10 R).
+plane as the sphere moves round), rolling and twisting resistance. A Hertz law takes the contact
+radius of the wall's curvature across, 1/R_e = 1/R -+ 1/(2 R_c) (-: inside), as LAMMPS' region walls
+(demkit.interactions.wall_motion.contact_radius_factor; a plane's R would be off by about R / (4 R_c)).
 
 The cylinder may turn about its own axis at ``angular_velocity`` omega (rad per unit time, right-handed
 about a): its surface then moves at u = omega a x (S - point) = omega R_c (a x e), its geometry does not
@@ -32,9 +32,10 @@ import math
 
 import numpy as np
 
+from .hertz import Hertz
 from .sphere import vector
 from .wall import Servo, Wall
-from .wall_motion import SHAPES, cylinder_plane
+from .wall_motion import SHAPES, contact_radius_factor, cylinder_plane
 
 #: the cylinder's numbers in its geometry block, in this order (after the shape code and the motion:
 #: demkit.interactions.wall_motion)
@@ -85,7 +86,7 @@ class Cylinder(Wall):
             if self.travels:
                 raise ValueError("a Cylinder with a servo moves its radius only: it takes no velocity and no "
                                  "vibration")
-            self.shape, self.servo_after = SHAPES["servo cylinder"], len(GEOMETRY)
+            self.shape, self.servo_after = SHAPES["servo cylinder"], len(GEOMETRY) + 1  # (+ its Hertz flag)
         self.servo = servo
 
     @property
@@ -103,7 +104,8 @@ class Cylinder(Wall):
         """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion),
         then a servo's numbers (:meth:`Servo.values`)."""
         servo = self.servo.values() if self.servo is not None else ()
-        return np.array([self.shape, *self.motion_values(), *self.shape_values(), *servo], dtype=np.float64)
+        hertz = 1.0 if isinstance(getattr(self, "law", None), Hertz) else 0.0
+        return np.array([self.shape, *self.motion_values(), *self.shape_values(), hertz, *servo], dtype=np.float64)
 
     def current_radius(self):
         """The radius now: a servo's where its scene's last step has taken it (R_c - side offset), else R_c."""
@@ -148,11 +150,16 @@ class Cylinder(Wall):
         """The unit normal of the surface where each sphere touches it, into the spheres' side (N, 3)."""
         return self.planes(position, time)[:, 1:4]
 
-    def parameters_at(self, position, time=0.0):
-        """The parameter values for spheres centred at ``position`` at ``time`` (N, P): the tangent plane
-        each meets and the surface's velocity there in place of a plane wall's seven geometry values."""
+    def parameters_at(self, position, time=0.0, radius=None):
+        """The parameter values for spheres centred at ``position`` (of ``radius``) at ``time`` (N, P): the
+        tangent plane each meets and the surface's velocity there in place of a plane wall's seven geometry
+        values; a Hertz law's E*, G* scaled to the contact radius of the curvature across (as the kernels)."""
         values = np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
         values[:, :7] = self.planes(position, time)
+        if isinstance(self.law, Hertz):
+            curvature = -(1.0 if self.inside else -1.0) / self.current_radius()
+            factor = np.array([contact_radius_factor(r, curvature) for r in np.broadcast_to(radius, len(values))])
+            values[:, 7:9] *= factor[:, None]
         return values
 
     def surface_speed(self):

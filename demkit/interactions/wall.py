@@ -625,7 +625,7 @@ class Wall(SphereInteraction):
         """The unit normal where each sphere touches the wall, into the spheres' side (N, 3)."""
         return np.tile(self.normal, (len(np.atleast_2d(position)), 1))
 
-    def parameters_at(self, position, time=0.0):
+    def parameters_at(self, position, time=0.0, radius=None):
         """The parameter values the wall's compiled functions take for spheres centred at ``position`` at
         ``time``, (N, P): a plane wall's own wherever the spheres are, its plane and surface velocity
         where its motion has taken it (as demkit.interactions.wall_motion.wall_plane)."""

@@ -10,7 +10,9 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
 with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
 (demkit.interactions.cylinder.GEOMETRY), 2 a plane moved by a servo (:data:`SERVO`), 3 a cone
 (demkit.interactions.cone.GEOMETRY) and 5 a cylinder whose radius a servo moves (the cylinder's
-numbers, then the servo's). The wall is
+numbers, then the servo's). A cylinder's or cone's numbers end with a flag: 1 when its contact law is
+Hertz, whose moduli the wall then scales to the contact radius of its curvature
+(:func:`contact_radius_factor`; the loops pass a wall law's parameters 7 and 8 through wall_plane). The wall is
 carried by D(t) = V t + A (1 - cos w t) (w = 2 pi f; the vibration starts at rest, as LAMMPS'
 ``wiggle``): a sphere at x meets the shape as it
 stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
@@ -41,8 +43,8 @@ from ..engine.motion import KERNEL_OPTIONS
 #: the shape codes of the geometry block
 SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "cone": 3, "servo cylinder": 5}
 #: how many numbers of its shape a servo's block holds before the servo's (a servo cylinder: the
-#: cylinder's nine, demkit.interactions.cylinder.GEOMETRY)
-SERVO_AFTER = {2: 0, 5: 9}
+#: cylinder's nine, demkit.interactions.cylinder.GEOMETRY, and its Hertz flag)
+SERVO_AFTER = {2: 0, 5: 10}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 #: a servo's numbers, after the motion (its state from "offset" on: :data:`SERVO_STATE`)
@@ -172,19 +174,53 @@ PLANE_OPTIONS = dict(KERNEL_OPTIONS, inline="never", fastmath=False)
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
-    """(plane, nx, ny, nz, ux, uy, uz): the plane the wall presents to the sphere centred at (x, y, z) at
-    time t, and its surface's velocity there: a steady plane's own (``g`` < 0: a test, inlined into the
-    loop), else :func:`geometry_plane`'s."""
+def contact_radius_factor(r, curvature):
+    """sqrt(R_e / R): what a Hertz law's moduli E*, G* are multiplied by on a curved wall, so that its
+    E* sqrt(R delta), G* sqrt(R delta) are those of the contact radius R_e of a sphere of radius r on a
+    surface of curvature ``curvature`` across (positive convex towards the sphere, 0 along): the mean of
+    the relative principal curvatures, 1/R_e = 1/R + curvature/2 (LAMMPS' region walls' contact radius;
+    docs/contacts.md compares it with Hertz's elliptical solution). 1 + R curvature/2 is kept >= 1/4
+    (R_e <= 4 R: a sphere wrapping round a cone's axis)."""
+    q = 1.0 + 0.5 * r * curvature
+    if q < 0.25:
+        q = 0.25
+    return 1.0 / math.sqrt(q)
+
+
+@njit(**KERNEL_OPTIONS)
+def cone_curvature(x, y, z, px, py, pz, ax, ay, az, sn, cs, s0, s1, side):
+    """The cone's curvature across its generator where the sphere centred at (x, y, z) touches its face,
+    -side cos(alpha) / r (r the contact point's distance from the axis: concave inside); 0 on a rim or
+    the apex (an edge: the contact radius stays the sphere's)."""
+    rx = x - px
+    ry = y - py
+    rz = z - pz
+    h = rx * ax + ry * ay + rz * az
+    dx = rx - h * ax
+    dy = ry - h * ay
+    dz = rz - h * az
+    t = h * cs + math.sqrt(dx * dx + dy * dy + dz * dz) * sn
+    if t < s0 or t > s1 or t <= 0.0:
+        return 0.0
+    return -side * cs / (t * sn)
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, ux, uy, uz, q7, q8):
+    """(plane, nx, ny, nz, ux, uy, uz, q7, q8): the plane the wall presents to the sphere of radius r
+    centred at (x, y, z) at time t, and its surface's velocity there, and the law's next two parameters
+    (a Hertz law's E*, G*: scaled on a curved wall, :func:`contact_radius_factor`): a steady plane's own
+    (``g`` < 0: a test, inlined into the loop), else :func:`geometry_plane`'s."""
     if g < 0:
-        return plane, nx, ny, nz, ux, uy, uz
-    return geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz)
+        return plane, nx, ny, nz, ux, uy, uz, q7, q8
+    return geometry_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, q7, q8)
 
 
 @njit(**PLANE_OPTIONS)
-def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
+def geometry_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, q7, q8):
     """The plane and surface velocity of a wall whose geometry block is at params[g] (``g`` >= 0; see the
-    module docstring): a moving plane, a servo's, or a cylinder's or a cone's tangent plane."""
+    module docstring): a moving plane, a servo's, or a cylinder's or a cone's tangent plane; q7, q8 as
+    given, or scaled by :func:`contact_radius_factor` on a cylinder or cone whose Hertz flag is set."""
     w = params[g + 7]
     swing = 1.0 - math.cos(w * t)
     rate = w * math.sin(w * t)
@@ -195,36 +231,47 @@ def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
     vy = params[g + 2] + params[g + 5] * rate
     vz = params[g + 3] + params[g + 6] * rate
     if params[g] == 0.0:
-        return plane + (dx * nx + dy * ny + dz * nz), nx, ny, nz, vx, vy, vz
+        return plane + (dx * nx + dy * ny + dz * nz), nx, ny, nz, vx, vy, vz, q7, q8
     if params[g] == 2.0:  # a servo's plane: moved along its normal by its offset (quasi-static steps whose
         # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
-        return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz
+        return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz, q7, q8
     k = g + SHAPE_AT  # the shape's numbers (demkit.interactions.cylinder.GEOMETRY, .cone.GEOMETRY)
     rc = params[k + 6]
     if params[g] == 5.0:  # a servo cylinder: its radius moved by the servo's offset along the normal
-        rc = rc - params[k + 7] * params[g + 9 + S_OFFSET]
+        rc = rc - params[k + 7] * params[g + 10 + S_OFFSET]
     elif params[g] == 3.0:
         c, cx, cy, cz, wx, wy, wz = cone_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
                                                params[k + 3], params[k + 4], params[k + 5], params[k + 6],
                                                params[k + 7], params[k + 8], params[k + 9], params[k + 10],
                                                params[k + 11])
-        return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
+        if params[k + 12] != 0.0:  # Hertz: the contact radius of the face's curvature across
+            f = contact_radius_factor(r, cone_curvature(x - dx, y - dy, z - dz, params[k], params[k + 1],
+                                                        params[k + 2], params[k + 3], params[k + 4], params[k + 5],
+                                                        params[k + 6], params[k + 7], params[k + 8], params[k + 9],
+                                                        params[k + 10]))
+            q7 = q7 * f
+            q8 = q8 * f
+        return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz, q7, q8
     c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
                                                params[k + 3], params[k + 4], params[k + 5], rc,
                                                params[k + 7], params[k + 8])
-    return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz
+    if params[k + 9] != 0.0:  # Hertz: the contact radius of the curvature across, -side / R_c
+        f = contact_radius_factor(r, -params[k + 7] / rc)
+        q7 = q7 * f
+        q8 = q8 * f
+    return c + (dx * cx + dy * cy + dz * cz), cx, cy, cz, wx + vx, wy + vy, wz + vz, q7, q8
 
 
 @njit(**KERNEL_OPTIONS)
 def servo_base(params, g):
     """Where the servo's numbers of the block at params[g] are offset by (its S_* indices count from
-    there): 0 for a servo plane, 9 for a servo cylinder; -1 for no servo (or g < 0)."""
+    there): 0 for a servo plane, 10 for a servo cylinder; -1 for no servo (or g < 0)."""
     if g < 0:
         return -1
     if params[g] == 2.0:
         return 0
     if params[g] == 5.0:
-        return 9
+        return 10
     return -1
 
 
