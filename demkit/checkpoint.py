@@ -36,6 +36,7 @@ from . import checks
 from . import version
 from .outputs import check_writable, sync_folder
 from .engine.state import PAIR_LIST_FIELDS
+from .interactions.wall_motion import S_FORCE, SERVO_STATE
 
 #: bumped whenever the layout of the file changes
 FORMAT = 1
@@ -119,8 +120,11 @@ def scene_hash(scene, integrator):
     params[scene.time_step_slots] = 0.0  # set by each run from the integrator
     if scene.induction_slot is not None:  # the induced-moment solver's key (a number of this process), its counts
         params[scene.induction_slot:scene.induction_slot + induction.STATISTICS] = 0.0
-    for _, state in scene.servo_slots():  # servo-controlled walls' state (saved with the state) and time step
-        params[state.start:state.stop + 1] = 0.0
+    # servo-controlled walls: their target, speed limit, gain and target points (set by each run from the
+    # servo, which may change between runs: a stress's target is not in a new scene's block until its
+    # first run), their state (saved with the state) and time step
+    for e, state in scene.servo_slots():  # (from the target to the end of the block: the points)
+        params[state.start - (SERVO_STATE - S_FORCE):scene.geometry_slots[e] + np.size(scene.effects[e].block)] = 0.0
     add("params", params)
     for name in ("radius", "mass", "inertia", "ids"):
         add(name, np.asarray(getattr(p, name)))

@@ -184,7 +184,8 @@ def wall_contacts(scene, wall, number):
         return [i, x[i, 0], x[i, 1], x[i, 2]]
 
     # (a cylinder: each sphere's parameters hold the plane it meets)
-    rows = _evaluate(wall, first, _fields(scene, wall.reads), history, wall.parameters_at(x[spheres], scene.time))
+    rows = _evaluate(wall, first, _fields(scene, wall.reads), history,
+                     wall.parameters_at(x[spheres], scene.time, p.radius[spheres]))
     n = len(spheres)
     normal = wall.normals(x[spheres], scene.time).reshape(n, 3)
     point = x[spheres] - (p.radius[spheres] - overlap[spheres])[:, None] * normal

@@ -28,7 +28,8 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   in-plane velocity -> ``shear``, a vibration along its normal -> ``wiggle``; an oblique wall at
   rest -> ``region plane`` + ``fix wall/gran/region`` (the same sphere-wall contact code); a
   ``Cylinder`` along x, y or z -> ``region cylinder ... INF INF side in|out``, turned by ``rotate``
-  through omega t when it turns, + ``fix wall/gran/region``;
+  through omega t when it turns, + ``fix wall/gran/region``; a ``Cone`` along +-x, y or z with an upper
+  end -> ``region cone ... side in|out open 1 open 2`` (no caps), turned the same way;
   ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix efield`` with E = B / sqrt(A) (torque
   mu x E);
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
@@ -53,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .integrators import VelocityVerlet
-from .interactions import (Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, PowerLawDipole, UniformField,
+from .interactions import (Cone, Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, PowerLawDipole, UniformField,
                            Wall)
 
 #: tested LAMMPS version
@@ -192,12 +193,12 @@ class _Export:
             if kind is MagnetField:
                 raise ValueError("MagnetField (a tabulated field of real magnets) has no LAMMPS fix: it cannot be "
                                  "exported")
-            if kind not in (Wall, Cylinder, Gravity, UniformField):
+            if kind not in (Wall, Cylinder, Cone, Gravity, UniformField):
                 raise ValueError(f"{effect!r} ({kind.__name__}) has no LAMMPS equivalent the export knows: only "
-                                 f"Wall, Cylinder, Gravity and UniformField can be exported")
+                                 f"Wall, Cylinder, Cone, Gravity and UniformField can be exported")
         if self.dipole is not None:
             self.scale = math.sqrt(self.dipole.prefactor)
-        for law in [self.contact] + [w.law for w in scene.effects if type(w) in (Wall, Cylinder)]:
+        for law in [self.contact] + [w.law for w in scene.effects if type(w) in (Wall, Cylinder, Cone)]:
             if law is not None and law.friction is not None:
                 f = law.friction
                 if f.sliding != "lammps" or f.slip_radius != "full":
@@ -327,6 +328,8 @@ class _Export:
                 lines.append(self.wall_line(k, effect, periodic))
             elif type(effect) is Cylinder:
                 lines.append(self.cylinder_lines(k, effect))
+            elif type(effect) is Cone:
+                lines.append(self.cone_lines(k, effect))
         return lines
 
     def wall_friction_note(self, wall):
@@ -338,6 +341,16 @@ class _Export:
                          "slip_radius='contact' R - delta (the contact point on the wall): spins differ by O(delta/R) "
                          "of the friction torque; Friction(slip_radius='full') takes R, as LAMMPS")
 
+    def turning_note(self, wall):
+        """LAMMPS' region walls roll and twist against the sphere's own spin (fix_wall_gran: relrot = omega,
+        "TODO: incorporate wall angular velocity"); demkit's against its spin relative to a turning wall's."""
+        law = wall.law
+        if wall.angular_velocity != 0.0 and (getattr(law, "rolling", None) is not None
+                                             or getattr(law, "twisting", None) is not None):
+            self.differs(f"{wall!r} with rolling or twisting resistance", "LAMMPS' wall rolling and twisting act on "
+                         "the sphere's spin alone, demkit's on its spin relative to the turning wall's (a sphere "
+                         "turning with the wall feels none in demkit)")
+
     def cylinder_lines(self, k, cylinder):
         """The deck lines of a cylinder along x, y or z: an infinite ``region cylinder`` (side in for a
         tube, out for a post), turned by ``rotate`` through the angle omega t about its axis, and ``fix
@@ -348,11 +361,11 @@ class _Export:
         if cylinder.travels:
             raise ValueError(f"{cylinder!r}: a cylinder carried by a velocity or a vibration cannot be exported (only "
                              f"a cylinder at rest or turning about its axis)")
+        if cylinder.servo is not None:
+            raise ValueError(f"{cylinder!r}: LAMMPS' regions have no servo (a radius moved to hold a stress): it cannot "
+                             f"be exported")
         self.wall_friction_note(cylinder)
-        if isinstance(cylinder.law, Hertz):
-            self.differs(f"{cylinder!r} with Hertz contacts", "LAMMPS' region walls take the cylinder's curvature into "
-                         "the contact radius, demkit keeps a plane's (R* = R): the stiffness differs by about "
-                         "R/(4 R_c)")
+        self.turning_note(cylinder)
         a = int(axes[0])
         across = [i for i in range(3) if i != a]
         centre = " ".join(g17(cylinder.point[i]) for i in across)
@@ -367,6 +380,48 @@ class _Export:
                      f"units box{turn}")
         lines.append(f"fix         wall{k} mobile wall/gran/region granular {self.granular_model(cylinder.law, wall=True)} "
                      f"region drum{k}")
+        return "\n".join(lines)
+
+    def turning(self, k, wall):
+        """(lines, words): a turning wall's angle variable and the region's ``rotate`` words (none at rest)."""
+        if wall.angular_velocity == 0.0:
+            return [], ""
+        point, axis = " ".join(map(g17, wall.point)), " ".join(map(g17, wall.axis))
+        return [f"variable    turn{k} equal {g17(wall.angular_velocity)}*time"], f" rotate v_turn{k} {point} {axis}"
+
+    def cone_lines(self, k, cone):
+        """The deck lines of a cone along +-x, y or z with an upper end: ``region cone`` between the planes
+        lower and upper from the apex (radii lower tan(alpha), upper tan(alpha)), side in for a hopper, out
+        for a post, its end caps open (``open 1 open 2``), turned by ``rotate`` like a cylinder, and ``fix
+        wall/gran/region`` on it. LAMMPS' cone finds the same nearest point (the generator's, its ends the
+        rims); inside it touches only centres inside the cone between its ends and none on the axis."""
+        axes = np.flatnonzero(cone.axis != 0.0)
+        if len(axes) != 1:
+            raise ValueError(f"{cone!r}: LAMMPS' cone region runs along x, y or z; this axis cannot be exported")
+        if cone.travels:
+            raise ValueError(f"{cone!r}: a cone carried by a velocity or a vibration cannot be exported (only a cone "
+                             f"at rest or turning about its axis)")
+        if cone.upper is None:
+            raise ValueError(f"{cone!r}: LAMMPS' cone region has two ends; give the Cone an upper end (upper=...) "
+                             f"to export it")
+        self.wall_friction_note(cone)
+        self.turning_note(cone)
+        if isinstance(cone.law, Hertz):
+            self.differs(f"{cone!r} with Hertz contacts", "LAMMPS' cone puts the curvature 1/r of its circle into the "
+                         "contact radius (r the contact point's distance from the axis), demkit the surface's, "
+                         "cos(alpha)/r")
+        a = int(axes[0])
+        across = [i for i in range(3) if i != a]
+        centre = " ".join(g17(cone.apex[i]) for i in across)
+        tan = math.tan(cone.half_angle)
+        ends = (cone.lower, cone.upper) if cone.axis[a] > 0 else (-cone.upper, -cone.lower)
+        radii = [abs(h) * tan for h in ends]
+        lines, turn = self.turning(k, cone)
+        lines.append(f"region      cone{k} cone {'xyz'[a]} {centre} {g17(radii[0])} {g17(radii[1])} "
+                     f"{g17(cone.apex[a] + ends[0])} {g17(cone.apex[a] + ends[1])} side "
+                     f"{'in' if cone.inside else 'out'} open 1 open 2 units box{turn}")
+        lines.append(f"fix         wall{k} mobile wall/gran/region granular {self.granular_model(cone.law, wall=True)} "
+                     f"region cone{k}")
         return "\n".join(lines)
 
     def wall_line(self, k, wall, periodic):

@@ -37,7 +37,7 @@ from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
 from .interactions.sphere import SphereInteraction
-from .interactions.wall_motion import S_FORCE, S_GAIN, S_MAX_SPEED, SERVO_STATE
+from .interactions.wall_motion import SERVO_STATE
 from .particles import Particles
 
 #: initial overlap, as a fraction of the smaller radius, above which a start is rejected (the
@@ -691,10 +691,8 @@ class Scene(SceneDiagnostics):
         loading)."""
         self.params[self.time_step_slots] = dt
         for e, state in self.servo_slots():
-            wall, g = self.effects[e], self.geometry_slots[e]
-            self.params[g + S_FORCE] = wall.servo.target(wall, self.box)
-            self.params[g + S_MAX_SPEED] = wall.servo.max_speed
-            self.params[g + S_GAIN] = wall.servo.gain
+            wall = self.effects[e]
+            wall.servo.write(wall.block[wall.servo_after:], wall, self.box)  # (a view of params)
             self.params[state.stop] = dt
 
     def servo_slots(self):
@@ -703,7 +701,7 @@ class Scene(SceneDiagnostics):
         slots = []
         for e, effect in enumerate(self.effects):
             if getattr(effect, "servo", None) is not None:
-                start = self.geometry_slots[e] + SERVO_STATE
+                start = self.geometry_slots[e] + effect.servo_after + SERVO_STATE
                 slots.append((e, slice(start, start + 4)))
         return slots
 

@@ -66,6 +66,8 @@ def test_contacts_page_example_runs_as_described():
     assert (traj.position[:, :, 2] > 0).all()  # on the floor, not through it
     # the vibrated bed: it leaves the plate near a lone ball's phase and is thrown for two cycles
     assert abs(ns["leaves"] - np.arccos(-1 / 3.0)) < 0.05 and 0.015 < ns["gap"].max() < 0.025
+    # the hopper: the grains drain through the funnel's outlet (18 of 20 by t = 2)
+    assert ns["drained"] >= 15
     # the servo lid: it holds 100 (1e-6 from t = 3 on), and the floor carries that and the weight
     assert all(abs(push - 100.0) < 1e-6 * 100.0 for t, _, push in ns["history"] if t >= 3.0)
     c = ns["pile"].contacts()

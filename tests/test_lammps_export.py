@@ -509,6 +509,35 @@ def test_spheres_in_a_rotating_drum_agree_with_lammps_rotating_region_to_round_o
 
 
 @needs_lammps
+@pytest.mark.parametrize("inside", [True, False], ids=["drum", "post"])
+def test_hertz_spheres_on_a_turning_cylinder_agree_with_lammps_contact_radius_to_round_off(tmp_path, inside):
+    """Hertz spheres with Mindlin friction (LAMMPS' rules) dropped into a drum of radius 3 turning at 2 rad/s,
+    or onto a post of radius 1: demkit's curved walls take the contact radius 1/R_e = 1/R -+ 1/(2 R_c), as
+    LAMMPS' region cylinder (its contact radius -+2 R_c), so they agree to round-off over 300 steps
+    (measured 5e-15 in position, 1.4e-13 in velocity, 1.6e-13 in spin for the drum; 5e-16, 2e-14, 4e-14 for
+    the post); the export writes no note. (Before demkit took the curvature, the export noted the
+    difference: the stiffness about R/(4 R_c) apart.)"""
+    law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.7, friction=dk.Friction(0.5, slip_radius="full",
+                                                                                   sliding="lammps"))
+    if inside:
+        pos = 0.985 * np.array([[0.0, -2.5, 0.0], [0.95, -2.33, 0.1], [-0.9, -2.36, -0.05]])
+        wall, gravity = dk.Cylinder([0, 0, 0], [0, 0, 1], 3.0, angular_velocity=2.0), [0, -9.81, 0]
+    else:
+        pos = np.array([[0.0, 1.52, 0.0], [0.3, 1.75, 1.2], [-0.4, 1.6, -1.1]])
+        wall, gravity = dk.Cylinder([0, 0, 0], [0, 0, 1], 1.0, inside=False, angular_velocity=2.0), [0, -9.81, 0]
+    p = dk.Particles(position=pos, radius=[0.5, 0.48, 0.5], mass=[1.0, 0.9, 1.1],
+                     velocity=[[0.1, 0, 0], [0, 0, 0.05], [0, 0.02, 0]], angular_velocity=[[0, 0, 1.0], [0, 0, 0], [0.5, 0, 0]])
+    scene = dk.Scene(p, [law, wall, dk.Gravity(gravity)])
+    files = dk.export_lammps(scene, dk.VelocityVerlet(DT), tmp_path, duration=3 * STEPS * DT, record_every=DT)
+    assert files.notes == ()
+    (dx, dv, dw, _), traj = differences(scene, run_lammps(files), steps=3 * STEPS)
+    d = np.hypot(traj.position[:, :, 0], traj.position[:, :, 1])
+    gap = (3.0 - np.array([0.5, 0.48, 0.5]) - d) if inside else (d - 1.0 - np.array([0.5, 0.48, 0.5]))
+    assert (gap.min(axis=0) < 0.0).all()  # each sphere touched the wall
+    assert dx < 1e-12 and dv < 1e-12 and dw < 1e-12
+
+
+@needs_lammps
 @pytest.mark.parametrize("wall", ["drum", "plane", "sliding plane"])
 def test_a_sphere_driven_by_a_frictional_wall_agrees_with_lammps_to_round_off(tmp_path, wall):
     """A sphere dropped onto a wall with friction 0.5 (slip_radius="full": the lever arm R for the slip

@@ -218,8 +218,9 @@ def test_unused_twisting_costs_nothing_and_used_adds_two_history_values():
         assert twisted.parameters == plain.parameters[:-1] + ("k_tw", "eta_tw", "lever_tw", "dt")
         s = scene(twisted)
         assert "kelvin_voigt_twisting_force" in s.fused_source() and s.effects[0].history_size == width + TWIST_HISTORY
-        # the wall's table: (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw), Marshall's as -1
-        np.testing.assert_array_equal(s.effects[0].table_values()[3:], [-1.0, -1.0, -1.0])
+        # the wall's table: (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw), Marshall's as -1, then twisting on and the
+        # wall's spin (demkit.interactions.wall.TABLE)
+        np.testing.assert_array_equal(s.effects[0].table_values()[3:], [-1.0, -1.0, -1.0, 1.0, 0.0, 0.0, 0.0])
     hertz = dk.Hertz(1e7, 0.3, friction=dk.Friction(0.3), twisting=dk.TwistingResistance(1.0, 0.0, 1e-3))
     assert hertz.history_size == HISTORY + TWIST_HISTORY and (hertz.k_tw, hertz.eta_tw, hertz.lever_tw) == (1.0, 0.0, 1e-3)
     # no torque possible: no history kept (a zero lever, or Marshall's (2/3) mu a with mu = 0)

@@ -76,10 +76,11 @@ def _pair_call(law, kind, owner="i", prefix="", held=False):
 
 
 def wall_plane_line():
-    """The line that sets :data:`WALL_PLANE` for sphere i from the wall's first seven parameters and its
+    """The line that sets :data:`WALL_PLANE` for sphere i from the wall's first nine parameters and its
     row's geometry block."""
     values = ", ".join(f"params[slot + {m}]" for m in range(len(WALL_PLANE)))
-    return f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, program[er, E_GEOMETRY], clock[0], {values})"
+    return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, radius[i], params, program[er, E_GEOMETRY], clock[0], "
+            f"{values})")
 
 
 def _effect_call(law, kind):
@@ -549,7 +550,7 @@ class _Generic:
         # end_step and optimised again there (2.5 CPU s at a scene's first step)
         lines += ["    if timed:  # servo-controlled walls move after the step (read no field of s otherwise: it costs)",
                   "        for e in range(s.program[0, H_EFFECTS]):",
-                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY])"]
+                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY], s.clock[0])"]
         lines += [line.replace("record_frame(step", "frame(calls, step") for line in END_STEP_TAIL]
         return lines
 

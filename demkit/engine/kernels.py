@@ -461,13 +461,14 @@ class _Source:
     @staticmethod
     def plane_of(geometry, q):
         """An effect's parameter names ``q``; with a geometry block (``geometry``: its slot's expression, or
-        None) the first seven replaced by the plane the wall presents to sphere i (:meth:`wall_plane_line`)."""
+        None) the first nine replaced by the plane the wall presents to sphere i and the next two parameters
+        (:meth:`wall_plane_line`)."""
         return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if geometry is not None else q
 
     @staticmethod
     def wall_plane_line(geometry, q):
         """The line setting the plane presented to sphere i by a wall with its block at ``geometry`` (as tier 1's)."""
-        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, params, {geometry}, clock[0], "
+        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, radius[i], params, {geometry}, clock[0], "
                 f"{', '.join(q[:len(WALL_PLANE)])})")
 
     # ---- scene-level functions -----------------------------------------------------------------
@@ -643,7 +644,7 @@ class _Source:
                 lines += ["        if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += [f"    servo_step(s.params, {g})" for g in self.servo_slots()]  # servo-controlled walls move
+        lines += [f"    servo_step(s.params, {g}, s.clock[0])" for g in self.servo_slots()]  # servo-controlled walls move
         lines += END_STEP_TAIL
         return lines
 

@@ -136,8 +136,8 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
 
 #: the plane a wall presents to sphere i (its own, or a cylinder's tangent plane there) and the
 #: surface's velocity, set by demkit.interactions.wall_motion.wall_plane: the first seven parameters
-#: of every plane-contact law
-WALL_PLANE = ("wp", "wnx", "wny", "wnz", "wux", "wuy", "wuz")
+#: of every plane-contact law, and its next two (a Hertz law's E*, G*: scaled on a curved wall)
+WALL_PLANE = ("wp", "wnx", "wny", "wnz", "wux", "wuy", "wuz", "wq7", "wq8")
 
 
 #: the speeds of a pair loop's members, for multiple time stepping: all of them, the fast, the slow

@@ -7,9 +7,9 @@ radial direction e = (r - (r.a) a) / |r - (r.a) a|, r = x - point, meets the sur
 +e (outside), and the contact is exactly that plane wall's (:mod:`demkit.interactions.wall`): overlap
 delta = R - (x - S).n = R - (R_c - d) inside, R - (d - R_c) outside (d the centre's distance from the
 axis), the same normal and tangential laws, friction history per sphere (turned into the new tangent
-plane as the sphere moves round), rolling and twisting resistance. Only the Hertz law's contact
-radius ignores the wall's curvature (R* = R, as for a plane): the exact Hertz stiffness of a sphere in
-a tube of radius R_c differs by about R / (4 R_c) (2.5 % for R_c = 10 R).
+plane as the sphere moves round), rolling and twisting resistance. A Hertz law takes the contact
+radius of the wall's curvature across, 1/R_e = 1/R -+ 1/(2 R_c) (-: inside), as LAMMPS' region walls
+(demkit.interactions.wall_motion.contact_radius_factor; a plane's R would be off by about R / (4 R_c)).
 
 The cylinder may turn about its own axis at ``angular_velocity`` omega (rad per unit time, right-handed
 about a): its surface then moves at u = omega a x (S - point) = omega R_c (a x e), its geometry does not
@@ -17,6 +17,14 @@ change, so a rotating drum is a cylinder with omega != 0. Like a plane wall it m
 a translation D(t) = V t + A (1 - cos 2 pi f t) (``velocity``, ``amplitude``, ``frequency``; a shaken tube):
 the compiled loops find its tangent plane with demkit.interactions.wall_motion.wall_plane. It is
 infinitely long: close it with plane walls (:class:`demkit.Wall`) for caps.
+
+A :class:`demkit.Servo` holding a ``stress`` moves its radius instead (a confining pressure on a column of
+spheres: a triaxial cell's membrane in its simplest form): after every step the radius moves by
+gain (F - sigma 2 pi R_c L) / K away from the spheres or towards them, F the normal force they push on
+it with, K the sum of its contacts' secant stiffnesses, L the length of the periodic box along the
+axis (the cylinder must run along a periodic axis), at most max_speed dt a step (the plane servo's rule,
+demkit.interactions.wall_motion.servo_step). :meth:`Cylinder.servo_state` and :meth:`current_radius` read
+it between runs.
 """
 from __future__ import annotations
 
@@ -24,9 +32,10 @@ import math
 
 import numpy as np
 
+from .hertz import Hertz
 from .sphere import vector
-from .wall import Wall
-from .wall_motion import cylinder_plane
+from .wall import Servo, Wall
+from .wall_motion import SHAPES, contact_radius_factor, cylinder_plane
 
 #: the cylinder's numbers in its geometry block, in this order (after the shape code and the motion:
 #: demkit.interactions.wall_motion)
@@ -40,14 +49,16 @@ class Cylinder(Wall):
     inside : the spheres are inside (a tube, drum; default) or outside (a post);
     angular_velocity : the cylinder's rate of turning about its axis (right-handed; default 0);
     velocity, amplitude, frequency : a translation V t + A (1 - cos 2 pi f t) of the whole cylinder (default
-    none); contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own.
+    none); contact : the contact law (:class:`KelvinVoigt` or :class:`Hertz`), default the scene's own;
+    servo : a :class:`Servo` holding a ``stress`` on the cylinder's side by moving its radius (module
+    docstring; with neither a translation nor a vibration).
     """
 
     steady = False  # the compiled loops read its geometry block (so not flat: see Wall.flat)
-    shape = 1
+    shape = SHAPES["cylinder"]
 
     def __init__(self, point, axis, radius, inside=True, angular_velocity=0.0, contact=None,
-                 velocity=(0.0, 0.0, 0.0), amplitude=(0.0, 0.0, 0.0), frequency=0.0):
+                 velocity=(0.0, 0.0, 0.0), amplitude=(0.0, 0.0, 0.0), frequency=0.0, servo=None):
         point = vector("Cylinder point", point)
         axis = vector("Cylinder axis", axis)
         length = float(np.linalg.norm(axis))
@@ -62,9 +73,21 @@ class Cylinder(Wall):
         if not math.isfinite(omega):
             raise ValueError(f"Cylinder angular_velocity must be finite, got {angular_velocity!r}")
         # the plane wall's attributes: a placeholder plane (the compiled loops read the geometry block)
+        self.angular_velocity = omega  # (before the contact law is adopted: a turning wall's functions)
         super().__init__(point, axis, velocity=velocity, contact=contact, amplitude=amplitude, frequency=frequency)
         self.axis = self.normal
         self.radius, self.inside, self.angular_velocity = radius, bool(inside), omega
+        if servo is not None:
+            if not isinstance(servo, Servo):
+                raise TypeError(f"Cylinder servo must be a demkit.Servo, got {servo!r}")
+            if servo.stress is None:
+                raise ValueError(f"a Cylinder's servo holds a stress on its side (a confining pressure), not a "
+                                 f"force: give Servo(stress=..., max_speed=...), got {servo!r}")
+            if self.travels:
+                raise ValueError("a Cylinder with a servo moves its radius only: it takes no velocity and no "
+                                 "vibration")
+            self.shape, self.servo_after = SHAPES["servo cylinder"], len(GEOMETRY) + 1  # (+ its Hertz flag)
+        self.servo = servo
 
     @property
     def travels(self):
@@ -78,8 +101,27 @@ class Cylinder(Wall):
                          self.angular_velocity], dtype=np.float64)
 
     def geometry_values(self):
-        """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion)."""
-        return np.array([self.shape, *self.motion_values(), *self.shape_values()], dtype=np.float64)
+        """The geometry block: shape code, motion, :meth:`shape_values` (demkit.interactions.wall_motion),
+        then a servo's numbers (:meth:`Servo.values`)."""
+        servo = self.servo.values() if self.servo is not None else ()
+        hertz = 1.0 if isinstance(getattr(self, "law", None), Hertz) else 0.0
+        return np.array([self.shape, *self.motion_values(), *self.shape_values(), hertz, *servo], dtype=np.float64)
+
+    def current_radius(self):
+        """The radius now: a servo's where its scene's last step has taken it (R_c - side offset), else R_c."""
+        if self.servo is None:
+            return self.radius
+        return self.radius - (1.0 if self.inside else -1.0) * self.servo_state()[0]
+
+    def servo_factor(self, box):
+        """What a servo's stress is multiplied by for the force per unit radius it asks of the cylinder in
+        ``box``: 2 pi L, L the box's length along the axis (which must be periodic)."""
+        axes = np.flatnonzero(np.abs(self.axis) > 1e-12)
+        if box is None or len(axes) != 1 or not box.periodic[axes[0]]:
+            raise ValueError(f"{self!r} holds a stress on its side: its area 2 pi R_c L needs the length L of a box "
+                             f"periodic along its axis, which must lie along x, y or z (got "
+                             f"{'no box' if box is None else box!r})")
+        return 2.0 * math.pi * float(box.size[axes[0]])
 
     def distances(self, position, time=0.0):
         """Distance of each centre from the axis at ``time`` (the shape of ``position`` without its last axis)."""
@@ -89,13 +131,15 @@ class Cylinder(Wall):
     def heights(self, position, time=0.0):
         """Signed distance of each centre from the surface at ``time`` (positive on the spheres' side)."""
         d = self.distances(position, time)
-        return self.radius - d if self.inside else d - self.radius
+        radius = self.current_radius()
+        return radius - d if self.inside else d - radius
 
     def planes(self, position, time=0.0):
         """The tangent plane each centre meets at ``time`` and the surface's velocity there, (N, 7):
         plane, n, u (as demkit.interactions.wall_motion.wall_plane)."""
         shift, speed = self.displacement(time)
         values = self.shape_values()
+        values[6] = self.current_radius()
         rows = np.array([cylinder_plane(*x, *values) for x in np.atleast_2d(np.asarray(position, dtype=float)) - shift],
                         dtype=np.float64).reshape(-1, 7)
         rows[:, 0] += rows[:, 1:4] @ shift
@@ -106,16 +150,26 @@ class Cylinder(Wall):
         """The unit normal of the surface where each sphere touches it, into the spheres' side (N, 3)."""
         return self.planes(position, time)[:, 1:4]
 
-    def parameters_at(self, position, time=0.0):
-        """The parameter values for spheres centred at ``position`` at ``time`` (N, P): the tangent plane
-        each meets and the surface's velocity there in place of a plane wall's seven geometry values."""
+    def parameters_at(self, position, time=0.0, radius=None):
+        """The parameter values for spheres centred at ``position`` (of ``radius``) at ``time`` (N, P): the
+        tangent plane each meets and the surface's velocity there in place of a plane wall's seven geometry
+        values; a Hertz law's E*, G* scaled to the contact radius of the curvature across (as the kernels)."""
         values = np.tile(self.parameter_values(), (len(np.atleast_2d(position)), 1))
         values[:, :7] = self.planes(position, time)
+        if isinstance(self.law, Hertz):
+            curvature = -(1.0 if self.inside else -1.0) / self.current_radius()
+            factor = np.array([contact_radius_factor(r, curvature) for r in np.broadcast_to(radius, len(values))])
+            values[:, 7:9] *= factor[:, None]
         return values
 
     def surface_speed(self):
         """The fastest the surface moves: |omega| R_c + |V| + 2 pi f |A|."""
         return abs(self.angular_velocity) * self.radius + super().surface_speed()
+
+    def spin(self):
+        """The wall's own angular velocity, omega a (rolling and twisting resistance act on the sphere's
+        spin relative to it)."""
+        return self.angular_velocity * self.axis
 
     def where(self):
         return (f"the cylinder of radius {self.radius:.6g} about the axis through {self.point.tolist()} along "
@@ -123,14 +177,10 @@ class Cylinder(Wall):
 
     def check(self, particles, time=0.0):
         super().check(particles, time)
-        if self.angular_velocity != 0.0 and getattr(self.law, "rolling", None) is not None:
-            raise ValueError(f"{self!r} turns, and its contact law {self.law!r} has rolling resistance, which "
-                             f"acts on the sphere's spin against a wall that does not turn: not available for "
-                             f"a turning cylinder yet (leave out rolling, or the cylinder's angular_velocity)")
-        if self.inside and particles.radius.max() >= self.radius:
+        if self.inside and particles.radius.max() >= self.current_radius():
             k = int(np.argmax(particles.radius))
             raise ValueError(f"particle {particles.ids[k]} of radius {particles.radius[k]:.6g} does not fit inside the "
-                             f"cylinder of radius {self.radius:.6g}")
+                             f"cylinder of radius {self.current_radius():.6g}")
 
     def check_box(self, box):
         """Along a periodic axis the spheres' images repeat: the cylinder must run along that axis, or lie

@@ -128,20 +128,23 @@ def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, style, norma
 
 @njit(**HELPER_OPTIONS)
 def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, style, normal, mu, kt, eta, mu_r, kr, eta_r,
-                  history, p, o, commit, dt):
+                  history, p, o, commit, dt, ox=0.0, oy=0.0, oz=0.0):
     """:func:`friction_on_j` for sphere i on a rigid wall: the lever arm is R - delta (the contact
     point lies on the wall), or R when ``style`` is odd (``slip_radius="full"``: LAMMPS' wall takes
     R for both the slip and the torque); LAMMPS' sliding rule when ``style`` >= 2. With rolling
-    resistance when mu_r > 0 (rolling radius R). Returns the force, the torque on the sphere and the
-    power. The slip and the torque share their arm, so the friction's work is booked exactly."""
+    resistance when mu_r > 0 (rolling radius R), on the sphere's spin relative to the wall's own
+    (ox, oy, oz): a turning cylinder's or cone's omega a (the slip needs none: the wall's surface
+    velocity at the contact, in v, carries its turning). Returns the force, the torque on the sphere
+    and the power. The slip and the torque share their arm, so the friction's work is booked exactly."""
     a = radius[i] if style % 2.0 > 0.0 else radius[i] - overlap
     share = 1.0 if style >= 2.0 else 0.0
     fx, fy, fz, _, _, _, tx, ty, tz, lost = friction_on_j(nx, ny, nz, vx, vy, vz, a * w[i, 0], a * w[i, 1],
                                                           a * w[i, 2], 0.0, a, normal, mu, kt, eta, share, history,
                                                           p, o, commit, dt)
-    if mu_r > 0.0:  # the wall is "i" (no spin), the sphere "j"
-        mx, my, mz, rolled = rolling_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], radius[i], normal, mu_r, kr,
-                                          eta_r, share, history, p, o + HISTORY, commit, dt)
+    if mu_r > 0.0:  # the wall is "i" (spinning at o), the sphere "j"
+        # (-(w - o), not o - w: the same bits as -w when o = 0, signed zeros included)
+        mx, my, mz, rolled = rolling_on_i(nx, ny, nz, -(w[i, 0] - ox), -(w[i, 1] - oy), -(w[i, 2] - oz), radius[i],
+                                          normal, mu_r, kr, eta_r, share, history, p, o + HISTORY, commit, dt)
         tx -= mx
         ty -= my
         tz -= mz

@@ -14,8 +14,11 @@ demkit.interactions.wall_motion.wall_plane). A :class:`Servo` moves it instead t
 Friction keeps each sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
 wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
 with twisting passes its rolling and twisting numbers to the wall functions as a table
-(:meth:`Wall.table_values`, :data:`TWIST_TABLE`): one more scalar each would exceed the number of
-arguments a compiled call can take.
+(:meth:`Wall.table_values`, :data:`TABLE`): one more scalar each would exceed the number of
+arguments a compiled call can take. The table also holds the wall's own spin (a turning cylinder's or
+cone's), which rolling and twisting resistance measure the sphere's spin against: a sphere turning with
+the wall as one rigid body feels neither; a rolling law against a turning wall takes the table's
+functions too.
 """
 from __future__ import annotations
 
@@ -32,7 +35,7 @@ from .friction import HISTORY, release, springs_energy, wall_friction
 from .hertz import Hertz, hertz_normal, tangential_springs
 from .sphere import SphereInteraction, vector
 from .twisting import twist_energy, twist_release, twisting_on_i
-from .wall_motion import SERVO_STATE
+from .wall_motion import S_DT, S_FORCE, S_GAIN, S_MAX_SPEED, S_POINTS, SERVO_STATE
 
 #: a sphere may start overlapping a wall by at most this fraction of its radius
 MAX_INITIAL_OVERLAP = 0.5
@@ -66,9 +69,12 @@ def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux
 
 
 @njit(**KERNEL_OPTIONS)
-def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                     plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                     eta_t, style, mu_r, kr, eta_r, dt):
+def _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx,
+                           ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt, rolling):
+    """:func:`wall_kelvin_voigt_friction_force` against a wall spinning at (ox, oy, oz) (its rolling
+    resistance acts on the sphere's spin relative to the wall's); ``rolling`` = (mu_r, kr, eta_r, ox, oy,
+    oz), one tuple: a call of more than 30 arguments is not compiled (CPython passes them as *args)."""
+    mu_r, kr, eta_r, ox, oy, oz = rolling
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -76,8 +82,17 @@ def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, rad
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
                                                     style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
-                                                    commit, dt)
+                                                    commit, dt, ox, oy, oz)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
+
+
+@njit(**KERNEL_OPTIONS)
+def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                     plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
+                                     eta_t, style, mu_r, kr, eta_r, dt):
+    return _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane,
+                                  nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt,
+                                  (mu_r, kr, eta_r, 0.0, 0.0, 0.0))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -113,6 +128,17 @@ def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux,
 def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
                               eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
+    return _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane,
+                           nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
+                           (mu_r, kr_fixed, eta_r_fixed, 0.0, 0.0, 0.0))
+
+
+@njit(**KERNEL_OPTIONS)
+def _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny,
+                    nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt, rolling):
+    """:func:`wall_hertz_friction_force` against a wall spinning at (ox, oy, oz); ``rolling`` = (mu_r,
+    kr_fixed, eta_r_fixed, ox, oy, oz) (see :func:`_kelvin_voigt_friction`)."""
+    mu_r, kr_fixed, eta_r_fixed, ox, oy, oz = rolling
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -122,7 +148,7 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
                                               radius[i], overlap, stiffness, eta)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
                                                     style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
-                                                    commit, dt)
+                                                    commit, dt, ox, oy, oz)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
@@ -137,11 +163,13 @@ def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, m
 
 
 @njit(**KERNEL_OPTIONS)
-def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, style, history, p, o, commit, dt):
+def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, style, history, p, o, commit, dt,
+                ox, oy, oz):
     """Twisting torque on sphere i (contact radius a) and dissipated power (the wall, "i" of
-    :func:`.twisting.twisting_on_i`, does not spin)."""
-    mx, my, mz, lost = twisting_on_i(nx, ny, nz, -w[i, 0], -w[i, 1], -w[i, 2], fn, a, mu, kt, eta_t, k_tw, eta_tw,
-                                     lever_tw, 1.0 if style >= 2.0 else 0.0, history, p, o, commit, dt)
+    :func:`.twisting.twisting_on_i`, spins at (ox, oy, oz): a turning cone's spin about the normal)."""
+    mx, my, mz, lost = twisting_on_i(nx, ny, nz, -(w[i, 0] - ox), -(w[i, 1] - oy), -(w[i, 2] - oz), fn, a, mu, kt,
+                                     eta_t, k_tw, eta_tw, lever_tw, 1.0 if style >= 2.0 else 0.0, history, p, o,
+                                     commit, dt)
     return -mx, -my, -mz, lost
 
 
@@ -149,12 +177,17 @@ def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, 
 def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                      params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
                                      mu, kt, eta_t, style, dt):
-    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance; params[start:start + 6] holds
-    (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw)."""
+    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance; params[start:start + 10] holds
+    (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE` (twist 0: rolling resistance
+    alone, against a turning wall)."""
     mu_r = params[start]
-    fx, fy, fz, tx, ty, tz, power = wall_kelvin_voigt_friction_force(
+    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
+    fx, fy, fz, tx, ty, tz, power = _kelvin_voigt_friction(
         i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx, ny, nz, ux, uy, uz,
-        stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, params[start + 1], params[start + 2], dt)
+        stiffness, damping, no_tension, mu, kt, eta_t, style, dt, (mu_r, params[start + 1], params[start + 2], ox, oy,
+                                                                   oz))
+    if params[start + 6] == 0.0:  # no twisting
+        return fx, fy, fz, tx, ty, tz, power
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -164,7 +197,7 @@ def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, rad
     fn, _ = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     mx, my, mz, lost = _wall_twist(nx, ny, nz, angular_velocity, i, math.sqrt(radius[i] * overlap), fn, kt, eta_t,
                                    mu, params[start + 3], params[start + 4], params[start + 5], style, history, p, o,
-                                   commit, dt)
+                                   commit, dt, ox, oy, oz)
     return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
 
 
@@ -177,21 +210,24 @@ def wall_kelvin_voigt_twisting_energy(i, x, y, z, velocity, angular_velocity, ra
         return 0.0
     mu_r = params[start]
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    return (0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
-            + twist_energy(history, p, o))
+    twist = twist_energy(history, p, o) if params[start + 6] != 0.0 else 0.0
+    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r) + twist
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
                               kt_fixed, eta_t_fixed, style, dt):
-    """:func:`wall_hertz_friction_force` with twisting resistance; params[start:start + 6] holds
-    (mu_r, k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw)."""
+    """:func:`wall_hertz_friction_force` with twisting resistance; params[start:start + 10] holds
+    (mu_r, k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE`."""
     mu_r = params[start]
-    fx, fy, fz, tx, ty, tz, power = wall_hertz_friction_force(
+    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
+    fx, fy, fz, tx, ty, tz, power = _hertz_friction(
         i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny, nz, ux, uy,
-        uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, params[start + 1],
-        params[start + 2], dt)
+        uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
+        (mu_r, params[start + 1], params[start + 2], ox, oy, oz))
+    if params[start + 6] == 0.0:  # no twisting
+        return fx, fy, fz, tx, ty, tz, power
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -203,7 +239,7 @@ def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, ma
                                          stiffness, eta)
     mx, my, mz, lost = _wall_twist(nx, ny, nz, angular_velocity, i, math.sqrt(radius[i] * overlap), fn, kt, eta_t,
                                    mu, params[start + 3], params[start + 4], params[start + 5], style, history, p, o,
-                                   commit, dt)
+                                   commit, dt, ox, oy, oz)
     return fx, fy, fz, tx + mx, ty + my, tz + mz, power + lost
 
 
@@ -216,8 +252,8 @@ def wall_hertz_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, m
         return 0.0
     mu_r = params[start]
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    return (8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
-            + twist_energy(history, p, o))
+    twist = twist_energy(history, p, o) if params[start + 6] != 0.0 else 0.0
+    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r) + twist
 
 
 _GEOMETRY = ("plane", "nx", "ny", "nz", "ux", "uy", "uz")
@@ -232,12 +268,33 @@ _TWISTING = {KelvinVoigt: (wall_kelvin_voigt_twisting_force, wall_kelvin_voigt_t
 #: a twisting law's parameters that its walls take from their table instead, in the table's order
 TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"),
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
+#: a wall's table (:meth:`Wall.table_values`): those six, then whether the law twists (1) or not (0: rolling
+#: resistance alone, against a turning wall) and the wall's own spin (ox, oy, oz), which the rolling and
+#: twisting springs measure the sphere's spin against (a turning cylinder's or cone's omega a)
+TABLE = ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw", "twist", "ox", "oy", "oz")
 
 
 def numbered_walls(effects):
     """(number, wall) of each wall among ``effects``, a scene's single-sphere effects, numbered as the
     scene numbers them (``Scene.contacts().wall``)."""
     return [(e, effect) for e, effect in enumerate(effects) if isinstance(effect, Wall)]
+
+
+def _target(name, value):
+    """A servo's target: a positive number, or (time, value) points with increasing times and positive
+    values, as a tuple of pairs."""
+    if np.ndim(value) == 0:
+        return checks.positive(f"Servo {name}", value)
+    try:
+        points = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        points = None
+    if points is None or points.ndim != 2 or points.shape[1] != 2 or len(points) == 0 or not np.isfinite(points).all():
+        raise ValueError(f"Servo {name} must be a positive number or a list of (time, value) points, got {value!r}")
+    if np.any(np.diff(points[:, 0]) <= 0.0) or np.any(points[:, 1] <= 0.0):
+        raise ValueError(f"Servo {name}'s (time, value) points need increasing times and positive values, got "
+                         f"{points.tolist()}")
+    return tuple((float(t), float(v)) for t, v in points)
 
 
 class Servo:
@@ -250,8 +307,12 @@ class Servo:
     so gain is the fraction of the error it corrects in one step when the packing responds like its
     contacts), at most ``max_speed`` x dt; touching nothing it moves at max_speed towards them.
     force or stress > 0 (one of them); max_speed > 0 (length per time); 0 < gain <= 1 (default 0.2).
-    Each may be changed between runs (staged loading: ``wall.servo.stress = 2 * wall.servo.stress``);
-    a run holds the values it starts with.
+    The target may change within a run: force or stress a list of (time, value) points (times of the
+    scene's clock, increasing), the target the piecewise-linear function through them, held at the first
+    value before its time and at the last after (a ramp: two points; stages: pairs of points at the same
+    value). Each may be changed between runs (staged loading: ``wall.servo.stress = 2 * wall.servo.stress``),
+    a list of points for one of at most as many as the scene was built with; a run holds the values it
+    starts with.
     """
 
     def __init__(self, force=None, max_speed=None, gain=0.2, stress=None):
@@ -270,21 +331,36 @@ class Servo:
 
     @property
     def force(self):
-        """The target force (None when the target is a stress)."""
+        """The target force, a number or (time, value) points (None when the target is a stress)."""
         return self._force
 
     @force.setter
     def force(self, value):
-        self._force, self._stress = checks.positive("Servo force", value), None
+        self._force, self._stress = _target("force", value), None
 
     @property
     def stress(self):
-        """The target stress (None when the target is a force)."""
+        """The target stress, a number or (time, value) points (None when the target is a force)."""
         return self._stress
 
     @stress.setter
     def stress(self, value):
-        self._stress, self._force = checks.positive("Servo stress", value), None
+        self._stress, self._force = _target("stress", value), None
+
+    @property
+    def points(self):
+        """The (time, value) points of a target that changes within a run, as a (K, 2) array; None for a
+        fixed target."""
+        given = self._force if self._stress is None else self._stress
+        return None if np.ndim(given) == 0 else np.array(given, dtype=np.float64)
+
+    def target_at(self, time):
+        """The target (a force or a stress, as given) at the scene's ``time``."""
+        given = self._force if self._stress is None else self._stress
+        if np.ndim(given) == 0:
+            return given
+        points = np.array(given)
+        return float(np.interp(time, points[:, 0], points[:, 1]))
 
     @property
     def max_speed(self):
@@ -306,26 +382,53 @@ class Servo:
                              f"corrected in one step")
         self._gain = gain
 
-    def target(self, wall, box):
-        """The force to hold for ``wall`` in ``box`` (a demkit.Box or None): ``force``, or ``stress`` times
-        the wall's area, the box's cross-section across its normal (the normal along a closed axis, the
-        two others periodic)."""
+    def factor(self, wall, box):
+        """What the target's values are multiplied by in the compiled loops: 1 for a force; for a stress the
+        wall's area, the cross-section of ``box`` (a demkit.Box or None) across its normal (the normal along
+        a closed axis, the two others periodic); a cylinder's 2 pi L (per unit radius: wall_motion.servo_step)."""
+        if hasattr(wall, "radius"):  # a cylinder: a stress on its side, per unit radius
+            return wall.servo_factor(box)
         if self._stress is None:
-            return self._force
+            return 1.0
         axes = np.flatnonzero(np.abs(wall.normal) > 1e-12)
         if box is None or len(axes) != 1 or sum(box.periodic) != 2 or box.periodic[axes[0]]:
             raise ValueError(f"{wall!r} holds a stress: its area is the cross-section of a box periodic along both "
                              f"axes of its plane, so its normal must lie along the box's one closed axis (got "
                              f"{'no box' if box is None else box!r}); give the Servo a force instead")
         across = [a for a in range(3) if a != axes[0]]
-        return self._stress * float(box.size[across[0]] * box.size[across[1]])
+        return float(box.size[across[0]] * box.size[across[1]])
+
+    def target(self, wall, box, time=0.0):
+        """The force to hold for ``wall`` in ``box`` at ``time``: ``force``, or ``stress`` times the wall's
+        area (:meth:`factor`; a cylinder's: per unit radius)."""
+        return self.target_at(time) * self.factor(wall, box)
+
+    def write(self, block, wall, box):
+        """Write the targets, max speed and gain into the servo's part of its wall's geometry block (at each
+        run's start: they may change between runs); a list of points longer than the block holds is refused."""
+        points = self.points
+        room = (len(block) - (S_DT + 1)) // 2
+        count = 0 if points is None else len(points)
+        if count > room:
+            raise ValueError(f"{wall!r}: its servo's target has {count} (time, value) points, but its scene was built "
+                             f"for {room}; build the scene again with it (a scene keeps the size of its walls' blocks)")
+        factor = self.factor(wall, box)
+        block[S_FORCE] = (0.0 if count else self.target_at(0.0)) * factor
+        block[S_MAX_SPEED] = self.max_speed
+        block[S_GAIN] = self.gain
+        block[S_POINTS] = count
+        if count:
+            block[S_DT + 1:S_DT + 1 + 2 * count] = (points * [1.0, factor]).ravel()
 
     def values(self):
         """The servo's part of the geometry block (:data:`demkit.interactions.wall_motion.SERVO`): target
-        force (set by each run, :meth:`target`), max speed, gain, then its state (offset and speed along
-        the normal, the force and the stiffness summed in the last force evaluation) and the time step
-        (set by each run)."""
-        return np.array([self._force or 0.0, self.max_speed, self.gain, 0.0, 0.0, 0.0, 0.0, 0.0], dtype=np.float64)
+        force (set by each run, :meth:`write`), max speed, gain, the number of (time, target) points, then
+        its state (offset and speed along the normal, the force and the stiffness summed in the last force
+        evaluation), the time step (set by each run) and the points (times and targets, set by each run)."""
+        points = self.points
+        count = 0 if points is None else len(points)
+        return np.array([0.0, self.max_speed, self.gain, count, 0.0, 0.0, 0.0, 0.0, 0.0, *([0.0] * (2 * count))],
+                        dtype=np.float64)
 
     def __repr__(self):
         target = f"force={self._force!r}" if self._stress is None else f"stress={self._stress!r}"
@@ -350,6 +453,8 @@ class Wall(SphereInteraction):
     repeatable = True  # a box of walls
     #: the shape's code in the geometry block (demkit.interactions.wall_motion.SHAPES)
     shape = 0
+    #: how many of the shape's numbers come before a servo's in its block (wall_motion.SERVO_AFTER)
+    servo_after = 0
 
     def __init__(self, point, normal, velocity=(0.0, 0.0, 0.0), contact=None, amplitude=(0.0, 0.0, 0.0),
                  frequency=0.0, servo=None):
@@ -405,10 +510,12 @@ class Wall(SphereInteraction):
         self.history_size = law.history_size
         names = list(law.parameters)
         self.table = np.zeros(0)
-        if getattr(law, "twisting", None) is not None:
+        turning = getattr(self, "angular_velocity", 0.0) != 0.0
+        if getattr(law, "twisting", None) is not None or (getattr(law, "rolling", None) is not None and turning):
+            # twisting, or rolling against a turning wall: the functions that take a table (the wall's spin)
             self.force_function, self.energy_function = _TWISTING[base]
             table = TWIST_TABLE[base]
-            self.table = np.array([getattr(law, name) for name in table], dtype=np.float64)
+            self.table = np.array([getattr(law, name, 0.0) for name in table], dtype=np.float64)
             names = [name for name in names if name not in table]
         self.parameters = _GEOMETRY + tuple(names)
         for name in names:
@@ -456,7 +563,7 @@ class Wall(SphereInteraction):
         w = 2.0 * math.pi * self.frequency
         shift = self.velocity * time + self.amplitude * (1.0 - math.cos(w * time))
         speed = self.velocity + self.amplitude * (w * math.sin(w * time))
-        if self.servo is not None:  # (its quasi-static steps add no surface velocity: wall_motion)
+        if self.servo is not None and self.shape == 0:  # (its quasi-static steps add no surface velocity)
             shift = shift + self.servo_state()[0] * self.normal
         return shift, speed
 
@@ -470,11 +577,21 @@ class Wall(SphereInteraction):
         block = getattr(self, "block", None)
         if block is None:
             return 0.0, 0.0, 0.0, 0.0
-        return tuple(float(v) for v in block[SERVO_STATE:SERVO_STATE + 4])
+        start = SERVO_STATE + self.servo_after
+        return tuple(float(v) for v in block[start:start + 4])
 
     def table_values(self):
-        """A twisting law's rolling and twisting numbers (see :data:`TWIST_TABLE`), else empty."""
-        return getattr(self, "table", np.zeros(0))
+        """A twisting law's rolling and twisting numbers, or a rolling law's against a turning wall, with
+        the wall's spin (see :data:`TABLE`), else empty."""
+        table = getattr(self, "table", np.zeros(0))
+        if not np.size(table):
+            return table
+        twist = 1.0 if getattr(self.law, "twisting", None) is not None else 0.0
+        return np.concatenate([table, [twist], self.spin()])
+
+    def spin(self):
+        """The wall's own angular velocity (a plane's: none)."""
+        return np.zeros(3)
 
     def heights(self, position, time=0.0):
         """Signed distance of each centre from the plane at ``time`` (positive on the spheres' side)."""
@@ -508,7 +625,7 @@ class Wall(SphereInteraction):
         """The unit normal where each sphere touches the wall, into the spheres' side (N, 3)."""
         return np.tile(self.normal, (len(np.atleast_2d(position)), 1))
 
-    def parameters_at(self, position, time=0.0):
+    def parameters_at(self, position, time=0.0, radius=None):
         """The parameter values the wall's compiled functions take for spheres centred at ``position`` at
         ``time``, (N, P): a plane wall's own wherever the spheres are, its plane and surface velocity
         where its motion has taken it (as demkit.interactions.wall_motion.wall_plane)."""

@@ -3,10 +3,12 @@
 An infinite plane is drawn as the rectangle of it that faces the region the spheres fill
 (:meth:`WallSurfaces.region`: their bounding box, grown and rounded out to whole multiples of four of
 the largest radii; along a periodic axis the box itself); a :class:`demkit.Cylinder` as a tube of
-:data:`FACETS` facets over that region's reach along its axis. Each moves as the wall does: a piston or
+:data:`FACETS` facets over that region's reach along its axis; a :class:`demkit.Cone` as :data:`FACETS`
+flat facets (quadrilaterals between two circles, triangles from the apex: a cone's generators are
+straight, so they are exact) between its ends, an unbounded end cut where the region ends along the axis. Each moves as the wall does: a piston or
 a vibrated plate is where its motion has taken it at the frame's time, a servo-controlled wall where
 its servo stands (so frames must be drawn as the run reaches them: :class:`demkit.VTKWriter` does), and
-a turning cylinder's facets turn with it (omega t about its axis).
+a turning cylinder's or cone's facets turn with it (omega t about its axis).
 
 Each polygon carries cell data ``wall`` (the wall's number among the scene's effects, as in
 :meth:`demkit.Scene.contacts`) and ``force``, the force the spheres exert on the wall at that time (the
@@ -18,6 +20,7 @@ import math
 
 import numpy as np
 
+from ..interactions.cone import Cone
 from ..interactions.cylinder import Cylinder
 from ..interactions.wall import numbered_walls
 from .polylines import write_vtp_polygons
@@ -58,6 +61,8 @@ def surfaces(walls, time, lo, hi, push=None):
         shift = wall.displacement(time)[0]
         if isinstance(wall, Cylinder):
             corners, polygons = _tube(wall, shift, lo, hi, time)
+        elif isinstance(wall, Cone):
+            corners, polygons = _cone(wall, shift, lo, hi, time)
         else:
             corners, polygons = _rectangle(wall, shift, lo, hi)
         base = sum(len(c) for c in points)
@@ -124,11 +129,29 @@ def _tube(wall, shift, lo, hi, time):
     first, second = _in_plane_axes(wall.axis)
     turn = wall.angular_velocity * time
     angle = turn + 2.0 * math.pi * np.arange(FACETS) / FACETS
-    ring = wall.radius * (np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second)
+    ring = wall.current_radius() * (np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second)
     start, end = (wall.point + shift + s * wall.axis for s in extent)
     corners = np.concatenate([start + ring, end + ring])
     polygons = [(k, (k + 1) % FACETS, FACETS + (k + 1) % FACETS, FACETS + k) for k in range(FACETS)]
     return corners, polygons
+
+
+def _cone(wall, shift, lo, hi, time):
+    """The cone's facets between its ends, an unbounded end (or one beyond the region) cut where the box
+    lo..hi ends along its axis (no facets when the region misses the cone's reach along it)."""
+    along = (_corners(lo, hi) - wall.apex - shift) @ wall.axis
+    top = along.max() if wall.upper is None else min(wall.upper, max(along.max(), wall.lower))
+    ends = (wall.lower, max(top, wall.lower))
+    first, second = _in_plane_axes(wall.axis)
+    angle = wall.angular_velocity * time + 2.0 * math.pi * np.arange(FACETS) / FACETS
+    across = np.cos(angle)[:, None] * first + np.sin(angle)[:, None] * second
+    tan = math.tan(wall.half_angle)
+    rings = [wall.apex + shift + h * wall.axis + h * tan * across for h in ends]
+    if ends[0] == 0.0:  # from the apex: triangles
+        corners = np.concatenate([rings[1], [wall.apex + shift]])
+        return corners, [(k, (k + 1) % FACETS, FACETS) for k in range(FACETS)]
+    corners = np.concatenate(rings)
+    return corners, [(k, (k + 1) % FACETS, FACETS + (k + 1) % FACETS, FACETS + k) for k in range(FACETS)]
 
 
 def write_series(trajectory, folder, name="particles", compress=False, dtype="float64", overwrite=False,

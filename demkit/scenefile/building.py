@@ -306,6 +306,10 @@ def _interactions(d, src, scale=None):
         if name == "magnet_field":
             for k, table in enumerate(value):
                 out.append(_magnet_field(table, ("interactions", "magnet_field", k), src, scale))
+        if name == "cone":
+            for k, cone in enumerate(value):
+                with _At(src, "interactions", name, k, keys=cone):
+                    out.append(I.Cone(**{**cone, "half_angle": math.radians(cone["half_angle"])}))
         if name in ("wall", "cylinder"):
             for k, wall in enumerate(value):
                 with _At(src, "interactions", name, k, keys=wall):

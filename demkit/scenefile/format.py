@@ -252,9 +252,30 @@ INTERACTIONS = Table({
         "inside": Key("bool", True, "the spheres are inside (a tube, drum) or outside (a post)"),
         "angular_velocity": _n("rate of turning about the axis (right-handed): a rotating drum", default=0.0,
                                dim="angular_velocity"),
-        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cylinder", dim="velocity"), **_WALL_MOTION},
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cylinder", dim="velocity"), **_WALL_MOTION,
+        "servo": Table({
+            "stress": _n("the normal stress the spheres are to push the side with (force per area 2 pi R_c L, L the "
+                         "periodic box's length along the axis)", default=REQUIRED, check="positive", dim="pressure"),
+            "max_speed": _n("the fastest the radius moves", default=REQUIRED, check="positive", dim="velocity"),
+            "gain": _n("fraction of the force error corrected in a step, in (0, 1]", default=0.2, check="positive")},
+            "a servo moving the cylinder's radius to hold a stress on its side (dk.Servo): a confining membrane")},
         "a cylindrical wall with the scene's contact law (dk.Cylinder)"),
         "cylindrical walls, [[interactions.cylinder]], any number"),
+    "cone": Tables(Table({
+        "apex": Key("vector", REQUIRED, "the cone's tip", dim="length"),
+        "axis": Key("vector", REQUIRED, "direction the cone opens along"),
+        "half_angle": _n("angle between the axis and the surface, degrees, in (0, 90)", default=REQUIRED,
+                         check="positive"),
+        "inside": Key("bool", True, "the spheres are inside (a hopper, funnel) or outside (a conical post)"),
+        "lower": _n("where the surface starts, distance from the apex along the axis (> 0: an open outlet)",
+                    default=0.0, check="non_negative", dim="length"),
+        "upper": _n("where the surface ends, distance from the apex along the axis (none: unbounded)",
+                    check="positive", dim="length"),
+        "angular_velocity": _n("rate of turning about the axis (right-handed)", default=0.0,
+                               dim="angular_velocity"),
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cone", dim="velocity"), **_WALL_MOTION},
+        "a conical wall with the scene's contact law (dk.Cone; half_angle in degrees here, radians in Python)"),
+        "conical walls, [[interactions.cone]], any number"),
 }, "the interactions, each a named table", one_of=((("dipole", "power_law_dipole"), False),
                                                    (("kelvin_voigt", "hertz"), False)))
 
@@ -333,7 +354,7 @@ SCHEMA = Table({
 
 #: order in which the interactions enter the scene (the file's order does not matter)
 INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field",
-                     "magnet_field", "wall", "cylinder", "langevin")
+                     "magnet_field", "wall", "cylinder", "cone", "langevin")
 
 
 _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
