@@ -156,8 +156,10 @@ def fall_heights(scene):
     down = g / size
     walls = [e for e in scene.effects if isinstance(e, Wall) and e.flat]  # (a cylinder's floor: not counted)
     normals = np.array([w.normal for w in walls]).reshape(-1, 3)
-    unbounded = (f"gravity ({size:.4g}) has no wall below the spheres to stop their fall, so it does not bound "
-                 f"the impact speed (checked while stepping)")
+    curved = " (curved and mesh walls are not counted)" if any(isinstance(e, Wall) and not e.flat
+                                                                for e in scene.effects) else ""
+    unbounded = (f"gravity ({size:.4g}) has no plane wall below the spheres to stop their fall{curved}, so it does "
+                 f"not bound the impact speed (checked while stepping)")
     if not len(walls) or not np.any(normals @ down < 0.0):
         return None, size, unbounded
     from scipy.optimize import linprog

@@ -249,7 +249,7 @@ def test_the_fastest_impact_is_the_free_fall_speed_over_the_drop_to_the_walls():
     # a tilted floor with nothing at its foot does not bound the fall: said so, nothing made up
     slope = falling([[0, 0, 3.0]], [dk.Wall((0, 0, 0), (0.2, 0, 1))])
     speed, why = guards.fastest_impact(slope)
-    assert speed == 0.0 and "no wall below the spheres to stop their fall" in why
+    assert speed == 0.0 and "no plane wall below the spheres to stop their fall" in why
     limit, why = guards.largest_safe_step(slope)
     assert limit == math.inf and "gravity with a wall below" in why
 
