@@ -9,7 +9,8 @@ plain dict with every default filled in (optional keys without a default are Non
 
 Value kinds (``Key.kind``): ``number`` (int or float, finite), ``integer``, ``bool``, ``string``,
 ``vector`` (three numbers), ``size`` (one number or three), ``flags`` (a bool or three bools),
-``numbers`` (a number, or a list of them: one per sphere), ``vectors`` (a list of three-number
+``numbers`` (a number, or a list of them: one per sphere), ``series`` (a number, or a list of them
+in time), ``vectors`` (a list of three-number
 lists), ``bools`` (a list of bools), ``integers`` (a list of integers), ``strings`` (a list of names
 among ``choices``), ``number_or_auto`` (a
 number or the string "auto"), ``bool_or_auto`` (true, false or "auto"), ``direction`` (three
@@ -286,7 +287,7 @@ def value(key, raw, where):
     elif kind == "flags":
         out = (_bool(raw, where) if not isinstance(raw, list)
                else [_bool(v, where + (k,)) for k, v in enumerate(_list(raw, where, "true/false or three of them", 3))])
-    elif kind == "numbers":
+    elif kind in ("numbers", "series"):
         out = (_number(raw, where) if not isinstance(raw, list)
                else [_number(v, where + (k,)) for k, v in enumerate(raw)])
     elif kind == "vectors":

@@ -369,6 +369,54 @@ def test_a_servo_target_changes_within_a_run_along_its_points():
     sim.run(0.01, progress=False)
 
 
+def test_a_scene_file_servo_takes_its_targets_at_times(tmp_path):
+    """[interactions.wall.servo] with force = [...] and times = [...] is the Servo of those (time, value)
+    points: the same bits over a run as the Python scene; a list without its times, times of another
+    length and times beside one value are refused, naming the keys."""
+    text = """
+[particles]
+position = [[0.0, 0.0, 0.5]]
+radius = 0.4
+[interactions.kelvin_voigt]
+stiffness = 1000.0
+damping = 1.0
+[[interactions.wall]]
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+[[interactions.wall]]
+point = [0.0, 0.0, 0.95]
+normal = [0.0, 0.0, -1.0]
+[interactions.wall.servo]
+force = [1.0, 1.0, 3.0]
+times = [0.0, 0.5, 1.0]
+max_speed = 1.0
+[integrator]
+method = "VelocityVerlet"
+dt = 0.005
+[run]
+duration = 1.5
+"""
+    path = tmp_path / "lid.toml"
+    path.write_text(text)
+    loaded = dk.load_scene(path)
+    lid = loaded.scene.effects[1]
+    assert list(lid.servo.force) == [(0.0, 1.0), (0.5, 1.0), (1.0, 3.0)] and lid.servo.target_at(0.75) == 2.0
+    dk.Simulation(loaded.scene, dk.VelocityVerlet(0.005)).run(1.5, progress=False)
+    p = dk.Particles(position=[[0.0, 0.0, 0.5]], radius=0.4, mass=1.0)
+    same = dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0), dk.Wall((0, 0, 0), (0, 0, 1)),
+                        dk.Wall((0, 0, 0.95), (0, 0, -1), servo=dk.Servo(force=[(0.0, 1.0), (0.5, 1.0), (1.0, 3.0)],
+                                                                         max_speed=1.0))])
+    dk.Simulation(same, dk.VelocityVerlet(0.005)).run(1.5, progress=False)
+    assert same.particles.position.tobytes() == loaded.scene.particles.position.tobytes()
+    assert same.effects[1].servo_state()[2] == pytest.approx(3.0, rel=0.01)  # (nearing the last target: 3.01)
+    for old, bad, problem in (("times = [0.0, 0.5, 1.0]\n", "", "give times"),
+                              ("times = [0.0, 0.5, 1.0]", "times = [0.0, 0.5]", "give times"),
+                              ("force = [1.0, 1.0, 3.0]", "force = 1.0", "go with a list")):
+        path.write_text(text.replace(old, bad))
+        with pytest.raises(ValueError, match=problem):
+            dk.load_scene(path)
+
+
 def test_a_servo_holds_a_stress_over_the_box_cross_section_and_follows_staged_targets():
     """The packing of the test above under a lid holding a stress: 100 / 12 on the 4 x 3 cross-section
     of the box is the force 100, held to 1e-3; the stress doubled between runs (staged loading), the

@@ -314,11 +314,30 @@ def _interactions(d, src, scale=None):
             for k, wall in enumerate(value):
                 with _At(src, "interactions", name, k, keys=wall):
                     if wall.get("servo") is not None:
-                        wall = {**wall, "servo": I.Servo(**wall["servo"])}
+                        wall = {**wall, "servo": I.Servo(**_servo_targets(wall["servo"]))}
                     elif "servo" in wall:
                         wall = {key: value for key, value in wall.items() if key != "servo"}
                     out.append((I.Wall if name == "wall" else I.Cylinder)(**wall))
     return out
+
+
+def _servo_targets(servo):
+    """A validated servo table as dk.Servo's arguments: a list of forces or stresses with ``times`` as
+    (time, value) points."""
+    servo = dict(servo)
+    times = servo.pop("times", None)
+    for name in ("force", "stress"):
+        value = servo.get(name)
+        if isinstance(value, list):
+            if not isinstance(times, list) or len(times) != len(value):
+                raise ValueError(f"servo {name} is a list of {len(value)} values: give times = [...], one time for "
+                                 f"each, got {times!r}")
+            servo[name] = list(zip(times, value))
+            times = None
+    if times is not None:
+        raise ValueError(f"servo times = {times!r} go with a list of forces or stresses (force = [...] or "
+                         f"stress = [...]), not one value")
+    return servo
 
 
 def magnet_source(s):

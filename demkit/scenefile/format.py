@@ -236,10 +236,12 @@ INTERACTIONS = Table({
         "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the wall: in its plane it slides, along the normal a "
                         "piston", dim="velocity"), **_WALL_MOTION,
         "servo": Table({
-            "force": _n("the normal force the spheres are to push the wall with (or stress)", check="positive",
-                        dim="force"),
-            "stress": _n("the normal stress instead: force per area of the wall in a box periodic along its "
-                         "plane", check="positive", dim="pressure"),
+            "force": Key("series", doc="the normal force the spheres are to push the wall with (or stress); a list: "
+                         "its values at `times`, the target the line through them", check="positive", dim="force"),
+            "stress": Key("series", doc="the normal stress instead: force per area of the wall in a box periodic "
+                          "along its plane; a list: its values at `times`", check="positive", dim="pressure"),
+            "times": Key("series", doc="with a list of targets: the times of its values, increasing (the target the line "
+                         "through them, held before the first and after the last)", check="non_negative", dim="time"),
             "max_speed": _n("the fastest the wall moves", default=REQUIRED, check="positive", dim="velocity"),
             "gain": _n("fraction of the force error corrected in a step, in (0, 1]", default=0.2, check="positive")},
             "a servo moving the wall along its normal to hold a force on it (dk.Servo): oedometric tests, a "
@@ -254,8 +256,11 @@ INTERACTIONS = Table({
                                dim="angular_velocity"),
         "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cylinder", dim="velocity"), **_WALL_MOTION,
         "servo": Table({
-            "stress": _n("the normal stress the spheres are to push the side with (force per area 2 pi R_c L, L the "
-                         "periodic box's length along the axis)", default=REQUIRED, check="positive", dim="pressure"),
+            "stress": Key("series", REQUIRED, "the normal stress the spheres are to push the side with (force per area "
+                          "2 pi R_c L, L the periodic box's length along the axis); a list: its values at `times`",
+                          check="positive", dim="pressure"),
+            "times": Key("series", doc="with a list of stresses: the times of its values, in order",
+                         check="non_negative", dim="time"),
             "max_speed": _n("the fastest the radius moves", default=REQUIRED, check="positive", dim="velocity"),
             "gain": _n("fraction of the force error corrected in a step, in (0, 1]", default=0.2, check="positive")},
             "a servo moving the cylinder's radius to hold a stress on its side (dk.Servo): a confining membrane")},
@@ -359,7 +364,7 @@ INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gra
 
 _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
           "size": "number or [x, y, z]", "cells": "integer or 3 integers", "flags": "bool or 3 bools",
-          "numbers": "number or list (per sphere)", "vectors": "list of [x, y, z]", "bools": "list of bools",
+          "numbers": "number or list (per sphere)", "series": "number or list (in time)", "vectors": "list of [x, y, z]", "bools": "list of bools",
           "integers": "list of integers", "strings": "list of names", "number_or_auto": 'number or "auto"',
           "bool_or_auto": 'bool or "auto"', "row": "list of numbers", "direction": 'string or [x, y, z]'}
 
