@@ -11,6 +11,7 @@ from .magnets import MagnetField
 from .langevin import Langevin
 from .wall import Servo, Wall
 from .cylinder import Cylinder
+from .mesh import MeshWall
 from .dipole import Dipole, PowerLawDipole
 from .ewald import Ewald
 from .fmm import FMM
@@ -18,5 +19,5 @@ from .p3m import P3M
 from .induction import Induction
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance",
-           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Servo", "Cylinder", "Langevin", "Ewald", "P3M", "FMM",
+           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Servo", "Cylinder", "MeshWall", "Langevin", "Ewald", "P3M", "FMM",
            "Induction"]

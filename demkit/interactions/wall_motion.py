@@ -8,7 +8,8 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
     shape, Vx, Vy, Vz, Ax, Ay, Az, w, <the shape's numbers>
 
 with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
-(demkit.interactions.cylinder.GEOMETRY) and 2 a plane moved by a servo (:data:`SERVO`). The wall is
+(demkit.interactions.cylinder.GEOMETRY), 2 a plane moved by a servo (:data:`SERVO`) and 4 a triangle
+mesh (demkit.interactions.mesh_geometry, which also turns about an axis). The wall is
 carried by D(t) = V t + A (1 - cos w t) (w = 2 pi f; the vibration starts at rest, as LAMMPS'
 ``wiggle``): a sphere at x meets the shape as it
 stood at time 0 seen from x - D(t), shifted by D(t), and the surface velocity there gains
@@ -29,9 +30,10 @@ import math
 from numba import njit
 
 from ..engine.motion import KERNEL_OPTIONS
+from .mesh_geometry import mesh_plane
 
 #: the shape codes of the geometry block
-SHAPES = {"plane": 0, "cylinder": 1, "servo": 2}
+SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "mesh": 4}
 #: the motion's numbers, after the shape code
 MOTION = ("vx", "vy", "vz", "ax", "ay", "az", "w")
 #: a servo's numbers, after the motion (its state from "offset" on: :data:`SERVO_STATE`)
@@ -101,7 +103,8 @@ def wall_plane(x, y, z, params, g, t, plane, nx, ny, nz, ux, uy, uz):
 @njit(**PLANE_OPTIONS)
 def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
     """The plane and surface velocity of a wall whose geometry block is at params[g] (``g`` >= 0; see the
-    module docstring): a moving plane, a servo's, or a cylinder's tangent plane."""
+    module docstring): a moving plane, a servo's, a cylinder's tangent plane, or a mesh's plane through the
+    point nearest to the sphere."""
     w = params[g + 7]
     swing = 1.0 - math.cos(w * t)
     rate = w * math.sin(w * t)
@@ -116,7 +119,10 @@ def geometry_plane(x, y, z, params, g, t, plane, nx, ny, nz):
     if params[g] == 2.0:  # a servo's plane: moved along its normal by its offset (quasi-static steps whose
         # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
         return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz
-    k = g + SHAPE_AT  # the cylinder's numbers (demkit.interactions.cylinder.GEOMETRY)
+    k = g + SHAPE_AT  # the shape's numbers
+    if params[g] == 4.0:  # a triangle mesh (demkit.interactions.mesh_geometry)
+        return mesh_plane(x, y, z, params, g, k, t, dx, dy, dz, vx, vy, vz)
+    # the cylinder's numbers (demkit.interactions.cylinder.GEOMETRY)
     c, cx, cy, cz, wx, wy, wz = cylinder_plane(x - dx, y - dy, z - dz, params[k], params[k + 1], params[k + 2],
                                                params[k + 3], params[k + 4], params[k + 5], params[k + 6],
                                                params[k + 7], params[k + 8])
