@@ -93,9 +93,9 @@ def test_closest_point_of_a_triangle_against_a_dense_sampling(rng):
 def test_a_triangulated_plane_is_the_plane_wall(points, rng):
     """Spheres pressed into a triangulated plane over faces, exactly over edges and over corners feel the
     plane wall's force and torque (friction, rolling, twisting), to 1e-12 of the largest; tilted too.
-    Then they slide and roll across it under gravity for 1500 steps, crossing many triangles (the
-    irregular mesh's are ~4 radii wide): the same trajectory as on the plane wall to 1e-12 (both at
-    round-off: the face normals are the plane's, exactly or to 1 ulp)."""
+    Then they slide and roll across it under gravity for 3000 steps, most of them across several of the
+    irregular mesh's triangles (~4 radii wide): the same trajectory as on the plane wall to 1e-12 (measured:
+    the same bits; the face normals are the plane's exactly, an edge's or corner's to 1 ulp)."""
     mesh = square(points)
     x = spheres_over(*mesh, rng)
     on_mesh, on_wall = pair(mesh, x, np.random.default_rng(1))
@@ -107,9 +107,10 @@ def test_a_triangulated_plane_is_the_plane_wall(points, rng):
     on_mesh_t, on_wall_t = pair(tilted, x, np.random.default_rng(1), wall=turn[:, 2], turn=turn)
     for a, b in zip(on_mesh_t.forces(), on_wall_t.forces()):
         assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
-    runs = [dk.Simulation(s, dk.VelocityVerlet(4e-4)).run(0.6, progress=False) for s in (on_mesh, on_wall)]
+    runs = [dk.Simulation(s, dk.VelocityVerlet(4e-4)).run(1.2, record_every=0.1, progress=False)
+            for s in (on_mesh, on_wall)]
     travelled = np.linalg.norm(runs[0].position[-1] - runs[0].position[0], axis=1)
-    assert np.median(travelled) > 0.5 and np.abs(runs[0].position[:, :, :2]).max() < L - R  # (still over it)
+    assert np.median(travelled) > 1.0 and np.abs(runs[0].position[:, :, :2]).max() < L - R  # (still over it)
     for name in ("position", "velocity", "angular_velocity"):
         a, b = getattr(runs[0], name), getattr(runs[1], name)
         assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max(), name
@@ -151,6 +152,31 @@ def test_a_vibrated_and_travelling_mesh_is_the_moving_plane_wall():
         a, b = runs[0].position, runs[1].position
         assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
         assert np.ptp(b[:, 0, 2]) > 0.01 if "amplitude" in motion else np.abs(b[-1, 0, :2] - b[0, 0, :2]).max() > 0.1
+
+
+def test_a_moving_mesh_is_where_its_motion_takes_it_and_its_surface_moves_rigidly(rng):
+    """A bumpy sheet turning about an oblique axis while it travels and vibrates: at each time the planes
+    it presents are those of a mesh at rest made of its corners where the motion has taken them (to
+    1e-14: the same nearest points, found in its own frame), and the surface velocity at the contact
+    point q is the rigid body's, D'(t) + omega a x (q - c - D(t))."""
+    vertices, triangles = square(30, seed=2, size=3.0)
+    vertices[:, 2] = 0.3 * np.sin(vertices[:, 0]) * np.cos(vertices[:, 1])
+    axis = np.array([0.3, -0.5, 1.0]) / math.sqrt(1.34)
+    wall = dk.MeshWall(vertices, triangles, point=(0.5, -0.2, 0.1), axis=axis, angular_velocity=0.8,
+                       velocity=(0.1, 0.2, -0.05), amplitude=(0.0, 0.05, 0.02), frequency=1.3, reach=R)
+    x = rng.uniform(-2, 2, size=(300, 3)) * [1, 1, 0.3]
+    for t in (0.0, 0.7, 2.3):
+        corners = wall.corners_at(t).reshape(-1, 3)
+        still = dk.MeshWall(corners, np.arange(len(corners)).reshape(-1, 3), reach=R)
+        moving, held = wall.planes(x, t), still.planes(x)
+        near = moving[:, 0] > -1e200  # (a plane FAR away: no triangle within reach)
+        assert np.array_equal(near, held[:, 0] > -1e200) and 50 < near.sum() < len(x)
+        assert np.abs(wall.heights(x, t)[near] - still.heights(x)[near]).max() <= 1e-14
+        assert np.abs(moving[near, 1:4] - held[near, 1:4]).max() <= 1e-14
+        q = x - wall.heights(x, t)[:, None] * moving[:, 1:4]
+        shift, speed = wall.displacement(t)
+        rigid = speed + 0.8 * np.cross(axis, q - wall.point - shift)
+        assert np.abs(moving[near, 4:7] - rigid[near]).max() <= 1e-14
 
 
 def test_a_turntable_carries_a_rolling_sphere_round_at_two_sevenths_of_its_rate():
