@@ -161,6 +161,9 @@ class MeshWall(Wall):
             raise ValueError(f"MeshWall scale must be positive and finite, got {scale!r}")
         what = "MeshWall" if file is None else f"MeshWall (mesh file {file})"
         self.corners = mesh_corners(vertices, triangles, what) * scale
+        # its distinct vertices and the triangles over them (pictures draw the mesh's own edges only)
+        self.vertices, inverse = np.unique(self.corners.reshape(-1, 3), axis=0, return_inverse=True)
+        self.triangles = inverse.reshape(-1, 3)
         axis = vector("MeshWall axis", axis)
         if not np.linalg.norm(axis) > 0.0:
             raise ValueError("MeshWall axis has zero length")
@@ -219,12 +222,16 @@ class MeshWall(Wall):
             r = _rotated(r, self.axis, -self.angular_velocity * time)
         return r + self.point
 
+    def vertices_at(self, time=0.0):
+        """The mesh's distinct vertices (V, 3) where it stands at ``time`` (:attr:`triangles` index them)."""
+        r = self.vertices - self.point
+        if self.angular_velocity != 0.0:
+            r = _rotated(r, self.axis, self.angular_velocity * time)
+        return r + self.point + self.displacement(time)[0]
+
     def corners_at(self, time=0.0):
         """The triangles' corners (T, 3, 3) where the mesh stands at ``time``."""
-        r = self.corners - self.point
-        if self.angular_velocity != 0.0:
-            r = _rotated(r.reshape(-1, 3), self.axis, self.angular_velocity * time).reshape(r.shape)
-        return r + self.point + self.displacement(time)[0]
+        return self.vertices_at(time)[self.triangles]
 
     def listed(self, position, time=0.0):
         """The number of triangles each centre's grid cell lists at ``time`` (0 outside the grid): the

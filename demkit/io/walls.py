@@ -59,8 +59,7 @@ def surfaces(walls, time, lo, hi, push=None):
     for e, wall in walls:
         shift = wall.displacement(time)[0]
         if isinstance(wall, MeshWall):
-            corners = wall.corners_at(time).reshape(-1, 3)
-            polygons = np.arange(len(corners)).reshape(-1, 3)
+            corners, polygons = wall.vertices_at(time), wall.triangles
         elif isinstance(wall, Cylinder):
             corners, polygons = _tube(wall, shift, lo, hi, time)
         else:
