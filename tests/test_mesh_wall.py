@@ -143,6 +143,26 @@ def test_a_triangulated_drum_converges_to_the_cylinder_at_second_order(rng):
     assert np.abs(forces[0] - forces[1]).max() <= 1e4 * chord * (1 + 1e-9)
 
 
+def test_an_elastic_sphere_bouncing_in_a_drum_mesh_keeps_its_energy():
+    """No damping, no friction: a sphere bouncing around inside a drum of 12 facets (over their faces,
+    edges and the creases between them, where the nearer face takes over) keeps its energy to the
+    integrator's second order: the largest deviation falls ~4x when the step is halved (measured 3.4 and,
+    halved again, 3.8), 7.5e-4 of the energy at 50 steps per contact (a cylinder's: 9.5e-4)."""
+    k = 1e4
+    contact_time = math.pi / math.sqrt(k)
+    deviations = []
+    for steps in (50, 100):
+        p = dk.Particles(position=[[0.5, 0.2, 0.0]], velocity=[[3.0, 1.7, 0.4]], radius=R, mass=1.0)
+        scene = dk.Scene(p, [dk.KelvinVoigt(k, 0.0), dk.MeshWall(*drum(12, 2.0, 3.0))])
+        traj = dk.Simulation(scene, dk.VelocityVerlet(contact_time / steps)).run(6.0, record_every=0.01,
+                                                                                 progress=False)
+        e = traj.energy["total"]
+        deviations.append(np.max(np.abs(e - e[0])) / e[0])
+        assert np.max(traj.energy["wall"]) > 0.3 * e[0]  # it did bounce
+        assert np.max(np.hypot(traj.position[:, 0, 0], traj.position[:, 0, 1])) < 2.0 - R + 0.05
+    assert deviations[0] < 2e-3 and 3.0 < deviations[0] / deviations[1] < 5.0
+
+
 def test_a_vibrated_and_travelling_mesh_is_the_moving_plane_wall():
     """A sphere on a floor vibrated at Gamma = a w^2 / g = 3 (it takes off and lands again) and one on a
     conveyor sliding under it: on the triangulated floor the trajectory of the plane wall's, to 1e-12."""
