@@ -49,15 +49,15 @@ from .interactions.fmm import ALL_PAIR, FMM_SPHERE, FMM_SPHERE_PER_DIGIT, fmm_sp
 SPHERE = 1.2e-8
 #: seconds per sphere and wall it does not touch (a distance test)
 WALL = 3.6e-9
-#: seconds per sphere and mesh wall (the calls that find the plane it presents: 78-93 ns measured for
+#: seconds per sphere and mesh wall (the calls that find the plane it presents: 47-53 ns measured for
 #: spheres outside its grid), more per sphere whose grid cell lists triangles, and per triangle listed
 #: (the bounding-sphere and plane tests, the nearest points; memory for large meshes): fitted to the
-#: extra cost over a plane wall of spheres on floors and drums of 2 to 50 000 triangles, tier 1, a busy
-#: machine (benchmarks/bench_mesh_wall.py, benchmarks/results/mesh_wall.json: 233-561 ns on floors
-#: listing 2-18 triangles, 185-915 on drums listing 10-20)
-MESH_SPHERE = 9.0e-8
-MESH_QUERY = 6.0e-8
-MESH_TRIANGLE = 2.5e-8
+#: extra cost over a plane wall or a cylinder of spheres on floors and drums of 2 to 50 000 triangles,
+#: tier 1, a busy machine (benchmarks/bench_mesh_wall.py, benchmarks/results/mesh_wall.json: 160-455 ns
+#: on floors listing 2-18 triangles, 166-422 on drums listing 10-20; the model within +-50 %)
+MESH_SPHERE = 5.0e-8
+MESH_QUERY = 8.0e-8
+MESH_TRIANGLE = 1.5e-8
 #: seconds per listed pair of a loop of contact laws only (a distance test)
 LISTED_PAIR = 7.2e-9
 #: seconds per listed pair of a loop holding dipoles (a dipole force, within reach + skin; 23 ns
