@@ -5,9 +5,9 @@ from .engine import inlining  # noqa: F401 (numba's inliner in linear time: comp
 from . import units
 from .box import Box
 from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet
-from .interactions import (Cone, Cylinder, Dipole, Friction, Gravity, Hertz, KelvinVoigt, Langevin, MagnetField, PairInteraction,
-                           PowerLawDipole, RollingResistance, Servo, SphereInteraction, TwistingResistance,
-                           UniformField, Wall)
+from .interactions import (Cone, Cylinder, Dipole, Friction, Gravity, Hertz, KelvinVoigt, Langevin, MagnetField, MeshWall,
+                           PairInteraction, PowerLawDipole, RollingResistance, Servo, SphereInteraction,
+                           TwistingResistance, UniformField, Wall)
 from .interactions.ewald import Ewald
 from .interactions.fmm import FMM
 from .interactions.p3m import P3M
@@ -38,7 +38,7 @@ from .version import __version__  # noqa: E402
 __all__ = ["Box", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
            "LargeOutputWarning", "CheckpointWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
-           "PairInteraction", "SphereInteraction", "Wall", "Servo", "Cylinder", "Cone", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
+           "PairInteraction", "SphereInteraction", "Wall", "Servo", "Cylinder", "Cone", "MeshWall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
            "Integrator", "units", "VTKWriter", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "clustering", "accuracy", "compare_dipole_sums", "guards", "choose_time_step",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

@@ -154,6 +154,13 @@ def info_command(args):
     print(f"box           {scene.box!r}" if scene.box is not None else "box           none (open space)")
     for inter in scene.interactions + scene.effects:
         print(f"interaction   {inter!r}")
+    for wall in scene.effects:
+        if hasattr(wall, "listed"):  # a mesh wall: its grid and what a sphere's query visits now
+            _, side, counts, _, _ = wall.grid()
+            listed = wall.listed(p.position, scene.time)
+            print(f"mesh          {wall.triangle_count:,} triangles, a grid of {' x '.join(map(str, counts))} cells of "
+                  f"{side:.4g} ({wall.geometry_values().nbytes / 1e6:.3g} MB in the scene's parameters); the "
+                  f"spheres' cells list {listed.mean():.3g} triangles on average now, {int(listed.max())} at most")
     for tuned in scene.long_range:
         print(f"long range    {tuned!r}")
     for inter in scene.interactions:  # a long-range setting the scene did not need (an FMM below its crossover)

@@ -7,7 +7,9 @@
 One force evaluation costs, in serial wall time (the constants measured on this project's 2-core
 machine by ``benchmarks/bench_cost_model.py``, ``benchmarks/results/cost_model.json``)::
 
-    N SPHERE + N walls WALL + sum over lists (listed pairs x LISTED_PAIR, DIPOLE_PAIR or EWALD_PAIR)
+    N SPHERE + N walls WALL + per mesh wall (N MESH_SPHERE + spheres whose cell lists triangles
+      x MESH_QUERY + the triangles their cells list x MESH_TRIANGLE)
+      + sum over lists (listed pairs x LISTED_PAIR, DIPOLE_PAIR or EWALD_PAIR)
       + exact-sum pairs x ALL_PAIR + touching pairs x TOUCHING[law] + N wave vectors x RECIPROCAL_VECTOR
       + MESH_CALL + N p^3 MESH_POINT + FFTs (a P3M mesh) + N (FMM_SPHERE + (digits of eps - 3) FMM_SPHERE_PER_DIGIT) (a fast multipole sum)
 
@@ -47,6 +49,15 @@ from .interactions.fmm import ALL_PAIR, FMM_SPHERE, FMM_SPHERE_PER_DIGIT, fmm_sp
 SPHERE = 1.2e-8
 #: seconds per sphere and wall it does not touch (a distance test)
 WALL = 3.6e-9
+#: seconds per sphere and mesh wall (the calls that find the plane it presents: 47-53 ns measured for
+#: spheres outside its grid), more per sphere whose grid cell lists triangles, and per triangle listed
+#: (the bounding-sphere and plane tests, the nearest points; memory for large meshes): fitted to the
+#: extra cost over a plane wall or a cylinder of spheres on floors and drums of 2 to 50 000 triangles,
+#: tier 1, a busy machine (benchmarks/bench_mesh_wall.py, benchmarks/results/mesh_wall.json: 160-455 ns
+#: on floors listing 2-18 triangles, 166-422 on drums listing 10-20; the model within +-50 %)
+MESH_SPHERE = 5.0e-8
+MESH_QUERY = 8.0e-8
+MESH_TRIANGLE = 1.5e-8
 #: seconds per listed pair of a loop of contact laws only (a distance test)
 LISTED_PAIR = 7.2e-9
 #: seconds per listed pair of a loop holding dipoles (a dipole force, within reach + skin; 23 ns
@@ -187,12 +198,18 @@ def estimate(scene, integrator, duration, record_every=None, vtk_every=None, ani
     :func:`centres_tree`, built here unless given."""
     from . import notes
     from .guards import fall_heights
+    from .interactions.mesh import MeshWall
     from .interactions.wall import Wall
     p = scene.particles
     n = len(p)
     steps = max(1, round(duration / integrator.dt))
     walls = sum(isinstance(e, Wall) for e in scene.effects)
     parts = {"spheres": n * SPHERE, "walls": n * walls * WALL}
+    meshes = [e for e in scene.effects if isinstance(e, MeshWall)]
+    if meshes:  # what each sphere's query of each mesh visits now
+        listed = [w.listed(p.position, scene.time) for w in meshes]
+        parts["mesh walls"] = sum(n * MESH_SPHERE + MESH_QUERY * int(np.count_nonzero(c)) + MESH_TRIANGLE * int(c.sum())
+                                  for c in listed)
     tree = tree if tree is not None else centres_tree(scene)  # one tree for the listed and touching pairs
     law = _contact_law(scene)
     heights, g, _ = fall_heights(scene) if law is not None else (None, 0.0, "")

@@ -30,6 +30,7 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   ``Cylinder`` along x, y or z -> ``region cylinder ... INF INF side in|out``, turned by ``rotate``
   through omega t when it turns, + ``fix wall/gran/region``; a ``Cone`` along +-x, y or z with an upper
   end -> ``region cone ... side in|out open 1 open 2`` (no caps), turned the same way;
+  a ``MeshWall`` is refused (LAMMPS has no triangle-mesh walls);
   ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix efield`` with E = B / sqrt(A) (torque
   mu x E);
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
@@ -54,8 +55,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .integrators import VelocityVerlet
-from .interactions import (Cone, Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, PowerLawDipole, UniformField,
-                           Wall)
+from .interactions import (Cone, Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, MeshWall, PowerLawDipole,
+                           UniformField, Wall)
 
 #: tested LAMMPS version
 LAMMPS_VERSION = "29 Sep 2021"
@@ -193,6 +194,9 @@ class _Export:
             if kind is MagnetField:
                 raise ValueError("MagnetField (a tabulated field of real magnets) has no LAMMPS fix: it cannot be "
                                  "exported")
+            if kind is MeshWall:
+                raise ValueError(f"{effect!r}: LAMMPS has no triangle-mesh walls (its walls are planes and "
+                                 f"regions), so a scene with a MeshWall cannot be exported")
             if kind not in (Wall, Cylinder, Cone, Gravity, UniformField):
                 raise ValueError(f"{effect!r} ({kind.__name__}) has no LAMMPS equivalent the export knows: only "
                                  f"Wall, Cylinder, Cone, Gravity and UniformField can be exported")

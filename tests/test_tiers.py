@@ -293,11 +293,11 @@ def test_program_layout():
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
     assert names[5] == "wall_kelvin_voigt_friction_force"  # the cylinder: a wall kind, with its geometry block
     geometry = [program[layout.effect_row(e), layout.E_GEOMETRY] for e in range(6)]
-    # the vibrated floor (shape 0 and its motion: 8 numbers), the cylinder (17) and the lid (shape 2, the
-    # motion, the servo: 16) have blocks
+    # the vibrated floor (shape 0 and its motion: 8 numbers), the cylinder (18: its Hertz flag last) and the lid (shape 2, the
+    # motion, the servo with its count of target points: 17) have blocks
     geometry.append(program[layout.effect_row(6), layout.E_GEOMETRY])
     assert geometry[:2] == [-1] * 2 and geometry[3:5] == [-1] * 2
-    for e, size in ((2, 8), (5, 17), (6, 16)):
+    for e, size in ((2, 8), (5, 18), (6, 17)):
         assert np.array_equal(scene.params[geometry[e]:geometry[e] + size], scene.effects[e].geometry_values())
     assert [program[layout.effect_row(e), layout.E_PLANE] for e in range(7)] == [0, 0, 0, 1, 1, 0, 0]
 

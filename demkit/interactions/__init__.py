@@ -12,6 +12,7 @@ from .langevin import Langevin
 from .wall import Servo, Wall
 from .cylinder import Cylinder
 from .cone import Cone
+from .mesh import MeshWall
 from .dipole import Dipole, PowerLawDipole
 from .ewald import Ewald
 from .fmm import FMM
@@ -19,5 +20,5 @@ from .p3m import P3M
 from .induction import Induction
 
 __all__ = ["PairInteraction", "Dipole", "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance",
-           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Servo", "Cylinder", "Cone", "Langevin", "Ewald", "P3M", "FMM",
+           "TwistingResistance", "Hertz", "SphereInteraction", "Gravity", "UniformField", "MagnetField", "Wall", "Servo", "Cylinder", "Cone", "MeshWall", "Langevin", "Ewald", "P3M", "FMM",
            "Induction"]

@@ -9,7 +9,8 @@ other wall has a geometry block in the scene's parameters (its row's E_GEOMETRY 
 
 with shape 0 a plane (the law's own plane and normal at time 0), 1 a cylinder
 (demkit.interactions.cylinder.GEOMETRY), 2 a plane moved by a servo (:data:`SERVO`), 3 a cone
-(demkit.interactions.cone.GEOMETRY) and 5 a cylinder whose radius a servo moves (the cylinder's
+(demkit.interactions.cone.GEOMETRY), 4 a triangle mesh (demkit.interactions.mesh_geometry, which also turns
+about an axis) and 5 a cylinder whose radius a servo moves (the cylinder's
 numbers, then the servo's). A cylinder's or cone's numbers end with a flag: 1 when its contact law is
 Hertz, whose moduli the wall then scales to the contact radius of its curvature
 (:func:`contact_radius_factor`; the loops pass a wall law's parameters 7 and 8 through wall_plane). The wall is
@@ -39,9 +40,10 @@ import math
 from numba import njit
 
 from ..engine.motion import KERNEL_OPTIONS
+from .mesh_geometry import mesh_plane
 
 #: the shape codes of the geometry block
-SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "cone": 3, "servo cylinder": 5}
+SHAPES = {"plane": 0, "cylinder": 1, "servo": 2, "cone": 3, "mesh": 4, "servo cylinder": 5}
 #: how many numbers of its shape a servo's block holds before the servo's (a servo cylinder: the
 #: cylinder's nine, demkit.interactions.cylinder.GEOMETRY, and its Hertz flag)
 SERVO_AFTER = {2: 0, 5: 10}
@@ -219,7 +221,8 @@ def wall_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, ux, uy, uz, q7, q8):
 @njit(**PLANE_OPTIONS)
 def geometry_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, q7, q8):
     """The plane and surface velocity of a wall whose geometry block is at params[g] (``g`` >= 0; see the
-    module docstring): a moving plane, a servo's, or a cylinder's or a cone's tangent plane; q7, q8 as
+    module docstring): a moving plane, a servo's, a cylinder's or a cone's tangent plane, or a
+    mesh's plane through the point nearest to the sphere; q7, q8 as
     given, or scaled by :func:`contact_radius_factor` on a cylinder or cone whose Hertz flag is set."""
     w = params[g + 7]
     swing = 1.0 - math.cos(w * t)
@@ -236,6 +239,9 @@ def geometry_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, q7, q8):
         # speed the contacts' dashpots do not see: seen, c / dt would swamp the stiffness the servo steers by)
         return plane + (dx * nx + dy * ny + dz * nz) + params[g + S_OFFSET], nx, ny, nz, vx, vy, vz, q7, q8
     k = g + SHAPE_AT  # the shape's numbers (demkit.interactions.cylinder.GEOMETRY, .cone.GEOMETRY)
+    if params[g] == 4.0:  # a triangle mesh (demkit.interactions.mesh_geometry): flat, q7 and q8 as given
+        c, cx, cy, cz, wx, wy, wz = mesh_plane(x, y, z, params, g, k, t, dx, dy, dz, vx, vy, vz)
+        return c, cx, cy, cz, wx, wy, wz, q7, q8
     rc = params[k + 6]
     if params[g] == 5.0:  # a servo cylinder: its radius moved by the servo's offset along the normal
         rc = rc - params[k + 7] * params[g + 10 + S_OFFSET]

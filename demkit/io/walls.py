@@ -8,7 +8,8 @@ flat facets (quadrilaterals between two circles, triangles from the apex: a cone
 straight, so they are exact) between its ends, an unbounded end cut where the region ends along the axis. Each moves as the wall does: a piston or
 a vibrated plate is where its motion has taken it at the frame's time, a servo-controlled wall where
 its servo stands (so frames must be drawn as the run reaches them: :class:`demkit.VTKWriter` does), and
-a turning cylinder's or cone's facets turn with it (omega t about its axis).
+a turning cylinder's or cone's facets turn with it (omega t about its axis). A :class:`demkit.MeshWall` is its own
+triangles, where its translation and turning have taken them at the frame's time.
 
 Each polygon carries cell data ``wall`` (the wall's number among the scene's effects, as in
 :meth:`demkit.Scene.contacts`) and ``force``, the force the spheres exert on the wall at that time (the
@@ -22,6 +23,7 @@ import numpy as np
 
 from ..interactions.cone import Cone
 from ..interactions.cylinder import Cylinder
+from ..interactions.mesh import MeshWall
 from ..interactions.wall import numbered_walls
 from .polylines import write_vtp_polygons
 from .series import SeriesFolder
@@ -56,10 +58,12 @@ def region(position, radius, box):
 def surfaces(walls, time, lo, hi, push=None):
     """(points (P,3), connectivity, offsets, cell data) of the (number, wall) pairs ``walls`` at ``time``
     over the region lo..hi; ``push``: number -> the force on that wall (cell data ``force``), or None."""
-    points, connectivity, offsets, numbers, pushes = [], [], [], [], []
+    points, connectivity, sizes, numbers, pushes = [], [], [], [], []
     for e, wall in walls:
         shift = wall.displacement(time)[0]
-        if isinstance(wall, Cylinder):
+        if isinstance(wall, MeshWall):
+            corners, polygons = wall.vertices_at(time), wall.triangles
+        elif isinstance(wall, Cylinder):
             corners, polygons = _tube(wall, shift, lo, hi, time)
         elif isinstance(wall, Cone):
             corners, polygons = _cone(wall, shift, lo, hi, time)
@@ -68,17 +72,17 @@ def surfaces(walls, time, lo, hi, push=None):
         base = sum(len(c) for c in points)
         points.append(corners)
         for polygon in polygons:
-            connectivity.extend(base + k for k in polygon)
-            offsets.append(len(connectivity))
-            numbers.append(e)
-            if push is not None:
-                pushes.append(push[e])
+            connectivity.append(base + np.asarray(polygon, dtype=np.int64))
+            sizes.append(len(polygon))
+        numbers += [e] * len(polygons)
+        if push is not None:
+            pushes += [push[e]] * len(polygons)
     if not points:
         return np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), {}
     cells = {"wall": np.array(numbers, dtype=np.int64)}
     if push is not None:
         cells["force"] = np.array(pushes, dtype=np.float64)
-    return np.concatenate(points), np.array(connectivity, dtype=np.int64), np.array(offsets, dtype=np.int64), cells
+    return (np.concatenate(points), np.concatenate(connectivity), np.cumsum(sizes, dtype=np.int64), cells)
 
 
 class WallSurfaces:

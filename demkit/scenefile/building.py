@@ -261,7 +261,7 @@ def _particles(d, box, src, base, scale):
         return Particles(**kw), made
 
 
-def _interactions(d, src, scale=None):
+def _interactions(d, src, scale=None, base="."):
     from .. import interactions as I
     inter = d["interactions"] or {}
     friction = rolling = twisting = None
@@ -310,6 +310,12 @@ def _interactions(d, src, scale=None):
             for k, cone in enumerate(value):
                 with _At(src, "interactions", name, k, keys=cone):
                     out.append(I.Cone(**{**cone, "half_angle": math.radians(cone["half_angle"])}))
+        if name == "mesh":
+            for k, mesh in enumerate(value):
+                with _At(src, "interactions", name, k, keys=mesh):
+                    file = Path(mesh["file"]) if Path(mesh["file"]).is_absolute() else Path(base) / mesh["file"]
+                    factor = mesh["scale"] / (scale["length"] if scale is not None else 1.0)
+                    out.append(I.MeshWall(**{**mesh, "file": file, "scale": factor}))
         if name in ("wall", "cylinder"):
             for k, wall in enumerate(value):
                 with _At(src, "interactions", name, k, keys=wall):
@@ -437,7 +443,7 @@ def _build(data, src, base):
     if data["box"] is not None:
         with _At(src, "box", keys=("size", "periodic")):
             box = Box(data["box"]["size"], data["box"]["periodic"])
-    interactions = _interactions(data, src, scale)
+    interactions = _interactions(data, src, scale, base)
     _check_memory(data, box, interactions, src)  # before a builder allocates anything
     particles, made = _particles(data, box, src, base, scale)
     box = made if made is not None else box

@@ -281,6 +281,22 @@ INTERACTIONS = Table({
         "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole cone", dim="velocity"), **_WALL_MOTION},
         "a conical wall with the scene's contact law (dk.Cone; half_angle in degrees here, radians in Python)"),
         "conical walls, [[interactions.cone]], any number"),
+    "mesh": Tables(Table({
+        "file": Key("string", REQUIRED, "the mesh file (STL, OBJ, VTK, Gmsh: whatever meshio reads; its triangles), "
+                    "relative to the scene file's folder"),
+        "scale": _n("factor on the file's coordinates (with units = \"si\": the file is in metres)", default=1.0,
+                    check="positive"),
+        "point": Key("vector", [0.0, 0.0, 0.0], "a point of the axis the mesh turns about", dim="length"),
+        "axis": Key("vector", [0.0, 0.0, 1.0], "the axis it turns about"),
+        "angular_velocity": _n("rate of turning about the axis (right-handed; 0: none)", default=0.0,
+                               dim="angular_velocity"),
+        "velocity": Key("vector", [0.0, 0.0, 0.0], "velocity of the whole mesh", dim="velocity"), **_WALL_MOTION,
+        "reach": _n("the largest sphere radius its grid serves (none: the scene's largest)", check="positive",
+                    dim="length"),
+        "cell": _n("its grid's cell edge (none: chosen from the reach and the triangles)", check="positive",
+                   dim="length")},
+        "a wall made of a triangle mesh with the scene's contact law (dk.MeshWall)"),
+        "triangle-mesh walls, [[interactions.mesh]], any number"),
 }, "the interactions, each a named table", one_of=((("dipole", "power_law_dipole"), False),
                                                    (("kelvin_voigt", "hertz"), False)))
 
@@ -359,7 +375,7 @@ SCHEMA = Table({
 
 #: order in which the interactions enter the scene (the file's order does not matter)
 INTERACTION_ORDER = ("dipole", "power_law_dipole", "kelvin_voigt", "hertz", "gravity", "uniform_field",
-                     "magnet_field", "wall", "cylinder", "cone", "langevin")
+                     "magnet_field", "wall", "cylinder", "cone", "mesh", "langevin")
 
 
 _KINDS = {"number": "number", "integer": "integer", "bool": "bool", "string": "string", "vector": "[x, y, z]",
