@@ -61,10 +61,10 @@ SERVO_STATE = S_OFFSET
 
 
 @njit(**KERNEL_OPTIONS)
-def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
-    """(plane, nx, ny, nz, ux, uy, uz): the tangent plane x.n = plane of the cylinder (axis through p
-    along the unit a, radius rc, side +1 inside, -1 outside) where the sphere centred at (x, y, z)
-    meets it, and the surface's velocity there (turning at omega about a)."""
+def about_axis(x, y, z, px, py, pz, ax, ay, az):
+    """(h, d, dx, dy, dz, ex, ey, ez): the point (x, y, z) seen from the axis through p along the unit a:
+    its height h along a, its distance d from the axis, the part (dx, dy, dz) of x - p across a and the
+    radial unit e (a centre on the axis, where every radial direction is as near: one across the axis)."""
     rx = x - px
     ry = y - py
     rz = z - pz
@@ -86,6 +86,15 @@ def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
         ex /= norm
         ey /= norm
         ez /= norm
+    return h, d, dx, dy, dz, ex, ey, ez
+
+
+@njit(**KERNEL_OPTIONS)
+def cylinder_plane(x, y, z, px, py, pz, ax, ay, az, rc, side, omega):
+    """(plane, nx, ny, nz, ux, uy, uz): the tangent plane x.n = plane of the cylinder (axis through p
+    along the unit a, radius rc, side +1 inside, -1 outside) where the sphere centred at (x, y, z)
+    meets it, and the surface's velocity there (turning at omega about a)."""
+    h, d, dx, dy, dz, ex, ey, ez = about_axis(x, y, z, px, py, pz, ax, ay, az)
     sx = px + h * ax + rc * ex
     sy = py + h * ay + rc * ey
     sz = pz + h * az + rc * ez
@@ -111,27 +120,7 @@ def cone_plane(x, y, z, px, py, pz, ax, ay, az, sn, cs, s0, s1, side, omega):
     point Q is the end of the generator (the rim circle at s0 or s1, the apex when s0 = 0 and t < 0):
     an edge or vertex contact with normal (x - Q)/|x - Q|. A centre on the axis takes one direction
     across the axis (every one is as near)."""
-    rx = x - px
-    ry = y - py
-    rz = z - pz
-    h = rx * ax + ry * ay + rz * az
-    dx = rx - h * ax
-    dy = ry - h * ay
-    dz = rz - h * az
-    d = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if d > 0.0:
-        ex = dx / d
-        ey = dy / d
-        ez = dz / d
-    else:  # a centre on the axis: every radial direction is as near; take one across the axis
-        if abs(ax) < 0.9:
-            ex, ey, ez = 0.0, -az, ay
-        else:
-            ex, ey, ez = az, 0.0, -ax
-        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
-        ex /= norm
-        ey /= norm
-        ez /= norm
+    h, d, dx, dy, dz, ex, ey, ez = about_axis(x, y, z, px, py, pz, ax, ay, az)
     # (a centre within rounding of the axis has a radial direction of rounding noise, not across the
     # axis: take its part across, so that the normal below is a unit vector)
     across = ex * ax + ey * ay + ez * az
