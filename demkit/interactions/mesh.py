@@ -174,6 +174,7 @@ class MeshWall(Wall):
             if value is not None and not (math.isfinite(float(value)) and float(value) > 0.0):
                 raise ValueError(f"MeshWall {name} must be positive and finite, got {value!r}")
         # the plane wall's attributes: a placeholder plane through the turning point along the axis
+        self.angular_velocity = omega  # (before the contact law is adopted: a turning wall's functions)
         super().__init__(point, axis, velocity=velocity, contact=contact, amplitude=amplitude, frequency=frequency)
         self.axis = self.normal
         self.angular_velocity = omega
@@ -185,6 +186,11 @@ class MeshWall(Wall):
     def steady(self):
         """A mesh always has a geometry block (its triangles and grid)."""
         return False
+
+    def spin(self):
+        """The mesh's own angular velocity, omega a (rolling and twisting resistance act on the sphere's
+        spin relative to it)."""
+        return self.angular_velocity * self.axis
 
     @property
     def travels(self):
@@ -290,13 +296,6 @@ class MeshWall(Wall):
             raise ValueError(f"{self!r}: a sphere of radius {largest:.6g} is larger than the reach its grid was built "
                              f"for ({self.reach:.6g}): it could touch triangles its cell does not list; give "
                              f"MeshWall(..., reach=...) the largest radius")
-        law = getattr(self, "law", None)
-        if self.angular_velocity != 0.0 and law is not None:
-            for part in ("rolling", "twisting"):
-                if getattr(law, part, None) is not None:
-                    raise ValueError(f"{self!r} turns, and its contact law {law!r} has {part} resistance, which acts "
-                                     f"on the sphere's spin against a wall that does not turn: not available for a "
-                                     f"turning mesh (leave out {part}, or the mesh's angular_velocity)")
         super().check(particles, time)
 
     def check_box(self, box):
