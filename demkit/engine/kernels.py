@@ -461,8 +461,7 @@ class _Source:
     @staticmethod
     def plane_of(geometry, q):
         """An effect's parameter names ``q``; with a geometry block (``geometry``: its slot's expression, or
-        None) the first nine replaced by the plane the wall presents to sphere i and the next two parameters
-        (:meth:`wall_plane_line`)."""
+        None) the first nine replaced by the wall's plane for sphere i and two parameters (:meth:`wall_plane_line`)."""
         return list(WALL_PLANE) + list(q[len(WALL_PLANE):]) if geometry is not None else q
 
     @staticmethod
