@@ -183,14 +183,8 @@ def cone_curvature(x, y, z, px, py, pz, ax, ay, az, sn, cs, s0, s1, side):
     """The cone's curvature across its generator where the sphere centred at (x, y, z) touches its face,
     -side cos(alpha) / r (r the contact point's distance from the axis: concave inside); 0 on a rim or
     the apex (an edge: the contact radius stays the sphere's)."""
-    rx = x - px
-    ry = y - py
-    rz = z - pz
-    h = rx * ax + ry * ay + rz * az
-    dx = rx - h * ax
-    dy = ry - h * ay
-    dz = rz - h * az
-    t = h * cs + math.sqrt(dx * dx + dy * dy + dz * dz) * sn
+    h, d, _, _, _, _, _, _ = about_axis(x, y, z, px, py, pz, ax, ay, az)
+    t = h * cs + d * sn
     if t < s0 or t > s1 or t <= 0.0:
         return 0.0
     return -side * cs / (t * sn)
