@@ -374,12 +374,7 @@ class _Export:
         across = [i for i in range(3) if i != a]
         centre = " ".join(g17(cylinder.point[i]) for i in across)
         side = "in" if cylinder.inside else "out"
-        lines = []
-        turn = ""
-        if cylinder.angular_velocity != 0.0:
-            lines.append(f"variable    turn{k} equal {g17(cylinder.angular_velocity)}*time")
-            point, axis = " ".join(map(g17, cylinder.point)), " ".join(map(g17, cylinder.axis))
-            turn = f" rotate v_turn{k} {point} {axis}"
+        lines, turn = self.turning(k, cylinder)
         lines.append(f"region      drum{k} cylinder {'xyz'[a]} {centre} {g17(cylinder.radius)} INF INF side {side} "
                      f"units box{turn}")
         lines.append(f"fix         wall{k} mobile wall/gran/region granular {self.granular_model(cylinder.law, wall=True)} "
