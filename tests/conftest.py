@@ -19,6 +19,26 @@ SHIPPED_THRESHOLDS = {name: getattr(dk.engine.tiers, name) for name in ("WORTH_C
 for _name in SHIPPED_THRESHOLDS:
     setattr(dk.engine.tiers, _name, float("inf"))
 
+#: the tests that open the second half of the collection. With -n 2 (--dist worksteal) each worker starts
+#: on its half of the collection; both opening on tier 1 left one waiting ~35 s for the other's compile of
+#: the same generic pieces (a function is compiled once by the processes sharing a cache). These compile
+#: scenes' own code (tier 2) first, beside the first worker's tier 1.
+SECOND_HALF_OPENS = ("tests/test_tiers.py::test_small_scene_with_multiple_time_steps_same_bits",
+                     "tests/test_analysis.py::test_final_spin_on_a_real_run",
+                     "tests/test_analysis.py::test_outcome_on_clear_cases[setup3-stick]")
+
+
+def pytest_collection_modifyitems(config, items):
+    """SECOND_HALF_OPENS moved to the front of the collection's second half (every worker collects the
+    same order); a run of a few files keeps its order."""
+    moved = [item for name in SECOND_HALF_OPENS for item in items if item.nodeid == name]
+    if len(moved) < len(SECOND_HALF_OPENS):
+        return
+    rest = [item for item in items if item not in moved]
+    half = len(items) // 2
+    items[:] = rest[:half] + moved + rest[half:]
+
+
 R_PAPER = 6.94
 V_PAPER = 5.78e-3
 

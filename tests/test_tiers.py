@@ -82,8 +82,10 @@ def outcome(scene, integrator, duration, switch=False, diagnostics=False):
 
 
 def same_bits(make, integrator, duration, diagnostics=False):
-    a = outcome(make(1), integrator, duration, diagnostics=diagnostics)[1]
+    # tier 2 first: a worker opening the suite on this test compiles the scene's own code while the
+    # other compiles the generic module (tests/conftest.py's SECOND_HALF_OPENS)
     b = outcome(make(2), integrator, duration, diagnostics=diagnostics)[1]
+    a = outcome(make(1), integrator, duration, diagnostics=diagnostics)[1]
     assert a.shape == b.shape
     assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ between the tiers"
     return a

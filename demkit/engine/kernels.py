@@ -32,7 +32,7 @@ from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
                        PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments,
                        _pair_call, _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums,
-                       function_imports, piece_prelude)
+                       as_int64, function_imports, piece_prelude)
 from .state import DEEP_OVERLAP_FRACTION
 
 
@@ -354,9 +354,9 @@ class _Source:
         ``table``: the expression of its table's slot)."""
         args = ["i", "x", "y", "z", *effect.reads]
         if effect.history_size:
-            args += ["history", "i", str(offset), "commit" if kind == "force" else "False"]
+            args += ["history", "i", as_int64(offset), "commit" if kind == "force" else "False"]
         if e in self.table_slot:
-            args += ["params", table or str(self.table_slot[e])]
+            args += ["params", as_int64(table or self.table_slot[e])]
         args += q if q is not None else [f"q{e}_{m}" for m in range(len(effect.parameters))]
         return f"s{kind}_{e}({', '.join(_callable_arguments(effect, args))})"
 
@@ -436,7 +436,7 @@ class _Source:
                     pad = "    "
                     call += deep_wall_overlap(index)
                     if servo:  # its push and stiffness, for its step (servo_add: nothing for the others)
-                        call += [f"servo_add(params, {geometry}, ax, ay, az, {q[1]}, {q[2]}, {q[3]}, overlap)"]
+                        call += [f"servo_add(params, {as_int64(geometry)}, ax, ay, az, {q[1]}, {q[2]}, {q[3]}, overlap)"]
                 call += effect_sums(effect.torque, effect.dissipative)
                 return lines + [pad + line for line in call]
             return body
@@ -444,7 +444,7 @@ class _Source:
         lines = ["", "", "@njit(**INNER)",
                  f"def sphere_forces({ARRAYS}, force, torque, history, commit):",
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
-                 "    power = 0.0"] + [f"    servo_clear(params, {g})" for g in self.servo_slots()] + head
+                 "    power = 0.0"] + [f"    servo_clear(params, {as_int64(g)})" for g in self.servo_slots()] + head
         for e, last in runs:
             lines += effect_lines(e, last, force_body(e, last))
         lines.append("    return power")
@@ -467,7 +467,7 @@ class _Source:
     @staticmethod
     def wall_plane_line(geometry, q):
         """The line setting the plane presented to sphere i by a wall with its block at ``geometry`` (as tier 1's)."""
-        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, radius[i], params, {geometry}, clock[0], "
+        return (f"{', '.join(WALL_PLANE)} = wall_plane(x, y, z, radius[i], params, {as_int64(geometry)}, clock[0], "
                 f"{', '.join(q[:len(WALL_PLANE)])})")
 
     # ---- scene-level functions -----------------------------------------------------------------
@@ -643,7 +643,7 @@ class _Source:
                 lines += ["        if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
-        lines += [f"    servo_step(s.params, {g}, s.clock[0])" for g in self.servo_slots()]  # servo-controlled walls move
+        lines += [f"    servo_step(s.params, {as_int64(g)}, s.clock[0])" for g in self.servo_slots()]  # servo-controlled walls move
         lines += END_STEP_TAIL
         return lines
 

@@ -46,12 +46,20 @@ def _state_arrays(g, scratch=False):
     return f"{fields}, {{targets}}{lists}" + (", s.scratch, s.gather" if scratch else "")
 
 
+def as_int64(value):
+    """An integer argument of a generated call: a constant as ``np.int64(c)``, a name as it is. numba
+    compiles a helper a constant reaches (not inlined: friction, a wall's plane) once for each value,
+    as Literal[int](c): a fused module of a walled scene compiled the walls' plane three times more."""
+    text = str(value)
+    return f"np.int64({text})" if text.lstrip("-").isdigit() else text
+
+
 def _pair_call(k, inter, offset, kind, owner="i", fields=""):
     """Source of the call to interaction k's force or energy function. ``owner`` is the index of
     particle i in the field arrays, which are named ``fields + <field name>``."""
     args = [owner, "j", "dx", "dy", "dz", "r2", *(fields + name for name in inter.reads)]
     if inter.history_size:
-        args += ["history", "p", str(offset), "commit" if kind == "force" else "False"]
+        args += ["history", "p", as_int64(offset), "commit" if kind == "force" else "False"]
     args += [f"p{k}_{n}" for n in range(len(inter.parameters))]
     return f"{kind}_{k}({', '.join(_callable_arguments(inter, args))})"
 
