@@ -30,6 +30,7 @@ stopped by a small change, and one that reaches twice a limit can no longer be t
 """
 from __future__ import annotations
 
+import itertools
 import math
 import weakref
 
@@ -61,6 +62,9 @@ MAGNET_REACH = 2.0
 #: polydisperse scene) are checked each against the extreme ones (largest moment, smallest radius,
 #: mass, inertia)
 KINDS_MAX = 64
+#: scenes with up to this many plane walls find the lowest place a sphere can fall to by enumeration
+#: (lowest_place), more by scipy's linear programming
+ENUMERATED_WALLS = 8
 #: without a contact law, the dipoles are checked at the closest pair now, but at most this many
 #: largest diameters apart
 DIPOLE_REACH = 2.0
@@ -145,7 +149,7 @@ def fall_heights(scene):
 
     The lowest place is that of the smallest sphere (radius R_min, so that the bound holds for all)
     in the region the walls leave it, {x : (x - p_w).n_w >= R_min for every wall w}: the largest
-    x.g/|g| there, a linear programme (scipy.optimize.linprog; a flat floor under a walled box
+    x.g/|g| there, a linear programme (:func:`lowest_place`; a flat floor under a walled box
     gives its height + R_min, a V-shaped trough the bottom of the V). h_i = max(0, lowest - x_i.g/|g|).
     An open box does not stop spheres (docs/stability.md), so only walls count."""
     p = scene.particles
@@ -162,13 +166,34 @@ def fall_heights(scene):
                  f"not bound the impact speed (checked while stepping)")
     if not len(walls) or not np.any(normals @ down < 0.0):
         return None, size, unbounded
-    from scipy.optimize import linprog
-    plane = np.array([w.plane for w in walls]) + float(np.min(p.radius))
-    found = linprog(-down, A_ub=-normals, b_ub=-plane, bounds=[(None, None)] * 3, method="highs")
-    if found.status != 0:  # unbounded (a tilted floor with nothing at its foot), or no room at all
+    lowest = lowest_place(normals, np.array([w.plane for w in walls]) + float(np.min(p.radius)), down)
+    if lowest is None:  # unbounded: a tilted floor with nothing at its foot
         return None, size, unbounded
-    lowest = float(down @ found.x)
     return np.maximum(lowest - p.position @ down, 0.0), size, ""
+
+
+def lowest_place(normals, planes, down):
+    """The largest x.down over {x : n_w.x >= b_w for every w} (``normals`` (m, 3), ``planes`` b (m,)),
+    or None when it has none (the walls do not stop a fall along ``down``). By linear programming
+    duality in three unknowns: the least -b.y over the ways of writing -down = sum_w y_w n_w, y >= 0,
+    with one, two or three walls (the dual's basic solutions; no way at all: unbounded). Exact where
+    the region has room; where it has none (walls closer than the smallest sphere's diameter, refused
+    by the overlap checks) an upper bound. Up to ENUMERATED_WALLS walls (at most 92 small solves)
+    without scipy.optimize, whose import cost the first step of every walled scene 0.3 CPU s."""
+    n, b, v = (np.asarray(x, dtype=float) for x in (normals, planes, -np.asarray(down, dtype=float)))
+    if len(n) > ENUMERATED_WALLS:
+        from scipy.optimize import linprog
+        found = linprog(v, A_ub=-n, b_ub=-b, bounds=[(None, None)] * 3, method="highs")
+        return float(-v @ found.x) if found.status == 0 else None
+    best = None
+    for k in (1, 2, 3):
+        for rows in itertools.combinations(range(len(n)), k):
+            a = n[list(rows)]
+            y = np.linalg.lstsq(a.T, v, rcond=None)[0]
+            if np.linalg.norm(a.T @ y - v) <= 1e-9 and (y >= -1e-12).all():
+                value = -float(b[list(rows)] @ y)
+                best = value if best is None else min(best, value)
+    return best
 
 
 def while_stepping(scene, integrator):

@@ -216,7 +216,8 @@ def test_the_table_lives_in_params_and_other_effects_are_called_as_before(magpy)
     assert start == 3 + 12 and np.array_equal(weak.params[start:], table)
     source = weak.fused_source()
     assert "sforce_0(i, x, y, z, dipole, q0_0, q0_1, q0_2)" in source
-    assert f"sforce_1(i, x, y, z, dipole, params, {start}, q1_0, " in source
+    # (the slot as np.int64: a literal would compile the helpers it reaches once more, engine.snippets.as_int64)
+    assert f"sforce_1(i, x, y, z, dipole, params, np.int64({start}), q1_0, " in source
     assert strong.kernels is weak.kernels  # same code, different params
     np.testing.assert_allclose(strong.forces()[0], 3 * weak.forces()[0], rtol=1e-12)
 
