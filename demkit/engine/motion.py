@@ -227,7 +227,7 @@ def state_is_finite(position, velocity, angular_velocity):
     return finite_sum(position) + finite_sum(velocity) + finite_sum(angular_velocity) == 0.0
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**dict(HELPER_OPTIONS, fastmath=False))  # once a frame: compiled once and called, not inlined
 def kinetic_energies(velocity, angular_velocity, mass, inertia):
     """(sum m v^2/2, sum I w^2/2); fixed spheres (infinite mass, at rest) count zero."""
     kin = 0.0
@@ -278,7 +278,7 @@ def clear(force, torque):
             torque[i, a] = 0.0
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**dict(HELPER_OPTIONS, fastmath=False))  # once a frame: compiled once and called, not inlined
 def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mass, inertia, box, periodic,
                 record):
     """Copy the state into frame k of the record arrays, particle i at row tag[i] (the user's order).
@@ -381,11 +381,11 @@ kick_all_called = _called(kick_all)
 #: reassociation alone (no flag that lets the compiler assume finite values, which would fold x - x to 0)
 FINITE_CHECK_MATH = {"reassoc"}
 state_is_finite_called = njit(**dict(HELPER_OPTIONS, fastmath=FINITE_CHECK_MATH))(state_is_finite.py_func)
-kinetic_energies_called = _called(kinetic_energies)
+kinetic_energies_called = kinetic_energies  # (called by every scene: once a frame)
 copy_vectors_called = _called(copy_vectors)
 total_forces_called = _called(total_forces)
 clear_called = _called(clear)
-store_frame_called = _called(store_frame)
+store_frame_called = store_frame  # (called by every scene: once a frame)
 sum_chunks_called = _called(sum_chunks)
 
 
