@@ -58,7 +58,7 @@ from numba import njit
 
 from ..engine.motion import KERNEL_OPTIONS
 from .base import positive
-from .special_functions import screened
+from .special_functions import erfc_scaled, screened
 from .slab import Layer, check_layer, gap_error, gap_for, layer_terms, open_axis, table_entries, thick_box_hint
 
 SURFACES = ("metallic", "vacuum")
@@ -265,18 +265,15 @@ def self_field(prefactor, alpha, dipole):
     return prefactor * 4.0 * alpha ** 3 / (3.0 * math.sqrt(math.pi)) * np.asarray(dipole)
 
 
-#: math.erfc over an array
-_ERFC = np.vectorize(math.erfc, otypes=[float])
-
-
 def screening(alpha, r):
-    """B(r), C(r), D(r) of the real-space pair (module docstring), numpy arrays over r (erfc by the
-    standard library's, element by element: scipy.special's import cost every new Ewald or P3M scene
-    0.27 CPU s, more than its tuning's erfc)."""
+    """B(r), C(r), D(r) of the real-space pair (module docstring), numpy arrays over r (erfc as the pair
+    loops', erfcx(x) exp(-x^2), demkit.interactions.special_functions, in numpy: scipy.special's import
+    cost every new Ewald or P3M scene 0.27 CPU s)."""
     ar = np.asarray(alpha * r, dtype=float)
     a2r2 = ar * ar
-    gauss = 2.0 / math.sqrt(math.pi) * ar * np.exp(-a2r2)
-    e = _ERFC(ar)
+    gaussian = np.exp(-a2r2)
+    gauss = 2.0 / math.sqrt(math.pi) * ar * gaussian
+    e = erfc_scaled.py_func(ar) * gaussian
     return ((e + gauss) / r ** 3, (3.0 * e + gauss * (3.0 + 2.0 * a2r2)) / r ** 5,
             (15.0 * e + gauss * (15.0 + a2r2 * (10.0 + 4.0 * a2r2))) / r ** 7)
 
