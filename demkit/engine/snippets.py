@@ -3,6 +3,8 @@ arrays a piece reads, list upkeep, recording a frame, the end of a step, deep-ov
 effect's outputs."""
 from __future__ import annotations
 
+import numpy as np
+
 from .state import DEEP_OVERLAP_FRACTION
 
 
@@ -46,14 +48,57 @@ def _state_arrays(g, scratch=False):
     return f"{fields}, {{targets}}{lists}" + (", s.scratch, s.gather" if scratch else "")
 
 
-def _pair_call(k, inter, offset, kind, owner="i", fields=""):
+def _pair_call(k, inter, offset, kind, owner="i", fields="", shift=False):
     """Source of the call to interaction k's force or energy function. ``owner`` is the index of
-    particle i in the field arrays, which are named ``fields + <field name>``."""
+    particle i in the field arrays, which are named ``fields + <field name>``. ``shift`` (a sheared
+    box): a force function that takes ``vshift`` is given the sliding image's (sx, sy, sz)."""
     args = [owner, "j", "dx", "dy", "dz", "r2", *(fields + name for name in inter.reads)]
     if inter.history_size:
         args += ["history", "p", str(offset), "commit" if kind == "force" else "False"]
     args += [f"p{k}_{n}" for n in range(len(inter.parameters))]
+    if shift and kind == "force" and takes_shift(inter.pair_functions()[0]):
+        args.append(SHIFT)
     return f"{kind}_{k}({', '.join(_callable_arguments(inter, args))})"
+
+
+#: the velocity shift of the sliding image, the last argument of a law that takes ``vshift``
+SHIFT = "(sx, sy, sz)"
+
+
+def takes_shift(function):
+    """Does this pair force function take the velocity shift of a sliding image (``vshift``)?"""
+    import inspect
+    return "vshift" in inspect.signature(getattr(function, "py_func", function)).parameters
+
+
+def shear_prelude(plan, slot):
+    """Tier 2's lines binding the sliding images' numbers in a pair loop of a sheared box (the axes
+    written in; tier 1 reads them from the shear block): the offset delta at the clock, the jump u,
+    the lengths of the flow, gradient and third axes."""
+    a, b = plan.shear.axes
+    return [f"    sh = {slot}", "    delta = shear_offset(params, sh, box, clock[0])", "    jump = params[sh + 2]",
+            f"    la = box[{a}]", f"    lb = box[{b}]", f"    lc = box[{3 - a - b}]",
+            "    sx = 0.0", "    sy = 0.0", "    sz = 0.0"]
+
+
+def shear_slot_after(plan, slot):
+    """The slot of a sheared box's block in params (after the induction table, which starts at ``slot``)."""
+    if plan.shear is None:
+        return None
+    return slot + (0 if plan.induction is None else int(np.size(plan.induction.table_values())))
+
+
+def sheared_line(plan, pad, shift=True):
+    """Tier 2's :func:`shear_geometry` line, the axes and the third axis's periodicity written in."""
+    a, b = plan.shear.axes
+    return shear_geometry(pad, a, b, bool(plan.periodic[3 - a - b]), shift)
+
+
+def shear_geometry(pad, a, b, pc, shift=True):
+    """The line taking (dx, dy, dz) to the nearest Lees-Edwards image (demkit.engine.shear.sheared_image),
+    with the velocity shift (sx, sy, sz) unless ``shift`` is False."""
+    outs = "sx, sy, sz" if shift else "_sx, _sy, _sz"
+    return f"{pad}dx, dy, dz, {outs} = sheared_image(dx, dy, dz, {a}, {b}, la, lb, delta, jump, {pc}, lc)"
 
 
 def function_imports(pairs, effects):
@@ -161,6 +206,15 @@ def chunks_run(loop, call):
             "            sum_chunks(torque, chunk_torque, chunks - 1)",
             "    power = 0.0", "    for t in range(chunks):", "        power += chunk_power[t]",
             "    return power"]
+
+
+def deep_pair_overlap(pad):
+    """Lines flagging DEEP_OVERLAP in ``status`` for a pair overlapping by more than DEEP_OVERLAP_FRACTION
+    of the smaller radius (a contact too soft to stop it: the spheres would tunnel through)."""
+    return [f"{pad}small = radius[i] if radius[i] < radius[j] else radius[j]",
+            f"{pad}deep = radius[i] + radius[j] - {DEEP_OVERLAP_FRACTION!r} * small",
+            f"{pad}if r2 < deep * deep and status[0] == OK:",
+            f"{pad}    status[0] = DEEP_OVERLAP", f"{pad}    status[1] = i", f"{pad}    status[3] = j"]
 
 
 def deep_wall_overlap(index):
