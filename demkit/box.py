@@ -42,7 +42,7 @@ class Shear:
         if not math.isfinite(float(rate)):
             raise ValueError(f"Shear rate must be finite, got {rate!r}")
         for name, axis in (("flow", flow), ("gradient", gradient)):
-            if axis not in AXES or not isinstance(axis, str):
+            if not isinstance(axis, str) or len(axis) != 1 or axis not in AXES:
                 raise ValueError(f"Shear {name} axis must be 'x', 'y' or 'z', got {axis!r}")
         if flow == gradient:
             raise ValueError(f"Shear flow and gradient axes must differ, got both {flow!r}")
