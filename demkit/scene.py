@@ -644,7 +644,7 @@ class Scene(SceneDiagnostics):
     def separations(self, pairs):
         """Centre-to-centre vectors x_j - x_i (minimum image) of index pairs (P, 2)."""
         d = self.particles.position[pairs[:, 1]] - self.particles.position[pairs[:, 0]]
-        return self.box.minimum_image(d) if self.box is not None else d
+        return self.box.minimum_image(d, self.time) if self.box is not None else d
 
     def validate(self):
         """Raise ValueError for non-finite state, coincident or deeply overlapping spheres, spheres
