@@ -332,6 +332,11 @@ damping = 2.0
 coefficient = 0.5
 [interactions.rolling_resistance]
 coefficient = 0.05
+[integrator]
+method = "VelocityVerlet"
+dt = 0.001
+[run]
+duration = 5.0
 """
     loaded = dk.parse_scene(text)
     assert loaded.scene.box.shear == dk.Shear(RATE, "x", "y")
