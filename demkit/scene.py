@@ -28,7 +28,7 @@ from .engine.modules import build_module, build_pieces
 from .engine.plan import BLOCK, GATHER_ROWS, Group, Plan, energy_kinds, importable
 from .engine.motion import empty_vectors
 from .engine.notice import compile_estimate, compile_notice
-from .engine.shear import wrap_sheared
+from .engine.shear import list_frame, wrap_sheared
 from .engine.state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, TupleStateModule,
                            make_pair_list, make_state, new_pair_list, touch_getters)
 from .engine.templates import TEMPLATES
@@ -638,7 +638,9 @@ class Scene(SceneDiagnostics):
             return np.column_stack([i[close], j[close]]).astype(np.int64)
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
-        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"])
+        sliding = () if self.shear_slot is None else (  # a sheared box: the sliding images at the scene's clock
+            list_frame(self.params, self.shear_slot, self.arrays["box"], float(self.clock[0])),)
+        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"], *sliding)
         return neighbours.pairs_of(pl, index)
 
     def separations(self, pairs):

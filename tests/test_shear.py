@@ -351,3 +351,30 @@ duration = 5.0
     again = load_trajectory(tmp_path / "run.npz")
     assert again.box.shear == a.box.shear
     assert np.array_equal(again.unwrapped(), a.unwrapped())
+
+
+def test_overlaps_across_the_sliding_boundary_are_found_before_a_run():
+    """The scene's check of its start finds spheres overlapping through a sliding image (delta = 0 at
+    t = 0: the image of the sphere at y = 0.3 sits straight above it, across y = L)."""
+    box = dk.Box(L, periodic=True, shear=dk.Shear(RATE, "x", "y"))
+    p = dk.Particles(position=[[5.0, 9.8, 5.0], [5.0, 0.3, 5.0]], radius=0.5, mass=1.0)
+    with pytest.raises(ValueError, match="overlap"):
+        dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0)], box=box)
+
+
+def test_a_sheared_gas_gives_the_same_bits_on_one_thread_and_on_all():
+    """The pair loops' chunks and the list build's chunks (the sliding images in each chunk's cells) on
+    numba's threads give the bits of the same chunks run on one thread."""
+    import numba
+    finals = []
+    before = numba.get_num_threads()
+    try:
+        for threads in (1, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            scene = sheared_gas(1, parallel=True)
+            assert scene.chunks > 1 or numba.config.NUMBA_NUM_THREADS == 1
+            dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(duration=0.2, progress=False)
+            finals.append((scene.particles.position.copy(), scene.particles.velocity.copy()))
+    finally:
+        numba.set_num_threads(before)
+    assert finals[0][0].tobytes() == finals[1][0].tobytes() and finals[0][1].tobytes() == finals[1][1].tobytes()
