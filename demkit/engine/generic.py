@@ -54,7 +54,7 @@ from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
-                       deep_pair_overlap, effect_sums, piece_prelude, shear_geometry)
+                       deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -252,7 +252,8 @@ class _Generic:
                 f"{inner}{gather}[2, u + 1] = position[j, 2]",
                 f"{inner}{gather}[3, u + 1] = dipole[j, 0]", f"{inner}{gather}[4, u + 1] = dipole[j, 1]",
                 f"{inner}{gather}[5, u + 1] = dipole[j, 2]",
-                f"{pad}        for u in range(m):"]
+                f"{pad}        if sheared:  # the partners moved to their nearest sliding images (shear_gather)"]
+        body += shear_gather(pad + " " * 12, gather, "sa", "sb", "pc") + [f"{pad}        for u in range(m):"]
         body += [f"{inner}{out}[{c}, u] = 0.0" for c in range(9)]
         body += [f"{pad}        for mm in range(count):"]
         body += self.member(inner)
@@ -265,9 +266,8 @@ class _Generic:
             lines = [f"q{m} = params[slot + {m}]" for m in range(law.parameters)]
             lines += ["for u in range(m):", "    j = u + 1",
                      f"    dx = {gather}[0, j] - xi", f"    dy = {gather}[1, j] - yi", f"    dz = {gather}[2, j] - zi"]
-            lines += ["    if sheared:", shear_geometry("        ", "sa", "sb", "pc", shift=False), "    else:"]
             for axis in "xyz":
-                lines += [f"        if p{axis}:", f"            d{axis} -= l{axis} * np.rint(d{axis} * il{axis})"]
+                lines += [f"    if p{axis}:", f"        d{axis} -= l{axis} * np.rint(d{axis} * il{axis})"]
             lines += ["    r2 = dx * dx + dy * dy + dz * dz",
                       f"    {', '.join(outs)} = {_pair_call(law, 'force', owner='0', prefix='g_', held=True)}",
                       "    keep = 1.0 if r2 < c else 0.0"]

@@ -32,7 +32,8 @@ from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
                        PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments,
                        _pair_call, _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums,
-                       deep_pair_overlap, function_imports, piece_prelude, shear_prelude, shear_slot_after, sheared_line)
+                       deep_pair_overlap, function_imports, piece_prelude, shear_prelude, shear_slot_after, sheared_gather,
+                       sheared_line)
 
 
 class _Source:
@@ -223,15 +224,14 @@ class _Source:
                  f"{inner}j = np.uint32(partner[b0 + u])",
                  f"{inner}{gather}[0, u + 1] = position[j, 0]", f"{inner}{gather}[1, u + 1] = position[j, 1]",
                  f"{inner}{gather}[2, u + 1] = position[j, 2]"]
-        body += copy("j", "u + 1", inner)
+        body += copy("j", "u + 1", inner) + sheared_gather(self.plan, pad + " " * 8, gather)
         body += [f"{pad}        for u in range(m):",
                  f"{inner}j = u + 1",
                  f"{inner}dx = {gather}[0, j] - xi", f"{inner}dy = {gather}[1, j] - yi",
                  f"{inner}dz = {gather}[2, j] - zi"]
-        for a, axis in enumerate("xyz") if self.plan.shear is None else ():
+        for a, axis in enumerate("xyz"):
             if self.plan.periodic[a]:
                 body.append(f"{inner}d{axis} -= l{axis} * np.rint(d{axis} * il{axis})")
-        body += [sheared_line(self.plan, inner, False)] if self.plan.shear is not None else []
         body.append(f"{inner}r2 = dx * dx + dy * dy + dz * dz")
         body += [f"{inner}{c} = 0.0" for c in cols]
         for k, inter in group.members:

@@ -94,6 +94,25 @@ def sheared_line(plan, pad, shift=True):
     return shear_geometry(pad, a, b, bool(plan.periodic[3 - a - b]), shift)
 
 
+def shear_gather(pad, gather, a, b, pc):
+    """A pass of the blocked (dipole) loops over a block's gathered partners, before the loop the
+    compiler vectorises: each partner moved to its sliding image nearest the owner, x_i + d, so that the
+    vectorised loop, as in any periodic box, finds it there (its rint minimum image then shifts
+    nothing) and keeps no branch of the shear (in tier 1 it ran 15-25 % slower with one per pair)."""
+    return [f"{pad}for u in range(m):", f"{pad}    dx = {gather}[0, u + 1] - xi", f"{pad}    dy = {gather}[1, u + 1] - yi",
+            f"{pad}    dz = {gather}[2, u + 1] - zi", shear_geometry(pad + "    ", a, b, pc, shift=False),
+            f"{pad}    {gather}[0, u + 1] = xi + dx", f"{pad}    {gather}[1, u + 1] = yi + dy",
+            f"{pad}    {gather}[2, u + 1] = zi + dz"]
+
+
+def sheared_gather(plan, pad, gather):
+    """Tier 2's :func:`shear_gather`, the axes written in (no lines where the box does not shear)."""
+    if plan.shear is None:
+        return []
+    a, b = plan.shear.axes
+    return shear_gather(pad, gather, a, b, bool(plan.periodic[3 - a - b]))
+
+
 def shear_geometry(pad, a, b, pc, shift=True):
     """The line taking (dx, dy, dz) to the nearest Lees-Edwards image (demkit.engine.shear.sheared_image),
     with the velocity shift (sx, sy, sz) unless ``shift`` is False."""
