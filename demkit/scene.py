@@ -639,7 +639,7 @@ class Scene(SceneDiagnostics):
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
         sliding = () if self.shear_slot is None else (  # a sheared box: the sliding images at the scene's clock
-            list_frame(self.params, self.shear_slot, self.arrays["box"], float(self.clock[0])),)
+            list_frame(self.params, self.shear_slot, self.arrays["box"], float(self.clock[0]), 0.0),)
         neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"], *sliding)
         return neighbours.pairs_of(pl, index)
 

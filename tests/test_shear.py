@@ -378,3 +378,31 @@ def test_a_sheared_gas_gives_the_same_bits_on_one_thread_and_on_all():
     finally:
         numba.set_num_threads(before)
     assert finals[0][0].tobytes() == finals[1][0].tobytes() and finals[0][1].tobytes() == finals[1][1].tobytes()
+
+
+def test_the_lists_hold_every_pair_through_the_sliding_images():
+    """At a fast shear (the images slide at u = 3 L = 45 per time unit, 15 skins per 0.1) the pairs the
+    dipole loop acts on are exactly those within its cutoff under the sliding images, found here by
+    brute force over all pairs with dk.Box.minimum_image at the scene's time (1e-9 of the cutoff left
+    for rounding at the edge), and their separations are the brute force's to round-off. The lists,
+    which cover 3 skins of sliding ahead, were rebuilt 11 times in the 120 steps (20 when they covered
+    none)."""
+    scene = sheared_gas(1, rate=3.0)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    n = len(scene.particles)
+    i, j = np.triu_indices(n, k=1)
+    for _ in range(6):
+        sim.run(duration=0.02, progress=False)
+        x, t = scene.particles.position, scene.time
+        d = scene.box.minimum_image(x[j] - x[i], t)
+        r = np.linalg.norm(d, axis=1)
+        inter, pairs, sep, _ = scene.pair_forces()[0]
+        assert isinstance(inter, dk.Dipole)
+        listed = {(min(a, b), max(a, b)): (s if a < b else -s) for (a, b), s in zip(pairs.tolist(), sep)}
+        inside = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 - 1e-9}
+        near = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 + 1e-9}
+        assert inside <= set(listed) <= near
+        truth = dict(zip(zip(i.tolist(), j.tolist()), d))
+        worst = max(np.abs(listed[key] - truth[key]).max() for key in listed)
+        assert worst < 1e-9
+    assert scene.counters[0] >= 5, "the lists were rebuilt as the images slid (11 times in 120 steps)"

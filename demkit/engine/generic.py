@@ -445,10 +445,10 @@ class _Generic:
         lines += MAINTAIN_LISTS_HEAD[:test] + [
             "    sh = s.program[0, H_SHEAR]",
             "    if sh >= 0:",
-            "        if 2.0 * math.sqrt(d2) + slide_since_build(s.params, sh, s.box, s.clock[0]) <= s.skin:",
+            "        if 2.0 * math.sqrt(d2) + slide_since_build(s.params, sh, s.box, s.clock[0], s.skin) <= s.skin:",
             "            return",
             "    el" + MAINTAIN_LISTS_HEAD[test].lstrip()] + MAINTAIN_LISTS_HEAD[test + 1:]
-        lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0])"]
+        lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
                       f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le)"]
@@ -467,7 +467,7 @@ class _Generic:
         lines += PERMUTE_BY_ORDER
         lines += ["    if s.sphere_history.shape[1] > 0:",
                   "        permute_rows(s.sphere_history, order)"]
-        lines += ["    sh = s.program[0, H_SHEAR]", "    le = list_frame(s.params, sh, s.box, s.clock[0])"]
+        lines += ["    sh = s.program[0, H_SHEAR]", "    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",

@@ -230,17 +230,18 @@ def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo
 
 @njit(**HELPER)
 def sheared_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, radius, le, lo, hi, image):
-    """:func:`neighbour_ranges` under Lees-Edwards images (le = [a, b, delta]): cell by cell (no
+    """:func:`neighbour_ranges` under Lees-Edwards images (le = [a, b, delta, ahead]): cell by cell (no
     image shifts: the candidates take their sliding image one by one, :func:`sheared_hits`). Along
     the flow axis a, the cells around (cx, cy, cz) as usual for neighbouring cells that do not cross
     the gradient axis b, and around the cell shifted by -s delta for those that cross it s periods (both
-    signs where b has too few cells to tell), each cell once."""
+    signs where b has too few cells to tell; widened by the sliding covered ahead), each cell once."""
     a = int(le[0])
     b = int(le[1])
     c = 3 - a - b
     delta = le[2]
     own = (cx, cy, cz)
     size = box[a] / ncell[a]
+    extra = int(math.ceil(abs(le[3]) / size))  # cells the sliding covered ahead spans
     few_b = ncell[b] < 2 * radius + 1
     nr = 0
     for qb in range(counts[b, own[b]]):
@@ -256,8 +257,8 @@ def sheared_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, radi
                     width = counts[a, own[a]]
                     begin = 0
                 else:
-                    width = 2 * radius + 4
-                    begin = own[a] + int(math.floor(-sigma * delta / size)) - radius - 1
+                    width = 2 * radius + 4 + 2 * extra
+                    begin = own[a] + int(math.floor(-sigma * delta / size)) - radius - 1 - extra
                 for q in range(width):
                     ka = near[a, own[a], q] if sigma == 0 else (begin + q) % ncell[a]
                     kx = ka if a == 0 else (kb if b == 0 else kc)
@@ -281,8 +282,9 @@ def sheared_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, radi
 
 @njit(**HELPER)
 def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
-    """near_id[2, u]: is candidate u's nearest Lees-Edwards image (le = [a, b, delta]) closer than the
-    reach, and its tag above ti?"""
+    """near_id[2, u]: is candidate u's nearest Lees-Edwards image (le = [a, b, delta, ahead]) closer than
+    the reach, now or, across the sliding boundary, while delta slides on by ``ahead``, and its tag
+    above ti?"""
     a = int(le[0])
     b = int(le[1])
     c = 3 - a - b
@@ -302,6 +304,12 @@ def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
             shift = 1.0
         da = near_x[a, u] - own[a] + shift * delta
         da -= la * math.floor(da / la + 0.5)
+        if shift != 0.0 and le[3] != 0.0:  # the nearest it comes along a as the image slides ahead
+            lo = min(da, da + shift * le[3])
+            hi = max(da, da + shift * le[3])
+            da = la
+            for centre in (-la, 0.0, la):
+                da = min(da, 0.0 if lo <= centre <= hi else min(abs(lo - centre), abs(hi - centre)))
         dc = near_x[c, u] - own[c]
         if lc > 0.0:
             dc -= lc * math.floor(dc / lc + 0.5)
@@ -513,7 +521,10 @@ def start_build(pl, position, tag, box, periodic, le):
     chunks = pl.bounds.shape[0] - 1
     cells = np.empty(chunks + 1, dtype=np.int64)
     split_cells(cell_start, cells)
-    around = side**3 if le.shape[0] == 0 else side * side * (side + 2 * (2 * radius + 4))  # (sheared_ranges)
+    around = side**3  # (sheared_ranges: wider along the flow axis)
+    if le.shape[0] > 0:
+        extra = int(math.ceil(abs(le[3]) / (box[int(le[0])] / ncell[int(le[0])]))) + 1  # (one more than it uses)
+        around = side * side * (side + 2 * (2 * radius + 4 + 2 * extra))
     lo = np.empty((chunks, around), dtype=np.int64)
     hi = np.empty((chunks, around), dtype=np.int64)
     image = np.empty((chunks, around, 3))

@@ -28,6 +28,17 @@ from .neighbours import LOOP_OPTIONS, wrap
 #: the shear block in params: flow axis a, gradient axis b, jump u = gammadot L_b, offset at the last build
 SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT = range(4)
 SHEAR_VALUES = 4
+#: the lists take the pairs across the sliding boundary that come within reach while delta slides on by
+#: this many skins (at most L_a / 4) in the flow's direction: the sliding then uses up the skin that
+#: many times more slowly, for a few per cent more pairs (see slide_since_build)
+SLIDE_AHEAD = 3.0
+
+
+@njit(**LOOP_OPTIONS)
+def slide_ahead(params, sh, box, skin):
+    """The signed sliding the lists cover ahead, SLIDE_AHEAD skins (at most L_a / 4) in the direction of u."""
+    ahead = min(SLIDE_AHEAD * skin, 0.25 * box[int(params[sh + SH_FLOW])])
+    return ahead if params[sh + SH_JUMP] >= 0.0 else -ahead
 
 
 @njit(**KERNEL_OPTIONS)
@@ -69,25 +80,32 @@ def sheared_image(dx, dy, dz, a, b, la, lb, delta, u, pc, lc):
 
 
 @njit(cache=True)
-def list_frame(params, sh, box, t):
-    """The list builder's view of the shear: [a, b, delta(t)], or an empty array (sh < 0: no shear)."""
+def list_frame(params, sh, box, t, skin):
+    """The list builder's view of the shear: [a, b, delta(t), the sliding covered ahead
+    (:func:`slide_ahead`; 0 for a skin of 0)], or an empty array (sh < 0: no shear)."""
     if sh < 0:
         return np.zeros(0)
-    out = np.empty(3)
+    out = np.empty(4)
     out[0] = params[sh + SH_FLOW]
     out[1] = params[sh + SH_GRADIENT]
     out[2] = shear_offset(params, sh, box, t)
+    out[3] = slide_ahead(params, sh, box, skin)
     return out
 
 
 @njit(**LOOP_OPTIONS)
-def slide_since_build(params, sh, box, t):
-    """|change of delta since the lists were built|, reduced to the nearest image along a: how far
-    a pair across the sliding boundary has moved along a by the sliding alone."""
+def slide_since_build(params, sh, box, t, skin):
+    """How far a pair across the sliding boundary has moved along a by the sliding alone beyond what the
+    lists cover (:func:`slide_ahead`): the change of delta since the build, reduced to the nearest
+    image along a, less the sliding covered ahead when it goes that way."""
     la = box[int(params[sh + SH_FLOW])]
     dd = shear_offset(params, sh, box, t) - params[sh + SH_BUILT]
     dd -= la * math.floor(dd / la + 0.5)
-    return abs(dd)
+    ahead = slide_ahead(params, sh, box, skin)
+    forward = dd / ahead if ahead != 0.0 else -1.0  # the fraction of the covered sliding used up
+    if 0.0 <= forward <= 1.0:
+        return 0.0
+    return abs(dd) - abs(ahead) if forward > 1.0 else abs(dd)
 
 
 @njit(**LOOP_OPTIONS)
