@@ -289,30 +289,31 @@ def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
     b = int(le[1])
     c = 3 - a - b
     delta = le[2]
+    ahead = le[3]
     own = (xi, yi, zi)
+    xa, xb, xc = own[a], own[b], own[c]
+    ra, rb, rc = near_x[a], near_x[b], near_x[c]
     la = box[a]
     lb = box[b]
+    hb = 0.5 * lb
+    ila = 1.0 / la
     lc = box[c] if periodic[c] else 0.0
+    ilc = 1.0 / lc if lc > 0.0 else 0.0
+    # branch-free, so that the compiler vectorises it as the plain distance test (a loop with branches
+    # cost a sheared N = 8000 scene about 8 % of its steps in list builds)
     for u in range(k):
-        db = near_x[b, u] - own[b]
-        shift = 0.0
-        if db > 0.5 * lb:
-            db -= lb
-            shift = -1.0
-        elif db < -0.5 * lb:
-            db += lb
-            shift = 1.0
-        da = near_x[a, u] - own[a] + shift * delta
-        da -= la * math.floor(da / la + 0.5)
-        if shift != 0.0 and le[3] != 0.0:  # the nearest it comes along a as the image slides ahead
-            lo = min(da, da + shift * le[3])
-            hi = max(da, da + shift * le[3])
-            da = la
-            for centre in (-la, 0.0, la):
-                da = min(da, 0.0 if lo <= centre <= hi else min(abs(lo - centre), abs(hi - centre)))
-        dc = near_x[c, u] - own[c]
-        if lc > 0.0:
-            dc -= lc * math.floor(dc / lc + 0.5)
+        db = rb[u] - xb
+        shift = (1.0 if db < -hb else 0.0) - (1.0 if db > hb else 0.0)
+        db += shift * lb
+        da = ra[u] - xa + shift * delta
+        da -= la * math.floor(da * ila + 0.5)
+        # the nearest the interval [da, da + shift ahead] comes to 0 or to the images at -+la (a pair
+        # that does not cross: the interval is da itself)
+        lo = min(da, da + shift * ahead)
+        hi = max(da, da + shift * ahead)
+        da = min(max(0.0, max(lo, -hi)), min(max(0.0, max(lo - la, la - hi)), max(0.0, max(lo + la, -la - hi))))
+        dc = rc[u] - xc
+        dc -= lc * math.floor(dc * ilc + 0.5)
         near_id[2, u] = (da * da + db * db + dc * dc < reach2) & (near_id[1, u] > ti)
 
 
