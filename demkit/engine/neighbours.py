@@ -306,14 +306,14 @@ def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
         shift = (1.0 if db < -hb else 0.0) - (1.0 if db > hb else 0.0)
         db += shift * lb
         da = ra[u] - xa + shift * delta
-        da -= la * math.floor(da * ila + 0.5)
+        da -= la * np.floor(da * ila + 0.5)  # (np.floor: a float, which vectorises; math.floor is an int)
         # the nearest the interval [da, da + shift ahead] comes to 0 or to the images at -+la (a pair
         # that does not cross: the interval is da itself)
         lo = min(da, da + shift * ahead)
         hi = max(da, da + shift * ahead)
         da = min(max(0.0, max(lo, -hi)), min(max(0.0, max(lo - la, la - hi)), max(0.0, max(lo + la, -la - hi))))
         dc = rc[u] - xc
-        dc -= lc * math.floor(dc * ilc + 0.5)
+        dc -= lc * np.floor(dc * ilc + 0.5)
         near_id[2, u] = (da * da + db * db + dc * dc < reach2) & (near_id[1, u] > ti)
 
 
