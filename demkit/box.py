@@ -6,6 +6,10 @@ unwrapped position is ``position + image * size``; pair separations use the mini
 d - L round(d / L). Along an open axis the box only states where the spheres start (a sphere
 outside it is an error before the run) and frames pictures: spheres may leave it, as in open space
 (walls are separate interactions). No box at all (``box=None``) is open space in every direction.
+
+A periodic box may be sheared (:class:`Shear`, Lees-Edwards sliding images): the images one period
+up the gradient axis b slide along the flow axis a by the offset delta(t) = gammadot L_b t (mod L_a)
+and move at gammadot L_b along a relative to the box.
 """
 from __future__ import annotations
 
@@ -16,14 +20,68 @@ import numpy as np
 from .checks import real_array
 
 
+AXES = "xyz"
+
+
+class Shear:
+    """Simple shear of a periodic box by Lees-Edwards sliding images.
+
+    rate : the shear rate gammadot (1/s; any finite number, 0 included), the imposed flow being
+        u_a = gammadot * x_b (velocity along ``flow`` growing along ``gradient``);
+    flow, gradient : the axes a and b ("x", "y" or "z"; different), both periodic in the box.
+
+    The image of sphere j one period up b (x_j + L_b e_b) sits at x_j + L_b e_b + delta(t) e_a, with
+    delta(t) = gammadot L_b t mod L_a (from the scene's clock, not accumulated), and moves at
+    v_j + gammadot L_b e_a. A sphere crossing b is wrapped with its position along a shifted by
+    -+delta and its velocity along a by -+gammadot L_b.
+    """
+
+    def __init__(self, rate, flow="x", gradient="y"):
+        if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)):
+            raise ValueError(f"Shear rate must be a number (1/s), got {rate!r}")
+        if not math.isfinite(float(rate)):
+            raise ValueError(f"Shear rate must be finite, got {rate!r}")
+        for name, axis in (("flow", flow), ("gradient", gradient)):
+            if not isinstance(axis, str) or len(axis) != 1 or axis not in AXES:
+                raise ValueError(f"Shear {name} axis must be 'x', 'y' or 'z', got {axis!r}")
+        if flow == gradient:
+            raise ValueError(f"Shear flow and gradient axes must differ, got both {flow!r}")
+        self.rate, self.flow, self.gradient = float(rate), flow, gradient
+
+    @property
+    def axes(self):
+        """(a, b): the indices of the flow and gradient axes."""
+        return AXES.index(self.flow), AXES.index(self.gradient)
+
+    def jump(self, size):
+        """gammadot L_b: the velocity of the images one period up the gradient, along the flow."""
+        return self.rate * float(size[self.axes[1]])
+
+    def offset(self, size, time):
+        """delta(t) = gammadot L_b t mod L_a, in [0, L_a) (the same arithmetic as the compiled loops)."""
+        a, _ = self.axes
+        d = self.jump(size) * float(time)
+        return d - float(size[a]) * math.floor(d / float(size[a]))
+
+    def __eq__(self, other):
+        return (isinstance(other, Shear) and self.rate == other.rate and self.flow == other.flow
+                and self.gradient == other.gradient)
+
+    def __repr__(self):
+        return f"Shear({self.rate!r}, flow={self.flow!r}, gradient={self.gradient!r})"
+
+
 class Box:
     """Rectangular box [0, Lx) x [0, Ly) x [0, Lz).
 
     size : three positive lengths (or one, for a cube).
     periodic : True/False for all axes, or three booleans (x, y, z).
+    shear : a :class:`Shear` (Lees-Edwards simple shear; its flow and gradient axes periodic), or None.
     """
 
-    def __init__(self, size, periodic=False):
+    shear = None  # (boxes pickled before shear existed)
+
+    def __init__(self, size, periodic=False, shear=None):
         arr = real_array("Box size", size)
         if arr.ndim == 0:
             arr = np.full(3, float(arr))
@@ -40,6 +98,14 @@ class Box:
         self.size.setflags(write=False)
         self.periodic = np.array([bool(f) for f in flags])
         self.periodic.setflags(write=False)
+        if shear is not None:
+            if not isinstance(shear, Shear):
+                raise ValueError(f"Box shear must be a demkit.Shear or None, got {type(shear).__name__}")
+            for name, axis in (("flow", shear.flow), ("gradient", shear.gradient)):
+                if not self.periodic[AXES.index(axis)]:
+                    raise ValueError(f"Box shear: the {name} axis {axis} must be periodic (Lees-Edwards images "
+                                     f"slide along a periodic box), got periodic={self.periodic.tolist()}")
+        self.shear = shear
 
     @property
     def any_periodic(self):
@@ -63,9 +129,15 @@ class Box:
             shift[..., a] = k.astype(np.int64) + edge
         return wrapped, shift
 
-    def minimum_image(self, separation):
-        """Separations (..., 3) reduced to their nearest periodic image."""
+    def minimum_image(self, separation, time=0.0):
+        """Separations (..., 3) reduced to their nearest periodic image (in a sheared box, the
+        Lees-Edwards image at ``time``: along the gradient first, then the flow shifted by k delta)."""
         d = np.array(separation, dtype=np.float64)
+        if self.shear is not None:
+            a, b = self.shear.axes
+            k = -np.round(d[..., b] / self.size[b])
+            d[..., b] += k * self.size[b]
+            d[..., a] += k * self.shear.offset(self.size, time)
         for a in np.flatnonzero(self.periodic):
             d[..., a] -= self.size[a] * np.round(d[..., a] / self.size[a])
         return d
@@ -95,9 +167,10 @@ class Box:
 
     def __eq__(self, other):
         return (isinstance(other, Box) and np.array_equal(self.size, other.size)
-                and np.array_equal(self.periodic, other.periodic))
+                and np.array_equal(self.periodic, other.periodic) and self.shear == other.shear)
 
     def __repr__(self):
         flags = self.periodic.tolist()
         periodic = flags[0] if len(set(flags)) == 1 else tuple(flags)
-        return f"Box(size={tuple(self.size.tolist())}, periodic={periodic})"
+        shear = f", shear={self.shear!r}" if self.shear is not None else ""
+        return f"Box(size={tuple(self.size.tolist())}, periodic={periodic}{shear})"

@@ -35,6 +35,7 @@ import numpy as np
 from . import checks
 from . import version
 from .outputs import check_writable, sync_folder
+from .engine.shear import SH_BUILT
 from .engine.state import PAIR_LIST_FIELDS
 from .interactions.wall_motion import S_FORCE, SERVO_STATE
 
@@ -125,11 +126,15 @@ def scene_hash(scene, integrator):
     # first run), their state (saved with the state) and time step
     for e, state in scene.servo_slots():  # (from the target to the end of the block: the points)
         params[state.start - (SERVO_STATE - S_FORCE):scene.geometry_slots[e] + np.size(scene.effects[e].block)] = 0.0
+    if getattr(scene, "shear_slot", None) is not None:  # the offset the lists were built at: state, saved with it
+        params[scene.shear_slot + SH_BUILT] = 0.0
     add("params", params)
     for name in ("radius", "mass", "inertia", "ids"):
         add(name, np.asarray(getattr(p, name)))
     add("fixed", np.asarray(p.fixed) if p.fixed is not None else None)
     add("box", (scene.box.size.tolist(), list(scene.box.periodic)) if scene.box is not None else None)
+    if scene.box is not None and scene.box.shear is not None:
+        add("shear", repr(scene.box.shear))
     add("skin", scene.skin)
     add("sort_every", scene.sort_every)
     add("chunks", scene.chunks)
@@ -148,6 +153,8 @@ def state_arrays(scene):
     arrays = {f"state.{name}": scene.arrays[name] for name in SAVED_ARRAYS}
     for e, state in scene.servo_slots():
         arrays[f"servo{e}.state"] = scene.params[state]
+    if getattr(scene, "shear_slot", None) is not None:
+        arrays["shear.built"] = scene.params[scene.shear_slot + SH_BUILT:scene.shear_slot + SH_BUILT + 1]
     for g in range(len(scene.plan.groups)):
         pl = scene._list(g)
         arrays[f"list{g}.reach"] = np.array([pl.reach])
@@ -329,6 +336,8 @@ def restore(scene, arrays):
         scene.arrays[name][...] = arrays[f"state.{name}"]
     for e, state in scene.servo_slots():
         scene.params[state] = arrays[f"servo{e}.state"]
+    if getattr(scene, "shear_slot", None) is not None:
+        scene.params[scene.shear_slot + SH_BUILT] = arrays["shear.built"][0]
     lists = []
     for g in range(len(scene.plan.groups)):
         fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])

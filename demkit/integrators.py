@@ -54,6 +54,9 @@ class Integrator:
                 f"{baths[0]!r} runs with VelocityVerlet(dt) only (without resolve_contacts): with it the "
                 f"random kicks keep the bath's temperature exactly for free spheres; {self!r} would not")
         if self.resolve_contacts:
+            if scene.box is not None and scene.box.shear is not None:
+                raise ValueError(f"{self!r} locates contacts with the plain minimum image, not the sliding images of "
+                                 f"a sheared box: use {type(self).__name__}(dt) without resolve_contacts")
             curved = [e for e in scene.effects if not getattr(e, "flat", True)]
             if curved:
                 raise ValueError(f"{self!r} locates contacts with plane walls that stand still only, and this scene has "

@@ -526,6 +526,9 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     Returns :class:`LammpsFiles` (data, deck, notes). Raises ValueError naming what LAMMPS cannot
     represent.
     """
+    if scene.box is not None and scene.box.shear is not None:  # (even with strict=False: nothing would be like it)
+        raise ValueError(f"a sheared box ({scene.box.shear!r}) is not exported yet: LAMMPS would need a triclinic "
+                         f"box under fix deform with remap v, which this export does not write")
     job = _Export(scene, integrator, strict, dipole_update, dipole_cutoff)
     job.check()
     dt = integrator.dt

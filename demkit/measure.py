@@ -18,7 +18,9 @@ summed over every pair interaction of the scene (contact laws with their frictio
 plug-ins). Repulsion gives positive pressure; the stress is sigma = -P. Forces that are not pair forces (walls, gravity, applied fields) are external and not part of the virial: the
 pressure a walled sample exerts is the walls' force per area. Dipole forces are not central, so P
 need not be symmetric. Each sphere's share (``per_sphere``, pressure x volume, half of each of its
-pairs) adds up to V P. An open scene (no box) has no volume: pass ``volume=``.
+pairs) adds up to V P. An open scene (no box) has no volume: pass ``volume=``. In a sheared box
+(:class:`demkit.Shear`) r_ij is the sliding image's and the kinetic part takes the velocity relative to
+the imposed flow, v_i - gammadot (x_ib - L_b / 2) e_a: the shear stress of a sample is -P_ab.
 
 **Local field**: B_i = B_applied(x_i) + sum_j A S(r) [3 (m_j.n) n - m_j] / r^3 over the pairs the
 dipole sum reaches (its cutoff, switch S and minimum image; with an Ewald sum, every other sphere and
@@ -95,6 +97,11 @@ def _virials(scene):
     mass = np.broadcast_to(np.asarray(p.mass, dtype=float), (n,))
     moving = np.ones(n, dtype=bool) if p.fixed is None else ~np.asarray(p.fixed)
     v = np.asarray(p.velocity) * moving[:, None]  # fixed spheres do not move
+    shear = scene.box.shear if scene.box is not None else None
+    if shear is not None:  # a sheared box: the velocity relative to the imposed flow gammadot (x_b - L_b / 2) e_a
+        a, b = shear.axes
+        v = v.copy()
+        v[:, a] -= shear.rate * (np.asarray(p.position)[:, b] - 0.5 * scene.box.size[b]) * moving
     per_sphere = mass[:, None, None] * v[:, :, None] * v[:, None, :]
     kinetic = per_sphere.sum(axis=0)
     virial = {}

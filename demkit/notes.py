@@ -101,7 +101,8 @@ class RunNotes:
         self.pairs = any(inter.contact_reach for inter in scene.interactions)
         walls = [e for e in scene.effects if isinstance(e, Wall)]
         # a moving wall's work and a thermostat's bath are not booked
-        self.balance = not any(w.surface_speed() > 0.0 for w in walls) and not scene.heat_baths
+        self.balance = not any(w.surface_speed() > 0.0 for w in walls) and not scene.heat_baths and (
+            scene.box is None or scene.box.shear is None)  # (nor the work of shearing a box)
         # (a servo-controlled wall's past positions are not kept: its contacts are read by the run's guards only)
         self.walls = [w for w in walls if getattr(w, "servo", None) is None]
         self.largest = self.drift = self.scale = 0.0

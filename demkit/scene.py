@@ -18,7 +18,7 @@ import math
 import numba
 import numpy as np
 
-from . import checks
+from . import checks, sheared
 from .box import Box
 from .diagnostics import SceneDiagnostics, energy_dict  # noqa: F401 (demkit.scene.energy_dict, as before)
 from .engine import generic, generic_modules, neighbours
@@ -28,6 +28,7 @@ from .engine.modules import build_module, build_pieces
 from .engine.plan import BLOCK, GATHER_ROWS, Group, Plan, energy_kinds, importable
 from .engine.motion import empty_vectors
 from .engine.notice import compile_estimate, compile_notice
+from .engine.shear import list_frame, wrap_sheared
 from .engine.state import (DEEP_OVERLAP_FRACTION, SORTS, STATE_FIELDS, PairListTuple, StateTuple, TupleStateModule,
                            make_pair_list, make_state, new_pair_list, touch_getters)
 from .engine.templates import TEMPLATES
@@ -101,6 +102,8 @@ class Scene(SceneDiagnostics):
             raise TypeError(f"box must be a demkit.Box or None, got {type(box).__name__}")
         dipoles = [inter for inter in interactions if isinstance(inter, Dipole)]
         polarisabilities = induction.prepare(particles, dipoles, effects)  # None: no magnetisable spheres
+        if box is not None and box.shear is not None:  # what Lees-Edwards images do not cover yet, refused
+            sheared.check_scene(box, interactions, effects, polarisabilities)
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]
@@ -163,6 +166,8 @@ class Scene(SceneDiagnostics):
                 self._first_induction()
             #: the module of forces(), energy() and every call made from Python: tier 1 whenever it
             #: can run the scene (tier 2 then only runs time loops: nothing else of it is compiled)
+            if self.box is not None and self.box.shear is not None and not self.on_tier_1_possible:
+                raise ValueError(f"a sheared box needs a scene the generic module runs: {self.program_refusal}")
             self.kernels = self._kernels(threads=False, tier=1 if self.on_tier_1_possible else None)
             self._loop_kernels = None
             self.validate()
@@ -399,7 +404,7 @@ class Scene(SceneDiagnostics):
                                      f"of {n} spheres ({size / 2**30:.1f} GiB) because they have no cutoff: "
                                      f"give them a cutoff_distance")
         return Plan(self.interactions, groups, self.periodic, any(g.kind == "list" for g in groups),
-                    effects=self.effects, sums=self.long_range)
+                    effects=self.effects, sums=self.long_range, shear=self.box.shear if self.box is not None else None)
 
     def _make_state(self):
         p, plan = self.particles, self.plan
@@ -435,6 +440,9 @@ class Scene(SceneDiagnostics):
         # (the order kernels._Source gives their slots)
         self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
         self.induction_slot = len(self.params) - len(tables[-1]) if self.induction is not None else None
+        self.shear_slot = slots.shear_slot  # Lees-Edwards: [a, b, gammadot L_b, offset at the lists' build], last
+        if self.shear_slot is not None:
+            self.params = np.concatenate([self.params, sheared.shear_block(self.box)])
         self.geometry_slots = dict(slots.geometry_slot)
         for e, slot in slots.geometry_slot.items():  # walls read their state (a servo's) from their block
             self.effects[e].block = self.params[slot:slot + np.size(self.effects[e].geometry_values())]
@@ -567,7 +575,11 @@ class Scene(SceneDiagnostics):
         if not any(self.periodic):
             return False
         a = self.arrays
-        neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
+        if self.shear_slot is not None:  # the sliding images at the scene's clock
+            wrap_sheared(a["position"], a["velocity"], a["reference"], a["image"], a["box"], a["periodic"], a["params"],
+                         self.shear_slot, float(self.clock[0]))
+        else:
+            neighbours.wrap(a["position"], a["reference"], a["image"], a["box"], a["periodic"])
         return True
 
     def pull(self):
@@ -626,13 +638,15 @@ class Scene(SceneDiagnostics):
             return np.column_stack([i[close], j[close]]).astype(np.int64)
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
-        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"])
+        sliding = () if self.shear_slot is None else (  # a sheared box: the sliding images at the scene's clock
+            list_frame(self.params, self.shear_slot, self.arrays["box"], float(self.clock[0]), 0.0),)
+        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"], *sliding)
         return neighbours.pairs_of(pl, index)
 
     def separations(self, pairs):
         """Centre-to-centre vectors x_j - x_i (minimum image) of index pairs (P, 2)."""
         d = self.particles.position[pairs[:, 1]] - self.particles.position[pairs[:, 0]]
-        return self.box.minimum_image(d) if self.box is not None else d
+        return self.box.minimum_image(d, self.time) if self.box is not None else d
 
     def validate(self):
         """Raise ValueError for non-finite state, coincident or deeply overlapping spheres, spheres

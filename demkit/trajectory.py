@@ -32,10 +32,16 @@ class Trajectory:
         self.walls = list(walls)
 
     def unwrapped(self):
-        """Positions (T,N,3) continued across periodic boundaries: position + image * box size."""
+        """Positions (T,N,3) continued across periodic boundaries: position + image * box size (in a
+        sheared box also + n_b gammadot L_b t along the flow: the sliding images' offset, not wrapped)."""
         if self.image is None:
             return self.position
-        return self.position + self.image * self.box.size
+        unwrapped = self.position + self.image * self.box.size
+        shear = getattr(self.box, "shear", None)
+        if shear is not None:
+            a, b = shear.axes
+            unwrapped[..., a] += self.image[..., b] * shear.jump(self.box.size) * np.asarray(self.time)[:, None]
+        return unwrapped
 
     def __len__(self):
         return len(self.time)

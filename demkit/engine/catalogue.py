@@ -61,7 +61,9 @@ class Law:
         self.plane_contact = special if not pair else False
         self.pair = pair
         fn = getattr(importlib.import_module(module), force)
-        names = list(inspect.signature(fn.py_func).parameters)[6 if pair else 4:]
+        names = [n for n in inspect.signature(fn.py_func).parameters if n != "vshift"][6 if pair else 4:]
+        #: the law takes the velocity shift of a sliding image (demkit.engine.shear) as its last argument
+        self.shifted = "vshift" in inspect.signature(fn.py_func).parameters
         self.reads = []
         while names and names[0] in FIELD_NAMES:
             self.reads.append(names.pop(0))

@@ -53,9 +53,8 @@ import warnings
 from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
-                       PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap, effect_sums,
-                       piece_prelude)
-from .state import DEEP_OVERLAP_FRACTION
+                       PIECE_SIGNATURES, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
+                       deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -72,6 +71,8 @@ def _pair_call(law, kind, owner="i", prefix="", held=False):
     if law.history:
         args += ["history", "p", "off", "commit" if kind == "force" else "False"]
     args += [f"q{m}" if held else f"params[slot + {m}]" for m in range(law.parameters)]
+    if law.shifted and kind == "force":  # the sliding image's velocity shift (0 unless the box shears)
+        args.append(SHIFT)
     return f"law_{law.kind}_{kind}({', '.join(args)})"
 
 
@@ -129,7 +130,16 @@ class _Generic:
                 "    pz = program[G_PZ] != 0",
                 "    lx = box[0]", "    hx = 0.5 * box[0]", "    ilx = 1.0 / box[0] if px else 0.0",
                 "    ly = box[1]", "    hy = 0.5 * box[1]", "    ily = 1.0 / box[1] if py else 0.0",
-                "    lz = box[2]", "    hz = 0.5 * box[2]", "    ilz = 1.0 / box[2] if pz else 0.0"]
+                "    lz = box[2]", "    hz = 0.5 * box[2]", "    ilz = 1.0 / box[2] if pz else 0.0",
+                # a sheared box (demkit.engine.shear): its block in params, the axes read from it
+                '    sh = field(s, "program")[0, H_SHEAR]', "    sheared = sh >= 0",
+                "    sa = int(params[sh + SH_FLOW]) if sheared else 0",
+                "    sb = int(params[sh + SH_GRADIENT]) if sheared else 1",
+                "    la = box[sa]", "    lb = box[sb]", "    lc = box[3 - sa - sb]",
+                "    pc = program[G_PX + 3 - sa - sb] != 0",
+                "    delta = shear_offset(params, sh, box, clock[0]) if sheared else 0.0",
+                "    jump = params[sh + SH_JUMP] if sheared else 0.0",
+                "    sx = 0.0", "    sy = 0.0", "    sz = 0.0"]
 
     def rows(self, pad, first, last):
         """Loop header over owners first..last-1 and their entries; the body goes at pad + 8."""
@@ -148,10 +158,11 @@ class _Generic:
 
     def geometry(self, pad):
         lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
+        lines += [f"{pad}if sheared:", shear_geometry(pad + "    ", "sa", "sb", "pc"), f"{pad}else:"]
         for axis in "xyz":
             d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
-            lines += [f"{pad}if p{axis}:", f"{pad}    if {d} > {h}:", f"{pad}        {d} -= {l}",
-                      f"{pad}    elif {d} < -{h}:", f"{pad}        {d} += {l}"]
+            lines += [f"{pad}    if p{axis}:", f"{pad}        if {d} > {h}:", f"{pad}            {d} -= {l}",
+                      f"{pad}        elif {d} < -{h}:", f"{pad}            {d} += {l}"]
         return lines + [f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
 
     def member(self, pad):
@@ -161,12 +172,6 @@ class _Generic:
                 f"{pad}slot = program[mb + M_SLOT]",
                 f"{pad}cut = program[mb + M_CUT]",
                 f"{pad}off = program[mb + M_OFFSET]"]
-
-    def deep_overlap(self, pad):
-        return [f"{pad}small = radius[i] if radius[i] < radius[j] else radius[j]",
-                f"{pad}deep = radius[i] + radius[j] - {DEEP_OVERLAP_FRACTION!r} * small",
-                f"{pad}if r2 < deep * deep and status[0] == OK:",
-                f"{pad}    status[0] = DEEP_OVERLAP", f"{pad}    status[1] = i", f"{pad}    status[3] = j"]
 
     def force_body(self, pad, force, torque):
         body = [f"{pad}if contact_only and r2 >= (radius[i] + radius[j]) * (radius[i] + radius[j]):",
@@ -178,7 +183,7 @@ class _Generic:
                 f"{pad}    if not held:",
                 f"{pad}        continue",
                 f"{pad}if any_contact:"]
-        body += self.deep_overlap(pad + "    ")
+        body += deep_pair_overlap(pad + "    ")
         body += [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"] + [f"{pad}{c} = 0.0" for c in TORQUES]
         body += [f"{pad}for mm in range(count):"]
         inner = pad + "    "
@@ -247,7 +252,8 @@ class _Generic:
                 f"{inner}{gather}[2, u + 1] = position[j, 2]",
                 f"{inner}{gather}[3, u + 1] = dipole[j, 0]", f"{inner}{gather}[4, u + 1] = dipole[j, 1]",
                 f"{inner}{gather}[5, u + 1] = dipole[j, 2]",
-                f"{pad}        for u in range(m):"]
+                f"{pad}        if sheared:  # the partners moved to their nearest sliding images (shear_gather)"]
+        body += shear_gather(pad + " " * 12, gather, "sa", "sb", "pc") + [f"{pad}        for u in range(m):"]
         body += [f"{inner}{out}[{c}, u] = 0.0" for c in range(9)]
         body += [f"{pad}        for mm in range(count):"]
         body += self.member(inner)
@@ -434,10 +440,19 @@ class _Generic:
     def upkeep_functions(self):
         """maintain_lists and sort_particles: the list upkeep (on threads: the lists built on threads)."""
         lines = []
-        lines += MAINTAIN_LISTS_HEAD
+        # in a sheared box the sliding since the last build counts against the skin (demkit.engine.shear)
+        test = MAINTAIN_LISTS_HEAD.index("    if d2 <= 0.25 * s.skin * s.skin:")
+        lines += MAINTAIN_LISTS_HEAD[:test] + [
+            "    sh = s.program[0, H_SHEAR]",
+            "    if sh >= 0:",
+            "        if 2.0 * math.sqrt(d2) + slide_since_build(s.params, sh, s.box, s.clock[0], s.skin) <= s.skin:",
+            "            return",
+            "    el" + MAINTAIN_LISTS_HEAD[test].lstrip()] + MAINTAIN_LISTS_HEAD[test + 1:]
+        lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic)"]
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le)"]
+        lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]"]
         lines += MAINTAIN_LISTS_TAIL
         # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
         # saved by the tags the particles had (``before``): saving and restoring it here, inlined for
@@ -452,10 +467,12 @@ class _Generic:
         lines += PERMUTE_BY_ORDER
         lines += ["    if s.sphere_history.shape[1] > 0:",
                   "        permute_rows(s.sphere_history, order)"]
+        lines += ["    sh = s.program[0, H_SHEAR]", "    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic)"]
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le)"]
+        lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         return lines
 
@@ -535,12 +552,19 @@ class _Generic:
         lines += ["    if s.program[0, H_INDUCTION] != 0:",
                   "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
                   "s.program[0, H_INDUCTION_SLOT])"]
-        lines += [line.replace("def record_frame(k,", "def record_frame(calls, k,")
-                  .replace("energies_of(s,", "energies_of(calls, s,")
-                  .replace("def end_step(step,", "def end_step(calls, frame, step,") for line in RECORD_FRAME]
+        frame = [line.replace("def record_frame(k,", "def record_frame(calls, k,")
+                 .replace("energies_of(s,", "energies_of(calls, s,")
+                 .replace("def end_step(step,", "def end_step(calls, frame, step,") for line in RECORD_FRAME]
+        at = frame.index("    e = record[4]")  # after store_frame: the frame folded with the sliding images
+        lines += frame[:at] + ["    if s.program[0, H_SHEAR] >= 0:",
+                               "        frame_sheared(k, s.position, s.velocity, s.image, s.tag, s.box, s.periodic, s.params,",
+                               "                      s.program[0, H_SHEAR], s.clock[0], record[0], record[1], record[6])"] + frame[at:]
         lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
                   "        s.counters[WRAP_DUE] = 0",
-                  "        if s.program[0, H_PERIODIC] != 0:",
+                  "        if s.program[0, H_SHEAR] >= 0:  # the sliding images (demkit.engine.shear)",
+                  "            wrap_sheared(s.position, s.velocity, s.reference, s.image, s.box, s.periodic, s.params,",
+                  "                         s.program[0, H_SHEAR], s.clock[0])",
+                  "        elif s.program[0, H_PERIODIC] != 0:",
                   "            wrap(s.position, s.reference, s.image, s.box, s.periodic)",
                   "        if s.program[0, H_SORTED] != 0:",
                   "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
@@ -567,6 +591,9 @@ class _Generic:
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
                  "from demkit.engine.plan import BLOCK",
+                 "from demkit.engine.shear import (SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT, shear_offset, sheared_image,",
+                 "                          list_frame, slide_since_build, wrap_sheared, frame_sheared)",
+                 "from demkit.engine.program import H_SHEAR",
                  "from demkit.engine.program import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, H_CLOCK, G_COUNT,",
                  "                            G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",

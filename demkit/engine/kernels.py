@@ -32,8 +32,8 @@ from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
                        PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments,
                        _pair_call, _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums,
-                       as_int64, function_imports, piece_prelude)
-from .state import DEEP_OVERLAP_FRACTION
+                       as_int64, deep_pair_overlap, function_imports, piece_prelude, shear_prelude, shear_slot_after,
+                       sheared_gather, sheared_line)
 
 
 class _Source:
@@ -72,7 +72,8 @@ class _Source:
         for tuned in plan.sums:
             self.sum_slot.append(slot)
             slot += np.size(tuned.table_values())
-        self.induction_slot = slot  # the induction table follows the sums' (demkit.interactions.induction)
+        self.induction_slot = slot  # the induction table follows the sums' (demkit.interactions.induction); a shear's block last
+        self.shear_slot = shear_slot_after(plan, slot)
 
     # ---- pair loops ------------------------------------------------------------------------
     def prelude(self, group):
@@ -87,7 +88,7 @@ class _Source:
                 lines.append(f"    p{k}_{m} = params[{self.param_slot[k] + m}]")
             if inter.cutoff_distance is not None:
                 lines.append(f"    c{k} = params[{self.cutoff_slot[k]}]")
-        return lines
+        return lines + (shear_prelude(self.plan, self.shear_slot) if self.plan.shear and group.kind == "list" else [])
 
     def rows(self, group, indent, first, last):
         """Loop headers over the pairs of owners first..last-1 and the pair geometry; the body goes
@@ -114,6 +115,8 @@ class _Source:
         """dx, dy, dz = x_j - x_i (minimum image along periodic axes: branches, or selects that a
         vectorising compiler keeps) and r2."""
         lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
+        if self.plan.shear is not None and group.kind == "list":  # Lees-Edwards images (demkit.engine.shear)
+            return lines + [sheared_line(self.plan, pad), f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
         for a, axis in enumerate("xyz"):
             if self.plan.periodic[a] and group.kind == "list":
                 d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
@@ -147,7 +150,7 @@ class _Source:
             test += "".join(f" and history[p, {h}] == 0.0" for h in range(group.width))
             body += [f"{pad}if {test}:", f"{pad}    continue"]
         if any(inter.contact_reach for _, inter in group.members):
-            body += self.deep_overlap_test(pad)
+            body += deep_pair_overlap(pad)
         body += [f"{pad}fx = 0.0", f"{pad}fy = 0.0", f"{pad}fz = 0.0"]
         if torque_on:
             body += [f"{pad}{c} = 0.0" for c in ("tix", "tiy", "tiz", "tjx", "tjy", "tjz")]
@@ -160,7 +163,7 @@ class _Source:
             if inter.dissipative:
                 outs += ["w"]
                 acc += ["power += w"]
-            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force')}"
+            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force', shift=bool(self.plan.shear))}"
             body += self.guarded(k, inter, [call] + acc, pad, group.offsets[k])
         body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
                  f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz"]
@@ -168,16 +171,6 @@ class _Source:
             body += [f"{pad}{torque}[j, 0] += tjx", f"{pad}{torque}[j, 1] += tjy", f"{pad}{torque}[j, 2] += tjz",
                      f"{pad}qix += tix", f"{pad}qiy += tiy", f"{pad}qiz += tiz"]
         return body
-
-    def deep_overlap_test(self, pad):
-        """Flag DEEP_OVERLAP in ``status`` for a pair overlapping by more than DEEP_OVERLAP_FRACTION
-        of the smaller radius (a contact too soft to stop it: the spheres would tunnel through)."""
-        return [f"{pad}small = radius[i] if radius[i] < radius[j] else radius[j]",
-                f"{pad}deep = radius[i] + radius[j] - {DEEP_OVERLAP_FRACTION!r} * small",
-                f"{pad}if r2 < deep * deep and status[0] == OK:",
-                f"{pad}    status[0] = DEEP_OVERLAP",
-                f"{pad}    status[1] = i",
-                f"{pad}    status[3] = j"]
 
     def owner_sums(self, group, indent, force, torque):
         """Per-owner accumulators: opened after the row header, stored after the row."""
@@ -231,7 +224,7 @@ class _Source:
                  f"{inner}j = np.uint32(partner[b0 + u])",
                  f"{inner}{gather}[0, u + 1] = position[j, 0]", f"{inner}{gather}[1, u + 1] = position[j, 1]",
                  f"{inner}{gather}[2, u + 1] = position[j, 2]"]
-        body += copy("j", "u + 1", inner)
+        body += copy("j", "u + 1", inner) + sheared_gather(self.plan, pad + " " * 8, gather)
         body += [f"{pad}        for u in range(m):",
                  f"{inner}j = u + 1",
                  f"{inner}dx = {gather}[0, j] - xi", f"{inner}dy = {gather}[1, j] - yi",
@@ -343,7 +336,7 @@ class _Source:
         for m, (k, inter) in enumerate(group.members):
             outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if inter.torque else [])
             outs += ["w"] if inter.dissipative else []
-            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force')}"
+            call = f"{', '.join(outs)} = {_pair_call(k, inter, group.offsets[k], 'force', shift=bool(self.plan.shear))}"
             stores = [f"out[q, {3 + 3 * m + a}] = {c}" for a, c in enumerate(("ax", "ay", "az"))]
             lines += self.guarded(k, inter, [call] + stores, pad)
         return lines + [f"{pad}q += 1"]
@@ -671,6 +664,7 @@ class _Source:
             lines += ["from demkit.engine.events import earliest_wall_crossing", ""]
         if self.geometry_slot:
             lines += ["from demkit.interactions.wall_motion import servo_add, servo_clear, servo_step, wall_plane", ""]
+        lines += ["from demkit.engine.shear import shear_offset, sheared_image"] if plan.shear is not None else []
         for q, tuned in enumerate(plan.sums):  # long-range sums: one compiled call each
             module, name = tuned.kernel
             lines += [f"from {module} import {name} as long_range_{q}"]

@@ -228,9 +228,115 @@ def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo
     return nr
 
 
+@njit(**HELPER)
+def sheared_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, radius, le, lo, hi, image):
+    """:func:`neighbour_ranges` under Lees-Edwards images (le = [a, b, delta, ahead]): cell by cell (no
+    image shifts: the candidates take their sliding image one by one, :func:`sheared_hits`). Along
+    the flow axis a, the cells around (cx, cy, cz) as usual for neighbouring cells that do not cross
+    the gradient axis b, and around the cell shifted by -s delta for those that cross it s periods (both
+    signs where b has too few cells to tell; widened by the sliding covered ahead), each cell once."""
+    a = int(le[0])
+    b = int(le[1])
+    c = 3 - a - b
+    delta = le[2]
+    own = (cx, cy, cz)
+    size = box[a] / ncell[a]
+    extra = int(math.ceil(abs(le[3]) / size))  # cells the sliding covered ahead spans
+    few_b = ncell[b] < 2 * radius + 1
+    nr = 0
+    for qb in range(counts[b, own[b]]):
+        kb = near[b, own[b], qb]
+        sb = shift[b, own[b], qb]
+        for qc in range(counts[c, own[c]]):
+            kc = near[c, own[c], qc]
+            first = nr
+            for sigma in range(-1, 2):
+                if not (few_b or sigma == sb):
+                    continue
+                if sigma == 0:
+                    width = counts[a, own[a]]
+                    begin = 0
+                else:
+                    width = 2 * radius + 4 + 2 * extra
+                    begin = own[a] + int(math.floor(-sigma * delta / size)) - radius - 1 - extra
+                for q in range(width):
+                    ka = near[a, own[a], q] if sigma == 0 else (begin + q) % ncell[a]
+                    kx = ka if a == 0 else (kb if b == 0 else kc)
+                    ky = ka if a == 1 else (kb if b == 1 else kc)
+                    kz = ka if a == 2 else (kb if b == 2 else kc)
+                    k = (kx * ncell[1] + ky) * ncell[2] + kz
+                    if cell_start[k] == cell_start[k + 1]:
+                        continue
+                    seen = False
+                    for r in range(first, nr):
+                        seen = seen or lo[r] == cell_start[k]
+                    if not seen:
+                        lo[nr] = cell_start[k]
+                        hi[nr] = cell_start[k + 1]
+                        image[nr, 0] = 0.0
+                        image[nr, 1] = 0.0
+                        image[nr, 2] = 0.0
+                        nr += 1
+    return nr
+
+
+@njit(**HELPER)
+def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
+    """near_id[2, u]: is candidate u's nearest Lees-Edwards image (le = [a, b, delta, ahead]) closer than
+    the reach, now or, across the sliding boundary, while delta slides on by ``ahead``, and its tag
+    above ti?"""
+    a = int(le[0])
+    b = int(le[1])
+    c = 3 - a - b
+    delta = le[2]
+    ahead = le[3]
+    own = (xi, yi, zi)
+    xa, xb, xc = own[a], own[b], own[c]
+    ra, rb, rc = near_x[a], near_x[b], near_x[c]
+    la = box[a]
+    lb = box[b]
+    hb = 0.5 * lb
+    ila = 1.0 / la
+    lc = box[c] if periodic[c] else 0.0
+    ilc = 1.0 / lc if lc > 0.0 else 0.0
+    # branch-free, so that the compiler vectorises it as the plain distance test (a loop with branches
+    # cost a sheared N = 8000 scene about 8 % of its steps in list builds)
+    for u in range(k):
+        db = rb[u] - xb
+        shift = (1.0 if db < -hb else 0.0) - (1.0 if db > hb else 0.0)
+        db += shift * lb
+        da = ra[u] - xa + shift * delta
+        da -= la * np.floor(da * ila + 0.5)  # (np.floor: a float, which vectorises; math.floor is an int)
+        # the nearest the interval [da, da + shift ahead] comes to 0 or to the images at -+la (a pair
+        # that does not cross: the interval is da itself)
+        lo = min(da, da + shift * ahead)
+        hi = max(da, da + shift * ahead)
+        da = min(max(0.0, max(lo, -hi)), min(max(0.0, max(lo - la, la - hi)), max(0.0, max(lo + la, -la - hi))))
+        dc = rc[u] - xc
+        dc -= lc * np.floor(dc * ilc + 0.5)
+        near_id[2, u] = (da * da + db * db + dc * dc < reach2) & (near_id[1, u] > ti)
+
+
+@njit(**HELPER)
+def sheared_fold(position, box, periodic, le):
+    """A copy of the positions folded into the box with the sliding images (le = [a, b, delta]): a
+    sphere k periods up the gradient axis b is moved back by k L_b along b and by k delta along a."""
+    a = int(le[0])
+    b = int(le[1])
+    out = position.copy()
+    for i in range(out.shape[0]):
+        k = math.floor(out[i, b] / box[b])
+        out[i, b] -= k * box[b]
+        out[i, a] -= k * le[2]
+        for q in range(3):
+            if periodic[q]:
+                out[i, q] -= box[q] * math.floor(out[i, q] / box[q])
+    return out
+
+
 @njit(**LOOP_OPTIONS)
 def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
-               end, partner, lo, hi, image, near_x, near_id, first_cell, last_cell, base, limit):
+               end, partner, lo, hi, image, near_x, near_id, first_cell, last_cell, base, limit, le):
     """Write the pairs closer than ``reach`` whose owner lies in cells first_cell..last_cell-1 into
     partner[base:limit], the partners of particle i at start[i]:end[i], each pair in the row of its
     lower tag; returns how many entries that takes (those beyond limit - 1 are counted, not
@@ -252,6 +358,7 @@ def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start,
     hy = 0.5 * ly if ly > 0.0 else np.inf
     hz = 0.5 * lz if lz > 0.0 else np.inf
     minimum_image = lx > 0.0 or ly > 0.0 or lz > 0.0
+    sheared = le.shape[0] > 0  # Lees-Edwards: every candidate takes its sliding image (sheared_ranges)
     count = base
     for c in range(first_cell, last_cell):
         if cell_start[c] == cell_start[c + 1]:
@@ -259,7 +366,10 @@ def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start,
         cx = c // (ncell[1] * ncell[2])
         cy = (c // ncell[2]) % ncell[1]
         cz = c % ncell[2]
-        nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
+        if sheared:
+            nr = sheared_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, radius, le, lo, hi, image)
+        else:
+            nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
         k = 0
         for r in range(nr):
             for b in range(lo[r], hi[r]):
@@ -274,7 +384,9 @@ def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start,
             xi = xs[0, m]
             yi = xs[1, m]
             zi = xs[2, m]
-            if minimum_image:  # two loops: the selects cost the dipole list's build 17-19 ms against 11
+            if sheared:
+                sheared_hits(xs[0, m], xs[1, m], xs[2, m], ti, k, near_x, near_id, box, periodic, reach2, le)
+            elif minimum_image:  # two loops: the selects cost the dipole list's build 17-19 ms against 11
                 for u in range(k):
                     dx = near_x[0, u] - xi
                     dy = near_x[1, u] - yi
@@ -315,24 +427,24 @@ def most_candidates(cell_start, cells_around):
 
 @njit(cache=True, _nrt=False, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")
 def fill_threads(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
-                 end, partner, lo, hi, image, near_x, near_id, cells, region, used):
+                 end, partner, lo, hi, image, near_x, near_id, cells, region, used, le):
     """fill_pairs for each chunk t of cells cells[t]:cells[t+1] into its region
     partner[region[t]:region[t+1]], chunks on threads; used[t]: entries chunk t needs."""
     for t in prange(cells.shape[0] - 1):
         used[t] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift,
                              counts, start, end, partner, lo[t], hi[t], image[t], near_x[t], near_id[t], cells[t],
-                             cells[t + 1], region[t], region[t + 1])
+                             cells[t + 1], region[t], region[t + 1], le)
 
 
 @njit(**LOOP_OPTIONS)
 def fill_serial(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
-                end, partner, lo, hi, image, near_x, near_id, cells, region, used):
+                end, partner, lo, hi, image, near_x, near_id, cells, region, used, le):
     """fill_threads with the chunks one after the other: the same lists (each chunk fills its own
     region)."""
     for t in range(cells.shape[0] - 1):
         used[t] = fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts,
                              start, end, partner, lo[t], hi[t], image[t], near_x[t], near_id[t], cells[t],
-                             cells[t + 1], region[t], region[t + 1])
+                             cells[t + 1], region[t], region[t + 1], le)
 
 
 @njit(**HELPER)
@@ -356,32 +468,35 @@ def split_cells(cell_start, cells):
 # apart so that a scene that never runs on threads never compiles the threaded builder (4.6 of the
 # 18 CPU s the list builder took to compile when one function held both).
 @njit(**ENTRY)
-def build(pl, position, tag, box, periodic):
+def build(pl, position, tag, box, periodic, le):
     """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
     into len(pl.bounds) - 1 chunks filled one after the other, each in its own region of ``partner``
     (grown, and the regions resized, when one overflows)."""
-    work = start_build(pl, position, tag, box, periodic)
-    fill_serial(*fill_arguments(pl, box, periodic, work))
+    work = start_build(pl, position, tag, box, periodic, le)
+    fill_serial(*fill_arguments(pl, box, periodic, work, le))
     if grown(pl, work):
-        fill_serial(*fill_arguments(pl, box, periodic, work))
+        fill_serial(*fill_arguments(pl, box, periodic, work, le))
     finish_build(pl, work)
 
 
 @njit(**ENTRY)
-def build_threads(pl, position, tag, box, periodic):
+def build_threads(pl, position, tag, box, periodic, le):
     """:func:`build` with the chunks filled on threads (the same lists)."""
-    work = start_build(pl, position, tag, box, periodic)
-    fill_threads(*fill_arguments(pl, box, periodic, work))
+    work = start_build(pl, position, tag, box, periodic, le)
+    fill_threads(*fill_arguments(pl, box, periodic, work, le))
     if grown(pl, work):
-        fill_threads(*fill_arguments(pl, box, periodic, work))
+        fill_threads(*fill_arguments(pl, box, periodic, work, le))
     finish_build(pl, work)
 
 
 @njit(**ENTRY)
-def start_build(pl, position, tag, box, periodic):
+def start_build(pl, position, tag, box, periodic, le):
     """Bin the particles into cells and cut the cells into chunks: the working arrays of a build.
     Compiled once for both builders (not inlined into each): with lists built on threads too, the
-    two rebuilds compiled in 26-27 CPU s instead of 32, at ~2 s more for the serial one alone."""
+    two rebuilds compiled in 26-27 CPU s instead of 32, at ~2 s more for the serial one alone. Under
+    Lees-Edwards images (le = [a, b, delta], else empty) the cells hold the positions folded with them."""
+    if le.shape[0] > 0:
+        position = sheared_fold(position, box, periodic, le)
     n = position.shape[0]
     origin = np.empty(3)
     size = np.empty(3)
@@ -407,10 +522,14 @@ def start_build(pl, position, tag, box, periodic):
     chunks = pl.bounds.shape[0] - 1
     cells = np.empty(chunks + 1, dtype=np.int64)
     split_cells(cell_start, cells)
-    lo = np.empty((chunks, side**3), dtype=np.int64)
-    hi = np.empty((chunks, side**3), dtype=np.int64)
-    image = np.empty((chunks, side**3, 3))
-    most = most_candidates(cell_start, side**3)
+    around = side**3  # (sheared_ranges: wider along the flow axis)
+    if le.shape[0] > 0:
+        extra = int(math.ceil(abs(le[3]) / (box[int(le[0])] / ncell[int(le[0])]))) + 1  # (one more than it uses)
+        around = side * side * (side + 2 * (2 * radius + 4 + 2 * extra))
+    lo = np.empty((chunks, around), dtype=np.int64)
+    hi = np.empty((chunks, around), dtype=np.int64)
+    image = np.empty((chunks, around, 3))
+    most = most_candidates(cell_start, around)
     near_x = np.empty((chunks, 3, most))
     near_id = np.empty((chunks, 3, most), dtype=np.int64)
     used = np.zeros(chunks, dtype=np.int64)
@@ -423,12 +542,12 @@ def start_build(pl, position, tag, box, periodic):
 
 
 @njit(**HELPER)
-def fill_arguments(pl, box, periodic, work):
+def fill_arguments(pl, box, periodic, work, le):
     """The arguments of fill_serial/fill_threads."""
     ts, xs, members, radius, ncell, cell_start, near, shift, counts, lo, hi, image, near_x, near_id, cells, region, \
         used = work
     return (ts, xs, members, box, periodic, pl.reach, radius, ncell, cell_start, near, shift, counts, pl.start,
-            pl.end, pl.partner, lo, hi, image, near_x, near_id, cells, region, used)
+            pl.end, pl.partner, lo, hi, image, near_x, near_id, cells, region, used, le)
 
 
 @njit(**HELPER)
@@ -546,28 +665,31 @@ def balance(start, end, bounds):
 
 
 @njit(**ENTRY)
-def rebuild(pl, position, tag, before, box, periodic):
+def rebuild(pl, position, tag, before, box, periodic, shear=None):
     """Rebuild one list, carrying its per-pair history by tag: ``before`` are the tags the particles
     had when the list was last built (``tag`` itself, unless they were re-ordered since: the sort
-    permutes the particles first and then rebuilds every list with this one compiled function)."""
+    permutes the particles first and then rebuilds every list with this one compiled function).
+    ``shear``: [a, b, delta] of Lees-Edwards images (demkit.engine.shear.list_frame), or empty/None."""
+    le = np.zeros(0) if shear is None else shear
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, before)
-        build(pl, position, tag, box, periodic)
+        build(pl, position, tag, box, periodic, le)
         restore_history(pl, tag, owners, partners, rows)
     else:
-        build(pl, position, tag, box, periodic)
+        build(pl, position, tag, box, periodic, le)
     balance(pl.start, pl.end, pl.bounds)
 
 
 @njit(**ENTRY)
-def rebuild_threads(pl, position, tag, before, box, periodic):
+def rebuild_threads(pl, position, tag, before, box, periodic, shear=None):
     """:func:`rebuild` with the list's chunks filled on threads (the same list)."""
+    le = np.zeros(0) if shear is None else shear
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, before)
-        build_threads(pl, position, tag, box, periodic)
+        build_threads(pl, position, tag, box, periodic, le)
         restore_history(pl, tag, owners, partners, rows)
     else:
-        build_threads(pl, position, tag, box, periodic)
+        build_threads(pl, position, tag, box, periodic, le)
     balance(pl.start, pl.end, pl.bounds)
 
 

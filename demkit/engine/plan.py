@@ -56,6 +56,7 @@ class Plan:
     effects: tuple = ()  # single-sphere interactions (walls, gravity, fields)
     sums: tuple = ()  # long-range sums over all spheres (an Ewald sum's reciprocal part, an FMM sum)
     induction: object = None  # induced moments solved before the slow forces (InducedMoments), or None
+    shear: object = None  # Lees-Edwards images of a sheared box (demkit.Shear), or None
 
     @property
     def energy_sources(self):

@@ -24,6 +24,10 @@ from .friction import HISTORY, Friction, pair_friction, release, springs_energy
 from .rolling import STIFFNESS_FACTOR, RollingResistance
 from .twisting import TWIST_HISTORY, TwistingResistance, twist_energy, twist_release, twisting_on_i
 
+#: the velocity shift a pair law subtracts from v_j - v_i: (0, 0, 0), except across the sliding boundary
+#: of a sheared box, where j's image moves at v_j + k gammadot L_b e_a (demkit.engine.shear gives
+#: -k gammadot L_b e_a); subtracting 0.0 leaves every bit as it was
+NO_SHIFT = (0.0, 0.0, 0.0)
 #: kernel parameters of twisting resistance (given values, or -1 for Marshall's), before ``dt``
 TWIST_PARAMETERS = ("k_tw", "eta_tw", "lever_tw")
 
@@ -39,8 +43,8 @@ def kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension):
 
 
 @njit(**KERNEL_OPTIONS)
-def kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension):
-    """Force on j and dissipated power of a linear spring-dashpot contact."""
+def kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, damping, no_tension, vshift=NO_SHIFT):
+    """Force on j and dissipated power of a linear spring-dashpot contact (``vshift``: see NO_SHIFT)."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         return 0.0, 0.0, 0.0, 0.0
@@ -51,8 +55,8 @@ def kelvin_voigt_force(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampin
     nz = dz * inv_r
     overlap = reach - r
     # d(overlap)/dt = -(v_j - v_i).n
-    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
-             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    rate = -((velocity[j, 0] - velocity[i, 0] - vshift[0]) * nx + (velocity[j, 1] - velocity[i, 1] - vshift[1]) * ny
+             + (velocity[j, 2] - velocity[i, 2] - vshift[2]) * nz)
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     power = (fn - elastic) * rate
     return fn * nx, fn * ny, fn * nz, power
@@ -70,7 +74,8 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
+                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt,
+                                vshift=NO_SHIFT):
     """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
     Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0."""
     reach = radius[i] + radius[j]
@@ -83,9 +88,9 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     ny = dy * inv_r
     nz = dz * inv_r
     overlap = reach - r
-    vx = velocity[j, 0] - velocity[i, 0]
-    vy = velocity[j, 1] - velocity[i, 1]
-    vz = velocity[j, 2] - velocity[i, 2]
+    vx = velocity[j, 0] - velocity[i, 0] - vshift[0]
+    vy = velocity[j, 1] - velocity[i, 1] - vshift[1]
+    vz = velocity[j, 2] - velocity[i, 2] - vshift[2]
     rate = -(vx * nx + vy * ny + vz * nz)
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     power = (fn - elastic) * rate
@@ -109,12 +114,12 @@ def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocit
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
-                                eta_tw, lever_tw, dt):
+                                eta_tw, lever_tw, dt, vshift=NO_SHIFT):
     """:func:`kelvin_voigt_friction_force` plus twisting resistance (:mod:`.twisting`; history after
     the friction and rolling springs; Marshall's coefficient where the given one is -1)."""
     fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = kelvin_voigt_friction_force(
         i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset, commit, stiffness, damping,
-        no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt)
+        no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt, vshift)
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -125,8 +130,8 @@ def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
     nx = dx / r
     ny = dy / r
     nz = dz / r
-    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
-             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    rate = -((velocity[j, 0] - velocity[i, 0] - vshift[0]) * nx + (velocity[j, 1] - velocity[i, 1] - vshift[1]) * ny
+             + (velocity[j, 2] - velocity[i, 2] - vshift[2]) * nz)
     fn, _ = kelvin_voigt_normal(reach - r, rate, stiffness, damping, no_tension)
     w = angular_velocity
     mx, my, mz, lost = twisting_on_i(nx, ny, nz, w[i, 0] - w[j, 0], w[i, 1] - w[j, 1], w[i, 2] - w[j, 2], fn,

@@ -33,7 +33,7 @@ from numba import njit
 from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, number, positive
-from .contact import (add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
+from .contact import (NO_SHIFT, add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
                       twisting_time_step)
 from .friction import HISTORY, pair_friction, release, springs_energy
 from .hertz_restitution import damping_for_restitution
@@ -66,7 +66,7 @@ def hertz_normal(overlap, rate, radius_eff, mass_eff, young_eff, gamma):
 
 
 @njit(**KERNEL_OPTIONS)
-def hertz_force(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_eff, gamma):
+def hertz_force(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_eff, gamma, vshift=NO_SHIFT):
     """Force on j and dissipated power of a damped Hertz contact."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -75,8 +75,8 @@ def hertz_force(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_e
     nx = dx / r
     ny = dy / r
     nz = dz / r
-    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
-             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    rate = -((velocity[j, 0] - velocity[i, 0] - vshift[0]) * nx + (velocity[j, 1] - velocity[i, 1] - vshift[1]) * ny
+             + (velocity[j, 2] - velocity[i, 2] - vshift[2]) * nz)
     radius_eff = radius[i] * radius[j] / reach
     mass_eff = 1.0 / (1.0 / mass[i] + 1.0 / mass[j])
     fn, elastic, _, _ = hertz_normal(reach - r, rate, radius_eff, mass_eff, young_eff, gamma)
@@ -97,7 +97,7 @@ def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
-                         eta_r_fixed, dt):
+                         eta_r_fixed, dt, vshift=NO_SHIFT):
     """Force on j, torques on i and j and dissipated power of a Hertz contact with friction
     (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0) and rolling
     resistance when mu_r > 0 (k_r = 2.25 mu_r^2 S_n when kr_fixed is 0, damping ratio likewise)."""
@@ -110,9 +110,9 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     ny = dy / r
     nz = dz / r
     overlap = reach - r
-    vx = velocity[j, 0] - velocity[i, 0]
-    vy = velocity[j, 1] - velocity[i, 1]
-    vz = velocity[j, 2] - velocity[i, 2]
+    vx = velocity[j, 0] - velocity[i, 0] - vshift[0]
+    vy = velocity[j, 1] - velocity[i, 1] - vshift[1]
+    vz = velocity[j, 2] - velocity[i, 2] - vshift[2]
     rate = -(vx * nx + vy * ny + vz * nz)
     radius_eff = radius[i] * radius[j] / reach
     mass_eff = 1.0 / (1.0 / mass[i] + 1.0 / mass[j])
@@ -141,12 +141,12 @@ def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radi
 @njit(**KERNEL_OPTIONS)
 def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
-                         k_tw, eta_tw, lever_tw, dt):
+                         k_tw, eta_tw, lever_tw, dt, vshift=NO_SHIFT):
     """:func:`hertz_friction_force` plus twisting resistance (:mod:`.twisting`: Marshall's k_t a^2/2,
     eta_t a^2/2, (2/3) mu a with the contact's own k_t and eta_t where the given value is -1)."""
     fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = hertz_friction_force(
         i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit, young_eff,
-        shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt)
+        shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt, vshift)
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -157,8 +157,8 @@ def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
     nx = dx / r
     ny = dy / r
     nz = dz / r
-    rate = -((velocity[j, 0] - velocity[i, 0]) * nx + (velocity[j, 1] - velocity[i, 1]) * ny
-             + (velocity[j, 2] - velocity[i, 2]) * nz)
+    rate = -((velocity[j, 0] - velocity[i, 0] - vshift[0]) * nx + (velocity[j, 1] - velocity[i, 1] - vshift[1]) * ny
+             + (velocity[j, 2] - velocity[i, 2] - vshift[2]) * nz)
     radius_eff = radius[i] * radius[j] / reach
     fn, _, stiffness, eta = hertz_normal(reach - r, rate, radius_eff, 1.0 / (1.0 / mass[i] + 1.0 / mass[j]),
                                          young_eff, gamma)

@@ -430,7 +430,7 @@ def _integrator(d, scene, src):
 
 
 def _build(data, src, base):
-    from ..box import Box
+    from ..box import Box, Shear
     from ..scene import Scene
     units = scale = None
     if data["units"] == "si":
@@ -441,8 +441,9 @@ def _build(data, src, base):
                           f"time {units.time:.4g} s, mass {units.mass:.4g} kg]")
     box = None
     if data["box"] is not None:
-        with _At(src, "box", keys=("size", "periodic")):
-            box = Box(data["box"]["size"], data["box"]["periodic"])
+        with _At(src, "box", keys=("size", "periodic", "shear")):
+            shear = data["box"].get("shear")
+            box = Box(data["box"]["size"], data["box"]["periodic"], shear=Shear(**shear) if shear else None)
     interactions = _interactions(data, src, scale, base)
     _check_memory(data, box, interactions, src)  # before a builder allocates anything
     particles, made = _particles(data, box, src, base, scale)

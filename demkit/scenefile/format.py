@@ -320,7 +320,13 @@ SCHEMA = Table({
     "box": Table({
         "size": Key("size", REQUIRED, "side lengths [Lx, Ly, Lz] (or one for a cube); corner at the origin",
                     check="positive", dim="length"),
-        "periodic": Key("flags", False, "periodic axes: true/false or three of them")},
+        "periodic": Key("flags", False, "periodic axes: true/false or three of them"),
+        "shear": Table({
+            "rate": _n("the shear rate gammadot (1/time): the imposed flow gammadot x_b along the flow axis",
+                       default=REQUIRED, dim="frequency"),
+            "flow": Key("string", "x", "the flow axis a", choices=("x", "y", "z")),
+            "gradient": Key("string", "y", "the gradient axis b (the flow grows along it)", choices=("x", "y", "z"))},
+            "Lees-Edwards simple shear of the box (dk.Shear; flow and gradient axes periodic)")},
         "the simulation box (none: open space)"),
     "interactions": INTERACTIONS,
     "scene": Table({

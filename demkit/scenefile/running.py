@@ -353,7 +353,7 @@ def _join(earlier, parts, start, stride, end, dt):
 def load_trajectory(path):
     """A Trajectory from a .npz written by :func:`save_trajectory` (read without pickle). Raises
     ValueError for a file that is not one."""
-    from ..box import Box
+    from ..box import Box, Shear
     from ..trajectory import Trajectory
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -364,7 +364,10 @@ def load_trajectory(path):
     missing = [name for name in need if name not in a]
     if missing:
         raise ValueError(f"{path} is not a demkit trajectory (no {', '.join(missing)})")
-    box = Box(a["box_size"], a["box_periodic"]) if "box_size" in a else None
+    shear = None
+    if "box_shear_rate" in a:  # a sheared box: its rate and axes (flow, gradient)
+        shear = Shear(float(a["box_shear_rate"]), *("xyz"[int(k)] for k in a["box_shear_axes"]))
+    box = Box(a["box_size"], a["box_periodic"], shear=shear) if "box_size" in a else None
     return Trajectory(time=a["time"], position=a["position"], velocity=a["velocity"],
                       angular_velocity=a.get("angular_velocity"), dipole=a.get("dipole"),
                       energy={k[len("energy_"):]: v for k, v in a.items() if k.startswith("energy_")},
@@ -388,6 +391,9 @@ def _savez(trajectory, path):
     arrays.update({f"energy_{k}": v for k, v in trajectory.energy.items()})
     if trajectory.box is not None:
         arrays["box_size"], arrays["box_periodic"] = trajectory.box.size, trajectory.box.periodic
+        if getattr(trajectory.box, "shear", None) is not None:
+            arrays["box_shear_rate"] = np.array(trajectory.box.shear.rate)
+            arrays["box_shear_axes"] = np.array(trajectory.box.shear.axes)
     with open(path, "wb") as fh:
         np.savez(fh, **{k: v for k, v in arrays.items() if v is not None})
     return path

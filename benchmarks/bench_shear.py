@@ -1,0 +1,67 @@
+"""What Lees-Edwards shear costs per step: the N = 8000 reference scene (benchmarks/reference_scene.py:
+periodic, phi = 0.2, dipoles cut at 4 d, Kelvin-Voigt contacts k = 1000, c = 1.5, dt = 0.001) in a
+fixed box and sheared along x with gradient y at a few rates (the images one period up slide at
+gammadot L = 2.8 gammadot, against thermal speeds of about 1), on one tier; the list rebuilds per
+1000 steps beside it (the sliding counts against the skin).
+
+    python benchmarks/bench_shear.py [--tier 1] [--n 8000] [--rates 0 0.01 0.1 1] [--steps 300]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+import demkit as dk
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from reference_scene import load_reference_scene, particles_and_box  # noqa: E402
+
+
+def scene_of(n, rate, tier, folder):
+    ref = load_reference_scene(n, folder)
+    p, box = particles_and_box(ref)
+    if rate is not None:
+        box = dk.Box(box.size, periodic=True, shear=dk.Shear(rate, "x", "y"))
+        p.velocity[:, 0] += rate * (p.position[:, 1] - 0.5 * box.size[1])  # started in the flow's profile
+    law = dk.KelvinVoigt(1000.0, 1.5)
+    return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=4.0), law], box=box, tier=tier)
+
+
+def measure(n, rate, tier, steps, folder, rounds=3):
+    scene = scene_of(n, rate, tier, folder)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    sim.run(duration=0.02, progress=False)  # compile, first lists
+    best, rebuilds = 0.0, scene.counters[0]
+    for _ in range(rounds):
+        t = time.perf_counter()
+        sim.run(duration=steps * 1e-3, progress=False)
+        best = max(best, steps / (time.perf_counter() - t))
+    return {"rate": rate, "tier": sim.statistics["tier"], "steps_per_s": round(best, 2),
+            "rebuilds_per_1000": round(1000.0 * float(scene.counters[0] - rebuilds) / (rounds * steps), 1)}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--n", type=int, default=8000)
+    ap.add_argument("--tier", type=int, default=1)
+    ap.add_argument("--rates", type=float, nargs="+", default=[0.0, 0.01, 0.1, 1.0])
+    ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--out", default=None, help="a JSON file for the results")
+    a = ap.parse_args(argv)
+    folder = tempfile.mkdtemp()
+    rows = [measure(a.n, None, a.tier, a.steps, folder)]
+    print("fixed box", rows[-1], flush=True)
+    for rate in a.rates:
+        rows.append(measure(a.n, rate, a.tier, a.steps, folder))
+        print("sheared", rows[-1], flush=True)
+    if a.out:
+        Path(a.out).write_text(json.dumps({"n": a.n, "rows": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

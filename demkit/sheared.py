@@ -1,0 +1,46 @@
+"""Scenes in a sheared box (``dk.Box(..., shear=dk.Shear(rate, flow, gradient))``): what the Lees-Edwards
+images cover, the rest refused by name, and the shear's block of parameters for the compiled loops
+(:mod:`demkit.engine.shear`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .engine.shear import SH_BUILT, SH_FLOW, SH_GRADIENT, SH_JUMP, SHEAR_VALUES
+
+
+def shear_block(box):
+    """The params block of a sheared box: [a, b, gammadot L_b, offset at the lists' last build (0 for now)]."""
+    a, b = box.shear.axes
+    block = np.zeros(SHEAR_VALUES)
+    block[SH_FLOW], block[SH_GRADIENT], block[SH_JUMP], block[SH_BUILT] = a, b, box.shear.jump(box.size), 0.0
+    return block
+
+
+def check_scene(box, interactions, effects, polarisabilities):
+    """Raise ValueError for what a sheared box does not do yet (each named, with the reason)."""
+    shear = box.shear
+    for inter in interactions:
+        if getattr(inter, "long_range", None) is not None:
+            raise ValueError(f"{type(inter).__name__} with long_range={type(inter.long_range).__name__}: Ewald, "
+                             f"P3M and FMM sums are not done in a sheared box (they need the sheared "
+                             f"reciprocal lattice); give the dipoles a cutoff instead")
+        if "velocity" in inter.reads and not type(inter).__module__.startswith("demkit."):
+            raise ValueError(f"{type(inter).__name__} reads velocities: a function of your own would see v_j - v_i "
+                             f"without the sliding image's velocity (gammadot L_b along the flow) across the "
+                             f"boundary; a sheared box runs shipped velocity-reading laws only")
+    if polarisabilities is not None:
+        raise ValueError("magnetisable spheres (induced dipoles) in a sheared box are not supported yet: the "
+                         "induced-moment solve takes the plain minimum image")
+    a, b = shear.axes
+    for effect in effects:
+        name = type(effect).__name__
+        if getattr(effect, "plane_contact", False):
+            normal = getattr(effect, "normal", None)
+            flat = getattr(effect, "flat", True) and name == "Wall"
+            if not flat or normal is None or abs(normal[a]) > 0.0 or abs(normal[b]) > 0.0:
+                raise ValueError(f"{name} in a box sheared along {shear.flow} with gradient {shear.gradient}: only "
+                                 f"plane walls across the third axis are supported (a wall along the gradient or "
+                                 f"the flow would cut the sliding images)")
+        if name == "Langevin":
+            raise ValueError("Langevin in a sheared box: the bath would act on the velocity relative to rest, not "
+                             "to the imposed flow; not supported yet")

@@ -1,0 +1,408 @@
+"""Lees-Edwards shear (dk.Shear, demkit.engine.shear): the sliding images against spheres drawn out by
+hand in open space, both tiers' bits, a sheared elastic gas's linear profile and conserved peculiar
+momentum, exact restarts, and what a sheared box refuses."""
+import numpy as np
+import pytest
+
+import demkit as dk
+from restart_scenes import assert_identical, state_of
+
+L = 10.0
+RATE = 0.3  # gammadot: the images one period up y move at u = RATE * L = 3 along x
+
+
+@pytest.fixture(autouse=True)
+def automatic_tier(monkeypatch):
+    """Scenes here choose their tier themselves (the suite's conftest sets DEMKIT_TIER=1)."""
+    monkeypatch.delenv("DEMKIT_TIER", raising=False)
+
+
+def barbell():
+    """Two magnetic spheres stuck head to tail in a frictional, rolling contact, spinning, the pair
+    drifting up y at 1.3 (and along x and z): it crosses the sliding boundary y = L every 7.7 time
+    units, at offsets delta = u t mod L that differ from crossing to crossing, its contact's springs loaded."""
+    n = np.array([0.6, 0.8, 0.0])
+    centre = np.array([4.0, 5.0, 5.0])
+    pos = np.array([centre - 0.4988 * n, centre + 0.4988 * n])  # (about the dipoles' pull on the spring)
+    spin = np.array([0.0, 0.0, 1.2])  # the pair turns about z: tangential relative motion
+    vel = np.array([0.4, 1.3, 0.2]) + np.cross(spin, pos - centre)
+    dip = np.array([n, n]) * 2.0
+    return pos, vel, dip
+
+
+def barbell_scene(box, pos, vel, tier=1):
+    p = dk.Particles(position=pos, velocity=vel, radius=0.5, mass=1.0, dipole=barbell()[2],
+                     angular_velocity=[[0.0, 0.0, 1.0], [0.0, 0.0, -0.5]])
+    law = dk.KelvinVoigt(1e4, 2.0, friction=dk.Friction(0.5), rolling=dk.RollingResistance(0.05))
+    return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0), law], box=box, tier=tier)
+
+
+def test_a_pair_across_the_sliding_boundary_moves_as_drawn_out_by_hand():
+    """The sheared box's pair against the same pair in open space (no images at all: what the sliding
+    image stands for, drawn out). The unwrapped path (position + n L + n_b u t along x), the velocity
+    seen in open space (v + n_b u along x), the spins and the contact's forces and torques agree to
+    round-off over 13 crossings of y = L, the pair straddling it in 32 of 501 frames at offsets delta
+    from 0 to 7.6 (the pair's own motion, not chaotic: the two runs differ by the rounding of
+    coordinates that differ by whole periods and delta, measured 2e-13 of the largest coordinate after
+    50 000 steps, tolerance 1e-9; a lost friction history or a missing velocity shift of u = 3 differs
+    by O(1) at the first crossing)."""
+    pos, vel, _ = barbell()
+    dt, duration = 1e-3, 50.0
+    box = dk.Box(L, periodic=True, shear=dk.Shear(RATE, flow="x", gradient="y"))
+    sheared = barbell_scene(box, pos, vel)
+    opened = barbell_scene(None, pos, vel)
+    a = dk.Simulation(sheared, dk.VelocityVerlet(dt)).run(duration=duration, record_every=0.1, progress=False)
+    b = dk.Simulation(opened, dk.VelocityVerlet(dt)).run(duration=duration, record_every=0.1, progress=False)
+    crossings = np.abs(np.diff(a.image[:, :, 1], axis=0)).sum()
+    assert crossings >= 12, f"the spheres crossed y = L {crossings} times"
+    straddling = a.image[:, 0, 1] != a.image[:, 1, 1]
+    assert straddling.sum() >= 10, "frames with the pair across the sliding boundary"
+    u = RATE * L
+    scale = np.abs(b.position).max()
+    assert np.allclose(a.unwrapped(), b.position, rtol=0, atol=1e-9 * scale)
+    seen = a.velocity.copy()
+    seen[..., 0] += a.image[..., 1] * u
+    assert np.allclose(seen, b.velocity, rtol=0, atol=1e-9 * np.abs(b.velocity).max())
+    assert np.allclose(a.angular_velocity, b.angular_velocity, rtol=0, atol=1e-9 * np.abs(b.angular_velocity).max())
+    # the contact stayed made (and so kept its springs) all along
+    assert np.all(np.linalg.norm(np.diff(b.position, axis=1), axis=2) < 1.0)
+    # the forces and torques (dipoles, contact, friction and rolling springs) when the pair last straddled
+    until = float(a.time[np.flatnonzero(straddling)[-1]])
+    sheared, opened = barbell_scene(box, pos, vel), barbell_scene(None, pos, vel)
+    dk.Simulation(sheared, dk.VelocityVerlet(dt)).run(duration=until, progress=False)
+    dk.Simulation(opened, dk.VelocityVerlet(dt)).run(duration=until, progress=False)
+    assert sheared.particles.image[0, 1] != sheared.particles.image[1, 1]
+    fa, ta = sheared.forces()
+    fb, tb = opened.forces()
+    assert np.abs(fb).max() > 0.1 and np.abs(tb).max() > 1e-3
+    assert np.allclose(fa, fb, rtol=0, atol=1e-8 * np.abs(fb).max())
+    assert np.allclose(ta, tb, rtol=0, atol=1e-8 * np.abs(tb).max())
+    _, history = sheared.history(sheared.interactions[1])
+    _, truth = opened.history(opened.interactions[1])
+    assert np.any(truth != 0.0), "the friction spring is loaded"
+    assert np.allclose(history, truth, rtol=0, atol=1e-8 * np.abs(truth).max())
+
+
+def test_the_pair_force_sees_the_image_velocity_across_the_boundary():
+    """One step's forces of a pair straddling the boundary at t = 0: the dashpot acts on v_j + u - v_i
+    (the sliding image's velocity). Both spheres at rest in the box, the upper one across y = L: seen
+    from the lower one its image moves at +u along x, so the tangential friction pushes it along +x."""
+    box = dk.Box(L, periodic=True, shear=dk.Shear(RATE, "x", "y"))
+    pos = np.array([[5.0, 9.6, 5.0], [5.0, 0.35, 5.0]])  # 0.75 apart across y = L
+    p = dk.Particles(position=pos, velocity=np.zeros((2, 3)), radius=0.5, mass=1.0,
+                     angular_velocity=np.zeros((2, 3)))
+    scene = dk.Scene(p, [dk.KelvinVoigt(1e4, 5.0, friction=dk.Friction(0.5))], box=box)
+    force, _ = scene.forces()
+    # the lower sphere (0) is dragged along +x by the image moving at +u, the upper (1) along -x
+    assert force[0, 0] > 0.0 and force[1, 0] < 0.0
+    assert force[0, 1] < 0.0 < force[1, 1]  # the normal push, along y across the boundary
+    unsheared = dk.Scene(dk.Particles(position=pos, velocity=np.zeros((2, 3)), radius=0.5, mass=1.0,
+                                      angular_velocity=np.zeros((2, 3))),
+                         [dk.KelvinVoigt(1e4, 5.0, friction=dk.Friction(0.5))], box=dk.Box(L, periodic=True))
+    assert unsheared.forces()[0][0, 0] == 0.0
+
+
+def sheared_gas(tier, n=240, rate=0.8, flow="x", gradient="y", sort_every=None, parallel=False):
+    """The frictional magnetic gas of tests/test_tiers.py in a sheared box (blocked dipole loops, Hertz
+    contacts with friction and rolling), velocities about the imposed flow."""
+    R = 0.5
+    size = dk.build.box_for(n, R, 0.25).size
+    pos = dk.build.random_packing(n, R, dk.Box(size, periodic=True), seed=1)
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(n, 3))
+    vel = rng.normal(size=(n, 3))
+    a, b = "xyz".index(flow), "xyz".index(gradient)
+    vel[:, a] += rate * (pos[:, b] - 0.5 * size[b])
+    p = dk.Particles(position=pos, velocity=vel, radius=R, mass=1.0, dipole=d / np.linalg.norm(d, axis=1)[:, None])
+    law = dk.Hertz(young=2e4, poisson=0.3, restitution=0.5, friction=dk.Friction(0.5),
+                   rolling=dk.RollingResistance(0.02))
+    box = dk.Box(size, periodic=True, shear=dk.Shear(rate, flow, gradient))
+    return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0), law], box=box, tier=tier, sort_every=sort_every,
+                    parallel=parallel)
+
+
+def test_a_sheared_frictional_magnetic_gas_gives_the_same_bits_on_both_tiers():
+    """Tier 1 (the generic module, axes read from the shear block) and tier 2 (the scene's own pieces,
+    axes written in) step the sheared gas to the same bits, diagnostics included; flow along z with
+    the gradient along x so that neither axis is the default's."""
+    import test_tiers
+    sim, bits = test_tiers.outcome(sheared_gas(1, flow="z", gradient="x"), dk.VelocityVerlet(1e-3), 0.3)
+    assert sim.statistics["tier"] == 1 and sim.scene.counters[0] > 1  # lists rebuilt (the shear slides)
+    test_tiers.same_bits(lambda tier: sheared_gas(tier, flow="z", gradient="x"), dk.VelocityVerlet(1e-3), 0.3,
+                         diagnostics=True)
+
+
+def test_an_unsheared_scene_generates_the_code_it_did():
+    """Unused, shear costs nothing: the tier-2 code of an unsheared periodic gas has no line of it (the
+    generic module branches once per pair loop on the program's H_SHEAR, -1 here)."""
+    import test_tiers
+    from demkit.engine import program as layout
+    scene = test_tiers.gas(1)
+    assert scene.program[0, layout.H_SHEAR] == -1
+    from demkit.engine.kernels import _Source
+    text = _Source(scene.plan, True).pieces_text((layout.G_GROUP, layout.G_SPEED))
+    assert "shear" not in text and "sx, sy, sz" not in text
+    sheared = sheared_gas(1)
+    text = _Source(sheared.plan, True).pieces_text((layout.G_GROUP, layout.G_SPEED))
+    assert "sheared_image(dx, dy, dz, 0, 1, la, lb, delta, jump, True, lc)" in text and "(sx, sy, sz))" in text
+
+
+def elastic_gas(shear, n=400, rate=1.0, seed=5):
+    """A dilute (volume fraction 0.05) gas of nearly elastic frictionless spheres (restitution 0.98) started
+    in the linear profile v_x = rate (y - L/2) plus thermal motion of the same size, no net momentum
+    along y. ``shear``: a sheared box, else a plain periodic one."""
+    R = 0.5
+    size = dk.build.box_for(n, R, 0.05).size
+    box = dk.Box(size, periodic=True, shear=dk.Shear(rate, "x", "y") if shear else None)
+    pos = dk.build.random_packing(n, R, dk.Box(size, periodic=True), seed=seed)
+    vel = dk.build.thermal_velocities(n, 1.0, 1.0, seed=seed)
+    vel -= vel.mean(axis=0)
+    vel[:, 0] += rate * (pos[:, 1] - 0.5 * size[1])
+    p = dk.Particles(position=pos, velocity=vel, radius=R, mass=1.0)
+    law = dk.KelvinVoigt(2e4, 2.0 * 0.00643 * np.sqrt(2e4 * 0.5))  # zeta 0.00643: restitution 0.98
+    return dk.Scene(p, [law], box=box), size
+
+
+def profile_slope(traj, size, frames):
+    """The least-squares slope of v_x against y over the recorded frames ``frames`` (wrapped y)."""
+    y = traj.position[frames, :, 1].ravel() - 0.5 * size[1]
+    v = traj.velocity[frames, :, 0].ravel()
+    return float(np.sum(y * (v - v.mean())) / np.sum(y * y))
+
+
+def test_a_dilute_elastic_gas_keeps_its_linear_profile_and_its_peculiar_momentum():
+    """In the sheared box the profile stays linear with the imposed slope: fitted over the last 10
+    frames, 0.519 for 0.5 (tolerance 15 %: the shear heats the gas from temperature 1 to 22, and single
+    frames' slopes then scatter by +-20 %), where the plain periodic box loses the profile it started
+    with (slope 0.27 after 2 time units, about 0 from 12 on; asserted below half); the momentum of the
+    motion relative to the flow, sum m (v - gammadot (y - L/2) e_x), is conserved to round-off times
+    steps (measured 1e-14 of sum m|v| over 27 000 steps and 1494 crossings of the sliding boundary,
+    tolerance 1e-9: each wrap changes v_x by gammadot L_y and y by L_y, which cancel; pair forces,
+    across the boundary too, cancel in pairs)."""
+    rate = 0.5
+    dt, duration = 1.5e-3, 40.0
+    results = {}
+    for shear in (True, False):
+        scene, size = elastic_gas(shear, rate=rate)
+        traj = dk.Simulation(scene, dk.VelocityVerlet(dt)).run(duration=duration, record_every=2.0, progress=False)
+        results[shear] = traj
+    late = slice(-10, None)
+    slope = profile_slope(results[True], size, late)
+    assert slope == pytest.approx(rate, rel=0.15)
+    assert profile_slope(results[False], size, late) < 0.5 * rate
+    traj = results[True]
+    assert np.abs(np.diff(traj.image[:, :, 1], axis=0)).sum() > 50, "spheres crossed the sliding boundary"
+    peculiar = traj.velocity.copy()
+    peculiar[..., 0] -= rate * (traj.position[..., 1] - 0.5 * size[1])
+    momentum = peculiar.sum(axis=1)  # masses 1
+    scale = np.abs(traj.velocity).sum(axis=1).max()
+    assert np.abs(momentum - momentum[0]).max() < 1e-9 * scale
+
+
+def test_a_stopped_and_resumed_sheared_run_is_bit_identical(tmp_path):
+    """delta comes from the clock and the offset of the lists' last build is saved with the state: a
+    run stopped twice and resumed in new scenes gives the uninterrupted run's bits (re-sorting every
+    40 steps, friction history, wraps across the sliding boundary)."""
+    until = 0.4
+    scene = sheared_gas(None, n=120, sort_every=40)
+    dk.Simulation(scene, dk.VelocityVerlet(2e-3)).run(until=until)
+    truth = state_of(scene)
+    path = tmp_path / "shear.ckpt"
+    ends = [0.062, 0.25, until]
+    for k, end in enumerate(ends):
+        again = sheared_gas(None, n=120, sort_every=40)
+        sim = dk.Simulation(again, dk.VelocityVerlet(2e-3), checkpoint=dk.Checkpoint(path))
+        if k:
+            sim.resume()
+        sim.run(until=end)
+    assert truth["image"][:, 1].any(), "spheres crossed the sliding boundary"
+    assert any(np.any(v[1]) for key, v in truth.items() if key.startswith("history")), "contacts kept history"
+    assert_identical(state_of(again), truth)
+
+
+def test_bad_shear_is_refused():
+    with pytest.raises(ValueError, match="finite"):
+        dk.Shear(float("nan"))
+    with pytest.raises(ValueError, match="finite"):
+        dk.Shear(float("inf"))
+    with pytest.raises(ValueError, match="number"):
+        dk.Shear("fast")
+    with pytest.raises(ValueError, match="flow axis"):
+        dk.Shear(1.0, flow="w")
+    with pytest.raises(ValueError, match="gradient axis"):
+        dk.Shear(1.0, gradient=1)
+    with pytest.raises(ValueError, match="differ"):
+        dk.Shear(1.0, flow="y", gradient="y")
+    with pytest.raises(ValueError, match="gradient axis y must be periodic"):
+        dk.Box(10.0, periodic=(True, False, True), shear=dk.Shear(1.0))
+    with pytest.raises(ValueError, match="flow axis z must be periodic"):
+        dk.Box(10.0, periodic=(True, True, False), shear=dk.Shear(1.0, flow="z", gradient="x"))
+    with pytest.raises(ValueError, match="demkit.Shear"):
+        dk.Box(10.0, periodic=True, shear=1.0)
+    assert dk.Box(10.0, periodic=(True, True, False), shear=dk.Shear(2.0)).shear == dk.Shear(2.0, "x", "y")
+
+
+def test_what_a_sheared_box_does_not_do_yet_is_refused():
+    box = dk.Box(10.0, periodic=True, shear=dk.Shear(1.0))
+    pos = np.array([[2.0, 2.0, 2.0], [5.0, 5.0, 5.0]])
+
+    def particles(**extra):
+        return dk.Particles(position=pos, velocity=np.zeros((2, 3)), radius=0.5, mass=1.0,
+                            dipole=[[0, 0, 1.0], [0, 0, 1.0]], **extra)
+
+    with pytest.raises(ValueError, match="reciprocal lattice"):
+        dk.Scene(particles(), [dk.Dipole(prefactor=1.0, cutoff=3.0, long_range=dk.Ewald(1e-4))], box=box)
+    with pytest.raises(ValueError, match="induced dipoles"):
+        dk.Scene(particles(susceptibility=1.0), [dk.Dipole(prefactor=1.0, cutoff=3.0), dk.UniformField((0, 0, 1.0))],
+                 box=box)
+    with pytest.raises(ValueError, match="Wall in a box sheared"):
+        dk.Scene(particles(), [dk.KelvinVoigt(1e3, 1.0), dk.Wall((0, 0, 0), (0, 1, 0))], box=box)
+    with pytest.raises(ValueError, match="Langevin"):
+        dk.Scene(particles(), [dk.KelvinVoigt(1e3, 1.0), dk.Langevin(drag=1.0, temperature=0.1)], box=box)
+    from plugin_interactions import OwnKelvinVoigt
+    with pytest.raises(ValueError, match="reads velocities: a function of your own"):
+        dk.Scene(particles(), [OwnKelvinVoigt(1e3, 1.0)], box=box)
+    # plane walls across the third axis are fine: the plates of a shear cell along z
+    plates = dk.Box(10.0, periodic=(True, True, False), shear=dk.Shear(1.0))
+    scene = dk.Scene(particles(), [dk.KelvinVoigt(1e3, 1.0), dk.Wall((0, 0, 0), (0, 0, 1))], box=plates)
+    with pytest.raises(ValueError, match="sliding images"):
+        dk.Simulation(scene, dk.VelocityVerlet(1e-3, resolve_contacts=True))
+    with pytest.raises(ValueError, match="sheared box"):
+        dk.export_lammps(scene, dk.VelocityVerlet(1e-3), "/tmp/never-written")
+
+
+def test_the_shear_stress_of_a_dilute_elastic_gas_follows_kinetic_theory():
+    """dk.measure.stress in the sheared box: its kinetic part is sum m c c with c the velocity relative
+    to the imposed flow (to round-off), and the shear stress -P_xy follows Enskog's dense-gas viscosity
+    of hard spheres, eta = eta0 [1/chi + 0.8 b rho + 0.761 chi (b rho)^2] with eta0 = 1.016 (5/16 d^2)
+    sqrt(m kT / pi), b rho = 4 phi, chi = (1 - phi/2) / (1 - phi)^3 (Chapman & Cowling, ch. 16),
+    P_xy = -eta gammadot at the gas's temperature at each moment (it heats from kT = 1 to 20: no
+    thermostat). Over 30 samples from t = 11 to 40 (after the start-up, a few mean free times) the
+    ratio averages 0.97 (tolerance 25 %: single samples scatter by +-50 %, the gas is slightly
+    inelastic and its spheres soft, gammadot tau ~ 0.15)."""
+    rate = 0.5
+    scene, size = elastic_gas(True, rate=rate)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1.5e-3))
+    n = len(scene.particles)
+    phi = n * np.pi / 6.0 / np.prod(size)
+    chi = (1.0 - phi / 2.0) / (1.0 - phi) ** 3
+    ratios = []
+    for k in range(40):
+        sim.run(duration=1.0, progress=False)
+        s = dk.measure.stress(scene)
+        p = scene.particles
+        c = p.velocity.copy()
+        c[:, 0] -= rate * (p.position[:, 1] - 0.5 * size[1])
+        assert np.allclose(s.kinetic, c.T @ c, rtol=1e-12, atol=0)
+        kT = ((c - c.mean(axis=0)) ** 2).sum() / (3 * n)
+        eta = 1.016 * 5.0 / 16.0 * np.sqrt(kT / np.pi) * (1.0 / chi + 0.8 * 4 * phi + 0.761 * chi * (4 * phi) ** 2)
+        if k >= 10:
+            ratios.append(s.pressure_tensor[0, 1] / (-eta * rate))
+    assert np.mean(ratios) == pytest.approx(1.0, abs=0.25)
+
+
+def test_a_scene_file_shears_its_box_as_the_python_scene_does(tmp_path):
+    """[box.shear] builds dk.Shear: the barbell's box from a scene file steps to the bits of the Python
+    scene, a bad axis is refused naming the key, and a saved trajectory keeps the shear (its unwrapped
+    paths are the run's)."""
+    pos, vel, dip = barbell()
+    rows = lambda a: "[" + ", ".join("[" + ", ".join(repr(float(x)) for x in r) + "]" for r in a) + "]"  # noqa: E731
+    text = f"""
+[particles]
+position = {rows(pos)}
+velocity = {rows(vel)}
+angular_velocity = [[0.0, 0.0, 1.0], [0.0, 0.0, -0.5]]
+dipole = {rows(dip)}
+radius = 0.5
+mass = 1.0
+[box]
+size = {L}
+periodic = true
+[box.shear]
+rate = {RATE}
+flow = "x"
+gradient = "y"
+[interactions.dipole]
+prefactor = 1.0
+cutoff = 3.0
+[interactions.kelvin_voigt]
+stiffness = 1e4
+damping = 2.0
+[interactions.friction]
+coefficient = 0.5
+[interactions.rolling_resistance]
+coefficient = 0.05
+[integrator]
+method = "VelocityVerlet"
+dt = 0.001
+[run]
+duration = 5.0
+"""
+    loaded = dk.parse_scene(text)
+    assert loaded.scene.box.shear == dk.Shear(RATE, "x", "y")
+    python = barbell_scene(dk.Box(L, periodic=True, shear=dk.Shear(RATE, "x", "y")), pos, vel)
+    a = dk.Simulation(loaded.scene, dk.VelocityVerlet(1e-3)).run(duration=5.0, record_every=1.0, progress=False)
+    b = dk.Simulation(python, dk.VelocityVerlet(1e-3)).run(duration=5.0, record_every=1.0, progress=False)
+    assert a.position.tobytes() == b.position.tobytes() and a.velocity.tobytes() == b.velocity.tobytes()
+    with pytest.raises(dk.SceneFileError, match="box.shear.flow"):
+        dk.parse_scene(text.replace('flow = "x"', 'flow = "w"'))
+    from demkit.scenefile.running import load_trajectory, save_trajectory
+    save_trajectory(a, tmp_path / "run.npz")
+    again = load_trajectory(tmp_path / "run.npz")
+    assert again.box.shear == a.box.shear
+    assert np.array_equal(again.unwrapped(), a.unwrapped())
+
+
+def test_overlaps_across_the_sliding_boundary_are_found_before_a_run():
+    """The scene's check of its start finds spheres overlapping through a sliding image (delta = 0 at
+    t = 0: the image of the sphere at y = 0.3 sits straight above it, across y = L)."""
+    box = dk.Box(L, periodic=True, shear=dk.Shear(RATE, "x", "y"))
+    p = dk.Particles(position=[[5.0, 9.8, 5.0], [5.0, 0.3, 5.0]], radius=0.5, mass=1.0)
+    with pytest.raises(ValueError, match="overlap"):
+        dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0)], box=box)
+
+
+def test_a_sheared_gas_gives_the_same_bits_on_one_thread_and_on_all():
+    """The pair loops' chunks and the list build's chunks (the sliding images in each chunk's cells) on
+    numba's threads give the bits of the same chunks run on one thread."""
+    import numba
+    finals = []
+    before = numba.get_num_threads()
+    try:
+        for threads in (1, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            scene = sheared_gas(1, parallel=True)
+            assert scene.chunks > 1 or numba.config.NUMBA_NUM_THREADS == 1
+            dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(duration=0.2, progress=False)
+            finals.append((scene.particles.position.copy(), scene.particles.velocity.copy()))
+    finally:
+        numba.set_num_threads(before)
+    assert finals[0][0].tobytes() == finals[1][0].tobytes() and finals[0][1].tobytes() == finals[1][1].tobytes()
+
+
+def test_the_lists_hold_every_pair_through_the_sliding_images():
+    """At a fast shear (the images slide at u = 3 L = 45 per time unit, 15 skins per 0.1) the pairs the
+    dipole loop acts on are exactly those within its cutoff under the sliding images, found here by
+    brute force over all pairs with dk.Box.minimum_image at the scene's time (1e-9 of the cutoff left
+    for rounding at the edge), and their separations are the brute force's to round-off. The lists,
+    which cover 3 skins of sliding ahead, were rebuilt 11 times in the 120 steps (20 when they covered
+    none)."""
+    scene = sheared_gas(1, rate=3.0)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    n = len(scene.particles)
+    i, j = np.triu_indices(n, k=1)
+    for _ in range(6):
+        sim.run(duration=0.02, progress=False)
+        x, t = scene.particles.position, scene.time
+        d = scene.box.minimum_image(x[j] - x[i], t)
+        r = np.linalg.norm(d, axis=1)
+        inter, pairs, sep, _ = scene.pair_forces()[0]
+        assert isinstance(inter, dk.Dipole)
+        listed = {(min(a, b), max(a, b)): (s if a < b else -s) for (a, b), s in zip(pairs.tolist(), sep)}
+        inside = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 - 1e-9}
+        near = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 + 1e-9}
+        assert inside <= set(listed) <= near
+        truth = dict(zip(zip(i.tolist(), j.tolist()), d))
+        worst = max(np.abs(listed[key] - truth[key]).max() for key in listed)
+        assert worst < 1e-9
+    assert scene.counters[0] >= 5, "the lists were rebuilt as the images slid (11 times in 120 steps)"
