@@ -129,11 +129,15 @@ class Box:
             shift[..., a] = k.astype(np.int64) + edge
         return wrapped, shift
 
-    def minimum_image(self, separation, time=0.0):
+    def minimum_image(self, separation, time=None):
         """Separations (..., 3) reduced to their nearest periodic image (in a sheared box, the
-        Lees-Edwards image at ``time``: along the gradient first, then the flow shifted by k delta)."""
+        Lees-Edwards image at ``time``, which it needs: along the gradient first, then the flow shifted
+        by k delta)."""
         d = np.array(separation, dtype=np.float64)
         if self.shear is not None:
+            if time is None:
+                raise ValueError("separations in a sheared box need the time (minimum_image(d, time)): its "
+                                 "images slide along the flow")
             a, b = self.shear.axes
             k = -np.round(d[..., b] / self.size[b])
             d[..., b] += k * self.size[b]

@@ -53,10 +53,11 @@ SPHERE_FRAMES = 2_000_000
 STEPS_PER_FRAME = 1000
 
 
-def frame_overlaps(position, radius, box, pairs, walls):
+def frame_overlaps(position, radius, box, pairs, walls, time=None):
     """delta / R_min of the touching pairs (when ``pairs``: the scene has a contact law) and
-    delta / R of the spheres on the ``walls`` in one frame (one array; empty without contacts)."""
-    parts = [rel[rel > 0.0] for _, rel in _relative(np.asarray(position)[None], radius, box, pairs, walls)]
+    delta / R of the spheres on the ``walls`` in one frame at ``time`` (one array; empty without contacts)."""
+    times = None if time is None else np.array([float(time)])
+    parts = [rel[rel > 0.0] for _, rel in _relative(np.asarray(position)[None], radius, box, pairs, walls, times)]
     return np.concatenate([np.zeros(0)] + parts)
 
 
@@ -75,7 +76,9 @@ def _relative(position, radius, box, pairs, walls, times=None):
     if pairs and n <= FEW:  # every pair of every frame at once
         i, j = _all_pairs(n)
         d = position[:, j] - position[:, i]
-        if box is not None:
+        if box is not None and box.shear is not None:  # each frame's sliding images
+            d = np.stack([box.minimum_image(dk, t) for dk, t in zip(d, _times(times, box))])
+        elif box is not None:
             d = box.minimum_image(d)
         yield slice(None), (radius[i] + radius[j] - np.linalg.norm(d, axis=2)) / np.minimum(radius[i], radius[j])
     for wall in walls:
@@ -85,9 +88,17 @@ def _relative(position, radius, box, pairs, walls, times=None):
             yield slice(None), (radius - wall.heights(position)) / radius
     if pairs and n > FEW:
         for k in range(count):
-            touching, r = close_pairs(position[k], radius, box, distances=True)
+            touching, r = close_pairs(position[k], radius, box, distances=True,
+                                      time=None if times is None else times[k])
             ri, rj = radius[touching[:, 0]], radius[touching[:, 1]]
             yield k, (ri + rj - r) / np.minimum(ri, rj)
+
+
+def _times(times, box):
+    """The frames' times, which a sheared box's images need."""
+    if times is None:
+        raise ValueError("overlaps in a sheared box need the frames' times: its images slide")
+    return times
 
 
 class RunNotes:

@@ -51,7 +51,8 @@ def _drift(loaded, trajectory):
 def _contacts(loaded, trajectory):
     """Touching pairs (r < R_i + R_j, minimum image in a periodic box) in the last frame."""
     from .clustering import close_pairs
-    return len(close_pairs(trajectory.position[-1], trajectory.radius, trajectory.box))
+    return len(close_pairs(trajectory.position[-1], trajectory.radius, trajectory.box,
+                           time=trajectory.time[-1]))
 
 
 @observable("outcome")

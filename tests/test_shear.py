@@ -406,3 +406,36 @@ def test_the_lists_hold_every_pair_through_the_sliding_images():
         worst = max(np.abs(listed[key] - truth[key]).max() for key in listed)
         assert worst < 1e-9
     assert scene.counters[0] >= 5, "the lists were rebuilt as the images slid (11 times in 120 steps)"
+
+
+def test_clusters_contacts_and_overlap_notes_take_the_sliding_images_at_the_frames_time():
+    """dk.clustering's pairs in a sheared box (a k-d tree over the sliding copies one period up and down
+    the gradient) against brute force over every pair with Box.minimum_image at the frame's time: the same
+    pairs and distances (to round-off), pairs through the sliding boundary among them, at several times
+    (delta from 0 to most of L_a); without a time a sheared box refuses, rather than using delta = 0."""
+    from demkit import clustering, notes
+    rng = np.random.default_rng(8)
+    size = np.array([6.0, 5.0, 4.0])
+    box = dk.Box(size, periodic=True, shear=dk.Shear(0.37, "x", "y"))
+    x = rng.uniform(0.0, 1.0, (300, 3)) * size
+    radius = np.full(300, 0.25)
+    i, j = np.triu_indices(300, k=1)
+    across = 0
+    for t in (0.0, 0.9, 2.3, 3.1):
+        d = np.linalg.norm(box.minimum_image(x[j] - x[i], t), axis=1)
+        near = d < 0.6
+        pairs, r = clustering.close_pairs(x, radius, box, extra=0.1, distances=True, time=t)
+        assert {tuple(p) for p in pairs} == set(zip(i[near], j[near]))
+        np.testing.assert_allclose(np.sort(r), np.sort(d[near]), rtol=0, atol=1e-12)
+        across += int(np.sum(near & (np.abs(x[j, 1] - x[i, 1]) > 2.5)))
+        labels = clustering.clusters(x, radius, box, gap=0.1, time=t)
+        assert np.all(labels[i[near]] == labels[j[near]])  # every close pair in one cluster
+    assert across > 10
+    with pytest.raises(ValueError, match="time"):
+        clustering.close_pairs(x, radius, box)
+    with pytest.raises(ValueError, match="time"):
+        box.minimum_image(x[1] - x[0])
+    # the run's overlap notes read frames at their times: two spheres overlapping through the boundary
+    pair = np.array([[3.0, 0.1, 2.0], [3.0 + box.shear.offset(size, 1.5) - 0.4, 4.95, 2.0]])
+    overlap = notes.frame_overlaps(pair, np.full(2, 0.25), box, True, [], time=1.5)
+    assert overlap == pytest.approx([(0.5 - np.hypot(0.4, 0.15)) / 0.25], rel=1e-12)

@@ -693,6 +693,18 @@ def rebuild_threads(pl, position, tag, before, box, periodic, shear=None):
     balance(pl.start, pl.end, pl.bounds)
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def fold(x, length):
+    """(x brought into [0, length), the periods k taken off it: x - k length; round-off that leaves
+    exactly length counts one period more)."""
+    k = math.floor(x / length)
+    folded = x - k * length
+    if folded >= length:
+        folded -= length
+        k += 1
+    return folded, k
+
+
 @njit(**LOOP_OPTIONS)
 def wrap(position, reference, image, box, periodic):
     """Bring periodic coordinates into [0, L), counting images and moving the reference along."""
@@ -703,11 +715,8 @@ def wrap(position, reference, image, box, periodic):
         for i in range(position.shape[0]):
             x = position[i, a]
             if x < 0.0 or x >= length:
-                k = math.floor(x / length)
-                position[i, a] = x - k * length
-                if position[i, a] >= length:  # round-off
-                    position[i, a] -= length
-                    k += 1
+                folded, k = fold(x, length)
+                position[i, a] = folded
                 image[i, a] += k
                 if reference.shape[0] > 0:
                     reference[i, a] -= k * length

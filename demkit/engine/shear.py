@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from .motion import KERNEL_OPTIONS
-from .neighbours import LOOP_OPTIONS, wrap
+from .neighbours import LOOP_OPTIONS, fold, wrap
 
 #: the shear block in params: flow axis a, gradient axis b, jump u = gammadot L_b, offset at the last build
 SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT = range(4)
@@ -125,11 +125,8 @@ def wrap_sheared(position, velocity, reference, image, box, periodic, params, sh
     for i in range(position.shape[0]):
         y = position[i, b]
         if y < 0.0 or y >= lb:
-            k = math.floor(y / lb)
-            position[i, b] = y - k * lb
-            if position[i, b] >= lb:  # round-off
-                position[i, b] -= lb
-                k += 1
+            folded, k = fold(y, lb)
+            position[i, b] = folded
             image[i, b] += k
             position[i, a] -= k * delta
             velocity[i, a] -= k * u

@@ -90,7 +90,7 @@ def subset_mask(frames, subset):
             raise ValueError(f"subset must be 'cluster', sphere indices, a boolean mask or a callable, "
                              f"got {subset!r}")
         box = getattr(frames, "box", None)
-        return lambda k: clusters(frames.position[k], frames.radius, box) == 0
+        return lambda k: clusters(frames.position[k], frames.radius, box, time=frames.time[k]) == 0
     if callable(subset):
         return lambda k: _as_mask(subset(frames, k), n, "subset(frames, k)")
     fixed = _as_mask(subset, n, "subset")
@@ -167,7 +167,7 @@ class Colouring:
         if name == "contacts":
             return "contacts", lambda k: contacts(f.position[k], f.radius, box)
         if name == "cluster":
-            return "cluster (1: largest)", lambda k: clusters(f.position[k], f.radius, box)
+            return "cluster (1: largest)", lambda k: clusters(f.position[k], f.radius, box, time=f.time[k])
         if name == "radius":
             return "radius", lambda k: np.broadcast_to(f.radius, (n,))
         if name == "mass" and getattr(f, "mass", None) is not None:
@@ -317,7 +317,7 @@ class Framing:
         if len(index) == 0:
             raise ValueError("the subset selects no sphere in the last frame shown")
         radius = np.broadcast_to(self.frames.radius, members.shape)[index]
-        label = clusters(self.frames.position[k][index], radius, self.box)
+        label = clusters(self.frames.position[k][index], radius, self.box, time=self.frames.time[k])
         largest = np.zeros_like(members)
         largest[index[label == 0]] = True
         return largest
@@ -410,7 +410,9 @@ def default_trail(frames, shown):
     else:
         d = np.diff(frames.position[first:shown[-1] + 1], axis=0)
         box = getattr(frames, "box", None)
-        if box is not None:
+        if box is not None and box.shear is not None:  # each step's sliding images, at its end
+            d = np.stack([box.minimum_image(dk, t) for dk, t in zip(d, frames.time[first + 1:shown[-1] + 1])])
+        elif box is not None:
             d = box.minimum_image(d)
         speed = (np.linalg.norm(d, axis=2) / np.diff(frames.time[first:shown[-1] + 1])[:, None]).mean(axis=0)
     typical = float(np.median(speed)) if len(speed) else 0.0
