@@ -10,8 +10,8 @@ import numpy as np
 from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, catalogue
 from .generic import CALLS, OWN_CALLS, PIECES, SCENE_PIECES, THREAD_PIECES, UPKEEP, _name, _pieces_name
-from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_SORTED,
-                      H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
+from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
+                      H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
 from .snippets import SPEEDS
 from .state import pair_loop_arrays
 
@@ -89,6 +89,8 @@ def needs_of(program):
         needs += ["maintain_lists"]
     if program[0, H_SORTED] != 0:
         needs += ["sort_particles"]
+    if program[0, H_PERIODIC] != 0:
+        needs += ["wrap_positions"]
     if any(program[r, G_MEMBERS + M_COLUMNS * m + M_KIND] == OWN for r in rows for m in range(program[r, G_COUNT])):
         needs += ["own_pair_forces", "own_pair_energies"]
     if any(program[effect_row(e), E_KIND] == OWN for e in range(program[0, H_EFFECTS])):
@@ -122,7 +124,7 @@ def piece_arguments(state_type):
     arguments = {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
                  "long_range": (state_type, f["force"], f["torque"]),
                  "sum_energies": (state_type, out),
-                 "induce_now": (state_type, types.boolean),
+                 "induce_now": (state_type, types.boolean), "wrap_positions": (state_type,),
                  "pairs_forces": chunked, "pairs_forces_blocked": chunked,
                  "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
                  "pairs_energies": (state_type, pair_list, out, types.int64),
