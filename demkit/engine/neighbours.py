@@ -299,16 +299,14 @@ def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
     ila = 1.0 / la
     lc = box[c] if periodic[c] else 0.0
     ilc = 1.0 / lc if lc > 0.0 else 0.0
-    # branch-free, so that the compiler vectorises it as the plain distance test (a loop with branches
-    # cost a sheared N = 8000 scene about 8 % of its steps in list builds)
+    # branch-free: vectorised as the plain distance test (branches cost a sheared N = 8000 scene ~8 %)
     for u in range(k):
         db = rb[u] - xb
         shift = (1.0 if db < -hb else 0.0) - (1.0 if db > hb else 0.0)
         db += shift * lb
         da = ra[u] - xa + shift * delta
         da -= la * np.floor(da * ila + 0.5)  # (np.floor: a float, which vectorises; math.floor is an int)
-        # the nearest the interval [da, da + shift ahead] comes to 0 or to the images at -+la (a pair
-        # that does not cross: the interval is da itself)
+        # the nearest [da, da + shift ahead] comes to 0 or to -+la (a pair not crossing: da itself)
         lo = min(da, da + shift * ahead)
         hi = max(da, da + shift * ahead)
         da = min(max(0.0, max(lo, -hi)), min(max(0.0, max(lo - la, la - hi)), max(0.0, max(lo + la, -la - hi))))
@@ -319,8 +317,7 @@ def sheared_hits(xi, yi, zi, ti, k, near_x, near_id, box, periodic, reach2, le):
 
 @njit(**HELPER)
 def sheared_fold(position, box, periodic, le):
-    """A copy of the positions folded into the box with the sliding images (le = [a, b, delta]): a
-    sphere k periods up the gradient axis b is moved back by k L_b along b and by k delta along a."""
+    """Positions folded by the sliding images (le = [a, b, delta]): k periods up b, back k L_b and k delta."""
     a = int(le[0])
     b = int(le[1])
     out = position.copy()
@@ -695,8 +692,7 @@ def rebuild_threads(pl, position, tag, before, box, periodic, shear=None):
 
 @njit(cache=True, _nrt=False, inline="always")
 def fold(x, length):
-    """(x brought into [0, length), the periods k taken off it: x - k length; round-off that leaves
-    exactly length counts one period more)."""
+    """(x - k length in [0, length), k): round-off that leaves exactly length counts one period more."""
     k = math.floor(x / length)
     folded = x - k * length
     if folded >= length:
