@@ -133,18 +133,33 @@ def test_a_sheared_frictional_magnetic_gas_gives_the_same_bits_on_both_tiers():
 
 
 def test_an_unsheared_scene_generates_the_code_it_did():
-    """Unused, shear costs nothing: the tier-2 code of an unsheared periodic gas has no line of it (the
-    generic module branches once per pair loop on the program's H_SHEAR, -1 here)."""
+    """Unused, shear costs nothing: the tier-2 code of an unsheared periodic gas has no line of it; on
+    tier 1 it is given the plain periodic wrap and no frame folding (generic.SHEARED_CALLS), and the
+    paper's laws run on the plain family, whose pair loops have no line of it either."""
     import test_tiers
+    from demkit.engine import generic, generic_modules
     from demkit.engine import program as layout
+    from demkit.engine.kernels import _Source
     scene = test_tiers.gas(1)
     assert scene.program[0, layout.H_SHEAR] == -1
-    from demkit.engine.kernels import _Source
     text = _Source(scene.plan, True).pieces_text((layout.G_GROUP, layout.G_SPEED))
     assert "shear" not in text and "sx, sy, sz" not in text
     sheared = sheared_gas(1)
     text = _Source(sheared.plan, True).pieces_text((layout.G_GROUP, layout.G_SPEED))
     assert "sheared_image(dx, dy, dz, 0, 1, la, lb, delta, jump, True, lc)" in text and "(sx, sy, sz))" in text
+    plain = generic._Generic(False, "plain").pieces_text()
+    full = generic._Generic(False, "full").pieces_text()
+    assert "if sheared:" not in plain and "shear_offset(" not in plain and "delta" not in plain
+    assert "if sheared:" in full and "shear_offset(" in full
+    for make, sliding in ((lambda: sheared_gas(1), True), (lambda: test_tiers.gas(1, kelvin_voigt=True), False)):
+        scene = make()
+        needs = generic_modules.needs_of(scene.program)
+        assert ("fold_frame" in needs) == sliding and "wrap_positions" in needs
+        assert generic_modules.family_of(scene.program) == ("full" if sliding else "plain")
+        dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(0.002, progress=False)
+        (calls,) = scene.kernels._calls.values()  # the tuple the run's time loops were given
+        names = [c.cres.fndesc.qualname for c in calls]
+        assert ("wrap_positions_sheared" in names) == sliding and ("no_fold_frame" in names) != sliding
 
 
 def elastic_gas(shear, n=400, rate=1.0, seed=5):

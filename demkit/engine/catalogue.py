@@ -100,6 +100,10 @@ FAMILIES = {"plain": lambda law: law.pair and law.force_name in PLAIN_LAWS, "ful
 #: the pieces module of the blocked pair loop, shared by the families: it holds the branch-free laws
 #: (dipoles) alone, which every family holds
 BLOCKED = "blocked"
+#: the families whose pair loops take a sheared box's sliding images (demkit.engine.shear); a sheared
+#: scene runs on the first of them. The plain family's do not: the paper's scene, a new install's
+#: first, does not compile them (2.2 CPU-s of its first step, measured)
+SLIDING = ("full", BLOCKED)
 
 
 def catalogue():

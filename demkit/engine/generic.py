@@ -50,7 +50,7 @@ import re
 import textwrap
 import warnings
 
-from .catalogue import BLOCKED, FAMILIES, OWN, SUMS, catalogue
+from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
@@ -111,6 +111,7 @@ class _Generic:
 
     def __init__(self, threads, family="full"):
         self.threads, self.family = threads, family
+        self.sheared = family in SLIDING  # its pair loops take sliding images (else no line of shear)
         laws, effects = catalogue()
         accepts = (lambda law: law.branch_free) if family == BLOCKED else FAMILIES[family]  # (no effect is)
         self.laws = [law for law in laws if accepts(law)]
@@ -131,6 +132,7 @@ class _Generic:
                 "    lx = box[0]", "    hx = 0.5 * box[0]", "    ilx = 1.0 / box[0] if px else 0.0",
                 "    ly = box[1]", "    hy = 0.5 * box[1]", "    ily = 1.0 / box[1] if py else 0.0",
                 "    lz = box[2]", "    hz = 0.5 * box[2]", "    ilz = 1.0 / box[2] if pz else 0.0",
+                "    sx = 0.0", "    sy = 0.0", "    sz = 0.0"] + ([
                 # a sheared box (demkit.engine.shear): its block in params, the axes read from it
                 '    sh = field(s, "program")[0, H_SHEAR]', "    sheared = sh >= 0",
                 "    sa = int(params[sh + SH_FLOW]) if sheared else 0",
@@ -138,8 +140,7 @@ class _Generic:
                 "    la = box[sa]", "    lb = box[sb]", "    lc = box[3 - sa - sb]",
                 "    pc = program[G_PX + 3 - sa - sb] != 0",
                 "    delta = shear_offset(params, sh, box, clock[0]) if sheared else 0.0",
-                "    jump = params[sh + SH_JUMP] if sheared else 0.0",
-                "    sx = 0.0", "    sy = 0.0", "    sz = 0.0"]
+                "    jump = params[sh + SH_JUMP] if sheared else 0.0"] if self.sheared else [])
 
     def rows(self, pad, first, last):
         """Loop header over owners first..last-1 and their entries; the body goes at pad + 8."""
@@ -158,11 +159,14 @@ class _Generic:
 
     def geometry(self, pad):
         lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
-        lines += [f"{pad}if sheared:", shear_geometry(pad + "    ", "sa", "sb", "pc"), f"{pad}else:"]
+        fold = pad
+        if self.sheared:
+            lines += [f"{pad}if sheared:", shear_geometry(pad + "    ", "sa", "sb", "pc"), f"{pad}else:"]
+            fold = pad + "    "
         for axis in "xyz":
             d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
-            lines += [f"{pad}    if p{axis}:", f"{pad}        if {d} > {h}:", f"{pad}            {d} -= {l}",
-                      f"{pad}        elif {d} < -{h}:", f"{pad}            {d} += {l}"]
+            lines += [f"{fold}if p{axis}:", f"{fold}    if {d} > {h}:", f"{fold}        {d} -= {l}",
+                      f"{fold}    elif {d} < -{h}:", f"{fold}        {d} += {l}"]
         return lines + [f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
 
     def member(self, pad):
@@ -488,13 +492,19 @@ class _Generic:
         lines += self.sum_switch("total", "force, torque, np.True_") + ["    return total"]
         # the wrap through ``calls``: a scene without periodic axes compiles neither fold (2 CPU s of a
         # fresh install's first step with the sliding images' beside the plain one)
+        # (a sheared box's, with its sliding images, in that slot of its calls: SHEARED_CALLS)
         lines += ["", "", "@njit(**LOOP)", "def wrap_positions(s):",
-                  '    """Fold the periodic coordinates into the box (a sheared box: through its sliding images)."""',
-                  "    if s.program[0, H_SHEAR] >= 0:",
-                  "        wrap_sheared(s.position, s.velocity, s.reference, s.image, s.box, s.periodic, s.params,",
-                  "                     s.program[0, H_SHEAR], s.clock[0])",
-                  "    else:",
-                  "        wrap(s.position, s.reference, s.image, s.box, s.periodic)"]
+                  '    """Fold the periodic coordinates into the box."""',
+                  "    wrap(s.position, s.reference, s.image, s.box, s.periodic)",
+                  "", "", "@njit(**LOOP)", "def wrap_positions_sheared(s):",
+                  '    """Fold the periodic coordinates into a sheared box, through its sliding images."""',
+                  "    wrap_sheared(s.position, s.velocity, s.reference, s.image, s.box, s.periodic, s.params,",
+                  "                 s.program[0, H_SHEAR], s.clock[0])"]
+        # a sheared box's frames through ``calls`` too: scenes in fixed boxes do not compile it
+        lines += ["", "", "@njit(**LOOP)", "def fold_frame(s, k, rec_position, rec_velocity, rec_image):",
+                  '    """Frame k folded through a sheared box\'s sliding images (store_frame folds each axis alone)."""',
+                  "    frame_sheared(k, s.position, s.velocity, s.image, s.tag, s.box, s.periodic, s.params,",
+                  "                  s.program[0, H_SHEAR], s.clock[0], rec_position, rec_velocity, rec_image)"]
         lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
                   '    """Add the energy of each long-range sum to its column of out."""']
         lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, np.False_")
@@ -566,8 +576,7 @@ class _Generic:
                  .replace("def end_step(step,", "def end_step(calls, frame, step,") for line in RECORD_FRAME]
         at = frame.index("    e = record[4]")  # after store_frame: the frame folded with the sliding images
         lines += frame[:at] + ["    if s.program[0, H_SHEAR] >= 0:",
-                               "        frame_sheared(k, s.position, s.velocity, s.image, s.tag, s.box, s.periodic, s.params,",
-                               "                      s.program[0, H_SHEAR], s.clock[0], record[0], record[1], record[6])"] + frame[at:]
+                               f"        {self.call('fold_frame')}(s, k, record[0], record[1], record[6])"] + frame[at:]
         lines += ["    if (s.program[0, H_PERIODIC] != 0 or s.program[0, H_SORTED] != 0) and s.counters[WRAP_DUE] != 0:",
                   "        s.counters[WRAP_DUE] = 0",
                   "        if s.program[0, H_PERIODIC] != 0:",
@@ -676,6 +685,8 @@ class _Generic:
                   "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
                   "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0",
                   "", "", "@njit(**LOOP)", "def no_wrap_positions(s):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_fold_frame(s, k, rec_position, rec_velocity, rec_image):",
+                  "    return",
                   "", "", "@njit(**INNER)",
                   "def no_own_pair_forces(k, i, j, dx, dy, dz, r2, s, history, p, off, commit, slot):",
                   "    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0",
@@ -733,9 +744,13 @@ THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
 STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_contact_event")
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
-SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now", "wrap_positions")
+SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now", "wrap_positions",
+                "fold_frame")
 #: ... of which the list upkeep, which has a twin on threads
 UPKEEP = SCENE_PIECES[:2]
+#: the scene pieces a sheared box takes in place of the plain ones (its own name in the module), and
+#: what only a sheared box calls: a scene in a fixed box compiles none of their shear code
+SHEARED_CALLS = {"wrap_positions": "wrap_positions_sheared", "fold_frame": "fold_frame"}
 
 
 #: the adapters of a scene's functions of your own (:mod:`demkit.engine.own_laws`), given to the pieces

@@ -8,10 +8,10 @@ import inspect
 import numpy as np
 
 from . import neighbours
-from .catalogue import BLOCKED, FAMILIES, OWN, catalogue
-from .generic import CALLS, OWN_CALLS, PIECES, SCENE_PIECES, THREAD_PIECES, UPKEEP, _name, _pieces_name
+from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
+from .generic import CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES, UPKEEP, _name, _pieces_name
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
-                      H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
+                      H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
 from .snippets import SPEEDS
 from .state import pair_loop_arrays
 
@@ -46,7 +46,9 @@ def family_of(program):
     used = [laws[kind] for kind in kinds if kind != OWN]
     used += [effects[kind] for kind in (program[effect_row(e), E_KIND] for e in range(program[0, H_EFFECTS]))
              if kind != OWN]
-    return next(family for family, accepts in FAMILIES.items() if all(accepts(law) for law in used))
+    sheared = program[0, H_SHEAR] >= 0
+    return next(family for family, accepts in FAMILIES.items()
+                if all(accepts(law) for law in used) and (family in SLIDING or not sheared))
 
 
 def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_energies=True, own=None):
@@ -91,6 +93,8 @@ def needs_of(program):
         needs += ["sort_particles"]
     if program[0, H_PERIODIC] != 0:
         needs += ["wrap_positions"]
+    if program[0, H_SHEAR] >= 0:
+        needs += ["fold_frame"]  # (and the sheared wrap: generic.SHEARED_CALLS)
     if any(program[r, G_MEMBERS + M_COLUMNS * m + M_KIND] == OWN for r in rows for m in range(program[r, G_COUNT])):
         needs += ["own_pair_forces", "own_pair_energies"]
     if any(program[effect_row(e), E_KIND] == OWN for e in range(program[0, H_EFFECTS])):
@@ -121,10 +125,12 @@ def piece_arguments(state_type):
     pair_list = f["lists"][0]
     chunked = (state_type, f["force"], f["torque"], pair_list, types.boolean, types.int64)
     out = types.Array(types.float64, 1, "C")
+    frames = types.Array(types.float64, 3, "C")  # the record's positions and velocities (demkit.recording)
     arguments = {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
                  "long_range": (state_type, f["force"], f["torque"]),
                  "sum_energies": (state_type, out),
                  "induce_now": (state_type, types.boolean), "wrap_positions": (state_type,),
+                 "fold_frame": (state_type, types.int64, frames, frames, types.Array(types.int64, 3, "C")),
                  "pairs_forces": chunked, "pairs_forces_blocked": chunked,
                  "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),
                  "pairs_energies": (state_type, pair_list, out, types.int64),
@@ -188,6 +194,8 @@ class GenericKernels:
                     function = getattr(own, f"piece_{name}")
                 elif name in OWN_CALLS and not stubbed:
                     function = getattr(self.own, name)
+                elif "fold_frame" in self.needs and name in SHEARED_CALLS:  # a sheared box's
+                    function = getattr(module, SHEARED_CALLS[name])
                 else:
                     function = getattr(module, f"no_{name}" if stubbed else name)
                 calls.append(self._wrapped(function, arguments[name]))
