@@ -297,23 +297,25 @@ def test_the_shear_stress_of_a_dilute_elastic_gas_follows_kinetic_theory():
     inelastic and its spheres soft, gammadot tau ~ 0.15)."""
     rate = 0.5
     scene, size = elastic_gas(True, rate=rate)
-    sim = dk.Simulation(scene, dk.VelocityVerlet(1.5e-3))
+    series = dk.StressSeries(every=1.0)  # measured during the run (tests/test_stress_series.py)
+    dk.Simulation(scene, dk.VelocityVerlet(1.5e-3), writers=[series]).run(duration=40.0, progress=False)
     n = len(scene.particles)
     phi = n * np.pi / 6.0 / np.prod(size)
     chi = (1.0 - phi / 2.0) / (1.0 - phi) ** 3
-    ratios = []
-    for k in range(40):
-        sim.run(duration=1.0, progress=False)
-        s = dk.measure.stress(scene)
-        p = scene.particles
-        c = p.velocity.copy()
-        c[:, 0] -= rate * (p.position[:, 1] - 0.5 * size[1])
-        assert np.allclose(s.kinetic, c.T @ c, rtol=1e-12, atol=0)
-        kT = ((c - c.mean(axis=0)) ** 2).sum() / (3 * n)
-        eta = 1.016 * 5.0 / 16.0 * np.sqrt(kT / np.pi) * (1.0 / chi + 0.8 * 4 * phi + 0.761 * chi * (4 * phi) ** 2)
-        if k >= 10:
-            ratios.append(s.pressure_tensor[0, 1] / (-eta * rate))
+    p = scene.particles
+    c = p.velocity.copy()
+    c[:, 0] -= rate * (p.position[:, 1] - 0.5 * size[1])
+    assert np.allclose(series.kinetic[-1] * np.prod(size), c.T @ c, rtol=1e-12, atol=0)
+    # kT from the kinetic part (the relative motion's momentum stays 0: test above)
+    kT = np.trace(series.kinetic, axis1=1, axis2=2) * np.prod(size) / (3 * n)
+    eta = 1.016 * 5.0 / 16.0 * np.sqrt(kT / np.pi) * (1.0 / chi + 0.8 * 4 * phi + 0.761 * chi * (4 * phi) ** 2)
+    later = series.time >= 11.0 - 1e-9
+    assert later.sum() == 30
+    ratios = series.pressure_tensor[later, 0, 1] / (-eta[later] * rate)
     assert np.mean(ratios) == pytest.approx(1.0, abs=0.25)
+    r = series.rheology(after=11.0)  # the same samples' shear stress (not divided by each moment's eta)
+    assert r["shear_stress"] == pytest.approx(-series.pressure_tensor[later, 0, 1].mean(), rel=1e-12)
+    assert r["viscosity"] == pytest.approx(r["shear_stress"] / rate, rel=1e-12) and r["shear_stress_error"] > 0
 
 
 def test_a_scene_file_shears_its_box_as_the_python_scene_does(tmp_path):
