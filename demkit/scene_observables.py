@@ -88,6 +88,36 @@ def _pressure_tensor(loaded, trajectory):
     return {a + b: float(tensor[i, k]) for i, a in enumerate("xyz") for k, b in enumerate("xyz")}
 
 
+def _stress_series(loaded, trajectory):
+    """The run's dk.StressSeries and the time its second half starts (what the means cover)."""
+    series = getattr(loaded, "stress_series", None)
+    if series is None:
+        raise ValueError("measuring the stress during the run needs run.stress_every in the scene file")
+    return series, 0.5 * (float(trajectory.time[0]) + float(trajectory.time[-1]))
+
+
+@observable("stress", columns=_TENSOR)
+def _stress(loaded, trajectory):
+    """The pressure tensor P_ab averaged over the second half of the run (run.stress_every: a
+    dk.StressSeries), columns stress_xx ... _zz."""
+    series, after = _stress_series(loaded, trajectory)
+    mean = series.mean(after=after)[0]
+    return {a + b: float(mean[i, k]) for i, a in enumerate("xyz") for k, b in enumerate("xyz")}
+
+
+_RHEOLOGY = ("rate", *(name + tail for name in ("shear_stress", "viscosity", "n1", "n2", "pressure")
+                        for tail in ("", "_error")))
+
+
+@observable("rheology", columns=_RHEOLOGY)
+def _rheology(loaded, trajectory):
+    """A sheared box's shear stress, viscosity, normal-stress differences N1, N2 and pressure over the
+    second half of the run, each with its standard error (dk.StressSeries.rheology), and the rate:
+    columns rheology_shear_stress, rheology_shear_stress_error, ..."""
+    series, after = _stress_series(loaded, trajectory)
+    return series.rheology(after=after)
+
+
 @observable("coordination")
 def _coordination(loaded, trajectory):
     """Mean contacts per sphere (sphere-sphere) at the end (:func:`demkit.measure.coordination`)."""

@@ -368,6 +368,23 @@ duration = 5.0
     again = load_trajectory(tmp_path / "run.npz")
     assert again.box.shear == a.box.shear
     assert np.array_equal(again.unwrapped(), a.unwrapped())
+    # run.stress_every: the stress measured during the file's run, [outputs] stress, sweep observables
+    from demkit.scene_observables import observe
+    with pytest.raises(dk.SceneFileError, match="stress_every"):
+        dk.parse_scene(text + '[outputs]\nstress = "s.csv"\n')
+    measured = dk.parse_scene(text.replace("duration = 5.0", "duration = 5.0\nstress_every = 0.5")
+                              + '[outputs]\nstress = "s.csv"\n')
+    measured.base = tmp_path
+    traj = measured.run(progress=False)
+    series = measured.stress_series
+    assert len(series.time) == 11 and (tmp_path / "s.csv").exists()
+    assert series.pressure_tensor[-1].tobytes() == dk.measure.stress(measured.scene).pressure_tensor.tobytes()
+    values = observe(["stress", "rheology"], measured, traj)
+    later = series.time >= 2.5
+    assert values["stress_xy"] == pytest.approx(series.pressure_tensor[later, 0, 1].mean(), rel=1e-12)
+    assert values["rheology_shear_stress"] == pytest.approx(-values["stress_xy"], rel=1e-12)
+    assert values["rheology_rate"] == RATE and np.isnan(values["rheology_viscosity_error"])  # 6 samples: no blocks
+    assert isinstance(observe(["rheology"], loaded, a)["rheology"], ValueError)  # no stress_every
 
 
 def test_overlaps_across_the_sliding_boundary_are_found_before_a_run():

@@ -464,4 +464,4 @@ def _build(data, src, base):
     return LoadedScene(scene=scene, integrator=integrator, duration=run["duration"], record_every=run["record_every"],
                        outputs=outputs, path=None if str(src.name) == "<string>" else Path(src.name), data=data,
                        units=units, max_energy_growth=run["max_energy_growth"], base=base, source=src,
-                       step_choice=step_choice)
+                       step_choice=step_choice, stress_every=run["stress_every"])

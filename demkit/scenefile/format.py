@@ -353,10 +353,15 @@ SCHEMA = Table({
     "run": Table({
         "duration": _n("simulated time", default=REQUIRED, check="positive", dim="time"),
         "record_every": _n("time between recorded frames (none: start and end)", check="positive", dim="time"),
-        "max_energy_growth": _n("stop when total + dissipated energy grows by this fraction", check="positive")},
+        "max_energy_growth": _n("stop when total + dissipated energy grows by this fraction", check="positive"),
+        "stress_every": _n("measure the stress every this much time during the run (dk.StressSeries): for the "
+                           "sweep observables stress and rheology and [outputs] stress", check="positive",
+                           dim="time")},
         "how long", required=True),
     "outputs": Table({
         "trajectory": Key("string", doc="write the recorded frames to this .npz file"),
+        "stress": Key("string", doc="write the stress series (needs run.stress_every) to this CSV file, a line "
+                                    "per sample (dk.StressSeries)"),
         "vtk": Table({
             "folder": Key("string", "vtk", "folder of the ParaView series"),
             "every": _n("time between frames", default=REQUIRED, check="positive", dim="time"),

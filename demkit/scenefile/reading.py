@@ -102,6 +102,9 @@ def _check_rules(data):
                                     f"{' (volume_fraction)' if build['kind'] == 'random_packing' else ''}: "
                                     f"leave out [box]")
     out = data["outputs"] or {}
+    if out.get("stress") is not None and data["run"]["stress_every"] is None:
+        raise SchemaError(("outputs", "stress"), "is the series measured every run.stress_every: add stress_every "
+                                                 "to [run]")
     if out.get("animation") is not None and out.get("vtk") is None:
         raise SchemaError(("outputs", "animation"), "is made from the VTK series: add [outputs.vtk]")
     integ = data["integrator"]

@@ -32,6 +32,10 @@ class LoadedScene:
     max_energy_growth: float | None = None
     #: with dt = "auto": how the step was chosen (dk.step_choice.StepChoice), else None
     step_choice: object = None
+    #: run.stress_every: the stress is measured during the run into :attr:`stress_series`
+    stress_every: float | None = None
+    #: the dk.StressSeries of the last simulation made (with run.stress_every), else None
+    stress_series: object = None
     base: Path = Path(".")
     source: object = None
     #: outputs that could not be written where asked and were saved elsewhere: {name: path}
@@ -53,6 +57,7 @@ class LoadedScene:
         out = self.outputs
         for key, name, what in (("trajectory", out.get("trajectory"), "trajectory"),
                                 ("animation", (out.get("animation") or {}).get("path"), "animation"),
+                                ("stress", out.get("stress"), "stress series"),
                                 ("checkpoint", (out.get("checkpoint") or {}).get("path"), "checkpoint")):
             if name:
                 with _At(self.source, "outputs", key):
@@ -82,6 +87,12 @@ class LoadedScene:
                 writers.append(VTKWriter(self.output_path(v["folder"], out_dir), every=v["every"], compress=v["compress"],
                                          trails=v["trails"], contacts=v["contacts"], measures=v["measures"],
                                          overwrite=not resume, resume=resume))
+        if self.stress_every is not None:
+            from ..stress_series import StressSeries
+            path = self.output_path(out["stress"], out_dir) if out.get("stress") else None
+            with _At(self.source, "run", "stress_every"):
+                self.stress_series = StressSeries(self.stress_every, path=path, overwrite=not resume, resume=resume)
+            writers.append(self.stress_series)
         with _At(self.source, "run"):
             sim = Simulation(self.scene, self.integrator, writers=writers, checkpoint=checkpoint,
                              max_energy_growth=self.max_energy_growth)
