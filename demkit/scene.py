@@ -37,6 +37,7 @@ from .interactions import induction
 from .interactions.base import PairInteraction, check_repeats
 from .interactions.dipole import Dipole
 from .interactions.induction import Induction, InducedMoments
+from .interactions.langevin import flow_values
 from .interactions.sphere import SphereInteraction
 from .interactions.wall_motion import SERVO_STATE
 from .particles import Particles
@@ -452,6 +453,9 @@ class Scene(SceneDiagnostics):
         self.time_step_slots, slot = [], 0
         for inter in self.interactions + self.effects:
             self.time_step_slots += [slot + m for m, name in enumerate(inter.parameters) if name == "dt"]
+            if "flow_rate" in inter.parameters:  # a bath: its drag relative to a sheared box's flow (or none)
+                k = slot + inter.parameters.index("flow_rate")
+                self.params[k:k + 4] = flow_values(self.box)
             slot += len(inter.parameters)
         own = (lambda a: a.copy()) if plan.sorted else (lambda a: a)  # sorted: the kernels' own order
         mass, inertia = own(p.mass), own(p.inertia)

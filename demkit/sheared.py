@@ -41,6 +41,3 @@ def check_scene(box, interactions, effects, polarisabilities):
                 raise ValueError(f"{name} in a box sheared along {shear.flow} with gradient {shear.gradient}: only "
                                  f"plane walls across the third axis are supported (a wall along the gradient or "
                                  f"the flow would cut the sliding images)")
-        if name == "Langevin":
-            raise ValueError("Langevin in a sheared box: the bath would act on the velocity relative to rest, not "
-                             "to the imposed flow; not supported yet")

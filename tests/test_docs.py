@@ -83,6 +83,18 @@ def test_fields_page_example_runs_as_described():
     assert field.inside(traj.position.reshape(-1, 3)).all() and traj.position[-1, 0, 0] > 0.015  # across
 
 
+def test_rheology_page_example_runs(capsys):
+    """docs/rheology.md's sheared magnetic sample: the chains along the field resist the flow (a
+    positive shear stress, 0.091 printed there, of many standard errors) and the rheology's parts are
+    those of the series' mean stress."""
+    ns = page_namespace("rheology.md")
+    r, series = ns["r"], ns["series"]
+    assert r["shear_stress"] > 5 * r["shear_stress_error"] > 0 and r["rate"] == 0.1
+    P = series.mean(after=series.time[-1] / 2)[0]
+    assert r["shear_stress"] == pytest.approx(-P[0, 1], rel=1e-9) and r["n1"] == pytest.approx(P[1, 1] - P[0, 0], rel=1e-9)
+    assert "shear stress" in capsys.readouterr().out
+
+
 def test_measurements_page_example_runs_and_its_parts_add_up(capsys):
     ns = page_namespace("measurements.md")
     s = ns["s"]

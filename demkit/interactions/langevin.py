@@ -9,6 +9,12 @@ with drag gamma (force per velocity), rotational drag gamma_r (torque per angula
 default the Stokes ratio gamma_r = (4/3) R_i^2 gamma of a sphere in a viscous fluid, since
 gamma = 6 pi eta R and gamma_r = 8 pi eta R^3) and kT the bath temperature in energy units.
 
+In a sheared box (:class:`demkit.Shear`: flow along a, gradient along b) the drag acts on the velocity
+relative to the imposed flow, v_i - gammadot (x_ib - L_b / 2) e_a: the bath is a solvent moving
+with the flow. A free sphere's peculiar velocity c then has <c_b c_b> = kT/m, <c_a c_b> =
+-gammadot kT / (2 gamma), <c_a c_a> = kT/m + gammadot^2 m kT / (2 gamma^2) (the shear couples c_b
+into c_a), checked in tests/test_shear.py.
+
 Fluctuation-dissipation with velocity Verlet, the only integrator it runs with: the forces of a
 step are evaluated at the half-kicked velocity u, so free spheres follow u' = (1 - a) u + (dt/m) R
 with a = gamma dt / m. Its stationary variance is kT / (m (1 - a/2)), and the on-step velocity
@@ -68,7 +74,7 @@ def normal_pair(seed, key, counter, k):
 
 @njit(**KERNEL_OPTIONS)
 def langevin_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                   drag, rotational_drag, kT, seed, dt):
+                   drag, rotational_drag, kT, seed, flow_rate, flow_axis, gradient_axis, flow_middle, dt):
     if history[p, offset + 1] == 0.0:  # the sphere's key: its index at its first step
         key = i
         if commit:
@@ -90,15 +96,30 @@ def langevin_force(i, x, y, z, velocity, angular_velocity, radius, history, p, o
     a, b = normal_pair(seed, key, counter, 0)
     c, d = normal_pair(seed, key, counter, 1)
     e, f = normal_pair(seed, key, counter, 2)
-    return (-drag * velocity[i, 0] + st * a, -drag * velocity[i, 1] + st * b, -drag * velocity[i, 2] + st * c,
+    # a sheared box's imposed flow u = gammadot (x_b - L_b / 2) along a (0 in a fixed box: v - 0 is v)
+    u = flow_rate * ((x if gradient_axis == 0.0 else (y if gradient_axis == 1.0 else z)) - flow_middle)
+    vx = velocity[i, 0] - (u if flow_axis == 0.0 else 0.0)
+    vy = velocity[i, 1] - (u if flow_axis == 1.0 else 0.0)
+    vz = velocity[i, 2] - (u if flow_axis == 2.0 else 0.0)
+    return (-drag * vx + st * a, -drag * vy + st * b, -drag * vz + st * c,
             -gamma_r * angular_velocity[i, 0] + sr * d, -gamma_r * angular_velocity[i, 1] + sr * e,
             -gamma_r * angular_velocity[i, 2] + sr * f)
 
 
 @njit(**KERNEL_OPTIONS)
 def langevin_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                    drag, rotational_drag, kT, seed, dt):
+                    drag, rotational_drag, kT, seed, flow_rate, flow_axis, gradient_axis, flow_middle, dt):
     return 0.0
+
+
+def flow_values(box):
+    """The values of the parameters flow_rate, flow_axis, gradient_axis, flow_middle of a Langevin bath
+    in ``box``: a sheared box's imposed flow u = gammadot (x_b - L_b / 2) e_a, else none."""
+    shear = box.shear if box is not None else None
+    if shear is None:
+        return (Langevin.flow_rate, Langevin.flow_axis, Langevin.gradient_axis, Langevin.flow_middle)
+    a, b = shear.axes
+    return (shear.rate, float(a), float(b), 0.5 * float(box.size[b]))
 
 
 class Langevin(SphereInteraction):
@@ -112,7 +133,11 @@ class Langevin(SphereInteraction):
     reads = ("velocity", "angular_velocity", "radius")
     torque = True
     history_size = 2  # per sphere: its step counter and its key
-    parameters = ("drag", "rotational_drag", "temperature", "seed", "dt")
+    parameters = ("drag", "rotational_drag", "temperature", "seed", "flow_rate", "flow_axis", "gradient_axis",
+                  "flow_middle", "dt")
+    #: the imposed flow the bath's drag acts relative to: none here; a scene in a sheared box writes its
+    #: own (gammadot, a, b, L_b / 2) into its copy of the parameters (:func:`flow_values`)
+    flow_rate, flow_axis, gradient_axis, flow_middle = 0.0, 0.0, 1.0, 0.0
     repeat_hint = "give one Langevin thermostat"
     stochastic = True  # a heat bath: no energy balance, VelocityVerlet only
     force_function = langevin_force

@@ -165,7 +165,7 @@ class Colouring:
         if name == "speed" and getattr(f, "velocity", None) is not None:
             return "speed", magnitude(f.velocity)
         if name == "contacts":
-            return "contacts", lambda k: contacts(f.position[k], f.radius, box)
+            return "contacts", lambda k: contacts(f.position[k], f.radius, box, time=f.time[k])
         if name == "cluster":
             return "cluster (1: largest)", lambda k: clusters(f.position[k], f.radius, box, time=f.time[k])
         if name == "radius":
