@@ -111,6 +111,9 @@ class SceneDiagnostics:
         """(pairs, values): :meth:`candidate_pairs` of the interaction and its (P, history_size)
         per-pair history values for them."""
         g, group, k = self._group_of(interaction)
+        if not interaction.history_size:
+            raise ValueError(f"{interaction!r} keeps no per-contact history (friction, rolling or twisting "
+                             f"resistance, or a function of your own with history_size)")
         pairs = self.candidate_pairs(interaction)
         offset = group.offsets[k]
         history = self._list(g).history[:, offset:offset + interaction.history_size]

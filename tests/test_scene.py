@@ -77,6 +77,8 @@ def test_plugin_with_per_contact_history():
     assert values[0, 0] == steps_touching > 0
     assert values[1:, 0].sum() == 0  # pairs (0, 2) and (1, 2) never touched
     assert "counter" in scene.energy()
+    with pytest.raises(ValueError, match="keeps no per-contact history"):  # (an IndexError once)
+        scene.history(scene.interactions[0])
 
 
 def test_non_finite_state_stops_with_step_time_and_particle():
