@@ -316,6 +316,52 @@ def test_the_shear_stress_of_a_dilute_elastic_gas_follows_kinetic_theory():
     assert r["viscosity"] == pytest.approx(r["shear_stress"] / rate, rel=1e-12) and r["shear_stress_error"] > 0
 
 
+def test_an_affinely_sheared_lattice_has_the_stress_of_its_bonds_and_of_its_energy():
+    """An fcc lattice of spheres pressed into each other (Hooke contacts k = 1000, nearest neighbours
+    s = 0.98 d apart) moving with the imposed flow (at rest relative to it: no kinetic part), displaced
+    affinely, x += gamma y, in a box sheared to the offset
+    delta = gamma L_y (the clock set where delta has wrapped past L_x three times, so the sliding images
+    continue the strained lattice through the boundary): dk.measure.stress equals the lattice sum by
+    hand over the 12 bonds, P_ab = (n / 2) sum_b f(r_b) r_a r_b / r_b with f = k (d - r) and
+    n = 4 / a^3 (to 1e-12), and the shear stress equals the energy's derivative, -P_xy = (1/V) dU/dgamma
+    (central differences, h = 1e-6: to 1e-6). At gamma = 0 the lattice is isotropic (P = p I)."""
+    s, k, rate = 0.98, 1000.0, 0.25
+    position, cubic = dk.build.lattice("fcc", 4, spacing=s)
+    size = cubic.size
+    a = s * np.sqrt(2.0)
+    bonds = np.array([[x, y, z] for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1)
+                      if abs(x) + abs(y) + abs(z) == 2], dtype=float) * a / 2  # the 12 nearest neighbours
+
+    def strained(gamma):
+        """The lattice at strain gamma, its scene at the time the box's offset is gamma L_y."""
+        x = position.copy()
+        x[:, 0] = np.mod(x[:, 0] + gamma * x[:, 1], size[0])
+        box = dk.Box(size, periodic=True, shear=dk.Shear(rate, "x", "y"))
+        v = np.zeros_like(x)
+        v[:, 0] = rate * (x[:, 1] - 0.5 * size[1])
+        scene = dk.Scene(dk.Particles(position=x, velocity=v, radius=0.5, mass=1.0), [dk.KelvinVoigt(k, 0.0)],
+                         box=box)
+        scene.time = (gamma * size[1] + 3 * size[0]) / (rate * size[1])
+        return scene
+
+    for gamma in (0.0, 0.004, -0.01, 0.02):
+        r = bonds.copy()
+        r[:, 0] += gamma * r[:, 1]
+        length = np.linalg.norm(r, axis=1)
+        f = k * np.clip(1.0 - length, 0.0, None)
+        by_hand = 4.0 / a**3 / 2.0 * np.einsum("b,ba,bc->ac", f / length, r, r)
+        scene = strained(gamma)
+        P = dk.measure.stress(scene).pressure_tensor
+        np.testing.assert_allclose(P, by_hand, rtol=0, atol=1e-12 * np.abs(by_hand).max())
+        h = 1e-6
+        dU = (strained(gamma + h).energy()["contact"] - strained(gamma - h).energy()["contact"]) / (2 * h)
+        assert -P[0, 1] == pytest.approx(dU / np.prod(size), rel=1e-6, abs=1e-9 * np.abs(P).max())
+        if gamma == 0.0:
+            np.testing.assert_allclose(P, P[0, 0] * np.eye(3), rtol=0, atol=1e-12 * P[0, 0])
+        else:
+            assert abs(P[0, 1]) > 1e-3 * P[0, 0]  # a real shear stress
+
+
 def test_a_langevin_bath_moves_with_the_imposed_flow():
     """Free spheres in a bath sheared with the box (drag relative to the flow) against the
     Ornstein-Uhlenbeck covariance of the peculiar velocity c = v - gammadot (y - L/2) e_x, from
