@@ -116,10 +116,10 @@ def main(argv=None):
     parser.add_argument("--n", type=int, default=256, help="number of spheres")
     parser.add_argument("--rates", type=float, nargs="+", default=[0.03, 0.1, 0.3, 1.0])
     parser.add_argument("--strain", type=float, default=10.0, help="strain of each run")
-    parser.add_argument("--quick", action="store_true", help="100 spheres, two rates, strain 6 (for tests)")
+    parser.add_argument("--quick", action="store_true", help="100 spheres, two rates, strain 4 (for tests)")
     args = parser.parse_args([] if argv is None else argv)
     if args.quick:
-        args.n, args.rates, args.strain = 100, [0.1, 1.0], 6.0
+        args.n, args.rates, args.strain = 100, [0.2, 1.0], 4.0
     args.output.mkdir(parents=True, exist_ok=True)
 
     rows, slowest = [], None
