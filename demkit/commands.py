@@ -152,6 +152,13 @@ def info_command(args):
     print(f"spheres       {n}, radius {radius}" + (", with dipoles" if p.dipole is not None else "")
           + (f", {int(p.fixed.sum())} fixed" if p.fixed is not None and p.fixed.any() else ""))
     print(f"box           {scene.box!r}" if scene.box is not None else "box           none (open space)")
+    shear = scene.box.shear if scene.box is not None else None
+    if shear is not None:  # Lees-Edwards: what the run will do to the sample
+        stress = (f"the stress measured every {loaded.stress_every:g} (run.stress_every)" if loaded.stress_every
+                  else "the stress not measured during the run (run.stress_every gives the rheology)")
+        print(f"shear         rate {shear.rate:g} along {shear.flow}, gradient {shear.gradient}: the images slide at "
+              f"{shear.jump(scene.box.size):.4g}, a strain of {shear.rate * loaded.duration:.4g} by t = "
+              f"{loaded.duration:g}; {stress}")
     for inter in scene.interactions + scene.effects:
         print(f"interaction   {inter!r}")
     for wall in scene.effects:

@@ -391,7 +391,7 @@ def test_a_langevin_bath_moves_with_the_imposed_flow():
         np.testing.assert_allclose(cc, expected, rtol=0, atol=0.05)
 
 
-def test_a_scene_file_shears_its_box_as_the_python_scene_does(tmp_path):
+def test_a_scene_file_shears_its_box_as_the_python_scene_does(tmp_path, capsys):
     """[box.shear] builds dk.Shear: the barbell's box from a scene file steps to the bits of the Python
     scene, a bad axis is refused naming the key, and a saved trajectory keeps the shear (its unwrapped
     paths are the run's)."""
@@ -458,6 +458,16 @@ duration = 5.0
     assert values["rheology_shear_stress"] == pytest.approx(-values["stress_xy"], rel=1e-12)
     assert values["rheology_rate"] == RATE and np.isnan(values["rheology_viscosity_error"])  # 6 samples: no blocks
     assert isinstance(observe(["rheology"], loaded, a)["rheology"], ValueError)  # no stress_every
+    # demkit info says what the shear does to the sample and whether the stress is measured
+    from demkit.cli import main as demkit_main
+    (tmp_path / "sheared.toml").write_text(text.replace("duration = 5.0", "duration = 5.0\nstress_every = 0.5"))
+    try:
+        demkit_main(["info", str(tmp_path / "sheared.toml")])
+    except SystemExit as done:
+        assert not done.code
+    said = capsys.readouterr().out
+    assert (f"shear         rate {RATE:g} along x, gradient y: the images slide at {RATE * L:.4g}, a strain of "
+            f"{RATE * 5.0:.4g} by t = 5; the stress measured every 0.5 (run.stress_every)") in said, said
 
 
 def test_overlaps_across_the_sliding_boundary_are_found_before_a_run():
