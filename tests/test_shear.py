@@ -362,6 +362,55 @@ def test_an_affinely_sheared_lattice_has_the_stress_of_its_bonds_and_of_its_ener
             assert abs(P[0, 1]) > 1e-3 * P[0, 0]  # a real shear stress
 
 
+def test_a_tilted_dipole_chain_has_the_stress_of_the_chain_model():
+    """The chain model of magneto- and electrorheology (Martin & Anderson, J. Chem. Phys. 104, 4814
+    (1996)): a chain of point dipoles spanning the gradient, moments m held along it by the field,
+    tilted affinely by the strain gamma = tan(theta) (the gap fixed, so neighbours r = d / cos(theta)
+    apart) has the energy per sphere u = -(A m^2 / r^3) S (3 cos^2(theta) - 1) with S = sum_k 1/k^3
+    (zeta(3) for an infinite chain; here the k with k r below the dipoles' cutoff), and the shear stress
+    sigma = n du/dgamma, whose maximum over gamma is the chain model's yield stress. One chain of 20
+    spheres through a sheared box (the sliding images continue it at every offset): -P_yx (the stress of
+    the dipoles' virial, not symmetric for non-central forces) = (1/V) dU/dgamma = n du/dgamma to 1e-9
+    at strains from 0 to 0.6, and the largest stress on that grid sits at 0.4: the model's yield point,
+    du/dgamma ~ 3 gamma (4 - gamma^2) / (1 + gamma^2)^(7/2) largest where 4 gamma^4 - 27 gamma^2 + 4 = 0,
+    gamma* = 0.389 (theta = 21 degrees), sigma_y = 2.74 S n A m^2 / d^3 (3.30 n A m^2 / d^3 with zeta(3))."""
+    n_chain, m, cutoff = 20, 1.0, 9.0
+    size = np.array([20.0, float(n_chain), 20.0])
+    rate = 0.1
+
+    def scene_at(gamma):
+        y = np.arange(n_chain) + 0.5
+        x = np.column_stack([np.mod(5.0 + gamma * y, size[0]), y, np.full(n_chain, 10.0)])
+        p = dk.Particles(position=x, radius=0.5, mass=1.0, dipole=np.tile([0.0, m, 0.0], (n_chain, 1)))
+        box = dk.Box(size, periodic=True, shear=dk.Shear(rate, "x", "y"))
+        scene = dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=cutoff)], box=box)
+        scene.time = (gamma * size[1] + 2 * size[0]) / (rate * size[1])  # the offset gamma L_y, wrapped twice
+        return scene
+
+    def model(gamma):
+        """(u, du/dgamma) of the chain model with the cutoff's sum, per sphere."""
+        c = 1.0 / np.sqrt(1.0 + gamma**2)
+        r = 1.0 / c
+        S = sum(1.0 / k**3 for k in range(1, 100) if k * r < cutoff)
+        u = lambda g: -(m * m * S / (np.sqrt(1 + g * g)) ** 3) * (3.0 / (1 + g * g) - 1.0)  # noqa: E731
+        h = 1e-6
+        return u(gamma), (u(gamma + h) - u(gamma - h)) / (2 * h)
+
+    density = n_chain / np.prod(size)
+    strains = np.linspace(0.0, 0.6, 13)
+    stresses = []
+    for gamma in strains:
+        s = dk.measure.stress(scene_at(gamma))
+        sigma = -s.virial["Dipole"][1, 0] / s.volume
+        u, du = model(gamma)
+        assert scene_at(gamma).energy()["magnetic"] / n_chain == pytest.approx(u, rel=1e-12)
+        assert sigma == pytest.approx(density * du, rel=1e-9, abs=1e-12)
+        stresses.append(sigma)
+    peak = strains[int(np.argmax(stresses))]
+    gamma_star = np.sqrt((27.0 - np.sqrt(27.0**2 - 64.0)) / 8.0)
+    assert gamma_star == pytest.approx(0.389, abs=1e-3) and abs(peak - gamma_star) <= 0.025 and max(stresses) > 0
+
+
 def test_a_langevin_bath_moves_with_the_imposed_flow():
     """Free spheres in a bath sheared with the box (drag relative to the flow) against the
     Ornstein-Uhlenbeck covariance of the peculiar velocity c = v - gammadot (y - L/2) e_x, from
