@@ -33,6 +33,15 @@ Written for LAMMPS 29 Sep 2021 with the GRANULAR and DIPOLE packages (units lj).
   a ``MeshWall`` is refused (LAMMPS has no triangle-mesh walls);
   ``Gravity`` -> ``fix gravity``; ``UniformField(B)`` -> ``fix efield`` with E = B / sqrt(A) (torque
   mu x E);
+* a sheared box (``dk.Shear``, flow a, gradient b with ab = xy, xz or yz) -> a triclinic box whose tilt
+  ab is the sliding offset, under ``fix deform 1 ab erate gammadot remap v``. fix deform sets the tilt
+  at the end of each step, so the forces of step n + 1 would see the tilt of t_n; the exported box is
+  led by one step (tilt delta(t + dt)), so that those of every step after the first see the tilt of
+  their own time, as demkit's do. The starting forces (the first half kick) then see the box slid by
+  gammadot L_b dt more: a one-time difference for pairs across the sliding boundary at the start (none
+  when nothing reaches across it: the paths agree to round-off, benchmarks/lammps/in.sheared). LAMMPS'
+  unwrapped coordinate along the flow (image_b times the tilt) is ahead by image_b gammadot L_b dt;
+  the image counts along the flow are shifted by the whole turns of the offset.
 * ``VelocityVerlet`` -> ``fix nve/sphere update dipole/dlm`` (velocity Verlet; the dipoles turn by
   a second-order splitting instead of demkit's exact rotation; ``dipole_update="euler"`` gives
   LAMMPS' default first-order step).
@@ -63,6 +72,36 @@ LAMMPS_VERSION = "29 Sep 2021"
 DATA_NAME = "scene.data"
 DECK_NAME = "in.scene"
 DUMP_COLUMNS = "id xu yu zu vx vy vz omegax omegay omegaz v_mux v_muy v_muz"
+
+
+class Tilt(NamedTuple):
+    """A sheared box as LAMMPS' triclinic box: the tilt's name (xy, xz or yz), its value at the scene's
+    time (folded into [-L_a/2, L_a/2)), the same led by one step (the box of the steps), the rate, and
+    the whole turns of the offset that the folding took away (added to the image counts along the
+    flow, times those along the gradient)."""
+
+    name: str
+    value: float
+    led: float
+    rate: float
+    turns: int
+
+
+def tilt_of(box, time, dt):
+    """The :class:`Tilt` of a sheared ``box`` at ``time`` and led by ``dt`` (module docstring)."""
+    shear = box.shear
+    name = shear.flow + shear.gradient
+    if name not in ("xy", "xz", "yz"):
+        raise ValueError(f"LAMMPS tilts a box only as xy, xz or yz (the flow along the first axis, the gradient along "
+                         f"the second): a box sheared along {shear.flow} with gradient {shear.gradient} cannot be "
+                         f"exported; swap the scene's axes")
+    a, _ = shear.axes
+    total = shear.jump(box.size) * float(time)  # gammadot L_b t, not folded
+    turns = math.floor(total / box.size[a] + 0.5)
+    value = total - turns * box.size[a]
+    total += shear.jump(box.size) * dt  # led by one step
+    turns = math.floor(total / box.size[a] + 0.5)
+    return Tilt(name, value, total - turns * box.size[a], shear.rate, turns)
 
 
 class LammpsFiles(NamedTuple):
@@ -472,8 +511,9 @@ def _steps(value, dt, what):
     return steps
 
 
-def write_data(path, particles, box, periodic, scale, comment):
-    """LAMMPS data file (atom_style hybrid sphere dipole, 1 atom type, 2 for fixed spheres)."""
+def write_data(path, particles, box, periodic, scale, comment, tilt=None):
+    """LAMMPS data file (atom_style hybrid sphere dipole, 1 atom type, 2 for fixed spheres); with a
+    :class:`Tilt`, a triclinic box (LAMMPS remaps the spheres into it as it reads them)."""
     p = particles
     n = p.n
     x = p.position.astype(float).copy()
@@ -482,6 +522,9 @@ def write_data(path, particles, box, periodic, scale, comment):
         x, shift = box.wrap(x)
         image += shift
     image[:, ~np.asarray(periodic)] = 0
+    if tilt is not None:  # LAMMPS' xu = x + ix L_a + iy tilt: the turns folded out of the tilt go to ix
+        a, b = box.shear.axes
+        image[:, a] += tilt.turns * image[:, b]
     lo = x.min(axis=0) - p.radius.max()
     hi = x.max(axis=0) + p.radius.max()
     if box is not None:
@@ -496,6 +539,9 @@ def write_data(path, particles, box, periodic, scale, comment):
     density = p.mass / (4.0 / 3.0 * math.pi * p.radius ** 3)
     lines = [comment, "", f"{n} atoms", "2 atom types", ""]
     lines += [f"{g17(lo[a])} {g17(hi[a])} {c}lo {c}hi" for a, c in enumerate("xyz")]
+    if tilt is not None:
+        lines.append(" ".join(g17(tilt.led if name == tilt.name else 0.0) for name in ("xy", "xz", "yz"))
+                     + " xy xz yz")
     lines += ["", "Masses", "", "1 1.0", "2 1.0", "", "Atoms # hybrid", ""]
     # hybrid sphere dipole: id type x y z | diameter density | q mux muy muz | ix iy iz
     for i in range(n):
@@ -526,9 +572,8 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     Returns :class:`LammpsFiles` (data, deck, notes). Raises ValueError naming what LAMMPS cannot
     represent.
     """
-    if scene.box is not None and scene.box.shear is not None:  # (even with strict=False: nothing would be like it)
-        raise ValueError(f"a sheared box ({scene.box.shear!r}) is not exported yet: LAMMPS would need a triclinic "
-                         f"box under fix deform with remap v, which this export does not write")
+    sheared = scene.box is not None and scene.box.shear is not None
+    tilt = tilt_of(scene.box, scene.time, integrator.dt) if sheared else None
     job = _Export(scene, integrator, strict, dipole_update, dipole_cutoff)
     job.check()
     dt = integrator.dt
@@ -545,7 +590,7 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     data, deck = folder / DATA_NAME, folder / DECK_NAME
     p = scene.particles
     write_data(data, p, scene.box, periodic, job.scale,
-               f"demkit scene: {p.n} spheres, exported by demkit.export_lammps")
+               f"demkit scene: {p.n} spheres, exported by demkit.export_lammps", tilt)
     fixed = p.fixed is not None and bool(p.fixed.any())
     boundary = " ".join("p" if f else "s" for f in periodic)
     skin = scene.skin
@@ -557,6 +602,10 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
             f"# Integrator: {integrator!r} -> fix nve/sphere update {job.update}.",
             f"# Dipole moments in {DATA_NAME} are demkit's times sqrt(A) = {g17(job.scale)} (LAMMPS' dipole energy "
             f"has no prefactor); the dump divides them back."]
+    if tilt is not None:
+        head.append(f"# Shear: the box tilts as {tilt.name} = {g17(tilt.rate)} L t (fix deform, remap v), led by one "
+                    f"step (fix deform sets the tilt at the end of a step; demkit's forces take the sliding at the "
+                    f"step's own time): the starting forces see it one step ahead.")
     head += [f"# NOTE: {note}" for note in job.notes]
     lines = head + [""]
     if nsteps is not None:
@@ -573,13 +622,17 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     lines += effects
     if fixed:
         lines.append("fix         hold fixed freeze")
-    lines += [f"fix         integrate mobile nve/sphere update {job.update}", f"timestep    {g17(dt)}", "",
-              "compute     erot all erotate/sphere", "thermo_style custom step time ke c_erot pe",
+    lines += [f"fix         integrate mobile nve/sphere update {job.update}"]
+    if tilt is not None:  # after the integration, as in benchmarks/lammps/in.sheared; led by one step (docstring)
+        lines.append(f"fix         shear all deform 1 {tilt.name} erate {g17(tilt.rate)} remap v flip yes")
+    lines += [f"timestep    {g17(dt)}", ""]
+    lines += ["compute     erot all erotate/sphere", "thermo_style custom step time ke c_erot pe",
               "thermo_modify norm no", "thermo      ${dumpevery}",
               "compute     moment all property/atom mux muy muz"]
     lines += [f"variable    mu{c} atom c_moment[{k + 1}]/{g17(job.scale)}" for k, c in enumerate("xyz")]
     lines += [f"dump        state all custom ${{dumpevery}} ${{dump}} {DUMP_COLUMNS}",
-              "dump_modify state sort id format float %.17g", "run         ${nsteps}"]
+              "dump_modify state sort id format float %.17g"]
+    lines.append("run         ${nsteps}")
     deck.write_text("\n".join(lines) + "\n")
     return LammpsFiles(data, deck, tuple(job.notes))
 

@@ -280,8 +280,6 @@ def test_what_a_sheared_box_does_not_do_yet_is_refused():
     scene = dk.Scene(particles(), [dk.KelvinVoigt(1e3, 1.0), dk.Wall((0, 0, 0), (0, 0, 1))], box=plates)
     with pytest.raises(ValueError, match="sliding images"):
         dk.Simulation(scene, dk.VelocityVerlet(1e-3, resolve_contacts=True))
-    with pytest.raises(ValueError, match="sheared box"):
-        dk.export_lammps(scene, dk.VelocityVerlet(1e-3), "/tmp/never-written")
 
 
 def test_the_shear_stress_of_a_dilute_elastic_gas_follows_kinetic_theory():
