@@ -52,6 +52,20 @@ def positive(name, value):
     return value
 
 
+def writer_interval(every, overwrite, resume, kept):
+    """A writer's ``every``: a positive finite time interval; ``overwrite`` and ``resume`` refused
+    together (``kept``: what resume continues)."""
+    try:
+        every = float(every)
+    except (TypeError, ValueError):
+        raise ValueError(f"every must be a positive time interval, got {every!r}") from None
+    if not math.isfinite(every) or every <= 0:
+        raise ValueError(f"every must be a positive finite time interval, got {every}")
+    if overwrite and resume:
+        raise ValueError(f"overwrite=True deletes the {kept} that resume=True continues: pass one of them")
+    return every
+
+
 def non_negative(name, value):
     """A real number that is finite and >= 0."""
     value = number(name, value)

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .checks import writer_interval
+
 #: the number of blocks the samples of a mean are cut into for its standard error
 BLOCKS = 8
 _AXES = "xyz"
@@ -72,15 +74,7 @@ class StressSeries:
     """
 
     def __init__(self, every, path=None, volume=None, overwrite=False, resume=False):
-        try:
-            every = float(every)
-        except (TypeError, ValueError):
-            raise ValueError(f"every must be a positive time interval, got {every!r}") from None
-        if not math.isfinite(every) or every <= 0:
-            raise ValueError(f"every must be a positive finite time interval, got {every}")
-        if overwrite and resume:
-            raise ValueError("overwrite=True deletes the samples that resume=True continues: pass one of them")
-        self.every = every
+        self.every = writer_interval(every, overwrite, resume, "samples")
         self.path = None if path is None else Path(path)
         if self.path is not None and self.path.exists() and not (overwrite or resume):
             raise ValueError(f"{self.path} exists: pass overwrite=True to replace it (or resume=True to continue it)")

@@ -23,6 +23,7 @@ import weakref
 
 import numpy as np
 
+from ..checks import writer_interval
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, choose_fields, read_frame
 from .polylines import write_vtp_polygons
 from .series import write_polylines
@@ -106,15 +107,7 @@ class VTKWriter:
 
     def __init__(self, folder, every, compress=False, trails=True, fields=None, dtype="float64",
                  name="particles", overwrite=False, contacts=False, resume=False, measures=(), walls=True):
-        try:
-            every = float(every)
-        except (TypeError, ValueError):
-            raise ValueError(f"every must be a positive time interval, got {every!r}") from None
-        if not math.isfinite(every) or every <= 0:
-            raise ValueError(f"every must be a positive finite time interval, got {every}")
-        if overwrite and resume:
-            raise ValueError("overwrite=True deletes the series that resume=True continues: pass one of them")
-        self.every = every
+        self.every = writer_interval(every, overwrite, resume, "series")
         self._frames = FrameWriter(compress, dtype)
         if fields is not None:
             choose_fields(VECTOR_FIELDS, fields)  # reject unknown names now
