@@ -235,6 +235,29 @@ def test_a_stopped_and_resumed_sheared_run_is_bit_identical(tmp_path):
     assert_identical(state_of(again), truth)
 
 
+def test_a_vtk_series_keeps_the_shear_and_its_frames_read_back_with_their_sliding_images(tmp_path):
+    """The .pvd's Box element holds the shear (rate, flow, gradient): dk.read_series gives it back, so
+    contacts and clusters of a read frame take the sliding images at the frame's time, as the run's own
+    trajectory does (the barbell stays one cluster while it crosses the sliding boundary)."""
+    from demkit import clustering
+    pos, vel, _ = barbell()
+    box = dk.Box(L, periodic=True, shear=dk.Shear(RATE, "x", "y"))
+    scene = barbell_scene(box, pos, vel)
+    writer = dk.VTKWriter(tmp_path / "vtk", every=0.25, trails=False)
+    traj = dk.Simulation(scene, dk.VelocityVerlet(1e-3), writers=[writer]).run(duration=5.0, record_every=0.25,
+                                                                               progress=False)
+    series = dk.read_series(tmp_path / "vtk")
+    assert series.box.shear == box.shear and np.array_equal(series.box.size, box.size)
+    assert np.allclose(series.time, traj.time, rtol=0, atol=1e-12)
+    across = 0
+    for k in range(len(series.time)):
+        ours = clustering.clusters(traj.position[k], traj.radius, traj.box, gap=0.05, time=traj.time[k])
+        read = clustering.clusters(series.position[k], series.radius, series.box, gap=0.05, time=series.time[k])
+        assert np.array_equal(ours, read) and read.max() == 0  # one cluster: the pair holds together
+        across += abs(series.position[k, 0, 1] - series.position[k, 1, 1]) > L / 2
+    assert across > 0  # frames where the pair straddles the sliding boundary
+
+
 def test_bad_shear_is_refused():
     with pytest.raises(ValueError, match="finite"):
         dk.Shear(float("nan"))

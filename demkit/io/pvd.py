@@ -9,7 +9,8 @@ collection of the frames added so far.
 
 A series in a box also holds ``<Box size="Lx Ly Lz" periodic="1 1 0"/>`` after the collection
 (lower corner at the origin; ParaView's reader ignores the element, demkit and its ParaView script
-read it).
+read it); a sheared box adds ``shear="rate flow gradient"`` (the sliding offset of each frame is
+rate L_gradient t mod L_flow at its time, :meth:`demkit.Shear.offset`).
 """
 from __future__ import annotations
 
@@ -33,7 +34,9 @@ def _footer(box):
     if box is not None:
         size = " ".join(repr(float(x)) for x in box.size)
         periodic = " ".join(str(int(bool(f))) for f in box.periodic)
-        text += f'  <Box size="{size}" periodic="{periodic}"/>\n'
+        shear = (f' shear="{float(box.shear.rate)!r} {box.shear.flow} {box.shear.gradient}"'
+                 if getattr(box, "shear", None) is not None else "")
+        text += f'  <Box size="{size}" periodic="{periodic}"{shear}/>\n'
     return text + "</VTKFile>\n"
 
 
@@ -146,14 +149,18 @@ def _salvage(path, err):
 
 
 def _box(element, path):
-    from ..box import Box
+    from ..box import Box, Shear
 
     if element is None:
         return None
     try:
         size = [float(x) for x in element.get("size", "").split()]
         periodic = [bool(int(x)) for x in element.get("periodic", "").split()]
-        return Box(size, periodic)
+        shear = element.get("shear")
+        if shear is not None:
+            rate, flow, gradient = shear.split()
+            shear = Shear(float(rate), flow, gradient)
+        return Box(size, periodic, shear=shear)
     except ValueError as err:
         raise ValueError(f"{path} holds a malformed Box element: {err}") from err
 
