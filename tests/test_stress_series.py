@@ -105,5 +105,9 @@ def test_bad_input_is_refused(tmp_path):
                   writers=[series]).run(0.02, progress=False)
     with pytest.raises(ValueError, match="sheared box"):
         series.rheology()
+    with pytest.raises(ValueError, match="measured a simulation already"):  # nothing of the first run is lost
+        dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(100.0, 1.0)]), dk.VelocityVerlet(1e-3),
+                      writers=[series]).run(0.02, progress=False)
+    assert len(series.time) == 3
     with pytest.raises(ValueError, match="no sample at or after"):
         series.mean(after=1.0)
