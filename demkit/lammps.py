@@ -75,14 +75,13 @@ DUMP_COLUMNS = "id xu yu zu vx vy vz omegax omegay omegaz v_mux v_muy v_muz"
 
 
 class Tilt(NamedTuple):
-    """A sheared box as LAMMPS' triclinic box: the tilt's name (xy, xz or yz), its value at the scene's
-    time (folded into [-L_a/2, L_a/2)), the same led by one step (the box of the steps), the rate, and
-    the whole turns of the offset that the folding took away (added to the image counts along the
-    flow, times those along the gradient)."""
+    """A sheared box as LAMMPS' triclinic box: the tilt's name (xy, xz or yz), its value led by one step
+    (the offset at the scene's time + dt, folded into [-L_a/2, L_a/2)), the rate, and the whole turns
+    of the offset that the folding took away (added to the image counts along the flow, times those
+    along the gradient)."""
 
     name: str
     value: float
-    led: float
     rate: float
     turns: int
 
@@ -96,12 +95,9 @@ def tilt_of(box, time, dt):
                          f"the second): a box sheared along {shear.flow} with gradient {shear.gradient} cannot be "
                          f"exported; swap the scene's axes")
     a, _ = shear.axes
-    total = shear.jump(box.size) * float(time)  # gammadot L_b t, not folded
+    total = shear.jump(box.size) * (float(time) + dt)  # gammadot L_b (t + dt), not folded
     turns = math.floor(total / box.size[a] + 0.5)
-    value = total - turns * box.size[a]
-    total += shear.jump(box.size) * dt  # led by one step
-    turns = math.floor(total / box.size[a] + 0.5)
-    return Tilt(name, value, total - turns * box.size[a], shear.rate, turns)
+    return Tilt(name, total - turns * box.size[a], shear.rate, turns)
 
 
 class LammpsFiles(NamedTuple):
@@ -540,7 +536,7 @@ def write_data(path, particles, box, periodic, scale, comment, tilt=None):
     lines = [comment, "", f"{n} atoms", "2 atom types", ""]
     lines += [f"{g17(lo[a])} {g17(hi[a])} {c}lo {c}hi" for a, c in enumerate("xyz")]
     if tilt is not None:
-        lines.append(" ".join(g17(tilt.led if name == tilt.name else 0.0) for name in ("xy", "xz", "yz"))
+        lines.append(" ".join(g17(tilt.value if name == tilt.name else 0.0) for name in ("xy", "xz", "yz"))
                      + " xy xz yz")
     lines += ["", "Masses", "", "1 1.0", "2 1.0", "", "Atoms # hybrid", ""]
     # hybrid sphere dipole: id type x y z | diameter density | q mux muy muz | ix iy iz
@@ -625,14 +621,13 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     lines += [f"fix         integrate mobile nve/sphere update {job.update}"]
     if tilt is not None:  # after the integration, as in benchmarks/lammps/in.sheared; led by one step (docstring)
         lines.append(f"fix         shear all deform 1 {tilt.name} erate {g17(tilt.rate)} remap v flip yes")
-    lines += [f"timestep    {g17(dt)}", ""]
-    lines += ["compute     erot all erotate/sphere", "thermo_style custom step time ke c_erot pe",
+    lines += [f"timestep    {g17(dt)}", "",
+              "compute     erot all erotate/sphere", "thermo_style custom step time ke c_erot pe",
               "thermo_modify norm no", "thermo      ${dumpevery}",
               "compute     moment all property/atom mux muy muz"]
     lines += [f"variable    mu{c} atom c_moment[{k + 1}]/{g17(job.scale)}" for k, c in enumerate("xyz")]
     lines += [f"dump        state all custom ${{dumpevery}} ${{dump}} {DUMP_COLUMNS}",
-              "dump_modify state sort id format float %.17g"]
-    lines.append("run         ${nsteps}")
+              "dump_modify state sort id format float %.17g", "run         ${nsteps}"]
     deck.write_text("\n".join(lines) + "\n")
     return LammpsFiles(data, deck, tuple(job.notes))
 

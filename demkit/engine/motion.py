@@ -278,6 +278,17 @@ def clear(force, torque):
             torque[i, a] = 0.0
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def fold(x, length):
+    """(x - k length in [0, length), k): round-off that leaves exactly length counts one period more."""
+    k = math.floor(x / length)
+    folded = x - k * length
+    if folded >= length:
+        folded -= length
+        k += 1
+    return folded, k
+
+
 @njit(**dict(HELPER_OPTIONS, fastmath=False))  # once a frame: compiled once and called, not inlined
 def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mass, inertia, box, periodic,
                 record):
@@ -295,11 +306,7 @@ def store_frame(k, position, velocity, angular_velocity, dipole, image, tag, mas
         for a in range(3):
             x = position[i, a]
             if periodic[a]:
-                shift = math.floor(x / box[a])
-                folded = x - shift * box[a]
-                if folded >= box[a]:  # round-off
-                    folded -= box[a]
-                    shift += 1
+                folded, shift = fold(x, box[a])
                 rec_position[k, row, a] = folded
                 rec_image[k, row, a] = image[i, a] + shift
                 x += image[i, a] * box[a]

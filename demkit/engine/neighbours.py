@@ -32,6 +32,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .motion import fold
+
 #: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
 MAX_CELLS_PER_PARTICLE = 4
 #: a list that outgrows its arrays gets 1/GROWTH more room than it needs
@@ -688,17 +690,6 @@ def rebuild_threads(pl, position, tag, before, box, periodic, shear=None):
     else:
         build_threads(pl, position, tag, box, periodic, le)
     balance(pl.start, pl.end, pl.bounds)
-
-
-@njit(cache=True, _nrt=False, inline="always")
-def fold(x, length):
-    """(x - k length in [0, length), k): round-off that leaves exactly length counts one period more."""
-    k = math.floor(x / length)
-    folded = x - k * length
-    if folded >= length:
-        folded -= length
-        k += 1
-    return folded, k
 
 
 @njit(**LOOP_OPTIONS)

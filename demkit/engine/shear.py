@@ -22,8 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .motion import KERNEL_OPTIONS
-from .neighbours import LOOP_OPTIONS, fold, wrap
+from .motion import KERNEL_OPTIONS, fold
+from .neighbours import LOOP_OPTIONS, wrap
 
 #: the shear block in params: flow axis a, gradient axis b, jump u = gammadot L_b, offset at the last build
 SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT = range(4)
@@ -42,11 +42,18 @@ def slide_ahead(params, sh, box, skin):
 
 
 @njit(**KERNEL_OPTIONS)
-def shear_offset(params, sh, box, t):
-    """delta(t) = u t mod L_a in [0, L_a) (u: the block's jump)."""
+def offset_turns(params, sh, box, t):
+    """(delta(t) = u t mod L_a in [0, L_a), the whole turns floor(u t / L_a)) (u: the block's jump)."""
     la = box[int(params[sh + SH_FLOW])]
     d = params[sh + SH_JUMP] * t
-    return d - la * math.floor(d / la)
+    turns = math.floor(d / la)
+    return d - la * turns, turns
+
+
+@njit(**KERNEL_OPTIONS)
+def shear_offset(params, sh, box, t):
+    """delta(t) = u t mod L_a in [0, L_a) (:func:`offset_turns`)."""
+    return offset_turns(params, sh, box, t)[0]
 
 
 @njit(**KERNEL_OPTIONS)
@@ -117,10 +124,7 @@ def wrap_sheared(position, velocity, reference, image, box, periodic, params, sh
     a = int(params[sh + SH_FLOW])
     b = int(params[sh + SH_GRADIENT])
     lb = box[b]
-    la = box[a]
-    d = params[sh + SH_JUMP] * t
-    turns = math.floor(d / la)
-    delta = d - la * turns
+    delta, turns = offset_turns(params, sh, box, t)
     u = params[sh + SH_JUMP]
     for i in range(position.shape[0]):
         y = position[i, b]
@@ -146,25 +150,14 @@ def frame_sheared(k, position, velocity, image, tag, box, periodic, params, sh, 
     a = int(params[sh + SH_FLOW])
     b = int(params[sh + SH_GRADIENT])
     lb = box[b]
-    d = params[sh + SH_JUMP] * t
-    turns = math.floor(d / box[a])
-    delta = d - box[a] * turns
+    delta, turns = offset_turns(params, sh, box, t)
     u = params[sh + SH_JUMP]
     for i in range(position.shape[0]):
         row = tag[i]
-        y = position[i, b]
-        nb = math.floor(y / lb)
-        yb = y - nb * lb
-        if yb >= lb:
-            yb -= lb
-            nb += 1
+        yb, nb = fold(position[i, b], lb)
         x = position[i, a] - nb * delta
         na = image[i, a] - nb * int(turns)
-        shift = math.floor(x / box[a])
-        xa = x - shift * box[a]
-        if xa >= box[a]:
-            xa -= box[a]
-            shift += 1
+        xa, shift = fold(x, box[a])
         rec_position[k, row, b] = yb
         rec_image[k, row, b] = image[i, b] + nb
         rec_position[k, row, a] = xa
