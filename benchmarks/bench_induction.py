@@ -62,7 +62,7 @@ def field_seconds(scene, repeats=20):
     a, solver = scene.arrays, scene.induction
     lists = scene.state.lists[solver.group]
     args = (a["position"], a["dipole"], a["box"], a["periodic"], scene.params, scene.induction_slot, lists.start,
-            lists.end, lists.partner)
+            lists.end, lists.partner, np.zeros(0))
     field_of(*args)
     times = []
     for _ in range(repeats):

@@ -104,7 +104,7 @@ class Scene(SceneDiagnostics):
         dipoles = [inter for inter in interactions if isinstance(inter, Dipole)]
         polarisabilities = induction.prepare(particles, dipoles, effects)  # None: no magnetisable spheres
         if box is not None and box.shear is not None:  # what Lees-Edwards images do not cover yet, refused
-            sheared.check_scene(box, interactions, effects, polarisabilities)
+            sheared.check_scene(box, interactions, effects)
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]
@@ -301,10 +301,11 @@ class Scene(SceneDiagnostics):
             position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
         pairs = new_pair_list(solver.cutoff if solver.kind == "list" else 0.0, n, 0, 1)
         if solver.kind == "list":
-            neighbours.rebuild(pairs, position, index, index, self.arrays["box"], self.arrays["periodic"], np.zeros(0))
+            neighbours.rebuild(pairs, position, index, index, self.arrays["box"], self.arrays["periodic"],
+                               self._shear_frame())
         code = induction.induce(position, p.dipole, index, self.arrays["box"], self.arrays["periodic"], self.params,
                                 self.induction_slot, pairs.start, pairs.end, pairs.partner, np.zeros((n, 0)), 0,
-                                False)
+                                False, self._shear_frame())
         if code:
             raise ValueError(f"at the starting positions {solver.failure(code)}")
         if self.arrays["dipole"] is not p.dipole:
@@ -642,12 +643,17 @@ class Scene(SceneDiagnostics):
             return np.column_stack([i[close], j[close]]).astype(np.int64)
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
-        # a sheared box: the sliding images at the scene's clock; else none, passed as the time loops pass
-        # it (an empty array), so that the rebuild they compiled serves here too (3 CPU-s otherwise)
-        sliding = np.zeros(0) if self.shear_slot is None else list_frame(
-            self.params, self.shear_slot, self.arrays["box"], float(self.clock[0]), 0.0)
-        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"], sliding)
+        neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"],
+                           self._shear_frame())
         return neighbours.pairs_of(pl, index)
+
+    def _shear_frame(self):
+        """A sheared box's sliding images at the scene's clock ([a, b, delta, 0]: what the list builder and the
+        induced moments' field read), else none, passed as the time loops pass it (an empty array), so that
+        the rebuild they compiled serves here too (3 CPU-s otherwise)."""
+        if self.shear_slot is None:
+            return np.zeros(0)
+        return list_frame(self.params, self.shear_slot, self.arrays["box"], float(self.clock[0]), 0.0)
 
     def separations(self, pairs):
         """Centre-to-centre vectors x_j - x_i (minimum image) of index pairs (P, 2)."""

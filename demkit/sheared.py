@@ -16,7 +16,7 @@ def shear_block(box):
     return block
 
 
-def check_scene(box, interactions, effects, polarisabilities):
+def check_scene(box, interactions, effects):
     """Raise ValueError for what a sheared box does not do yet (each named, with the reason)."""
     shear = box.shear
     for inter in interactions:
@@ -28,9 +28,6 @@ def check_scene(box, interactions, effects, polarisabilities):
             raise ValueError(f"{type(inter).__name__} reads velocities: a function of your own would see v_j - v_i "
                              f"without the sliding image's velocity (gammadot L_b along the flow) across the "
                              f"boundary; a sheared box runs shipped velocity-reading laws only")
-    if polarisabilities is not None:
-        raise ValueError("magnetisable spheres (induced dipoles) in a sheared box are not supported yet: the "
-                         "induced-moment solve takes the plain minimum image")
     a, b = shear.axes
     for effect in effects:
         name = type(effect).__name__

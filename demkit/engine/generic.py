@@ -512,14 +512,16 @@ class _Generic:
                   '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
                   "    g = s.program[0, H_INDUCTION_GROUP]",
                   "    slot = s.program[0, H_INDUCTION_SLOT]",
-                  "    offset = s.program[0, H_INDUCTION_OFFSET]"]
+                  "    offset = s.program[0, H_INDUCTION_OFFSET]",
+                  "    frame = list_frame(s.params, s.program[0, H_SHEAR], s.box, s.clock[0], 0.0)  # (sheared images)"]
         for g in range(MAX_GROUPS):
             lines += [f"    {'if' if g == 0 else 'elif'} g == {g}:",
                       f"        return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
-                      f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.sphere_history, offset, commit)"]
+                      f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.sphere_history, offset, commit, "
+                      f"frame)"]
         lines += ["    return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
                   "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32), "
-                  "s.sphere_history, offset, commit)"]
+                  "s.sphere_history, offset, commit, frame)"]
         lines += ["", "", "@njit(**OUTER)", "def induce_of(calls, s):",
                   '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
         lines.append(f"    {self.call('maintain_lists')}(s, False != False)")

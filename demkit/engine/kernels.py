@@ -540,7 +540,7 @@ class _Source:
             lists = f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner"
         offset = self.plan.effect_width - self.plan.induction.history_size
         return (f"induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, {self.induction_slot}, {lists}, "
-                f"s.sphere_history, {offset}, {commit})")
+                f"s.sphere_history, {offset}, {commit}, np.zeros(0))")  # (no shear: a sheared box runs on tier 1's loops)
 
     def scene_functions(self):
         plan = self.plan
