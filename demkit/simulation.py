@@ -46,8 +46,10 @@ class Simulation(Recording, Stops):
         ``write(simulation)`` and ``close()``; they are called at the start of the first run and
         then every ``every`` time units (rounded to whole steps). Optional: ``resume(simulation)``
         (continue an existing output after :meth:`resume`; returns True when the current state
-        must be written) and ``planned_output(frames, particles)`` ((files, bytes), for the
-        warning about large outputs).
+        must be written), ``planned_output(frames, particles)`` ((files, bytes), for the
+        warning about large outputs) and ``statistics(since)`` (a dict added to :attr:`statistics`
+        at the end of each run, covering its samples from time ``since``: a :class:`demkit.StressSeries`
+        gives ``statistics["stress"]``, the run's mean stress).
     checkpoint : a :class:`demkit.Checkpoint` (state saved every so often, at the end of every
         run and on Ctrl-C; :meth:`resume` continues from it bit for bit), or None.
     max_energy_growth : None, or stop the run (SimulationError) when total + dissipated energy has
@@ -106,6 +108,7 @@ class Simulation(Recording, Stops):
         self.step = 0
         self.trajectory = None
         self.statistics = {}
+        self._run_started = None  # the time the last run started at (what writers' statistics cover)
         if not isinstance(notes, bool):
             raise TypeError(f"notes must be True or False, got {notes!r}")
         self.notes = notes
@@ -218,6 +221,7 @@ class Simulation(Recording, Stops):
         if self.checkpoint is not None:
             self.checkpoint.last_save = time.perf_counter()
         start_step = self.step
+        self._run_started = self.time  # (writers' statistics cover this run: see _measure)
         rebuilds = int(scene.counters[REBUILDS])
         clock = time.perf_counter()
         done = 0
@@ -524,6 +528,10 @@ class Simulation(Recording, Stops):
             **self._tiers.statistics(),
             "chunks": scene.chunks,
         }
+        started = self._run_started
+        for w in self.writers:  # what a writer measured over the run (a StressSeries: the mean stress)
+            if started is not None and hasattr(w, "statistics"):
+                self.statistics.update(w.statistics(since=started))
 
     def _switch_tier(self, steps_left):
         """Between chunks: run tier 2's loops from now on when it is ready (demkit.engine.tiers)."""

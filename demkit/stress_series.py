@@ -184,6 +184,19 @@ class StressSeries:
         """(<P>, its standard error), both (3, 3), over the samples at t >= ``after`` (all by default)."""
         return block_mean(self.pressure_tensor[self._kept(after)])
 
+    def statistics(self, since):
+        """What a run's ``sim.statistics`` says of its stress (the samples at t >= ``since``, the run's
+        start): ``{"stress": {"samples", "pressure_tensor", "pressure_tensor_error", "pressure",
+        "rheology"}}``, the tensors as nested lists, ``rheology`` (see :meth:`rheology`) in a sheared box
+        only; ``{"stress": None}`` when the run took no sample."""
+        if not self._times or self._times[-1] < since:
+            return {"stress": None}
+        keep = self._kept(since)
+        mean, error = block_mean(self.pressure_tensor[keep])
+        return {"stress": {"samples": int(keep.sum()), "pressure_tensor": mean.tolist(),
+                           "pressure_tensor_error": error.tolist(), "pressure": float(np.trace(mean) / 3.0),
+                           "rheology": self.rheology(after=since) if self.shear is not None else None}}
+
     def rheology(self, after=None):
         """The rheology of a sheared sample (module docstring) over the samples at t >= ``after``:
         a dict of shear_stress, viscosity, n1, n2, pressure and each one's ``<name>_error``, and rate."""

@@ -48,6 +48,34 @@ def test_the_samples_are_the_stress_of_the_state_at_their_times(tmp_path):
     assert table[:, 1:10].tobytes() == series.pressure_tensor.reshape(-1, 9).tobytes()  # repr: exact
 
 
+def test_a_runs_statistics_give_the_mean_stress_of_its_own_samples():
+    """sim.statistics["stress"] of each run is the block mean of the samples taken from its start (the
+    first run's 21 samples, the second's 11: its start state was the first's end sample) to the bit; a
+    sheared run adds its rheology; a run without a StressSeries has no such entry."""
+    series = dk.StressSeries(every=0.005)
+    sim = dk.Simulation(frictional_gas(), dk.VelocityVerlet(1e-3), writers=[series])
+    sim.run(0.1, progress=False)
+    first = sim.statistics["stress"]
+    assert first["samples"] == 21 and first["rheology"] is None
+    mean, error = block_mean(series.pressure_tensor)
+    assert np.array(first["pressure_tensor"]).tobytes() == mean.tobytes()
+    assert np.array(first["pressure_tensor_error"]).tobytes() == error.tobytes()
+    assert first["pressure"] == np.trace(mean) / 3.0
+    sim.run(0.05, progress=False)
+    second = sim.statistics["stress"]
+    assert second["samples"] == 11
+    assert np.array(second["pressure_tensor"]).tobytes() == block_mean(series.pressure_tensor[20:])[0].tobytes()
+    plain = dk.Simulation(frictional_gas(), dk.VelocityVerlet(1e-3))
+    plain.run(0.01, progress=False)
+    assert "stress" not in plain.statistics
+    import test_shear
+    sheared = dk.StressSeries(every=0.01)
+    sim = dk.Simulation(test_shear.sheared_gas(None, n=128), dk.VelocityVerlet(1e-3), writers=[sheared])
+    sim.run(0.2, progress=False)
+    r = sim.statistics["stress"]["rheology"]
+    assert r == sheared.rheology() and r["rate"] == 0.8 and r["shear_stress"] == -np.mean(sheared.pressure_tensor[:, 0, 1])
+
+
 def test_a_resumed_run_continues_the_file_as_an_uninterrupted_one_wrote_it(tmp_path):
     """A checkpointed run stopped at t = 0.03 (after a sample at 0.035 was written: dropped) and resumed
     in a new process-like scene gives the uninterrupted run's samples, to the bit."""
