@@ -65,7 +65,7 @@ class Recording:
         p = self.scene.particles
         t = len(times)
         pos, vel, omega, dipole, energy, momentum, image = (r[:t] for r in record)
-        return Trajectory(
+        traj = Trajectory(
             time=times, position=pos, velocity=vel,
             angular_velocity=omega if p.angular_velocity is not None else None,
             dipole=dipole if p.dipole is not None else None,
@@ -73,6 +73,18 @@ class Recording:
             angular_momentum=momentum, radius=p.radius.copy(), mass=p.mass.copy(),
             inertia=p.inertia.copy(), ids=p.ids.copy(), image=image if p.image is not None else None,
             box=self.scene.box, walls=[(e, w) for e, w in numbered_walls(self.scene.effects) if w.servo is None])
+        if getattr(self.scene.box, "shear", None) is not None:  # about the continued paths (the compiled record
+            # takes position + image L and the wrapped velocity: neither has the sliding images' share)
+            traj.angular_momentum = continued_angular_momentum(traj)
+        return traj
+
+
+def continued_angular_momentum(traj):
+    """(T, 3) sum_i m_i x_i x v_i + I_i w_i about the origin, of the unwrapped positions and velocities."""
+    momentum = np.cross(traj.unwrapped(), traj.mass[None, :, None] * traj.unwrapped_velocity()).sum(axis=1)
+    if traj.angular_velocity is not None:
+        momentum += (traj.inertia[None, :, None] * traj.angular_velocity).sum(axis=1)
+    return momentum
 
 
 def _frame_of(record, k):

@@ -13,7 +13,8 @@ class Trajectory:
     total, dissipated); angular_momentum (T,3) about the origin (orbital + spin); and the constant
     particle properties radius, mass, inertia, ids (N,). In a periodic box, positions are wrapped
     into it, ``image`` (T,N,3) holds the integer image counts and ``box`` the :class:`demkit.Box`
-    (both None in open space); :meth:`unwrapped` gives continuous paths. ``walls``: (number, wall) of the
+    (both None in open space); :meth:`unwrapped` gives continuous paths (:meth:`unwrapped_velocity` their
+    velocities, which differ from ``velocity`` in a sheared box only). ``walls``: (number, wall) of the
     scene's walls whose place at a time their motion gives (not a servo's: it keeps no past positions),
     which pictures draw (:mod:`demkit.io.walls`).
     """
@@ -42,6 +43,18 @@ class Trajectory:
             a, b = shear.axes
             unwrapped[..., a] += self.image[..., b] * shear.jump(self.box.size) * np.asarray(self.time)[:, None]
         return unwrapped
+
+    def unwrapped_velocity(self):
+        """Velocities (T,N,3) continued across periodic boundaries: the recorded ones, and in a sheared box
+        + n_b gammadot L_b along the flow (a sphere that crossed the gradient axis n_b times was given its
+        sliding image's velocity at each crossing): the time derivative of :meth:`unwrapped`."""
+        shear = getattr(self.box, "shear", None)
+        if self.image is None or shear is None:
+            return self.velocity
+        a, b = shear.axes
+        continued = self.velocity.copy()
+        continued[..., a] += self.image[..., b] * shear.jump(self.box.size)
+        return continued
 
     def __len__(self):
         return len(self.time)

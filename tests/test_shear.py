@@ -692,3 +692,26 @@ def test_induced_moments_see_the_sliding_images_as_a_box_drawn_out_by_hand():
     scale = np.abs(expected).max()
     assert np.abs(scene.particles.dipole - expected).max() < 1e-11 * scale
     assert np.abs(by_hand(0.0) - expected).max() > 1e-3 * scale  # the sliding image matters here
+
+
+def test_a_free_sphere_across_the_sliding_boundary_keeps_its_straight_path_and_its_angular_momentum():
+    """A sphere in free flight crossing the gradient axis of a sheared box three times: its continued
+    (unwrapped) path is the straight line x_0 + v_0 t and its continued velocity v_0 throughout (to
+    round-off), although each crossing shifts its wrapped position by the offset and its velocity by
+    gammadot L_b; so its angular momentum about the origin, recorded and from the scene, stays
+    m x_0 x v_0 + I w_0 (a free body's, conserved), where the wrapped values jump at each crossing."""
+    L = 5.0
+    box = dk.Box(L, periodic=True, shear=dk.Shear(0.7, "x", "y"))
+    x0, v0, w0 = np.array([[1.0, 4.0, 2.0], [3.0, 1.0, 4.0]]), np.array([[0.3, 2.0, 0.2], [0.0, 0.0, 0.0]]), \
+        np.array([[0.1, 0.0, 0.5], [0.0, 0.0, 0.0]])
+    p = dk.Particles(position=x0, velocity=v0, angular_velocity=w0, radius=0.25, mass=[2.0, 1.0])
+    scene = dk.Scene(p, [dk.KelvinVoigt(100.0, 0.1)], box=box)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    traj = sim.run(7.0, record_every=0.05, progress=False)
+    assert traj.image[-1, 0, 1] == 3 and np.ptp(traj.velocity[:, 0, 0]) > 3.0  # wrapped: jumps of 0.7 L
+    t = np.asarray(traj.time)[:, None]
+    assert np.abs(traj.unwrapped()[:, 0] - (x0[0] + v0[0] * t)).max() < 1e-11
+    assert np.abs(traj.unwrapped_velocity()[:, 0] - v0[0]).max() < 1e-12
+    expected = 2.0 * np.cross(x0[0], v0[0]) + p.inertia[0] * w0[0]
+    assert np.abs(traj.angular_momentum - expected).max() < 1e-10
+    assert np.abs(scene.angular_momentum() - expected).max() < 1e-10
