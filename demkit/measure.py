@@ -65,7 +65,9 @@ class Stress:
         return -self.pressure_tensor
 
 
-def _volume(scene, volume):
+def volume_of(scene, volume=None):
+    """The volume a measurement divides by: ``volume`` if given (a positive number), else the box's;
+    ValueError for a scene without a box and no ``volume``."""
     if volume is not None:
         volume = float(volume)
         if not np.isfinite(volume) or volume <= 0.0:
@@ -81,7 +83,7 @@ def _volume(scene, volume):
 def stress(scene, volume=None):
     """The pressure tensor of ``scene`` now and its parts (a :class:`Stress`; module docstring).
     ``volume``: the volume to divide by (default: the box's; required for open scenes)."""
-    volume = _volume(scene, volume)
+    volume = volume_of(scene, volume)
     kinetic, virial, per_sphere = _virials(scene)
     return Stress(volume=volume, kinetic=kinetic, virial=virial, per_sphere=per_sphere)
 
@@ -245,4 +247,4 @@ def magnetisation(scene, volume=None):
     p = scene.particles
     if p.dipole is None:
         raise ValueError("these spheres have no dipole moments, so no magnetisation")
-    return np.asarray(p.dipole).sum(axis=0) / _volume(scene, volume)
+    return np.asarray(p.dipole).sum(axis=0) / volume_of(scene, volume)

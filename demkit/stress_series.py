@@ -88,11 +88,11 @@ class StressSeries:
     def open(self, simulation):
         """Start the series (called by the simulation). A series measures one simulation: given to a
         second one it refuses (its samples, and its file, would mix two runs)."""
-        from .measure import _volume
+        from .measure import volume_of
         if self._times or self._file is not None:
             raise ValueError("this StressSeries has measured a simulation already: give each simulation a new one "
                              "(its samples and file would mix two runs)")
-        self.volume = _volume(simulation.scene, self.volume)  # refuses an open scene without volume= now
+        self.volume = volume_of(simulation.scene, self.volume)  # refuses an open scene without volume= now
         box = simulation.scene.box
         self.shear = box.shear if box is not None else None
         if self.path is not None:
