@@ -7,13 +7,15 @@ gammadot L = 2.8 gammadot, against thermal speeds of about 1), on one tier; the 
     python benchmarks/bench_shear.py [--tier 1] [--n 8000] [--rates 0 0.01 0.1 1] [--steps 300] [--rounds 5]
         [--out benchmarks/results/shear.json]
 
-The scenes are stepped in turn, round by round, and each keeps its best round: on a shared machine the
-load moves more than the difference between them.
+The scenes are stepped in turn, round by round (the order alternating), and each keeps its best round; and
+each round's rate is divided by the fixed box's of the same round (``paired_median`` and the quartiles over
+the rounds): on a shared machine the load moves more than the difference between them.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
 import tempfile
 import time
@@ -45,16 +47,26 @@ def measure(n, rates, tier, steps, folder, rounds=5):
         sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
         sim.run(duration=0.02, progress=False)  # compile, first lists
         runs.append({"rate": rate, "scene": scene, "sim": sim, "best": 0.0, "rebuilds": scene.counters[0]})
-    for _ in range(rounds):
-        for run in runs:
+    for k in range(rounds):
+        for run in (runs if k % 2 == 0 else runs[::-1]):  # (alternating the order: no scene always first)
             t = time.perf_counter()
             run["sim"].run(duration=steps * 1e-3, progress=False)
-            run["best"] = max(run["best"], steps / (time.perf_counter() - t))
+            run.setdefault("rates", []).append(steps / (time.perf_counter() - t))
+            run["best"] = max(run["best"], run["rates"][-1])
     fixed = runs[0]["best"]
-    return [{"rate": run["rate"], "tier": run["sim"].statistics["tier"], "steps_per_s": round(run["best"], 2),
-             "of_the_fixed_box": round(run["best"] / fixed, 3),
-             "rebuilds_per_1000": round(1000.0 * float(run["scene"].counters[0] - run["rebuilds"]) / (rounds * steps), 1)}
-            for run in runs]
+    rows = []
+    for run in runs:
+        # paired: each round's rate over the fixed box's in the same round (a swing of the machine that
+        # lasts longer than a round hits both), the median and quartiles over the rounds
+        paired = [r / f for r, f in zip(run["rates"], runs[0]["rates"])]
+        quartiles = statistics.quantiles(paired, n=4) if len(paired) > 1 else paired * 3
+        rows.append({"rate": run["rate"], "tier": run["sim"].statistics["tier"], "steps_per_s": round(run["best"], 2),
+                     "of_the_fixed_box": round(run["best"] / fixed, 3),
+                     "paired_median": round(statistics.median(paired), 3),
+                     "paired_quartiles": [round(quartiles[0], 3), round(quartiles[2], 3)],
+                     "rebuilds_per_1000": round(1000.0 * float(run["scene"].counters[0] - run["rebuilds"])
+                                                / (rounds * steps), 1)})
+    return rows
 
 
 def main(argv=None):
