@@ -136,6 +136,8 @@ def _outputs(loaded, out_dir):
         yield "VTK series", loaded.output_path(out["vtk"]["folder"], out_dir) / "particles.pvd"
     if out.get("animation"):
         yield "animation", loaded.output_path(out["animation"]["path"], out_dir)
+    if out.get("stress"):
+        yield "stress series", loaded.output_path(out["stress"], out_dir)
     if out.get("checkpoint"):
         yield "checkpoint", loaded.output_path(out["checkpoint"]["path"], out_dir)
 

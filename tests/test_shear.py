@@ -540,6 +540,12 @@ duration = 5.0
     said = capsys.readouterr().out
     assert (f"shear         rate {RATE:g} along x, gradient y: the images slide at {RATE * L:.4g}, a strain of "
             f"{RATE * 5.0:.4g} by t = 5; the stress measured every 0.5 (run.stress_every)") in said, said
+    # demkit run names the stress series among what it writes (it said "no outputs requested" before)
+    (tmp_path / "sheared.toml").write_text(text.replace("duration = 5.0", "duration = 1.0\nstress_every = 0.5")
+                                           + '[outputs]\nstress = "stress.csv"\n')
+    assert demkit_main(["run", str(tmp_path / "sheared.toml"), "--no-progress"]) == 0
+    said = capsys.readouterr().out
+    assert "no outputs requested" not in said and f"wrote stress series: {tmp_path / 'stress.csv'}" in said, said
 
 
 def test_overlaps_across_the_sliding_boundary_are_found_before_a_run():
