@@ -129,6 +129,23 @@ class Box:
             shift[..., a] = k.astype(np.int64) + edge
         return wrapped, shift
 
+    def continued(self, position, velocity, image, time):
+        """(positions, velocities) continued across the periodic boundaries, as if never wrapped:
+        position + image * size, and in a sheared box + image_b gammadot L_b t along the flow (the sliding
+        images' offset, not wrapped) and velocity + image_b gammadot L_b (a sphere crossing the gradient
+        axis takes its image's velocity). ``time`` broadcasts against ``position[..., 0]``; the velocities
+        are those given when the box does not shear."""
+        position = position + image * self.size
+        shear = getattr(self, "shear", None)
+        if shear is None:
+            return position, velocity
+        a, b = shear.axes
+        jump = shear.jump(self.size)
+        position[..., a] += image[..., b] * jump * np.asarray(time)
+        velocity = velocity.copy()
+        velocity[..., a] += image[..., b] * jump
+        return position, velocity
+
     def minimum_image(self, separation, time=None):
         """Separations (..., 3) reduced to their nearest periodic image (in a sheared box, the
         Lees-Edwards image at ``time``, which it needs: along the gradient first, then the flow shifted

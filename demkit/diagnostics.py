@@ -156,12 +156,7 @@ class SceneDiagnostics:
         if p.image is None:
             return p.angular_momentum(origin)
         unwrapped = p.copy()
-        unwrapped.position = p.position + p.image * self.box.size
-        if self.box.shear is not None:  # the sliding images' share of the continued path and velocity
-            a, b = self.box.shear.axes
-            jump = self.box.shear.jump(self.box.size)
-            unwrapped.position[:, a] += p.image[:, b] * jump * self.time
-            unwrapped.velocity[:, a] += p.image[:, b] * jump
+        unwrapped.position, unwrapped.velocity = self.box.continued(p.position, p.velocity, p.image, self.time)
         return unwrapped.angular_momentum(origin)
 
     def linear_momentum(self):

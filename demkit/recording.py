@@ -81,7 +81,8 @@ class Recording:
 
 def continued_angular_momentum(traj):
     """(T, 3) sum_i m_i x_i x v_i + I_i w_i about the origin, of the unwrapped positions and velocities."""
-    momentum = np.cross(traj.unwrapped(), traj.mass[None, :, None] * traj.unwrapped_velocity()).sum(axis=1)
+    position, velocity = traj.box.continued(traj.position, traj.velocity, traj.image, np.asarray(traj.time)[:, None])
+    momentum = np.cross(position, traj.mass[None, :, None] * velocity).sum(axis=1)
     if traj.angular_velocity is not None:
         momentum += (traj.inertia[None, :, None] * traj.angular_velocity).sum(axis=1)
     return momentum

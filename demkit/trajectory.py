@@ -34,27 +34,19 @@ class Trajectory:
 
     def unwrapped(self):
         """Positions (T,N,3) continued across periodic boundaries: position + image * box size (in a
-        sheared box also + n_b gammadot L_b t along the flow: the sliding images' offset, not wrapped)."""
+        sheared box also + n_b gammadot L_b t along the flow: the sliding images' offset, not wrapped;
+        :meth:`demkit.Box.continued`)."""
         if self.image is None:
             return self.position
-        unwrapped = self.position + self.image * self.box.size
-        shear = getattr(self.box, "shear", None)
-        if shear is not None:
-            a, b = shear.axes
-            unwrapped[..., a] += self.image[..., b] * shear.jump(self.box.size) * np.asarray(self.time)[:, None]
-        return unwrapped
+        return self.box.continued(self.position, self.velocity, self.image, np.asarray(self.time)[:, None])[0]
 
     def unwrapped_velocity(self):
         """Velocities (T,N,3) continued across periodic boundaries: the recorded ones, and in a sheared box
         + n_b gammadot L_b along the flow (a sphere that crossed the gradient axis n_b times was given its
         sliding image's velocity at each crossing): the time derivative of :meth:`unwrapped`."""
-        shear = getattr(self.box, "shear", None)
-        if self.image is None or shear is None:
+        if self.image is None:
             return self.velocity
-        a, b = shear.axes
-        continued = self.velocity.copy()
-        continued[..., a] += self.image[..., b] * shear.jump(self.box.size)
-        return continued
+        return self.box.continued(self.position, self.velocity, self.image, np.asarray(self.time)[:, None])[1]
 
     def __len__(self):
         return len(self.time)
