@@ -3,7 +3,7 @@ from .engine import numba_cache
 numba_cache.install()  # before any function is defined: caches stamped with the whole package's source
 from .engine import inlining  # noqa: F401 (numba's inliner in linear time: compiles 40 % faster)
 from . import units
-from .box import Box, Shear
+from .box import Box, Deform, Shear
 from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet
 from .interactions import (Cone, Cylinder, Dipole, Friction, Gravity, Hertz, KelvinVoigt, Langevin, MagnetField, MeshWall,
                            PairInteraction, PowerLawDipole, RollingResistance, Servo, SphereInteraction,
@@ -36,7 +36,7 @@ from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep 
 
 from .version import __version__  # noqa: E402
 
-__all__ = ["Box", "Shear", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
+__all__ = ["Box", "Deform", "Shear", "Particles", "Scene", "Simulation", "SimulationError", "Trajectory", "Checkpoint",
            "LargeOutputWarning", "CheckpointWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
            "PairInteraction", "SphereInteraction", "Wall", "Servo", "Cylinder", "Cone", "MeshWall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",

@@ -10,6 +10,9 @@ outside it is an error before the run) and frames pictures: spheres may leave it
 A periodic box may be sheared (:class:`Shear`, Lees-Edwards sliding images): the images one period
 up the gradient axis b slide along the flow axis a by the offset delta(t) = gammadot L_b t (mod L_a)
 and move at gammadot L_b along a relative to the box.
+
+A periodic box may deform (:class:`Deform`): each deforming axis has the length L_a(t) = L_a0 (1 + rate_a t)
+at the scene's time t, the positions remapped affinely with it after every step.
 """
 from __future__ import annotations
 
@@ -71,17 +74,72 @@ class Shear:
         return f"Shear({self.rate!r}, flow={self.flow!r}, gradient={self.gradient!r})"
 
 
+class Deform:
+    """Homogeneous extension or compression of a periodic box at set engineering strain rates.
+
+    x, y, z : the strain rate of each axis (1/s; 0 leaves the axis alone): L_a(t) = L_a0 (1 + rate_a t),
+        L_a0 the box's ``size``, t the scene's time (as LAMMPS' ``fix deform ... erate``).
+
+    After every step the box takes its lengths at the clock and the positions are remapped affinely,
+    x_a -> x_a L_a(t) / L_a(t - dt) (LAMMPS' ``remap x``, Yade's homothetic cell): the spheres' velocities
+    are those relative to the affine flow u_a = (rate_a / (1 + rate_a t)) x_a, which the kinetic stress,
+    a bath's drag and the dashpots read. The box must stay longer than twice the longest reach: a run
+    that would shrink it further is refused before it starts.
+    """
+
+    def __init__(self, x=0.0, y=0.0, z=0.0):
+        rates = []
+        for axis, rate in zip(AXES, (x, y, z)):
+            if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)):
+                raise ValueError(f"Deform rate {axis} must be a number (1/s), got {rate!r}")
+            if not math.isfinite(float(rate)):
+                raise ValueError(f"Deform rate {axis} must be finite, got {rate!r}")
+            rates.append(float(rate))
+        if not any(rates):
+            raise ValueError("Deform needs a non-zero strain rate along at least one axis (x=, y=, z=, 1/s)")
+        self.rates = np.array(rates)
+        self.rates.setflags(write=False)
+
+    @property
+    def axes(self):
+        """The indices of the deforming axes."""
+        return [a for a in range(3) if self.rates[a] != 0.0]
+
+    def size_at(self, size, time):
+        """L_a0 (1 + rate_a t) for each axis (the bits the compiled loops give); ``time`` may be an array
+        (shape T: sizes T x 3)."""
+        time = np.asarray(time, dtype=np.float64)
+        size = np.asarray(size, dtype=np.float64)
+        out = np.broadcast_to(size, time.shape + (3,)).copy()
+        for a in self.axes:
+            out[..., a] = size[a] * (1.0 + self.rates[a] * time)
+        return out
+
+    def end_of_positive_size(self):
+        """The time at which the first compressed axis reaches length 0 (inf when none is compressed)."""
+        return min([-1.0 / r for r in self.rates if r < 0.0], default=math.inf)
+
+    def __eq__(self, other):
+        return isinstance(other, Deform) and np.array_equal(self.rates, other.rates)
+
+    def __repr__(self):
+        return "Deform(" + ", ".join(f"{AXES[a]}={self.rates[a]!r}" for a in self.axes) + ")"
+
+
 class Box:
     """Rectangular box [0, Lx) x [0, Ly) x [0, Lz).
 
     size : three positive lengths (or one, for a cube).
     periodic : True/False for all axes, or three booleans (x, y, z).
     shear : a :class:`Shear` (Lees-Edwards simple shear; its flow and gradient axes periodic), or None.
+    deform : a :class:`Deform` (extension or compression at set strain rates; its axes periodic), or None.
+        ``size`` is then the box at time 0 (:meth:`size_at` gives it at any time).
     """
 
     shear = None  # (boxes pickled before shear existed)
+    deform = None  # (... and before deformation)
 
-    def __init__(self, size, periodic=False, shear=None):
+    def __init__(self, size, periodic=False, shear=None, deform=None):
         arr = real_array("Box size", size)
         if arr.ndim == 0:
             arr = np.full(3, float(arr))
@@ -106,6 +164,30 @@ class Box:
                     raise ValueError(f"Box shear: the {name} axis {axis} must be periodic (Lees-Edwards images "
                                      f"slide along a periodic box), got periodic={self.periodic.tolist()}")
         self.shear = shear
+        if deform is not None:
+            if not isinstance(deform, Deform):
+                raise ValueError(f"Box deform must be a demkit.Deform or None, got {type(deform).__name__}")
+            for a in deform.axes:
+                if not self.periodic[a]:
+                    raise ValueError(f"Box deform: the axis {AXES[a]} deforms but is not periodic (the box remaps "
+                                     f"periodic coordinates), got periodic={self.periodic.tolist()}")
+            if shear is not None:
+                raise ValueError("Box: shear and deform together are not done yet (the sliding images would need the "
+                                 "gradient axis's changing length); choose one")
+        self.deform = deform
+
+    def size_at(self, time):
+        """The box's lengths at ``time`` (its ``size`` unless it deforms; an array of times gives T x 3)."""
+        deform = getattr(self, "deform", None)
+        if deform is not None and time is None:
+            raise ValueError("the lengths of a deforming box need the time: size_at(time)")
+        if deform is None:
+            return np.broadcast_to(self.size, np.shape(time) + (3,)).copy() if np.ndim(time) else self.size.copy()
+        return deform.size_at(self.size, time)
+
+    def volume_at(self, time):
+        """The box's volume at ``time`` (``volume`` unless it deforms)."""
+        return float(np.prod(self.size_at(float(time))))
 
     @property
     def any_periodic(self):
@@ -133,9 +215,21 @@ class Box:
         """(positions, velocities) continued across the periodic boundaries, as if never wrapped:
         position + image * size, and in a sheared box + image_b gammadot L_b t along the flow (the sliding
         images' offset, not wrapped) and velocity + image_b gammadot L_b (a sphere crossing the gradient
-        axis takes its image's velocity). ``time`` broadcasts against ``position[..., 0]``; the velocities
-        are those given when the box does not shear."""
-        position = position + image * self.size
+        axis takes its image's velocity). In a deforming box, position + image * L(t), and the velocity
+        with the affine flow (rate_a / (1 + rate_a t)) x_a added (the path's own rate of change).
+        ``time`` broadcasts against ``position[..., 0]``; the velocities are those given when the box
+        neither shears nor deforms."""
+        deform = getattr(self, "deform", None)
+        if deform is not None:  # the box's lengths at each time, the velocities with the affine flow
+            t = np.asarray(time, dtype=np.float64)
+            position = position + image * self.size_at(t)
+            velocity = velocity.copy()
+            for a in deform.axes:
+                rate = deform.rates[a]
+                velocity[..., a] += rate / (1.0 + rate * t) * position[..., a]
+            return position, velocity
+        else:
+            position = position + image * self.size
         shear = getattr(self, "shear", None)
         if shear is None:
             return position, velocity
@@ -151,6 +245,12 @@ class Box:
         Lees-Edwards image at ``time``, which it needs: along the gradient first, then the flow shifted
         by k delta)."""
         d = np.array(separation, dtype=np.float64)
+        size = self.size
+        if getattr(self, "deform", None) is not None:
+            if time is None:
+                raise ValueError("separations in a deforming box need the time (minimum_image(d, time)): its "
+                                 "lengths change")
+            size = self.size_at(float(time))
         if self.shear is not None:
             if time is None:
                 raise ValueError("separations in a sheared box need the time (minimum_image(d, time)): its "
@@ -160,7 +260,7 @@ class Box:
             d[..., b] += k * self.size[b]
             d[..., a] += k * self.shear.offset(self.size, time)
         for a in np.flatnonzero(self.periodic):
-            d[..., a] -= self.size[a] * np.round(d[..., a] / self.size[a])
+            d[..., a] -= size[a] * np.round(d[..., a] / size[a])
         return d
 
     def outside(self, position):
@@ -188,10 +288,12 @@ class Box:
 
     def __eq__(self, other):
         return (isinstance(other, Box) and np.array_equal(self.size, other.size)
-                and np.array_equal(self.periodic, other.periodic) and self.shear == other.shear)
+                and np.array_equal(self.periodic, other.periodic) and self.shear == other.shear
+                and getattr(self, "deform", None) == getattr(other, "deform", None))
 
     def __repr__(self):
         flags = self.periodic.tolist()
         periodic = flags[0] if len(set(flags)) == 1 else tuple(flags)
         shear = f", shear={self.shear!r}" if self.shear is not None else ""
+        shear += f", deform={self.deform!r}" if getattr(self, "deform", None) is not None else ""
         return f"Box(size={tuple(self.size.tolist())}, periodic={periodic}{shear})"

@@ -35,6 +35,7 @@ import numpy as np
 from . import checks
 from . import version
 from .outputs import check_writable, sync_folder
+from .engine.deform import DF_BUILT
 from .engine.shear import SH_BUILT
 from .engine.state import PAIR_LIST_FIELDS
 from .interactions.wall_motion import S_FORCE, SERVO_STATE
@@ -128,6 +129,8 @@ def scene_hash(scene, integrator):
         params[state.start - (SERVO_STATE - S_FORCE):scene.geometry_slots[e] + np.size(scene.effects[e].block)] = 0.0
     if getattr(scene, "shear_slot", None) is not None:  # the offset the lists were built at: state, saved with it
         params[scene.shear_slot + SH_BUILT] = 0.0
+    if getattr(scene, "deform_slot", None) is not None:  # ... and the box lengths they were built in
+        params[scene.deform_slot + DF_BUILT:scene.deform_slot + DF_BUILT + 3] = 0.0
     add("params", params)
     for name in ("radius", "mass", "inertia", "ids"):
         add(name, np.asarray(getattr(p, name)))
@@ -135,6 +138,8 @@ def scene_hash(scene, integrator):
     add("box", (scene.box.size.tolist(), list(scene.box.periodic)) if scene.box is not None else None)
     if scene.box is not None and scene.box.shear is not None:
         add("shear", repr(scene.box.shear))
+    if scene.box is not None and getattr(scene.box, "deform", None) is not None:
+        add("deform", repr(scene.box.deform))
     add("skin", scene.skin)
     add("sort_every", scene.sort_every)
     add("chunks", scene.chunks)
@@ -155,6 +160,9 @@ def state_arrays(scene):
         arrays[f"servo{e}.state"] = scene.params[state]
     if getattr(scene, "shear_slot", None) is not None:
         arrays["shear.built"] = scene.params[scene.shear_slot + SH_BUILT:scene.shear_slot + SH_BUILT + 1]
+    if getattr(scene, "deform_slot", None) is not None:  # the box now and when the lists were built
+        arrays["deform.box"] = scene.arrays["box"]
+        arrays["deform.built"] = scene.params[scene.deform_slot + DF_BUILT:scene.deform_slot + DF_BUILT + 3]
     for g in range(len(scene.plan.groups)):
         pl = scene._list(g)
         arrays[f"list{g}.reach"] = np.array([pl.reach])
@@ -338,6 +346,9 @@ def restore(scene, arrays):
         scene.params[state] = arrays[f"servo{e}.state"]
     if getattr(scene, "shear_slot", None) is not None:
         scene.params[scene.shear_slot + SH_BUILT] = arrays["shear.built"][0]
+    if getattr(scene, "deform_slot", None) is not None:
+        scene.arrays["box"][...] = arrays["deform.box"]
+        scene.params[scene.deform_slot + DF_BUILT:scene.deform_slot + DF_BUILT + 3] = arrays["deform.built"]
     lists = []
     for g in range(len(scene.plan.groups)):
         fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])

@@ -13,15 +13,19 @@ CLUSTER_GAP = 0.1
 CONTACT_TOLERANCE = 0.01
 
 
-def _wrapped(position, box):
-    """Positions brought into [0, L) along the periodic axes of ``box`` and the cKDTree boxsize."""
+def _wrapped(position, box, time=None):
+    """Positions brought into [0, L) along the periodic axes of ``box`` (a deforming box's at ``time``) and
+    the cKDTree boxsize."""
     if box is None or not np.any(box.periodic):
         return position, None
+    if getattr(box, "deform", None) is not None and time is None:
+        raise ValueError("close pairs in a deforming box need the frame's time (time=...): its lengths change")
+    lengths = box.size_at(float(time)) if time is not None else box.size
     position = position.copy()
-    size = np.where(box.periodic, box.size, 0.0)  # 0: not periodic, for cKDTree
+    size = np.where(box.periodic, lengths, 0.0)  # 0: not periodic, for cKDTree
     for a in np.flatnonzero(box.periodic):
-        x = np.mod(position[:, a], box.size[a])
-        x[x >= box.size[a]] = 0.0  # np.mod of a tiny negative number can give L itself
+        x = np.mod(position[:, a], lengths[a])
+        x[x >= lengths[a]] = 0.0  # np.mod of a tiny negative number can give L itself
         position[:, a] = x
     return position, size
 
@@ -57,7 +61,7 @@ def close_pairs(position, radius, box=None, scale=1.0, extra=0.0, distances=Fals
     if len(position) < 2:
         none = np.zeros((0, 2), dtype=np.int64)
         return (none, np.zeros(0)) if distances else none
-    points, boxsize = _wrapped(position, box)
+    points, boxsize = _wrapped(position, box, time)
     sheared = box is not None and box.shear is not None
     if sheared and time is None:
         raise ValueError("close pairs in a sheared box need the frame's time (time=...): its images slide")

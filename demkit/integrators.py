@@ -57,6 +57,9 @@ class Integrator:
             if scene.box is not None and scene.box.shear is not None:
                 raise ValueError(f"{self!r} locates contacts with the plain minimum image, not the sliding images of "
                                  f"a sheared box: use {type(self).__name__}(dt) without resolve_contacts")
+            if scene.box is not None and getattr(scene.box, "deform", None) is not None:
+                raise ValueError(f"{self!r} locates contacts in a fixed box, not one the steps remap: use "
+                                 f"{type(self).__name__}(dt) without resolve_contacts in a deforming box")
             curved = [e for e in scene.effects if not getattr(e, "flat", True)]
             if curved:
                 raise ValueError(f"{self!r} locates contacts with plane walls that stand still only, and this scene has "

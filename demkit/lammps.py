@@ -63,6 +63,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .box import Box
 from .integrators import VelocityVerlet
 from .interactions import (Cone, Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, MeshWall, PowerLawDipole,
                            UniformField, Wall)
@@ -570,6 +571,11 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     """
     sheared = scene.box is not None and scene.box.shear is not None
     tilt = tilt_of(scene.box, scene.time, integrator.dt) if sheared else None
+    deform = getattr(scene.box, "deform", None) if scene.box is not None else None
+    box = scene.box  # a deforming box as it is now, LAMMPS' erate taken from there (L_0 (1 + r t) = L(t0) (1 + r' (t - t0)))
+    if deform is not None:
+        box = Box(scene.box.size_at(scene.time), periodic=scene.box.periodic)
+        rates = {"xyz"[a]: deform.rates[a] / (1.0 + deform.rates[a] * scene.time) for a in deform.axes}
     job = _Export(scene, integrator, strict, dipole_update, dipole_cutoff)
     job.check()
     dt = integrator.dt
@@ -585,7 +591,7 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     folder.mkdir(parents=True, exist_ok=True)
     data, deck = folder / DATA_NAME, folder / DECK_NAME
     p = scene.particles
-    write_data(data, p, scene.box, periodic, job.scale,
+    write_data(data, p, box, periodic, job.scale,
                f"demkit scene: {p.n} spheres, exported by demkit.export_lammps", tilt)
     fixed = p.fixed is not None and bool(p.fixed.any())
     boundary = " ".join("p" if f else "s" for f in periodic)
@@ -602,6 +608,9 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
         head.append(f"# Shear: the box tilts as {tilt.name} = {g17(tilt.rate)} L t (fix deform, remap v), led by one "
                     f"step (fix deform sets the tilt at the end of a step; demkit's forces take the sliding at the "
                     f"step's own time): the starting forces see it one step ahead.")
+    if deform is not None:
+        head.append("# Deformation: fix deform erate remap x (the box about its centre, demkit's about the origin: LAMMPS' "
+                    "coordinates are demkit's plus its box's lower corner, -(L(t) - L(0)) / 2 along a deforming axis).")
     head += [f"# NOTE: {note}" for note in job.notes]
     lines = head + [""]
     if nsteps is not None:
@@ -621,6 +630,9 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     lines += [f"fix         integrate mobile nve/sphere update {job.update}"]
     if tilt is not None:  # after the integration, as in benchmarks/lammps/in.sheared; led by one step (docstring)
         lines.append(f"fix         shear all deform 1 {tilt.name} erate {g17(tilt.rate)} remap v flip yes")
+    if deform is not None:  # after the integration: the box and the positions remapped at the end of each step
+        lines.append("fix         strain all deform 1 " + " ".join(f"{c} erate {g17(r)}" for c, r in rates.items())
+                     + " remap x")
     lines += [f"timestep    {g17(dt)}", "",
               "compute     erot all erotate/sphere", "thermo_style custom step time ke c_erot pe",
               "thermo_modify norm no", "thermo      ${dumpevery}",

@@ -77,7 +77,7 @@ def volume_of(scene, volume=None):
     if box is None or not np.all(np.isfinite(box.size)):
         raise ValueError("this scene has no box, so no volume to divide by: pass volume=... (the region the "
                          "spheres fill, in scene length units cubed)")
-    return float(box.volume)
+    return box.volume_at(scene.time)  # (a deforming box's at the scene's time)
 
 
 def stress(scene, volume=None):

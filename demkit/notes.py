@@ -76,7 +76,7 @@ def _relative(position, radius, box, pairs, walls, times=None):
     if pairs and n <= FEW:  # every pair of every frame at once
         i, j = _all_pairs(n)
         d = position[:, j] - position[:, i]
-        if box is not None and box.shear is not None:  # each frame's sliding images
+        if box is not None and (box.shear is not None or getattr(box, "deform", None) is not None):  # each frame's images
             d = np.stack([box.minimum_image(dk, t) for dk, t in zip(d, _times(times, box))])
         elif box is not None:
             d = box.minimum_image(d)
@@ -97,7 +97,7 @@ def _relative(position, radius, box, pairs, walls, times=None):
 def _times(times, box):
     """The frames' times, which a sheared box's images need."""
     if times is None:
-        raise ValueError("overlaps in a sheared box need the frames' times: its images slide")
+        raise ValueError("overlaps in a sheared or deforming box need the frames' times: its images move")
     return times
 
 
@@ -113,7 +113,8 @@ class RunNotes:
         walls = [e for e in scene.effects if isinstance(e, Wall)]
         # a moving wall's work and a thermostat's bath are not booked
         self.balance = not any(w.surface_speed() > 0.0 for w in walls) and not scene.heat_baths and (
-            scene.box is None or scene.box.shear is None)  # (nor the work of shearing a box)
+            scene.box is None or (scene.box.shear is None and getattr(scene.box, "deform", None) is None))  # (nor
+        # the work of shearing or deforming a box)
         # (a servo-controlled wall's past positions are not kept: its contacts are read by the run's guards only)
         self.walls = [w for w in walls if getattr(w, "servo", None) is None]
         self.largest = self.drift = self.scale = 0.0

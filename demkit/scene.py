@@ -18,7 +18,7 @@ import math
 import numba
 import numpy as np
 
-from . import checks, sheared
+from . import checks, deformed, sheared
 from .box import Box
 from .diagnostics import SceneDiagnostics, energy_dict  # noqa: F401 (demkit.scene.energy_dict, as before)
 from .engine import generic, generic_modules, neighbours
@@ -105,6 +105,8 @@ class Scene(SceneDiagnostics):
         polarisabilities = induction.prepare(particles, dipoles, effects)  # None: no magnetisable spheres
         if box is not None and box.shear is not None:  # what Lees-Edwards images do not cover yet, refused
             sheared.check_scene(box, interactions, effects)
+        if box is not None and getattr(box, "deform", None) is not None:  # ... nor the affine remap
+            deformed.check_scene(box, interactions, effects)
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]
@@ -167,8 +169,9 @@ class Scene(SceneDiagnostics):
                 self._first_induction()
             #: the module of forces(), energy() and every call made from Python: tier 1 whenever it
             #: can run the scene (tier 2 then only runs time loops: nothing else of it is compiled)
-            if self.box is not None and self.box.shear is not None and not self.on_tier_1_possible:
-                raise ValueError(f"a sheared box needs a scene the generic module runs: {self.program_refusal}")
+            if self.box is not None and (self.box.shear or self.deform_slot is not None) and not self.on_tier_1_possible:
+                raise ValueError(f"a sheared or deforming box needs a scene the generic module runs: "
+                                 f"{self.program_refusal}")
             self.kernels = self._kernels(threads=False, tier=1 if self.on_tier_1_possible else None)
             self._loop_kernels = None
             self.validate()
@@ -445,6 +448,13 @@ class Scene(SceneDiagnostics):
         self.shear_slot = slots.shear_slot  # Lees-Edwards: [a, b, gammadot L_b, offset at the lists' build], last
         if self.shear_slot is not None:
             self.params = np.concatenate([self.params, sheared.shear_block(self.box)])
+        self.deform_slot = None  # a deforming box: [rates, sizes at 0, sizes at the lists' build, list reach], last
+        if self.box is not None and getattr(self.box, "deform", None) is not None:
+            self.deform_slot = len(self.params)
+            reach = max([g.reach + self.skin for g in plan.groups if g.kind == "list"], default=0.0)
+            self.params = np.concatenate([self.params, deformed.deform_block(self.box, 0.0, reach)])
+            if self.program is not None:  # the time loops keep the clock; end_step remaps (demkit.engine.deform)
+                self.program[0, layout.H_DEFORM], self.program[0, layout.H_CLOCK] = self.deform_slot, 1
         self.geometry_slots = dict(slots.geometry_slot)
         for e, slot in slots.geometry_slot.items():  # walls read their state (a servo's) from their block
             self.effects[e].block = self.params[slot:slot + np.size(self.effects[e].geometry_values())]
@@ -622,6 +632,8 @@ class Scene(SceneDiagnostics):
         if not math.isfinite(value):
             raise ValueError(f"Scene time must be finite, got {value}")
         self.clock[0] = value
+        if getattr(self, "deform_slot", None) is not None and deformed.remap(self.arrays, self.box, value):
+            self.pull()  # a deforming box at that time: the positions remapped into it
 
     @property
     def counters(self):

@@ -165,6 +165,10 @@ class Simulation(Recording, Stops):
         if nsteps == 0:
             return self._already_there()
         stride = nsteps if record_every is None else self._steps(record_every, "record_every")
+        box = self.scene.box
+        if box is not None and getattr(box, "deform", None) is not None:  # long enough to the run's end
+            from .deformed import check_run
+            check_run(box, max(self.scene.reaches, default=0.0), self.time, (self.step + nsteps) * self.integrator.dt)
         # Ctrl-C is caught from here to the run's end (CatchInterrupt): also while the run prepares and
         # after its last chunk, where compiled calls (the first frame, the writers' end frames) run. A
         # KeyboardInterrupt raised inside numba's call machinery came out as a TypeError.

@@ -70,7 +70,7 @@ class StressSeries:
         and each pair interaction's virial part (``<name>_xx`` ...), all divided by the volume.
         An existing file is refused unless ``overwrite=True`` or ``resume=True`` (a run resumed
         from a checkpoint: its samples up to the checkpoint's time are kept, the later ones dropped).
-    volume : the volume to divide by (default: the box's; required in open space).
+    volume : the volume to divide by (default: the box's at each sample; required in open space).
     """
 
     def __init__(self, every, path=None, volume=None, overwrite=False, resume=False):
@@ -92,7 +92,7 @@ class StressSeries:
         if self._times or self._file is not None:
             raise ValueError("this StressSeries has measured a simulation already: give each simulation a new one "
                              "(its samples and file would mix two runs)")
-        self.volume = volume_of(simulation.scene, self.volume)  # refuses an open scene without volume= now
+        volume_of(simulation.scene, self.volume)  # refuses an open scene without volume= now
         box = simulation.scene.box
         self.shear = box.shear if box is not None else None
         if self.path is not None:

@@ -446,17 +446,22 @@ class _Generic:
         lines = []
         # in a sheared box the sliding since the last build counts against the skin (demkit.engine.shear)
         test = MAINTAIN_LISTS_HEAD.index("    if d2 <= 0.25 * s.skin * s.skin:")
+        # in a deforming box the remap's squeeze since the build (demkit.engine.deform)
         lines += MAINTAIN_LISTS_HEAD[:test] + [
             "    sh = s.program[0, H_SHEAR]",
+            "    dq = s.program[0, H_DEFORM]",
             "    if sh >= 0:",
             "        if 2.0 * math.sqrt(d2) + slide_since_build(s.params, sh, s.box, s.clock[0], s.skin) <= s.skin:",
+            "            return",
+            "    elif dq >= 0:",
+            "        if 2.0 * math.sqrt(d2) + squeeze_since_build(s.params, dq, s.box) <= s.skin:",
             "            return",
             "    el" + MAINTAIN_LISTS_HEAD[test].lstrip()] + MAINTAIN_LISTS_HEAD[test + 1:]
         lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
                       f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le)"]
-        lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]"]
+        lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]", "    mark_built(s.params, dq, s.box)"]
         lines += MAINTAIN_LISTS_TAIL
         # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
         # saved by the tags the particles had (``before``): saving and restoring it here, inlined for
@@ -476,7 +481,8 @@ class _Generic:
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",
                       f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le)"]
-        lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]"]
+        lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]",
+                  "    mark_built(s.params, s.program[0, H_DEFORM], s.box)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         return lines
 
@@ -500,6 +506,10 @@ class _Generic:
                   '    """Fold the periodic coordinates into a sheared box, through its sliding images."""',
                   "    wrap_sheared(s.position, s.velocity, s.reference, s.image, s.box, s.periodic, s.params,",
                   "                 s.program[0, H_SHEAR], s.clock[0])"]
+        # a deforming box's step through ``calls``: scenes in fixed boxes do not compile it
+        lines += ["", "", "@njit(**LOOP)", "def deform_box(s):",
+                  '    """The box at the clock and the positions remapped into it (demkit.engine.deform)."""',
+                  "    deform_step(s.position, s.reference, s.box, s.params, s.program[0, H_DEFORM], s.clock[0])"]
         # a sheared box's frames through ``calls`` too: scenes in fixed boxes do not compile it
         lines += ["", "", "@njit(**LOOP)", "def fold_frame(s, k, rec_position, rec_velocity, rec_image):",
                   '    """Frame k folded through a sheared box\'s sliding images (store_frame folds each axis alone)."""',
@@ -591,7 +601,9 @@ class _Generic:
         # end_step and optimised again there (2.5 CPU s at a scene's first step)
         lines += ["    if timed:  # servo-controlled walls move after the step (read no field of s otherwise: it costs)",
                   "        for e in range(s.program[0, H_EFFECTS]):",
-                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY], s.clock[0])"]
+                  "            servo_step(s.params, s.program[EFFECT_ROW + e, E_GEOMETRY], s.clock[0])",
+                  "        if s.program[0, H_DEFORM] >= 0:  # a deforming box: its size at the clock, the positions remapped",
+                  f"            {self.call('deform_box')}(s)"]
         lines += [line.replace("record_frame(step", "frame(calls, step") for line in END_STEP_TAIL]
         return lines
 
@@ -610,7 +622,8 @@ class _Generic:
                  "from demkit.engine.plan import BLOCK",
                  "from demkit.engine.shear import (SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT, shear_offset, sheared_image,",
                  "                          list_frame, slide_since_build, wrap_sheared, frame_sheared)",
-                 "from demkit.engine.program import H_SHEAR",
+                 "from demkit.engine.program import H_SHEAR, H_DEFORM",
+                 "from demkit.engine.deform import deform_step, squeeze_since_build, mark_built",
                  "from demkit.engine.program import (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, H_CLOCK, G_COUNT,",
                  "                            G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ,",
                  "                            G_MEMBERS, M_KIND, M_SLOT, M_CUT, M_OFFSET, M_SIZE, M_ENERGY, M_INDEX,",
@@ -689,6 +702,7 @@ class _Generic:
                   "", "", "@njit(**LOOP)", "def no_wrap_positions(s):", "    return",
                   "", "", "@njit(**LOOP)", "def no_fold_frame(s, k, rec_position, rec_velocity, rec_image):",
                   "    return",
+                  "", "", "@njit(**LOOP)", "def no_deform_box(s):", "    return",
                   "", "", "@njit(**INNER)",
                   "def no_own_pair_forces(k, i, j, dx, dy, dz, r2, s, history, p, off, commit, slot):",
                   "    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0",
@@ -747,7 +761,7 @@ STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_cont
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
 SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now", "wrap_positions",
-                "fold_frame")
+                "fold_frame", "deform_box")
 #: ... of which the list upkeep, which has a twin on threads
 UPKEEP = SCENE_PIECES[:2]
 #: the scene pieces a sheared box takes in place of the plain ones (its own name in the module), and

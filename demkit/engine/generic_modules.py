@@ -11,7 +11,7 @@ from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
 from .generic import CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES, UPKEEP, _name, _pieces_name
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
-                      H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
+                      H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
 from .snippets import SPEEDS
 from .state import pair_loop_arrays
 
@@ -95,6 +95,8 @@ def needs_of(program):
         needs += ["wrap_positions"]
     if program[0, H_SHEAR] >= 0:
         needs += ["fold_frame"]  # (and the sheared wrap: generic.SHEARED_CALLS)
+    if program[0, H_DEFORM] >= 0:
+        needs += ["deform_box"]
     if any(program[r, G_MEMBERS + M_COLUMNS * m + M_KIND] == OWN for r in rows for m in range(program[r, G_COUNT])):
         needs += ["own_pair_forces", "own_pair_energies"]
     if any(program[effect_row(e), E_KIND] == OWN for e in range(program[0, H_EFFECTS])):
@@ -130,6 +132,7 @@ def piece_arguments(state_type):
                  "long_range": (state_type, f["force"], f["torque"]),
                  "sum_energies": (state_type, out),
                  "induce_now": (state_type, types.boolean), "wrap_positions": (state_type,),
+                 "deform_box": (state_type,),
                  "fold_frame": (state_type, types.int64, frames, frames, types.Array(types.int64, 3, "C")),
                  "pairs_forces": chunked, "pairs_forces_blocked": chunked,
                  "sphere_forces": (state_type, f["force"], f["torque"], types.boolean),

@@ -16,7 +16,7 @@ MAX_MEMBERS = 4
 MAX_EFFECTS = 16
 # header row
 (H_LISTS, H_PERIODIC, H_SORTED, H_EFFECTS, H_SHORTEST, H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT,
- H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, H_CLOCK, H_SHEAR) = range(13)
+ H_INDUCTION_OFFSET, H_INDUCTION_ENERGY, H_CLOCK, H_SHEAR, H_DEFORM) = range(14)
 # group rows: flags, then the members
 (G_COUNT, G_LIST, G_BLOCKED, G_TORQUE, G_WIDTH, G_CONTACT_ONLY, G_CONTACT, G_PX, G_PY, G_PZ, G_EXISTS) = range(11)
 G_MEMBERS = 11
@@ -80,6 +80,7 @@ def program_of(plan, slots, kinds):
     program[0, H_SHEAR] = -1 if plan.shear is None else slots.shear_slot  # Lees-Edwards: its block in params
     if plan.shear is not None:
         program[0, H_CLOCK] = 1  # the sliding offset follows the clock (demkit.engine.shear)
+    program[0, H_DEFORM] = -1  # a deforming box: its block's slot, set by the scene (demkit.engine.deform)
     from .plan import Group
     own = []  # the names of the laws and effects of your own
     for g, group in enumerate(plan.groups):
