@@ -123,7 +123,7 @@ class Deform:
         return isinstance(other, Deform) and np.array_equal(self.rates, other.rates)
 
     def __repr__(self):
-        return "Deform(" + ", ".join(f"{AXES[a]}={self.rates[a]!r}" for a in self.axes) + ")"
+        return "Deform(" + ", ".join(f"{AXES[a]}={float(self.rates[a])!r}" for a in self.axes) + ")"
 
 
 class Box:

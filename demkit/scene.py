@@ -632,8 +632,13 @@ class Scene(SceneDiagnostics):
         if not math.isfinite(value):
             raise ValueError(f"Scene time must be finite, got {value}")
         self.clock[0] = value
-        if getattr(self, "deform_slot", None) is not None and deformed.remap(self.arrays, self.box, value):
-            self.pull()  # a deforming box at that time: the positions remapped into it
+        if getattr(self, "deform_slot", None) is not None:  # a deforming box at that time, the positions remapped
+            synced = not self.stepping and self.in_sync
+            if deformed.remap(self.arrays, self.box, value):
+                if self.plan.sorted:
+                    self.particles.position[self.arrays["tag"]] = self.arrays["position"]
+                if synced:
+                    self._synced = self.digest()
 
     @property
     def counters(self):

@@ -44,10 +44,12 @@ def small_scene(tier):
                         dk.UniformField((0.0, 0.05, 0.02)), *walls], tier=tier)
 
 
-def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_voigt=False, cutoff=3.0):
-    """A periodic frictional magnetic gas: neighbour lists, blocked dipole loops."""
+def gas(tier, n=240, parallel=False, sort_every=None, power_law=False, kelvin_voigt=False, cutoff=3.0, deform=None):
+    """A periodic frictional magnetic gas: neighbour lists, blocked dipole loops (in a box deforming by
+    ``deform``, a dk.Deform)."""
     R = 0.5
     box = dk.build.box_for(n, R, 0.25)
+    box = dk.Box(box.size, periodic=True, deform=deform) if deform is not None else box
     pos = dk.build.random_packing(n, R, box, seed=1)
     rng = np.random.default_rng(2)
     d = rng.normal(size=(n, 3))
@@ -110,6 +112,15 @@ def test_periodic_gas_same_bits(integrator):
     friction = type(integrator) is dk.VelocityVerlet and not integrator.resolve_contacts
     make = gas if friction else (lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0))
     same_bits(make, integrator, 0.2)
+
+
+def test_a_deforming_box_same_bits():
+    """The gas compressed along x and drawn out along y (the box and positions remapped after each step
+    by end_step, the lists rebuilt as the remap squeezes the skin): tier 2's pieces are the fixed box's
+    (the deformation is data: params and the program), the same bits as tier 1."""
+    make = (lambda tier: gas(tier, deform=dk.Deform(x=-0.4, y=0.25)))
+    same_bits(make, dk.VelocityVerlet(1e-3), 0.2)
+    assert make(1).program[0, layout.H_DEFORM] >= 0
 
 
 def test_multiple_time_steps_with_lists_same_bits():

@@ -1,0 +1,202 @@
+"""Homogeneous deformation of a periodic box (dk.Deform, demkit.engine.deform): an affinely compressed
+lattice against the stress of its bonds computed by hand, a free sphere's path against the affine flow's
+exact solution, the lists against brute force while the box squeezes, exact restarts, LAMMPS' fix deform
+(tests/test_lammps_export.py) and what a deforming box refuses."""
+import math
+
+import numpy as np
+import pytest
+
+import demkit as dk
+from restart_scenes import assert_identical, state_of
+
+
+def fcc(cells, spacing):
+    """Sites of an fcc lattice of ``cells``^3 cubic cells of side ``spacing`` (4 a cell), inside [0, L)."""
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]]) + 0.25
+    grid = np.array([(i, j, k) for i in range(cells) for j in range(cells) for k in range(cells)], float)
+    return ((grid[:, None, :] + basis[None, :, :]).reshape(-1, 3)) * spacing
+
+
+def bonds_stress(k, radius, cube):
+    """The pressure tensor of an fcc crystal of Kelvin-Voigt spheres at rest, by hand: each sphere's six
+    bonds r = (+-c_x, +-c_y, 0) / 2 ... (c: the deformed cubic cell's sides), each pressed by
+    F = k (2 R - |r|) along r when shorter than 2 R, over the volume per sphere c_x c_y c_z / 4:
+    P = (4 / (c_x c_y c_z)) sum over the six bonds of k (2 R - |r|) r r^T / |r|."""
+    P = np.zeros((3, 3))
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        for sign in (1.0, -1.0):
+            r = np.zeros(3)
+            r[a], r[b] = 0.5 * cube[a], sign * 0.5 * cube[b]
+            d = np.linalg.norm(r)
+            if d < 2.0 * radius:
+                P += k * (2.0 * radius - d) * np.outer(r, r) / d
+    return 4.0 * P / np.prod(cube)
+
+
+def test_an_affinely_compressed_fcc_crystal_has_the_stress_of_its_bonds():
+    """108 spheres on an fcc lattice (bonds 0.1 % shorter than touching), the box compressed along x at
+    1 %/s and drawn out along z at 0.5 %/s for 2 s: by symmetry every sphere stays on its (remapped)
+    site, so the crystal deforms affinely and the StressSeries' pressure tensor at each sample is the
+    bonds' by hand (bonds_stress) to round-off (1e-12 relative: each sample is a sum of 648 bond
+    forces), the shear components zero; P_yy grows through the bonds in the xy plane (C_12 of the
+    crystal), less than P_xx, more than P_zz. The spheres stay at rest (to round-off, 1e-8)."""
+    R, k, cells = 0.5, 1000.0, 3
+    spacing = 2.0 * R * math.sqrt(2.0) * 0.999
+    pos = fcc(cells, spacing)
+    p = dk.Particles(position=pos, velocity=np.zeros_like(pos), radius=R, mass=1.0)
+    deform = dk.Deform(x=-0.01, z=0.005)
+    box = dk.Box(cells * spacing, periodic=True, deform=deform)
+    series = dk.StressSeries(every=0.25)
+    sim = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(k, 2.0)], box=box), dk.VelocityVerlet(2e-3), writers=[series])
+    sim.run(2.0, progress=False)
+    assert len(series.time) == 9
+    for t, P in zip(series.time, series.pressure_tensor):
+        cube = box.size_at(t) / cells
+        truth = bonds_stress(k, R, cube)
+        assert np.abs(P - truth).max() < 1e-12 * np.abs(truth).max()
+    first, last = bonds_stress(k, R, box.size / cells), bonds_stress(k, R, box.size_at(2.0) / cells)
+    assert last[0, 0] > 5 * first[0, 0] and last[0, 0] > last[1, 1] > last[2, 2]  # pressed along x, drawn out along z
+    assert np.abs(sim.scene.particles.velocity).max() < 1e-8  # (round-off of forces ~20: 3e-10 measured)
+    assert sim.scene.arrays["box"][0] == box.size_at(2.0)[0]  # the same bits as Python's L0 (1 + rate t)
+
+
+def test_a_free_sphere_follows_the_affine_flow():
+    """Two spheres that never meet in a box compressed along x and stretched along y at rates +-0.2 for
+    4 s, crossing the box faces: each step drifts x by v dt and remaps by L(t + dt) / L(t), so the
+    unwrapped path is X_n = (X_{n-1} + v dt) (1 + r t_n) / (1 + r t_{n-1}) (to 1e-12), within O(dt) of the
+    flow's exact solution X(t) = (1 + r t) (X0 + v ln(1 + r t) / r); its velocity (unwrapped_velocity)
+    is v + r X / (1 + r t), the velocity in the state staying v (relative to the flow)."""
+    rates = np.array([-0.2, 0.2, 0.0])
+    x0 = np.array([[1.0, 2.0, 3.0], [6.0, 7.0, 8.0]])
+    v = np.array([[-3.1, 2.3, 0.4], [2.9, -2.7, -0.3]])
+    p = dk.Particles(position=x0, velocity=v, radius=0.3, mass=1.0)
+    box = dk.Box(10.0, periodic=True, deform=dk.Deform(*rates))
+    dt, steps = 1e-3, 4000
+    traj = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(100.0, 0.0)], box=box), dk.VelocityVerlet(dt)).run(
+        steps * dt, record_every=0.5, progress=False)
+    X = traj.unwrapped()
+    assert np.abs(traj.image[-1]).max() >= 1  # the spheres crossed the faces
+    path = x0.copy()
+    for n in range(1, steps + 1):
+        path = (path + v * dt) * (1.0 + rates * n * dt) / (1.0 + rates * (n - 1) * dt)
+    assert np.abs(X[-1] - path).max() < 1e-12 * 10
+    t = traj.time[:, None, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        exact = np.where(rates != 0, (1 + rates * t) * (x0 + v * np.log1p(rates * t) / np.where(rates, rates, 1)),
+                         x0 + v * t)
+    assert np.abs(X - exact).max() < 5 * dt * np.abs(v).max()
+    np.testing.assert_array_equal(traj.velocity[-1], v)
+    np.testing.assert_allclose(traj.unwrapped_velocity()[-1], v + rates / (1 + rates * 4.0) * X[-1], rtol=1e-14)
+
+
+def squeezed_gas(tier=None, n=120, rate=-0.3, skin=None, sort_every=40):
+    """A frictional magnetic gas (restart_scenes' spheres) compressed fast along x, drawn out along z."""
+    rng = np.random.default_rng(3)
+    box = dk.build.box_for(n, 0.5, 0.2)
+    x = dk.build.random_packing(n, 0.5, box, seed=rng)
+    p = dk.Particles(position=x, velocity=dk.build.thermal_velocities(n, 4.0, 1.0, seed=rng), radius=0.5, mass=1.0,
+                     dipole=0.7 * dk.build.random_directions(n, seed=rng), angular_velocity=np.zeros((n, 3)))
+    contact = dk.KelvinVoigt(2000.0, 3.0, friction=dk.Friction(0.4))
+    box = dk.Box(box.size, periodic=True, deform=dk.Deform(x=rate, z=0.5))
+    return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0), contact], box=box, skin=skin, sort_every=sort_every,
+                    tier=tier)
+
+
+def test_the_lists_hold_every_pair_while_the_box_squeezes():
+    """Compressed by 1 %/0.01 s with a thin skin (0.05), the pairs the dipole loop acts on are exactly
+    those within its cutoff by brute force over all pairs at the box's lengths now (1e-9 of the cutoff
+    left for rounding at the edge), their separations the brute force's to round-off; the remap's
+    squeeze counts against the skin, so the lists were rebuilt as the box shrank."""
+    scene = squeezed_gas(rate=-1.0, skin=0.05, sort_every=None)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    n = len(scene.particles)
+    i, j = np.triu_indices(n, k=1)
+    for _ in range(5):
+        sim.run(duration=0.02, progress=False)
+        x, t = scene.particles.position, scene.time
+        d = scene.box.minimum_image(x[j] - x[i], t)
+        r = np.linalg.norm(d, axis=1)
+        inter, pairs, sep, _ = scene.pair_forces()[0]
+        assert isinstance(inter, dk.Dipole)
+        listed = {(min(a, b), max(a, b)): (s if a < b else -s) for (a, b), s in zip(pairs.tolist(), sep)}
+        inside = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 - 1e-9}
+        near = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 + 1e-9}
+        assert inside <= set(listed) <= near
+        truth = dict(zip(zip(i.tolist(), j.tolist()), d))
+        assert max(np.abs(listed[key] - truth[key]).max() for key in listed) < 1e-9
+    assert scene.box.size_at(scene.time)[0] < 0.91 * scene.box.size[0]
+    assert scene.counters[0] >= 10, "the lists were rebuilt as the box squeezed"
+
+
+def test_a_stopped_and_resumed_deforming_run_is_bit_identical(tmp_path):
+    """The box lengths come from the clock and the lengths of the lists' last build are saved with the
+    state: a run stopped twice and resumed in new scenes gives the uninterrupted run's bits (re-sorting
+    every 40 steps, friction history, wraps, the box itself)."""
+    until = 0.3
+    scene = squeezed_gas()
+    dk.Simulation(scene, dk.VelocityVerlet(2e-3)).run(until=until, progress=False)
+    truth = state_of(scene)
+    path = tmp_path / "deform.ckpt"
+    for k, end in enumerate([0.062, 0.2, until]):
+        again = squeezed_gas()
+        sim = dk.Simulation(again, dk.VelocityVerlet(2e-3), checkpoint=dk.Checkpoint(path))
+        if k:
+            sim.resume()
+        sim.run(until=end, progress=False)
+    assert truth["image"].any(), "spheres crossed the faces"
+    assert_identical(state_of(again), truth)
+    assert again.arrays["box"].tobytes() == scene.arrays["box"].tobytes()
+
+
+def test_setting_the_time_remaps_the_spheres_into_the_box_of_that_time():
+    """scene.time = t puts the kernels' box at L(t) and the spheres at the same fractions of it (what
+    checkpoints and the LAMMPS export rely on); measurements divide by that box's volume."""
+    scene = squeezed_gas(sort_every=None)
+    x = scene.particles.position.copy()
+    scene.time = 0.2
+    L = scene.box.size_at(0.2)
+    assert np.array_equal(scene.arrays["box"], L)
+    np.testing.assert_allclose(scene.particles.position, x * L / scene.box.size, rtol=1e-15)
+    assert dk.measure.stress(scene).volume == pytest.approx(np.prod(L), rel=1e-15)
+
+
+def test_bad_deformation_is_refused():
+    with pytest.raises(ValueError, match="at least one axis"):
+        dk.Deform()
+    with pytest.raises(ValueError, match="rate x must be finite"):
+        dk.Deform(x=float("nan"))
+    with pytest.raises(ValueError, match="rate y must be a number"):
+        dk.Deform(y="fast")
+    with pytest.raises(ValueError, match="axis z deforms but is not periodic"):
+        dk.Box(10.0, periodic=(True, True, False), deform=dk.Deform(z=0.1))
+    with pytest.raises(ValueError, match="shear and deform together"):
+        dk.Box(10.0, periodic=True, shear=dk.Shear(1.0), deform=dk.Deform(z=0.1))
+    with pytest.raises(ValueError, match="demkit.Deform"):
+        dk.Box(10.0, periodic=True, deform=0.1)
+    with pytest.raises(ValueError, match="need the time"):
+        dk.Box(10.0, periodic=True, deform=dk.Deform(x=0.1)).minimum_image(np.ones(3))
+    assert repr(dk.Box(10.0, periodic=True, deform=dk.Deform(y=-0.5))).endswith("deform=Deform(y=-0.5))")
+
+
+def test_what_a_deforming_box_does_not_do_is_refused():
+    box = dk.Box(10.0, periodic=(True, True, False), deform=dk.Deform(x=-0.1))
+    pos = np.array([[2.0, 2.0, 2.0], [5.0, 5.0, 5.0]])
+    p = dk.Particles(position=pos, velocity=np.zeros((2, 3)), radius=0.5, mass=1.0, dipole=[[0, 0, 1.0]] * 2)
+    cubic = dk.Box(10.0, periodic=True, deform=dk.Deform(x=-0.1))
+    with pytest.raises(ValueError, match="tuned to a fixed box"):
+        dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=3.0, long_range=dk.Ewald(1e-4))], box=cubic)
+    with pytest.raises(ValueError, match="Wall in a box deforming along x"):
+        dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0), dk.Wall((0, 0, 0), (1, 0, 0))], box=cubic)
+    # a wall across an axis that does not deform is fine: a floor under a box squeezed sideways
+    scene = dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0), dk.Dipole(prefactor=1.0, cutoff=3.0),
+                         dk.Wall((0, 0, 0), (0, 0, 1))], box=box)
+    with pytest.raises(ValueError, match="not one the steps remap"):
+        dk.Simulation(scene, dk.VelocityVerlet(1e-3, resolve_contacts=True))
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
+    # L_x = 10 (1 - 0.1 t) reaches twice the dipoles' reach 3 at t = 4 (the run is refused before it steps)
+    with pytest.raises(ValueError, match=r"not longer than twice the reach 3 \(reached at t = 4\)"):
+        sim.run(5.0, progress=False)
+    assert sim.step == 0
+    sim.run(1.0, progress=False)
+    assert scene.arrays["box"][0] == pytest.approx(9.0, rel=1e-15)
