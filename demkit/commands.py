@@ -161,6 +161,13 @@ def info_command(args):
         print(f"shear         rate {shear.rate:g} along {shear.flow}, gradient {shear.gradient}: the images slide at "
               f"{shear.jump(scene.box.size):.4g}, a strain of {shear.rate * loaded.duration:.4g} by t = "
               f"{loaded.duration:g}; {stress}")
+    deform = getattr(scene.box, "deform", None) if scene.box is not None else None
+    if deform is not None:  # what the run will do to the box
+        end = scene.box.size_at(loaded.duration)
+        print(f"deform        " + ", ".join(f"{'xyz'[a]} at {deform.rates[a]:g}" for a in deform.axes) + ": the box "
+              f"{' x '.join(f'{x:.4g}' for x in scene.box.size)} becomes {' x '.join(f'{x:.4g}' for x in end)} by t = "
+              f"{loaded.duration:g} (volume x {np.prod(end) / np.prod(scene.box.size):.4g}), the positions remapped "
+              "affinely after each step")
     for inter in scene.interactions + scene.effects:
         print(f"interaction   {inter!r}")
     for wall in scene.effects:

@@ -200,3 +200,67 @@ def test_what_a_deforming_box_does_not_do_is_refused():
     assert sim.step == 0
     sim.run(1.0, progress=False)
     assert scene.arrays["box"][0] == pytest.approx(9.0, rel=1e-15)
+
+
+def test_a_scene_file_deforms_its_box_as_the_python_scene_does(tmp_path, capsys):
+    """[box.deform] builds dk.Deform: the file's scene steps to the bits of the Python scene, a bad rate is
+    refused naming the key; a saved trajectory and a VTK series keep the deformation, so their unwrapped
+    paths (position + image L(t)) are the run's and clusters read back take each frame's box; demkit info
+    says what the run does to the box."""
+    rows = lambda a: "[" + ", ".join("[" + ", ".join(repr(float(x)) for x in r) + "]" for r in a) + "]"  # noqa: E731
+    pos = np.array([[1.0, 2.0, 3.0], [1.9, 2.1, 3.0], [6.0, 7.0, 8.0]])
+    vel = np.array([[-3.1, 2.3, 0.4], [-3.0, 2.2, 0.5], [2.9, -2.7, -0.3]])
+    text = f"""
+[particles]
+position = {rows(pos)}
+velocity = {rows(vel)}
+radius = 0.5
+mass = 1.0
+[box]
+size = 10.0
+periodic = true
+[box.deform]
+x = -0.2
+y = 0.1
+[interactions.kelvin_voigt]
+stiffness = 1e3
+damping = 2.0
+[integrator]
+method = "VelocityVerlet"
+dt = 0.001
+[run]
+duration = 2.0
+"""
+    loaded = dk.parse_scene(text)
+    assert loaded.scene.box.deform == dk.Deform(x=-0.2, y=0.1)
+    python = dk.Scene(dk.Particles(position=pos, velocity=vel, radius=0.5, mass=1.0), [dk.KelvinVoigt(1e3, 2.0)],
+                      box=dk.Box(10.0, periodic=True, deform=dk.Deform(x=-0.2, y=0.1)))
+    writer = dk.VTKWriter(tmp_path / "vtk", every=0.25, trails=True)
+    a = dk.Simulation(loaded.scene, dk.VelocityVerlet(1e-3), writers=[writer]).run(duration=2.0, record_every=0.25,
+                                                                                   progress=False)
+    b = dk.Simulation(python, dk.VelocityVerlet(1e-3)).run(duration=2.0, record_every=0.25, progress=False)
+    assert a.position.tobytes() == b.position.tobytes() and a.velocity.tobytes() == b.velocity.tobytes()
+    assert np.abs(a.image).max() >= 1
+    with pytest.raises(dk.SceneFileError, match="box.deform.x"):
+        dk.parse_scene(text.replace("x = -0.2", 'x = "fast"'))
+    from demkit.scenefile.running import load_trajectory, save_trajectory
+    save_trajectory(a, tmp_path / "run.npz")
+    again = load_trajectory(tmp_path / "run.npz")
+    assert again.box == a.box and np.array_equal(again.unwrapped(), a.unwrapped())
+    series = dk.read_series(tmp_path / "vtk")
+    assert series.box == a.box
+    np.testing.assert_allclose(series.unwrapped(), a.unwrapped(), rtol=0, atol=1e-12)
+    from demkit import clustering
+    for k in range(len(series.time)):
+        ours = clustering.clusters(a.position[k], a.radius, a.box, gap=0.05, time=a.time[k])
+        read = clustering.clusters(series.position[k], series.radius, series.box, gap=0.05, time=series.time[k])
+        assert np.array_equal(ours, read)
+    from demkit.cli import main as demkit_main
+    (tmp_path / "deform.toml").write_text(text)
+    try:
+        demkit_main(["info", str(tmp_path / "deform.toml")])
+    except SystemExit as done:
+        assert not done.code
+    said = capsys.readouterr().out
+    assert ("deform        x at -0.2, y at 0.1: the box 10 x 10 x 10 becomes 6 x 12 x 10 by t = 2 (volume x 0.72), "
+            "the positions remapped affinely after each step") in said, said

@@ -36,6 +36,8 @@ def _footer(box):
         periodic = " ".join(str(int(bool(f))) for f in box.periodic)
         shear = (f' shear="{float(box.shear.rate)!r} {box.shear.flow} {box.shear.gradient}"'
                  if getattr(box, "shear", None) is not None else "")
+        deform = getattr(box, "deform", None)
+        shear += f' deform="{" ".join(repr(float(r)) for r in deform.rates)}"' if deform is not None else ""
         text += f'  <Box size="{size}" periodic="{periodic}"{shear}/>\n'
     return text + "</VTKFile>\n"
 
@@ -149,7 +151,7 @@ def _salvage(path, err):
 
 
 def _box(element, path):
-    from ..box import Box, Shear
+    from ..box import Box, Deform, Shear
 
     if element is None:
         return None
@@ -160,7 +162,10 @@ def _box(element, path):
         if shear is not None:
             rate, flow, gradient = shear.split()
             shear = Shear(float(rate), flow, gradient)
-        return Box(size, periodic, shear=shear)
+        deform = element.get("deform")
+        if deform is not None:
+            deform = Deform(*[float(r) for r in deform.split()])
+        return Box(size, periodic, shear=shear, deform=deform)
     except ValueError as err:
         raise ValueError(f"{path} holds a malformed Box element: {err}") from err
 

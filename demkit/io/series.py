@@ -188,10 +188,11 @@ class SeriesData:
         self.walls = walls
 
     def unwrapped(self):
-        """Positions (T,N,3) continued across periodic boundaries: position + image * box size."""
+        """Positions (T,N,3) continued across periodic boundaries: position + image * box size (a
+        deforming box's at each frame's time)."""
         if self.image is None or self.box is None:
             return self.position
-        return self.position + self.image * self.box.size
+        return self.position + self.image * self.box.size_at(np.asarray(self.time, dtype=np.float64)[:, None])
 
     def __len__(self):
         return len(self.time)
@@ -290,7 +291,7 @@ def write_polylines(source, path, compress=False):
 
     source : a :class:`demkit.Trajectory`, a :class:`demkit.io.SeriesData`, or a written series
         (its .pvd or folder; frames are read back and matched by particle id). With image counts
-        and a box the paths are unwrapped (position + image * size).
+        and a box the paths are unwrapped (position + image * size, a deforming box's at each frame).
     Returns the path written.
     """
     if isinstance(source, (str, os.PathLike)):
@@ -302,7 +303,7 @@ def write_polylines(source, path, compress=False):
     position = np.asarray(source.position)
     image, box = getattr(source, "image", None), getattr(source, "box", None)
     if image is not None and box is not None:
-        position = position + np.asarray(image) * box.size
+        position = position + np.asarray(image) * box.size_at(time[:, None])
     if position.ndim != 3 or position.shape[0] != len(time) or position.shape[2] != 3:
         raise ValueError(f"position must have shape (T, N, 3) with T = {len(time)} frames, got {position.shape}")
     nframes, n = position.shape[:2]

@@ -41,17 +41,17 @@ def _in_plane_axes(normal):
     return first, np.cross(normal, first)
 
 
-def region(position, radius, box):
+def region(position, radius, box, time=None):
     """(lo, hi): the box the spheres at ``position`` fill, grown by two of the largest radii and out to
     whole multiples of four of them (a surface keeps its size while the spheres move less than that, and
     it depends on the state of its frame alone: a resumed run draws what the whole run drew); along a
-    periodic axis of ``box`` (a demkit.Box or None) the box."""
+    periodic axis of ``box`` (a demkit.Box or None) the box (a deforming box's at ``time``)."""
     step = 4.0 * float(np.max(radius))
     lo = np.floor((np.min(position, axis=0) - 0.5 * step) / step) * step
     hi = np.ceil((np.max(position, axis=0) + 0.5 * step) / step) * step
     if box is not None:
         lo = np.where(box.periodic, 0.0, lo)
-        hi = np.where(box.periodic, box.size, hi)
+        hi = np.where(box.periodic, box.size_at(time) if getattr(box, "deform", None) is not None else box.size, hi)
     return lo, hi
 
 
@@ -96,7 +96,7 @@ class WallSurfaces:
     def region(self):
         """(lo, hi): the region the scene's spheres fill now (:func:`region`)."""
         p = self.scene.particles
-        return region(p.position, p.radius, getattr(self.scene, "box", None))
+        return region(p.position, p.radius, getattr(self.scene, "box", None), getattr(self.scene, "time", None))
 
     def at(self, time, forces=True):
         """(points (P,3), connectivity, offsets, cell data) of every wall at ``time`` (the scene's state
@@ -170,6 +170,6 @@ def write_series(trajectory, folder, name="particles", compress=False, dtype="fl
     wall_series = SeriesFolder(folder, name + "_walls", overwrite, box=box, extension="vtp") if walls else None
     pvd = write_particle_series(trajectory, folder, name, compress, dtype, overwrite, trails)
     for k, time in enumerate(trajectory.time if wall_series is not None else ()):
-        mesh = surfaces(walls, float(time), *region(trajectory.position[k], trajectory.radius, box))
+        mesh = surfaces(walls, float(time), *region(trajectory.position[k], trajectory.radius, box, float(time)))
         wall_series.add_frame(time, lambda path: write_vtp_polygons(path, *mesh, compress=bool(compress)))
     return pvd

@@ -54,7 +54,7 @@ class _Trails:
         if not self.broken:
             position = np.array(np.asarray(position)[order], dtype=np.float64)
             if image is not None and self.box is not None:
-                position += np.asarray(image)[order] * self.box.size
+                position += np.asarray(image)[order] * self.box.size_at(float(time))  # (a deforming box's then)
             self.time.append(float(time))
             self.position.append(position)
 

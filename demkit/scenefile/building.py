@@ -430,7 +430,7 @@ def _integrator(d, scene, src):
 
 
 def _build(data, src, base):
-    from ..box import Box, Shear
+    from ..box import Box, Deform, Shear
     from ..scene import Scene
     units = scale = None
     if data["units"] == "si":
@@ -441,9 +441,10 @@ def _build(data, src, base):
                           f"time {units.time:.4g} s, mass {units.mass:.4g} kg]")
     box = None
     if data["box"] is not None:
-        with _At(src, "box", keys=("size", "periodic", "shear")):
-            shear = data["box"].get("shear")
-            box = Box(data["box"]["size"], data["box"]["periodic"], shear=Shear(**shear) if shear else None)
+        with _At(src, "box", keys=("size", "periodic", "shear", "deform")):
+            shear, deform = data["box"].get("shear"), data["box"].get("deform")
+            box = Box(data["box"]["size"], data["box"]["periodic"], shear=Shear(**shear) if shear else None,
+                      deform=Deform(**deform) if deform else None)
     interactions = _interactions(data, src, scale, base)
     _check_memory(data, box, interactions, src)  # before a builder allocates anything
     particles, made = _particles(data, box, src, base, scale)

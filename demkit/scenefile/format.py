@@ -326,7 +326,12 @@ SCHEMA = Table({
                        default=REQUIRED, dim="frequency"),
             "flow": Key("string", "x", "the flow axis a", choices=("x", "y", "z")),
             "gradient": Key("string", "y", "the gradient axis b (the flow grows along it)", choices=("x", "y", "z"))},
-            "Lees-Edwards simple shear of the box (dk.Shear; flow and gradient axes periodic)")},
+            "Lees-Edwards simple shear of the box (dk.Shear; flow and gradient axes periodic)"),
+        "deform": Table({
+            axis: _n(f"the engineering strain rate of {axis} (1/time): L_{axis}(t) = L_{axis}(0) (1 + rate t)", default=0.0,
+                     dim="frequency") for axis in "xyz"},
+            "extension or compression of the box at set strain rates, the positions remapped affinely after each "
+            "step (dk.Deform; its axes periodic)")},
         "the simulation box (none: open space)"),
     "interactions": INTERACTIONS,
     "scene": Table({

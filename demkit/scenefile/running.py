@@ -364,7 +364,7 @@ def _join(earlier, parts, start, stride, end, dt):
 def load_trajectory(path):
     """A Trajectory from a .npz written by :func:`save_trajectory` (read without pickle). Raises
     ValueError for a file that is not one."""
-    from ..box import Box, Shear
+    from ..box import Box, Deform, Shear
     from ..trajectory import Trajectory
     try:
         with np.load(path, allow_pickle=False) as z:
@@ -378,7 +378,8 @@ def load_trajectory(path):
     shear = None
     if "box_shear_rate" in a:  # a sheared box: its rate and axes (flow, gradient)
         shear = Shear(float(a["box_shear_rate"]), *("xyz"[int(k)] for k in a["box_shear_axes"]))
-    box = Box(a["box_size"], a["box_periodic"], shear=shear) if "box_size" in a else None
+    deform = Deform(*a["box_deform_rates"]) if "box_deform_rates" in a else None  # a deforming box: its rates
+    box = Box(a["box_size"], a["box_periodic"], shear=shear, deform=deform) if "box_size" in a else None
     return Trajectory(time=a["time"], position=a["position"], velocity=a["velocity"],
                       angular_velocity=a.get("angular_velocity"), dipole=a.get("dipole"),
                       energy={k[len("energy_"):]: v for k, v in a.items() if k.startswith("energy_")},
@@ -405,6 +406,8 @@ def _savez(trajectory, path):
         if getattr(trajectory.box, "shear", None) is not None:
             arrays["box_shear_rate"] = np.array(trajectory.box.shear.rate)
             arrays["box_shear_axes"] = np.array(trajectory.box.shear.axes)
+        if getattr(trajectory.box, "deform", None) is not None:
+            arrays["box_deform_rates"] = np.array(trajectory.box.deform.rates)
     with open(path, "wb") as fh:
         np.savez(fh, **{k: v for k, v in arrays.items() if v is not None})
     return path

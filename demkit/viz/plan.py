@@ -262,6 +262,9 @@ class Framing:
         self.box = getattr(frames, "box", None)
         self.shift = None
         ref = span[-1]  # the last frame shown: where 'auto' and 'cluster' look
+        #: the box's lengths as drawn: a deforming box's at the last frame shown
+        self.size = None if self.box is None else self.box.size_at(float(frames.time[ref])) \
+            if getattr(self.box, "deform", None) is not None else self.box.size
         members = mask(ref)
         if bounds is not None:
             frame = "bounds"
@@ -284,7 +287,7 @@ class Framing:
         if frame == "bounds":
             self.bounds = bounds
         elif frame == "box":
-            self.bounds = np.ravel(np.column_stack([np.zeros(3), self.box.size]))
+            self.bounds = np.ravel(np.column_stack([np.zeros(3), self.size]))
         else:
             self.bounds = np.ravel(np.column_stack([lo - reach, hi + reach]))
         # points to fit in perspective views: the bounds' corners, or a sample of the framed centres
@@ -300,7 +303,7 @@ class Framing:
         self.outline = None
         if self.box is not None:
             corner = np.zeros(3) if self.shift is None else self.shift
-            self.outline = np.ravel(np.column_stack([corner, corner + self.box.size]))
+            self.outline = np.ravel(np.column_stack([corner, corner + self.size]))
 
     def place(self, position):
         """Positions (..., 3) as drawn (re-wrapped about ``shift`` along periodic axes)."""
@@ -308,7 +311,7 @@ class Framing:
             return position
         position = np.array(position, dtype=np.float64)
         for a in np.flatnonzero(self.box.periodic):
-            position[..., a] = self.shift[a] + np.mod(position[..., a] - self.shift[a], self.box.size[a])
+            position[..., a] = self.shift[a] + np.mod(position[..., a] - self.shift[a], self.size[a])
         return position
 
     def _largest(self, k, members):
@@ -329,7 +332,7 @@ class Framing:
         if self.box is not None and subset is None:
             pos = self.frames.position[k][members]
             span = np.ptp(pos, axis=0) + 2.0 * float(np.max(self.frames.radius)) if len(pos) else np.zeros(3)
-            if np.all(span >= BOX_FILL * self.box.size):
+            if np.all(span >= BOX_FILL * self.size):
                 return "box"
             return "all"
         largest = self._cluster(k, members)
@@ -349,7 +352,7 @@ class Framing:
             pos = self.frames.position[k][largest]
             shift = np.zeros(3)
             for a in np.flatnonzero(self.box.periodic):
-                size = self.box.size[a]
+                size = self.size[a]
                 angle = 2 * np.pi * pos[:, a] / size
                 centre = size * np.arctan2(np.sin(angle).mean(), np.cos(angle).mean()) / (2 * np.pi)
                 moved = np.mod(pos[:, a] - (centre - size / 2), size)
@@ -410,7 +413,8 @@ def default_trail(frames, shown):
     else:
         d = np.diff(frames.position[first:shown[-1] + 1], axis=0)
         box = getattr(frames, "box", None)
-        if box is not None and box.shear is not None:  # each step's sliding images, at its end
+        if box is not None and (box.shear is not None or getattr(box, "deform", None) is not None):  # each step's
+            # sliding images or box lengths, at its end
             d = np.stack([box.minimum_image(dk, t) for dk, t in zip(d, frames.time[first + 1:shown[-1] + 1])])
         elif box is not None:
             d = box.minimum_image(d)

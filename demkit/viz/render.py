@@ -253,7 +253,7 @@ class FrameDrawer:
         keep = np.ones(len(start), dtype=bool)
         box = getattr(f, "box", None)
         if box is not None:
-            jump = np.abs(np.diff(pts, axis=1)).reshape(-1, 3) > box.size / 2
+            jump = np.abs(np.diff(pts, axis=1)).reshape(-1, 3) > plan.framing.size / 2
             keep = ~np.any(jump & box.periodic, axis=1)
         start = start[keep]
         if len(start) == 0:
