@@ -52,7 +52,7 @@ import warnings
 
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
-from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
+from .snippets import (ARRAYS, BOX_FUNCTIONS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
                        deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
@@ -496,25 +496,7 @@ class _Generic:
                   '    FMM); returns their energy."""',
                   "    total = 0.0"]
         lines += self.sum_switch("total", "force, torque, np.True_") + ["    return total"]
-        # the wrap through ``calls``: a scene without periodic axes compiles neither fold (2 CPU s of a
-        # fresh install's first step with the sliding images' beside the plain one)
-        # (a sheared box's, with its sliding images, in that slot of its calls: SHEARED_CALLS)
-        lines += ["", "", "@njit(**LOOP)", "def wrap_positions(s):",
-                  '    """Fold the periodic coordinates into the box."""',
-                  "    wrap(s.position, s.reference, s.image, s.box, s.periodic)",
-                  "", "", "@njit(**LOOP)", "def wrap_positions_sheared(s):",
-                  '    """Fold the periodic coordinates into a sheared box, through its sliding images."""',
-                  "    wrap_sheared(s.position, s.velocity, s.reference, s.image, s.box, s.periodic, s.params,",
-                  "                 s.program[0, H_SHEAR], s.clock[0])"]
-        # a deforming box's step through ``calls``: scenes in fixed boxes do not compile it
-        lines += ["", "", "@njit(**LOOP)", "def deform_box(s):",
-                  '    """The box at the clock and the positions remapped into it (demkit.engine.deform)."""',
-                  "    deform_step(s.position, s.reference, s.box, s.params, s.program[0, H_DEFORM], s.clock[0])"]
-        # a sheared box's frames through ``calls`` too: scenes in fixed boxes do not compile it
-        lines += ["", "", "@njit(**LOOP)", "def fold_frame(s, k, rec_position, rec_velocity, rec_image):",
-                  '    """Frame k folded through a sheared box\'s sliding images (store_frame folds each axis alone)."""',
-                  "    frame_sheared(k, s.position, s.velocity, s.image, s.tag, s.box, s.periodic, s.params,",
-                  "                  s.program[0, H_SHEAR], s.clock[0], rec_position, rec_velocity, rec_image)"]
+        lines += BOX_FUNCTIONS  # the wrap, a deforming box's step, a sheared box's frames (demkit.engine.snippets)
         lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
                   '    """Add the energy of each long-range sum to its column of out."""']
         lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, np.False_")

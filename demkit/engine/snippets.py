@@ -260,3 +260,24 @@ def effect_sums(torque, dissipative):
     if torque:
         lines += [f"torque[i, {a}] += {o}" for a, o in enumerate(("bx", "by", "bz"))]
     return lines + (["power += w"] if dissipative else [])
+
+
+#: scene functions of the generic module through its ``calls`` (generic.SCENE_PIECES): the wrap (a scene
+#: without periodic axes compiles neither fold: 2 CPU s of a fresh install's first step with the sliding
+#: images' beside the plain one; a sheared box's, with its sliding images, in that slot of its calls:
+#: generic.SHEARED_CALLS), a deforming box's step and a sheared box's frames (scenes in fixed boxes
+#: compile neither)
+BOX_FUNCTIONS = ["", "", "@njit(**LOOP)", "def wrap_positions(s):",
+                 '    """Fold the periodic coordinates into the box."""',
+                 "    wrap(s.position, s.reference, s.image, s.box, s.periodic)",
+                 "", "", "@njit(**LOOP)", "def wrap_positions_sheared(s):",
+                 '    """Fold the periodic coordinates into a sheared box, through its sliding images."""',
+                 "    wrap_sheared(s.position, s.velocity, s.reference, s.image, s.box, s.periodic, s.params,",
+                 "                 s.program[0, H_SHEAR], s.clock[0])",
+                 "", "", "@njit(**LOOP)", "def deform_box(s):",
+                 '    """The box at the clock and the positions remapped into it (demkit.engine.deform)."""',
+                 "    deform_step(s.position, s.reference, s.box, s.params, s.program[0, H_DEFORM], s.clock[0])",
+                 "", "", "@njit(**LOOP)", "def fold_frame(s, k, rec_position, rec_velocity, rec_image):",
+                 '    """Frame k folded through a sheared box\'s sliding images (store_frame folds each axis alone)."""',
+                 "    frame_sheared(k, s.position, s.velocity, s.image, s.tag, s.box, s.periodic, s.params,",
+                 "                  s.program[0, H_SHEAR], s.clock[0], rec_position, rec_velocity, rec_image)"]
