@@ -22,7 +22,7 @@ LAYERS = [
     ("engine", {"demkit.engine", "demkit.engine."}),
     ("physics", {"demkit.interactions", "demkit.interactions."}),
     ("scenes", {"demkit.scene", "demkit.diagnostics", "demkit.contacts", "demkit.build", "demkit.integrators",
-                "demkit.trajectory", "demkit.sheared", "demkit.progress", "demkit.guards", "demkit.threads"}),
+                "demkit.trajectory", "demkit.sheared", "demkit.deformed", "demkit.progress", "demkit.guards", "demkit.threads"}),
     ("runs", {"demkit.simulation", "demkit.recording", "demkit.stops", "demkit.checkpoint", "demkit.notes",
               "demkit.cost"}),
     ("analysis", {"demkit.measure", "demkit.stress_series", "demkit.accuracy", "demkit.accuracy.", "demkit.dipole_sums", "demkit.step_choice",
