@@ -30,6 +30,7 @@ from .step_choice import choose_time_step  # a time step for an accuracy of the 
 from . import cost  # what a run will cost in time, estimated before it runs (demkit info)
 from . import measure  # what papers report: pressure tensor, coordination, local fields, magnetisation
 from .stress_series import StressSeries  # the stress measured during a run; a sheared sample's rheology
+from .box_servo import PressureServo  # a deforming box driven to a set pressure
 from .scenefile import LoadedScene, SceneFileError, load_scene, parse_scene  # TOML scene files
 from .lammps import export_lammps  # a scene as a LAMMPS data file and input deck
 from .sweep import sweep, sweep_file  # parameter sweeps (the function dk.sweep hides the module name)
@@ -40,6 +41,6 @@ __all__ = ["Box", "Deform", "Shear", "Particles", "Scene", "Simulation", "Simula
            "LargeOutputWarning", "CheckpointWarning", "Dipole",
            "PowerLawDipole", "KelvinVoigt", "Friction", "RollingResistance", "TwistingResistance", "Hertz",
            "PairInteraction", "SphereInteraction", "Wall", "Servo", "Cylinder", "Cone", "MeshWall", "Gravity", "UniformField", "MagnetField", "Langevin", "Ewald", "P3M", "FMM", "Induction", "EulerCromer", "VelocityVerlet", "ForestRuth", "RK4", "MultipleTimeStep",
-           "Integrator", "units", "VTKWriter", "StressSeries", "write_polylines",
+           "Integrator", "units", "VTKWriter", "StressSeries", "PressureServo", "write_polylines",
            "write_series", "read_series", "io", "viz", "two_magnets", "build", "clustering", "accuracy", "compare_dipole_sums", "guards", "choose_time_step",
            "load_scene", "parse_scene", "LoadedScene", "SceneFileError", "export_lammps", "sweep", "sweep_file"]

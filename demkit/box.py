@@ -85,9 +85,13 @@ class Deform:
     are those relative to the affine flow u_a = (rate_a / (1 + rate_a t)) x_a, which the kinetic stress,
     a bath's drag and the dashpots read. The box must stay longer than twice the longest reach: a run
     that would shrink it further is refused before it starts.
+
+    servo : a :class:`demkit.PressureServo` that sets the rates of its axes from the measured stress
+        (those axes' rates here are where it starts). The box then keeps the history of the rates it
+        set (:attr:`history`): L_a(t) = L_a(t_k) (1 + r_a,k (t - t_k)) after the k-th change, at t_k.
     """
 
-    def __init__(self, x=0.0, y=0.0, z=0.0):
+    def __init__(self, x=0.0, y=0.0, z=0.0, servo=None):
         rates = []
         for axis, rate in zip(AXES, (x, y, z)):
             if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)):
@@ -95,35 +99,67 @@ class Deform:
             if not math.isfinite(float(rate)):
                 raise ValueError(f"Deform rate {axis} must be finite, got {rate!r}")
             rates.append(float(rate))
-        if not any(rates):
-            raise ValueError("Deform needs a non-zero strain rate along at least one axis (x=, y=, z=, 1/s)")
+        if servo is not None and not all(hasattr(servo, name) for name in ("update", "axes", "every")):
+            raise ValueError(f"Deform servo must be a demkit.PressureServo or None, got {type(servo).__name__}")
+        if not any(rates) and servo is None:
+            raise ValueError("Deform needs a non-zero strain rate along at least one axis (x=, y=, z=, 1/s) or a servo")
         self.rates = np.array(rates)
         self.rates.setflags(write=False)
+        self.servo = servo
+        #: the rates a servo set: rows (t_k, L_x, L_y, L_z at t_k, r_x, r_y, r_z), in time order
+        self.history = np.zeros((0, 7))
+
+    @classmethod
+    def recorded(cls, rates, history):
+        """The deformation a run recorded (a VTK series', a saved trajectory's): its starting rates and the
+        changes a servo made (:attr:`history`), without the servo."""
+        deform = cls.__new__(cls)
+        deform.rates, deform.servo = np.array(rates, dtype=np.float64), None
+        deform.rates.setflags(write=False)
+        deform.history = np.array(history, dtype=np.float64).reshape(-1, 7)
+        return deform
 
     @property
     def axes(self):
-        """The indices of the deforming axes."""
-        return [a for a in range(3) if self.rates[a] != 0.0]
+        """The indices of the deforming axes (those a servo drives, or drove, too)."""
+        driven = getattr(self, "servo", None).axes if getattr(self, "servo", None) is not None else ()
+        history = getattr(self, "history", np.zeros((0, 7)))
+        return [a for a in range(3) if self.rates[a] != 0.0 or a in driven or np.any(history[:, 4 + a] != 0.0)]
 
     def size_at(self, size, time):
-        """L_a0 (1 + rate_a t) for each axis (the bits the compiled loops give); ``time`` may be an array
-        (shape T: sizes T x 3)."""
+        """L_a0 (1 + rate_a (t - t0)) for each axis (the bits the compiled loops give), from the box's
+        ``size`` at t0 = 0 or from the last change of rates before t (:attr:`history`); ``time`` may be
+        an array (shape T: sizes T x 3)."""
         time = np.asarray(time, dtype=np.float64)
         size = np.asarray(size, dtype=np.float64)
+        history = getattr(self, "history", np.zeros((0, 7)))
+        rows = np.concatenate([[[0.0, *size, *self.rates]], history])
+        k = np.searchsorted(rows[:, 0], time, side="right") - 1  # the last change at or before t
+        start, lengths, rates = rows[k, 0], rows[k, 1:4], rows[k, 4:7]
         out = np.broadcast_to(size, time.shape + (3,)).copy()
         for a in self.axes:
-            out[..., a] = size[a] * (1.0 + self.rates[a] * time)
+            out[..., a] = lengths[..., a] * (1.0 + rates[..., a] * (time - start))
         return out
+
+    def change(self, time, lengths, rates):
+        """Record a servo's change of rates at ``time``, from the box's ``lengths`` then."""
+        if len(self.history) and time < self.history[-1, 0]:
+            raise ValueError(f"a deforming box's rates change at t = {time}, before their last change at "
+                             f"t = {self.history[-1, 0]}: give each scene its own box")
+        self.history = np.vstack([self.history, [[float(time), *lengths, *rates]]])
 
     def end_of_positive_size(self):
         """The time at which the first compressed axis reaches length 0 (inf when none is compressed)."""
         return min([-1.0 / r for r in self.rates if r < 0.0], default=math.inf)
 
     def __eq__(self, other):
-        return isinstance(other, Deform) and np.array_equal(self.rates, other.rates)
+        return (isinstance(other, Deform) and np.array_equal(self.rates, other.rates)
+                and getattr(self, "servo", None) == getattr(other, "servo", None))
 
     def __repr__(self):
-        return "Deform(" + ", ".join(f"{AXES[a]}={float(self.rates[a])!r}" for a in self.axes) + ")"
+        servo = getattr(self, "servo", None)
+        return ("Deform(" + ", ".join([f"{AXES[a]}={float(self.rates[a])!r}" for a in range(3) if self.rates[a]]
+                                     + ([f"servo={servo!r}"] if servo is not None else [])) + ")")
 
 
 class Box:

@@ -35,7 +35,7 @@ import numpy as np
 from . import checks
 from . import version
 from .outputs import check_writable, sync_folder
-from .engine.deform import DF_BUILT
+from .engine.deform import DEFORM_VALUES, DF_BUILT, DF_START
 from .engine.shear import SH_BUILT
 from .engine.state import PAIR_LIST_FIELDS
 from .interactions.wall_motion import S_FORCE, SERVO_STATE
@@ -131,6 +131,8 @@ def scene_hash(scene, integrator):
         params[scene.shear_slot + SH_BUILT] = 0.0
     if getattr(scene, "deform_slot", None) is not None:  # ... and the box lengths they were built in
         params[scene.deform_slot + DF_BUILT:scene.deform_slot + DF_BUILT + 3] = 0.0
+        if scene.box.deform.servo is not None:  # (a servo's rates, and the lengths and time they started from)
+            params[scene.deform_slot:scene.deform_slot + DF_BUILT] = params[scene.deform_slot + DF_START] = 0.0
     add("params", params)
     for name in ("radius", "mass", "inertia", "ids"):
         add(name, np.asarray(getattr(p, name)))
@@ -160,9 +162,10 @@ def state_arrays(scene):
         arrays[f"servo{e}.state"] = scene.params[state]
     if getattr(scene, "shear_slot", None) is not None:
         arrays["shear.built"] = scene.params[scene.shear_slot + SH_BUILT:scene.shear_slot + SH_BUILT + 1]
-    if getattr(scene, "deform_slot", None) is not None:  # the box now and when the lists were built
+    if getattr(scene, "deform_slot", None) is not None:  # the box now, its block, a servo's history
         arrays["deform.box"] = scene.arrays["box"]
-        arrays["deform.built"] = scene.params[scene.deform_slot + DF_BUILT:scene.deform_slot + DF_BUILT + 3]
+        arrays["deform.block"] = scene.params[scene.deform_slot:scene.deform_slot + DEFORM_VALUES]
+        arrays["deform.history"] = scene.box.deform.history
     for g in range(len(scene.plan.groups)):
         pl = scene._list(g)
         arrays[f"list{g}.reach"] = np.array([pl.reach])
@@ -348,7 +351,8 @@ def restore(scene, arrays):
         scene.params[scene.shear_slot + SH_BUILT] = arrays["shear.built"][0]
     if getattr(scene, "deform_slot", None) is not None:
         scene.arrays["box"][...] = arrays["deform.box"]
-        scene.params[scene.deform_slot + DF_BUILT:scene.deform_slot + DF_BUILT + 3] = arrays["deform.built"]
+        scene.params[scene.deform_slot:scene.deform_slot + DEFORM_VALUES] = arrays["deform.block"]
+        scene.box.deform.history = np.array(arrays["deform.history"]).reshape(-1, 7)
     lists = []
     for g in range(len(scene.plan.groups)):
         fields = [float(arrays[f"list{g}.reach"][0])] + [np.array(arrays[f"list{g}.{name}"])

@@ -6,18 +6,32 @@ from __future__ import annotations
 import numpy as np
 
 from .box import AXES
-from .engine.deform import DEFORM_VALUES, DF_BUILT, DF_RATE, DF_REACH, DF_SIZE0
+from .engine.deform import DEFORM_VALUES, DF_BUILT, DF_RATE, DF_REACH, DF_SIZE0, DF_START
 
 
 def deform_block(box, time, list_reach):
-    """The params block: [rates (3), lengths at t = 0 (3), lengths at ``time`` (the lists' build), the
-    longest list reach]."""
+    """The params block: [rates (3), lengths at t0 = 0 (3), lengths at ``time`` (the lists' build), the
+    longest list reach, t0]."""
     block = np.zeros(DEFORM_VALUES)
     block[DF_RATE:DF_RATE + 3] = box.deform.rates
     block[DF_SIZE0:DF_SIZE0 + 3] = box.size
     block[DF_BUILT:DF_BUILT + 3] = box.size_at(float(time))
     block[DF_REACH] = list_reach
     return block
+
+
+def change_rates(scene, rates):
+    """A servo's new rates from now on: the box's lengths now and the time into the scene's block (the
+    compiled step reads them) and into the box's history (what Box.size_at reads)."""
+    q, lengths, now = scene.deform_slot, scene.arrays["box"].copy(), scene.time
+    scene.params[q + DF_RATE:q + DF_RATE + 3] = rates
+    scene.params[q + DF_SIZE0:q + DF_SIZE0 + 3] = lengths
+    scene.params[q + DF_START] = now
+    scene.box.deform.change(now, lengths, rates)
+
+
+#: the block's values that are state in a box a servo drives (saved with it, left out of the digest)
+SERVO_STATE = slice(DF_RATE, DF_SIZE0 + 3)
 
 
 def check_scene(box, interactions, effects):
@@ -41,9 +55,10 @@ def check_run(box, reach, start, end):
     """Raise ValueError if the box, deforming from time ``start`` to ``end``, would come to a periodic
     length not longer than twice ``reach`` (the minimum image would miss pairs), naming when."""
     deform = box.deform
+    driven = deform.servo.axes if deform.servo is not None else ()
     for a in deform.axes:
         rate = deform.rates[a]
-        if rate >= 0.0:
+        if rate >= 0.0 or a in driven:  # (a servo keeps its axes long enough itself)
             continue
         length = box.size_at(float(end))[a]
         if length <= 2.0 * reach:

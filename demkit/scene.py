@@ -107,6 +107,7 @@ class Scene(SceneDiagnostics):
             sheared.check_scene(box, interactions, effects)
         if box is not None and getattr(box, "deform", None) is not None:  # ... nor the affine remap
             deformed.check_scene(box, interactions, effects)
+            box.deform.history = np.zeros((0, 7))  # (a servo's changes of rates: this scene's, from t = 0)
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]

@@ -224,6 +224,11 @@ class Simulation(Recording, Stops):
             if self.checkpoint is not None and self.checkpoint.every is not None else None
         if self.checkpoint is not None:
             self.checkpoint.last_save = time.perf_counter()
+        servo = getattr(getattr(scene.box, "deform", None), "servo", None)  # a box driven to a pressure
+        servo_steps = [self._steps(servo.every, "PressureServo every")] if servo is not None else []
+        if servo_steps and self.step % servo_steps[0] == 0 and not (
+                len(scene.box.deform.history) and scene.box.deform.history[-1, 0] == self.time):
+            servo.update(self)  # (its first rates, or those a run ending on its grid left unset)
         start_step = self.step
         self._run_started = self.time  # (writers' statistics cover this run: see _measure)
         rebuilds = int(scene.counters[REBUILDS])
@@ -237,7 +242,7 @@ class Simulation(Recording, Stops):
         with _Stepping(scene), bar, _MeasuredOnStop(self, start_step, clock, rebuilds):
             while done < nsteps:
                 chunk = min(nsteps - done, chunk_steps)
-                for every in writer_steps + ([check_steps] if check_steps else []):
+                for every in writer_steps + ([check_steps] if check_steps else []) + servo_steps:
                     chunk = min(chunk, every - (start_step + done) % every)
                 self._switch_tier(nsteps - done)
                 loop, chunk = self._threads.loop(chunk, nsteps - done)
@@ -265,6 +270,8 @@ class Simulation(Recording, Stops):
                     chunk_steps = self._next_chunk(chunk, seconds, chunk_steps, between)
                 notice.end()
                 bar.update(done)
+                if servo_steps and self.step % servo_steps[0] == 0:  # new rates for the next stretch
+                    servo.update(self)
                 for w, ws in zip(self.writers, writer_steps):
                     if self.step % ws == 0:
                         w.write(self)

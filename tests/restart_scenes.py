@@ -31,7 +31,7 @@ def state_of(scene):
     """Everything that must agree bit for bit between an interrupted and an uninterrupted run."""
     p = scene.particles
     out = {"position": p.position.copy(), "velocity": p.velocity.copy(),
-           "angular_velocity": p.angular_velocity.copy(), "dipole": p.dipole.copy(),
+           "angular_velocity": p.angular_velocity.copy(), "dipole": p.dipole.copy() if p.dipole is not None else None,
            "image": p.image.copy() if p.image is not None else None, "dissipated": scene.dissipated}
     for inter in scene.history_keepers():
         if inter in scene.effects:

@@ -264,3 +264,89 @@ duration = 2.0
     said = capsys.readouterr().out
     assert ("deform        x at -0.2, y at 0.1: the box 10 x 10 x 10 becomes 6 x 12 x 10 by t = 2 (volume x 0.72), "
             "the positions remapped affinely after each step") in said, said
+
+
+def servo_packing(rate=0.03, every=0.05, pressure=50.0, n=250):
+    """250 bidisperse spheres (examples/jamming's gas) at volume fraction 0.3 in a box a PressureServo
+    drives to ``pressure`` on every axis."""
+    radius = np.where(np.arange(n) % 2 == 0, 0.5, 0.7)
+    side = (np.sum(4.0 / 3.0 * np.pi * radius ** 3) / 0.3) ** (1.0 / 3.0)
+    pos = dk.build.random_packing(n, radius, dk.Box(side, periodic=True), seed=2)
+    p = dk.Particles(position=pos, velocity=np.zeros((n, 3)), radius=radius, mass=(radius / 0.5) ** 3,
+                     angular_velocity=np.zeros((n, 3)))
+    servo = dk.PressureServo(pressure, max_rate=rate, every=every)
+    box = dk.Box(side, periodic=True, deform=dk.Deform(servo=servo))
+    return dk.Scene(p, [dk.KelvinVoigt(1e4, 30.0, friction=dk.Friction(0.3))], box=box)
+
+
+def test_a_pressure_servo_brings_a_gas_to_a_packing_at_its_pressure(tmp_path):
+    """From a gas at 0.3 the servo shrinks the box at its largest rate (the stress far below the target),
+    the spheres jam, and the normal stresses settle on the target, 50 on each axis (within 1 % over the
+    last 4 time units: the loop's gain max_rate / p * K * every ~ 0.2 for this packing's stiffness K);
+    the box's history gives back the compiled box at every frame (Box.size_at, the same bits), and
+    a VTK series and a saved trajectory keep that history (their unwrapped paths are the run's)."""
+    scene = servo_packing()
+    series = dk.StressSeries(every=0.5)
+    vtk = dk.VTKWriter(tmp_path / "vtk", every=2.0, trails=False)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1.5e-3), writers=[series, vtk])
+    traj = sim.run(24.0, record_every=2.0, progress=False)
+    history = scene.box.deform.history
+    steps = round(0.05 / 1.5e-3)  # (every, in whole steps: 33)
+    assert len(history) == round(24.0 / 1.5e-3) // steps + 1 and np.all(np.diff(history[:, 0]) > 0)
+    assert np.all(history[:20, 4:] < -0.0299)  # a gas: nearly full speed ahead (its pressure ~1e-3 of the target)
+    late = series.time >= 20.0
+    diagonal = np.diagonal(series.pressure_tensor[late], axis1=1, axis2=2)
+    assert np.abs(diagonal / 50.0 - 1.0).max() < 0.01, diagonal
+    fraction = np.sum(4.0 / 3.0 * np.pi * scene.particles.radius ** 3) / scene.box.volume_at(sim.time)
+    assert 0.57 < fraction < 0.66  # jammed: friction 0.3 between 0.58 and 0.64 (Silbert 2010), a little compressed
+    assert scene.box.size_at(sim.time).tobytes() == scene.arrays["box"].tobytes()
+    sizes = scene.box.size_at(np.asarray(traj.time)[:, None])  # each frame's box: the frames wrapped into it
+    assert np.all(traj.position >= 0.0) and np.all(traj.position < sizes)
+    read = dk.read_series(tmp_path / "vtk")
+    assert np.array_equal(read.box.size_at(read.time), scene.box.size_at(read.time))
+    np.testing.assert_allclose(read.unwrapped(), traj.unwrapped(), rtol=0, atol=1e-12)
+    from demkit.scenefile.running import load_trajectory, save_trajectory
+    save_trajectory(traj, tmp_path / "run.npz")
+    assert np.array_equal(load_trajectory(tmp_path / "run.npz").unwrapped(), traj.unwrapped())
+
+
+def test_a_servo_driven_run_split_or_resumed_gives_the_same_bits(tmp_path):
+    """The servo changes the rates on the step grid (every 33 steps): one run to t = 3, two runs split off
+    the grid (at 1.23), and a run stopped twice and resumed from checkpoints in new scenes give the same
+    bits, the box's history too."""
+    def state(scene):
+        return state_of(scene), scene.box.deform.history.copy(), scene.arrays["box"].copy()
+
+    one = servo_packing(rate=0.3)
+    dk.Simulation(one, dk.VelocityVerlet(1.5e-3)).run(until=3.0, progress=False)
+    truth = state(one)
+    two = servo_packing(rate=0.3)
+    sim = dk.Simulation(two, dk.VelocityVerlet(1.5e-3))
+    sim.run(until=1.23, progress=False)
+    sim.run(until=3.0, progress=False)
+    path = tmp_path / "servo.ckpt"
+    for k, end in enumerate([0.9, 2.1, 3.0]):
+        again = servo_packing(rate=0.3)
+        resumed = dk.Simulation(again, dk.VelocityVerlet(1.5e-3), checkpoint=dk.Checkpoint(path))
+        if k:
+            resumed.resume()
+        resumed.run(until=end, progress=False)
+    for scene in (two, again):
+        got = state(scene)
+        assert_identical(got[0], truth[0])
+        assert got[1].tobytes() == truth[1].tobytes() and got[2].tobytes() == truth[2].tobytes()
+    assert len(truth[1]) == 61 and np.ptp(truth[1][:, 4:]) > 0  # rates changed, not only at full speed
+
+
+def test_bad_servos_are_refused():
+    for bad in (dict(pressure=-1.0), dict(max_rate=float("nan")), dict(every=0.0), dict(pressure="high")):
+        args = dict(pressure=1.0, max_rate=0.1, every=0.1) | bad
+        with pytest.raises(ValueError, match=f"PressureServo {next(iter(bad))} must be a positive finite number"):
+            dk.PressureServo(**args)
+    with pytest.raises(ValueError, match="axes must name each of x, y, z at most once"):
+        dk.PressureServo(1.0, 0.1, 0.1, axes="xx")
+    with pytest.raises(ValueError, match="Deform servo must be a demkit.PressureServo"):
+        dk.Deform(servo=1.0)
+    with pytest.raises(ValueError, match="axis z deforms but is not periodic"):
+        dk.Box(10.0, periodic=(True, True, False), deform=dk.Deform(servo=dk.PressureServo(1.0, 0.1, 0.1)))
+    assert dk.Deform(servo=dk.PressureServo(1.0, 0.1, 0.1, axes="zx")).axes == [0, 2]

@@ -25,7 +25,7 @@ LAYERS = [
                 "demkit.trajectory", "demkit.sheared", "demkit.deformed", "demkit.progress", "demkit.guards", "demkit.threads"}),
     ("runs", {"demkit.simulation", "demkit.recording", "demkit.stops", "demkit.checkpoint", "demkit.notes",
               "demkit.cost"}),
-    ("analysis", {"demkit.measure", "demkit.stress_series", "demkit.accuracy", "demkit.accuracy.", "demkit.dipole_sums", "demkit.step_choice",
+    ("analysis", {"demkit.measure", "demkit.stress_series", "demkit.box_servo", "demkit.accuracy", "demkit.accuracy.", "demkit.dipole_sums", "demkit.step_choice",
                   "demkit.two_magnets", "demkit.two_magnets."}),
     ("input/output and pictures", {"demkit.io", "demkit.io.", "demkit.viz", "demkit.viz."}),
     ("scene files, sweeps and the command line", {"demkit.scenefile", "demkit.scenefile.", "demkit.sweep",

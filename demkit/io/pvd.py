@@ -38,6 +38,8 @@ def _footer(box):
                  if getattr(box, "shear", None) is not None else "")
         deform = getattr(box, "deform", None)
         shear += f' deform="{" ".join(repr(float(r)) for r in deform.rates)}"' if deform is not None else ""
+        if deform is not None and len(deform.history):  # a servo's changes of rates: (t, L (3), rates (3)) each
+            shear += f' deform_history="{" ".join(repr(float(v)) for v in deform.history.ravel())}"'
         text += f'  <Box size="{size}" periodic="{periodic}"{shear}/>\n'
     return text + "</VTKFile>\n"
 
@@ -164,7 +166,8 @@ def _box(element, path):
             shear = Shear(float(rate), flow, gradient)
         deform = element.get("deform")
         if deform is not None:
-            deform = Deform(*[float(r) for r in deform.split()])
+            history = [float(v) for v in element.get("deform_history", "").split()]
+            deform = Deform.recorded([float(r) for r in deform.split()], history)
         return Box(size, periodic, shear=shear, deform=deform)
     except ValueError as err:
         raise ValueError(f"{path} holds a malformed Box element: {err}") from err

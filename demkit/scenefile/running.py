@@ -378,7 +378,7 @@ def load_trajectory(path):
     shear = None
     if "box_shear_rate" in a:  # a sheared box: its rate and axes (flow, gradient)
         shear = Shear(float(a["box_shear_rate"]), *("xyz"[int(k)] for k in a["box_shear_axes"]))
-    deform = Deform(*a["box_deform_rates"]) if "box_deform_rates" in a else None  # a deforming box: its rates
+    deform = Deform.recorded(a["box_deform_rates"], a["box_deform_history"]) if "box_deform_rates" in a else None
     box = Box(a["box_size"], a["box_periodic"], shear=shear, deform=deform) if "box_size" in a else None
     return Trajectory(time=a["time"], position=a["position"], velocity=a["velocity"],
                       angular_velocity=a.get("angular_velocity"), dipole=a.get("dipole"),
@@ -408,6 +408,7 @@ def _savez(trajectory, path):
             arrays["box_shear_axes"] = np.array(trajectory.box.shear.axes)
         if getattr(trajectory.box, "deform", None) is not None:
             arrays["box_deform_rates"] = np.array(trajectory.box.deform.rates)
+            arrays["box_deform_history"] = np.array(trajectory.box.deform.history)  # (a servo's changes)
     with open(path, "wb") as fh:
         np.savez(fh, **{k: v for k, v in arrays.items() if v is not None})
     return path
