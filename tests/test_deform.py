@@ -350,3 +350,59 @@ def test_bad_servos_are_refused():
     with pytest.raises(ValueError, match="axis z deforms but is not periodic"):
         dk.Box(10.0, periodic=(True, True, False), deform=dk.Deform(servo=dk.PressureServo(1.0, 0.1, 0.1)))
     assert dk.Deform(servo=dk.PressureServo(1.0, 0.1, 0.1, axes="zx")).axes == [0, 2]
+
+
+def test_a_scene_file_drives_its_box_to_a_pressure(tmp_path, capsys):
+    """[box.deform.servo] builds dk.PressureServo (a bad value refused naming the key), and demkit info
+    says what the servo does."""
+    text = """
+[particles]
+position = [[1.0, 1.0, 1.0], [3.0, 3.0, 3.0]]
+velocity = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
+radius = 0.5
+mass = 1.0
+[box]
+size = 8.0
+periodic = true
+[box.deform]
+z = 0.01
+[box.deform.servo]
+pressure = 2.0
+max_rate = 0.01
+every = 0.1
+axes = "xy"
+[interactions.kelvin_voigt]
+stiffness = 1e3
+damping = 2.0
+[integrator]
+method = "VelocityVerlet"
+dt = 0.001
+[run]
+duration = 1.0
+"""
+    loaded = dk.parse_scene(text)
+    assert loaded.scene.box.deform == dk.Deform(z=0.01, servo=dk.PressureServo(2.0, 0.01, 0.1, axes="xy"))
+    with pytest.raises(dk.SceneFileError, match="box.deform.servo.pressure: must be positive"):
+        dk.parse_scene(text.replace("pressure = 2.0", "pressure = -1.0"))
+    from demkit.cli import main as demkit_main
+    (tmp_path / "servo.toml").write_text(text)
+    try:
+        demkit_main(["info", str(tmp_path / "servo.toml")])
+    except SystemExit as done:
+        assert not done.code
+    said = capsys.readouterr().out
+    assert ("deform        a servo drives x, y to the normal stress 2: strain rates up to 0.01, set every 0.1 from "
+            "the stress measured then, z at 0.01") in said, said
+
+
+def test_a_servo_that_would_shrink_the_box_too_far_stops_the_run_with_a_message():
+    """One sphere alone feels no pressure, so its servo shrinks the box at the full rate until the next
+    stretch would bring it to twice the contact's reach: the run stops there with a ValueError naming
+    the axis, the length and the pressures, the state up to then kept."""
+    p = dk.Particles(position=[[2.0, 2.0, 2.0]], velocity=[[0.0, 0.0, 0.0]], radius=0.5, mass=1.0)
+    box = dk.Box(4.0, periodic=True, deform=dk.Deform(servo=dk.PressureServo(1.0, max_rate=0.5, every=0.1)))
+    sim = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0)], box=box), dk.VelocityVerlet(1e-3))
+    with pytest.raises(ValueError, match=r"the pressure servo would shrink the box along x to .* not longer than "
+                                         r"twice the reach 1: .* \(measured 0, target 1\)"):
+        sim.run(10.0, progress=False)
+    assert 2.0 < sim.scene.arrays["box"][0] < 2.2 and 1.0 < sim.time < 1.6  # (0.95 of the box every 0.1)

@@ -431,6 +431,7 @@ def _integrator(d, scene, src):
 
 def _build(data, src, base):
     from ..box import Box, Deform, Shear
+    from ..box_servo import PressureServo
     from ..scene import Scene
     units = scale = None
     if data["units"] == "si":
@@ -443,6 +444,8 @@ def _build(data, src, base):
     if data["box"] is not None:
         with _At(src, "box", keys=("size", "periodic", "shear", "deform")):
             shear, deform = data["box"].get("shear"), data["box"].get("deform")
+            if deform and deform.get("servo"):  # a box driven to a set pressure
+                deform = dict(deform, servo=PressureServo(**deform["servo"]))
             box = Box(data["box"]["size"], data["box"]["periodic"], shear=Shear(**shear) if shear else None,
                       deform=Deform(**deform) if deform else None)
     interactions = _interactions(data, src, scale, base)

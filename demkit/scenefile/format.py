@@ -328,8 +328,17 @@ SCHEMA = Table({
             "gradient": Key("string", "y", "the gradient axis b (the flow grows along it)", choices=("x", "y", "z"))},
             "Lees-Edwards simple shear of the box (dk.Shear; flow and gradient axes periodic)"),
         "deform": Table({
-            axis: _n(f"the engineering strain rate of {axis} (1/time): L_{axis}(t) = L_{axis}(0) (1 + rate t)", default=0.0,
-                     dim="frequency") for axis in "xyz"},
+            **{axis: _n(f"the engineering strain rate of {axis} (1/time): L_{axis}(t) = L_{axis}(0) (1 + rate t)",
+                        default=0.0, dim="frequency") for axis in "xyz"},
+            "servo": Table({
+                "pressure": _n("the normal stress each driven axis is brought to (compressive positive)",
+                               default=REQUIRED, check="positive", dim="pressure"),
+                "max_rate": _n("the largest strain rate it sets (1/time), reached when the stress is off by the "
+                               "pressure itself", default=REQUIRED, check="positive", dim="frequency"),
+                "every": _n("the time between two changes of the rates", default=REQUIRED, check="positive",
+                            dim="time"),
+                "axes": Key("string", "xyz", "the axes it drives, e.g. \"xyz\" or \"z\"")},
+                "a servo setting the strain rates from the measured stress (dk.PressureServo)")},
             "extension or compression of the box at set strain rates, the positions remapped affinely after each "
             "step (dk.Deform; its axes periodic)")},
         "the simulation box (none: open space)"),
