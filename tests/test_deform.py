@@ -406,3 +406,18 @@ def test_a_servo_that_would_shrink_the_box_too_far_stops_the_run_with_a_message(
                                          r"twice the reach 1: .* \(measured 0, target 1\)"):
         sim.run(10.0, progress=False)
     assert 2.0 < sim.scene.arrays["box"][0] < 2.2 and 1.0 < sim.time < 1.6  # (0.95 of the box every 0.1)
+
+
+def test_pictures_frame_the_largest_box_shown_and_outline_each_frames_box():
+    """A picture or animation of a deforming box is framed by the largest box over the frames shown (the
+    spheres of every frame inside it) and draws each frame's box (viz.plan.Framing.outline_at)."""
+    from demkit.viz.plan import Framing
+    p = dk.Particles(position=[[1.0, 2.0, 3.0], [6.0, 7.0, 8.0]], velocity=[[0.5, 0.0, 0.0], [0.0, 0.5, 0.0]],
+                     radius=0.5, mass=1.0)
+    box = dk.Box(10.0, periodic=True, deform=dk.Deform(x=-0.2, y=0.1))
+    traj = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0)], box=box), dk.VelocityVerlet(1e-3)).run(
+        2.0, record_every=0.5, progress=False)
+    framing = Framing(traj, "box", None, lambda k: np.ones(2, dtype=bool), range(len(traj.time)), 0.5)
+    assert framing.moving and np.array_equal(framing.size, [10.0, box.size_at(2.0)[1], 10.0])
+    for k, t in enumerate(traj.time):
+        assert np.array_equal(framing.outline_at(k), [0.0, box.size_at(t)[0], 0.0, box.size_at(t)[1], 0.0, 10.0])

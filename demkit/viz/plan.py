@@ -262,9 +262,11 @@ class Framing:
         self.box = getattr(frames, "box", None)
         self.shift = None
         ref = span[-1]  # the last frame shown: where 'auto' and 'cluster' look
-        #: the box's lengths as drawn: a deforming box's at the last frame shown
-        self.size = None if self.box is None else self.box.size_at(float(frames.time[ref])) \
-            if getattr(self.box, "deform", None) is not None else self.box.size
+        #: a deforming box (its outline drawn at each frame's lengths); the box's lengths as framed: a deforming
+        #: box's largest over the frames shown
+        self.moving = self.box is not None and getattr(self.box, "deform", None) is not None
+        self.size = None if self.box is None else np.max(self.box.size_at(np.asarray(frames.time, dtype=np.float64)[
+            list(span)]), axis=0) if self.moving else self.box.size
         members = mask(ref)
         if bounds is not None:
             frame = "bounds"
@@ -304,6 +306,11 @@ class Framing:
         if self.box is not None:
             corner = np.zeros(3) if self.shift is None else self.shift
             self.outline = np.ravel(np.column_stack([corner, corner + self.size]))
+
+    def outline_at(self, k):
+        """The box's outline at frame k (a deforming box's lengths then), as pyvista bounds."""
+        corner = np.zeros(3) if self.shift is None else self.shift
+        return np.ravel(np.column_stack([corner, corner + self.box.size_at(float(self.frames.time[k]))]))
 
     def place(self, position):
         """Positions (..., 3) as drawn (re-wrapped about ``shift`` along periodic axes)."""

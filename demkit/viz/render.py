@@ -91,7 +91,8 @@ class FrameDrawer:
         self.drawn = {}  # set by draw
         self._radius = np.broadcast_to(np.asarray(self.frames.radius, dtype=np.float64), (n,))
         outline = plan.framing.outline
-        if outline is not None and not plan.isolate:  # around a cluster in 3-D, its lines would cross it
+        if outline is not None and not plan.isolate and not plan.framing.moving:  # around a cluster in 3-D, its
+            # lines would cross it (a deforming box's: drawn with each frame)
             self.plotter.add_mesh(pv.Box(bounds=outline).outline(), color=self.ink, opacity=0.45,
                                   line_width=1, reset_camera=False)
         self._place_camera()
@@ -158,6 +159,9 @@ class FrameDrawer:
             arrows = centres.glyph(geom=self.arrow, orient="dipole", scale="radius", factor=1.0) if len(index) else None
             self._show("arrows", arrows, color="#202020")
         self._show("trails", self._trails(k, index), scalars="colour", rgb=True, line_width=3)
+        if plan.framing.moving and not plan.isolate:  # a deforming box: its outline at this frame
+            self._show("outline", pv.Box(bounds=plan.framing.outline_at(k)).outline(), color=self.ink, opacity=0.45,
+                       line_width=1)
         walls = self._walls(k)
         self._show("walls", walls, color="#8a8a8a", opacity=WALL_OPACITY, smooth_shading=False)
         # their rims as lines: a plane seen edge-on in a plane view is a line, not nothing
