@@ -64,6 +64,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .box import Box
+from .engine.deform import DF_START
 from .integrators import VelocityVerlet
 from .interactions import (Cone, Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, MeshWall, PowerLawDipole,
                            UniformField, Wall)
@@ -575,9 +576,14 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     box = scene.box  # a deforming box as it is now, LAMMPS' erate taken from there (L_0 (1 + r t) = L(t0) (1 + r' (t - t0)))
     if deform is not None:
         box = Box(scene.box.size_at(scene.time), periodic=scene.box.periodic)
-        rates = {"xyz"[a]: deform.rates[a] / (1.0 + deform.rates[a] * scene.time) for a in deform.axes}
+        q = scene.deform_slot  # the rates now (a servo's last), from the box's lengths now
+        now = scene.params[q:q + 3] / (1.0 + scene.params[q:q + 3] * (scene.time - scene.params[q + DF_START]))
+        rates = {"xyz"[a]: float(now[a]) for a in deform.axes if now[a] != 0.0}
     job = _Export(scene, integrator, strict, dipole_update, dipole_cutoff)
     job.check()
+    if deform is not None and deform.servo is not None:
+        job.differs("pressure servo", f"{deform.servo!r} has no LAMMPS counterpart in the export (fix press/berendsen "
+                    f"and fix nph scale the box by other laws); the deck deforms the box at the rates set now")
     dt = integrator.dt
     nsteps = None if duration is None else _steps(float(duration), dt, "duration")
     if record_every is None:
@@ -630,7 +636,7 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     lines += [f"fix         integrate mobile nve/sphere update {job.update}"]
     if tilt is not None:  # after the integration, as in benchmarks/lammps/in.sheared; led by one step (docstring)
         lines.append(f"fix         shear all deform 1 {tilt.name} erate {g17(tilt.rate)} remap v flip yes")
-    if deform is not None:  # after the integration: the box and the positions remapped at the end of each step
+    if deform is not None and rates:  # after the integration: the box and the positions remapped at each step's end
         lines.append("fix         strain all deform 1 " + " ".join(f"{c} erate {g17(r)}" for c, r in rates.items())
                      + " remap x")
     lines += [f"timestep    {g17(dt)}", "",

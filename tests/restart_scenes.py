@@ -54,3 +54,22 @@ def assert_identical(a, b):
             assert y is None, key
         else:
             assert np.array_equal(np.asarray(x), np.asarray(y)), f"{key} differs"
+
+
+def assert_dipole_pairs_by_brute_force(scene, cutoff):
+    """The pairs the scene's first pair loop (a Dipole's) acts on are exactly those within ``cutoff`` by
+    brute force over all pairs with dk.Box.minimum_image at the scene's time (1e-9 of the cutoff left for
+    rounding at the edge), their separations the brute force's to round-off (1e-9)."""
+    n = len(scene.particles)
+    i, j = np.triu_indices(n, k=1)
+    x, t = scene.particles.position, scene.time
+    d = scene.box.minimum_image(x[j] - x[i], t)
+    r = np.linalg.norm(d, axis=1)
+    inter, pairs, sep, _ = scene.pair_forces()[0]
+    assert isinstance(inter, dk.Dipole)
+    listed = {(min(a, b), max(a, b)): (s if a < b else -s) for (a, b), s in zip(pairs.tolist(), sep)}
+    inside = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < cutoff - 1e-9}
+    near = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < cutoff + 1e-9}
+    assert inside <= set(listed) <= near
+    truth = dict(zip(zip(i.tolist(), j.tolist()), d))
+    assert max(np.abs(listed[key] - truth[key]).max() for key in listed) < 1e-9

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import demkit as dk
-from restart_scenes import assert_identical, state_of
+from restart_scenes import assert_dipole_pairs_by_brute_force, assert_identical, state_of
 
 
 def fcc(cells, spacing):
@@ -110,21 +110,9 @@ def test_the_lists_hold_every_pair_while_the_box_squeezes():
     squeeze counts against the skin, so the lists were rebuilt as the box shrank."""
     scene = squeezed_gas(rate=-1.0, skin=0.05, sort_every=None)
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
-    n = len(scene.particles)
-    i, j = np.triu_indices(n, k=1)
     for _ in range(5):
         sim.run(duration=0.02, progress=False)
-        x, t = scene.particles.position, scene.time
-        d = scene.box.minimum_image(x[j] - x[i], t)
-        r = np.linalg.norm(d, axis=1)
-        inter, pairs, sep, _ = scene.pair_forces()[0]
-        assert isinstance(inter, dk.Dipole)
-        listed = {(min(a, b), max(a, b)): (s if a < b else -s) for (a, b), s in zip(pairs.tolist(), sep)}
-        inside = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 - 1e-9}
-        near = {(a, b) for a, b, q in zip(i.tolist(), j.tolist(), r) if q < 3.0 + 1e-9}
-        assert inside <= set(listed) <= near
-        truth = dict(zip(zip(i.tolist(), j.tolist()), d))
-        assert max(np.abs(listed[key] - truth[key]).max() for key in listed) < 1e-9
+        assert_dipole_pairs_by_brute_force(scene, 3.0)
     assert scene.box.size_at(scene.time)[0] < 0.91 * scene.box.size[0]
     assert scene.counters[0] >= 10, "the lists were rebuilt as the box squeezed"
 
@@ -202,6 +190,17 @@ def test_what_a_deforming_box_does_not_do_is_refused():
     assert scene.arrays["box"][0] == pytest.approx(9.0, rel=1e-15)
 
 
+def info_of(text, folder, capsys):
+    """What `demkit info` prints for the scene file ``text``."""
+    from demkit.cli import main as demkit_main
+    (folder / "scene.toml").write_text(text)
+    try:
+        demkit_main(["info", str(folder / "scene.toml")])
+    except SystemExit as done:
+        assert not done.code
+    return capsys.readouterr().out
+
+
 def test_a_scene_file_deforms_its_box_as_the_python_scene_does(tmp_path, capsys):
     """[box.deform] builds dk.Deform: the file's scene steps to the bits of the Python scene, a bad rate is
     refused naming the key; a saved trajectory and a VTK series keep the deformation, so their unwrapped
@@ -255,18 +254,12 @@ duration = 2.0
         ours = clustering.clusters(a.position[k], a.radius, a.box, gap=0.05, time=a.time[k])
         read = clustering.clusters(series.position[k], series.radius, series.box, gap=0.05, time=series.time[k])
         assert np.array_equal(ours, read)
-    from demkit.cli import main as demkit_main
-    (tmp_path / "deform.toml").write_text(text)
-    try:
-        demkit_main(["info", str(tmp_path / "deform.toml")])
-    except SystemExit as done:
-        assert not done.code
-    said = capsys.readouterr().out
+    said = info_of(text, tmp_path, capsys)
     assert ("deform        x at -0.2, y at 0.1: the box 10 x 10 x 10 becomes 6 x 12 x 10 by t = 2 (volume x 0.72), "
             "the positions remapped affinely after each step") in said, said
 
 
-def servo_packing(rate=0.03, every=0.05, pressure=50.0, n=250):
+def servo_packing(rate=0.03, every=0.05, pressure=50.0, n=250, friction=None):
     """250 bidisperse spheres (examples/jamming's gas) at volume fraction 0.3 in a box a PressureServo
     drives to ``pressure`` on every axis."""
     radius = np.where(np.arange(n) % 2 == 0, 0.5, 0.7)
@@ -276,7 +269,8 @@ def servo_packing(rate=0.03, every=0.05, pressure=50.0, n=250):
                      angular_velocity=np.zeros((n, 3)))
     servo = dk.PressureServo(pressure, max_rate=rate, every=every)
     box = dk.Box(side, periodic=True, deform=dk.Deform(servo=servo))
-    return dk.Scene(p, [dk.KelvinVoigt(1e4, 30.0, friction=dk.Friction(0.3))], box=box)
+    law = dk.KelvinVoigt(1e4, 30.0, friction=dk.Friction(0.3) if friction is None else (friction or None))
+    return dk.Scene(p, [law], box=box)
 
 
 def test_a_pressure_servo_brings_a_gas_to_a_packing_at_its_pressure(tmp_path):
@@ -384,13 +378,7 @@ duration = 1.0
     assert loaded.scene.box.deform == dk.Deform(z=0.01, servo=dk.PressureServo(2.0, 0.01, 0.1, axes="xy"))
     with pytest.raises(dk.SceneFileError, match="box.deform.servo.pressure: must be positive"):
         dk.parse_scene(text.replace("pressure = 2.0", "pressure = -1.0"))
-    from demkit.cli import main as demkit_main
-    (tmp_path / "servo.toml").write_text(text)
-    try:
-        demkit_main(["info", str(tmp_path / "servo.toml")])
-    except SystemExit as done:
-        assert not done.code
-    said = capsys.readouterr().out
+    said = info_of(text, tmp_path, capsys)
     assert ("deform        a servo drives x, y to the normal stress 2: strain rates up to 0.01, set every 0.1 from "
             "the stress measured then, z at 0.01") in said, said
 
@@ -421,3 +409,61 @@ def test_pictures_frame_the_largest_box_shown_and_outline_each_frames_box():
     assert framing.moving and np.array_equal(framing.size, [10.0, box.size_at(2.0)[1], 10.0])
     for k, t in enumerate(traj.time):
         assert np.array_equal(framing.outline_at(k), [0.0, box.size_at(t)[0], 0.0, box.size_at(t)[1], 0.0, 10.0])
+
+
+def test_a_servo_box_is_exported_to_lammps_only_with_a_note(tmp_path):
+    """LAMMPS' barostats scale the box by other laws: the export refuses a pressure servo unless told
+    otherwise, and then deforms the box at the rates the servo set last, noted in the deck."""
+    scene = servo_packing(friction=False)  # (frictionless: no contact history LAMMPS could not start from)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1.5e-3))
+    sim.run(0.3, progress=False)
+    with pytest.raises(ValueError, match="pressure servo: .* has no LAMMPS counterpart"):
+        dk.export_lammps(scene, dk.VelocityVerlet(1.5e-3), tmp_path, duration=0.15)
+    deck = dk.export_lammps(scene, dk.VelocityVerlet(1.5e-3), tmp_path, duration=0.15, strict=False).deck.read_text()
+    start, rate = scene.box.deform.history[-1, [0, 4]]  # the servo's last change: r' = r / (1 + r (t - t_k))
+    assert f"x erate {rate / (1.0 + rate * (scene.time - start)):.17g} " in deck and "# NOTE: pressure servo" in deck
+
+
+def test_induced_moments_in_a_deforming_box_are_those_of_the_box_of_that_time():
+    """Magnetisable spheres in a field, the box compressed along x and drawn out along z: after the run
+    the moments solved at the state reached (conjugate gradients to 1e-13) equal those a scene in a
+    fixed box of the deformed lengths solves at the same positions (1e-11 of the largest: the two
+    solves' round-off), and differ from those in the box the run started in."""
+    n, R = 60, 0.5
+    size = dk.build.box_for(n, R, 0.15).size
+    pos = dk.build.random_packing(n, R, dk.Box(size, periodic=True), seed=4)
+    chi = np.where(np.arange(n) % 3 == 0, 0.0, 4.0)  # one in three permanent
+    moment = np.zeros((n, 3))
+    moment[chi == 0] = [0.0, 0.0, 0.5]
+
+    def scene_in(box, position, dipole):
+        p = dk.Particles(position=position, velocity=np.zeros((n, 3)), radius=R, mass=1.0, dipole=dipole,
+                         susceptibility=chi)
+        return dk.Scene(p, [dk.Dipole(prefactor=1.0, cutoff=2.5, induction=dk.Induction(1e-13, 300)),
+                            dk.KelvinVoigt(1e3, 1.0), dk.UniformField((0.0, 0.0, 0.3))], box=box)
+
+    scene = scene_in(dk.Box(size, periodic=True, deform=dk.Deform(x=-0.15, z=0.1)), pos, moment)
+    dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(1.0, progress=False)
+    scene.induce()
+    now = scene.box.size_at(scene.time)
+    state = scene.particles.position.copy(), scene.particles.dipole.copy()  # (the permanent moments turned)
+    fixed = scene_in(dk.Box(now, periodic=True), *state)
+    scale = np.abs(fixed.particles.dipole).max()
+    assert np.abs(scene.particles.dipole - fixed.particles.dipole).max() < 1e-11 * scale
+    before = scene_in(dk.Box(size * 1.2, periodic=True), *state)
+    assert np.abs(before.particles.dipole - fixed.particles.dipole).max() > 1e-4 * scale
+
+
+def test_a_langevin_bath_keeps_its_temperature_in_a_squeezed_box():
+    """The remap leaves the velocities (relative to the affine flow) alone, so a bath keeps a dilute gas
+    compressed 10 % along each axis at kT: m <v^2> / 3 over the run's second half within 6 % of kT = 1.5
+    (200 spheres, 20 frames about 10 drag times apart in all: a statistical error of about 2 %)."""
+    n = 200
+    size = dk.build.box_for(n, 0.5, 0.02).size
+    pos = dk.build.random_packing(n, 0.5, dk.Box(size, periodic=True), seed=5)
+    p = dk.Particles(position=pos, velocity=np.zeros((n, 3)), radius=0.5, mass=1.0)
+    box = dk.Box(size, periodic=True, deform=dk.Deform(x=-0.01, y=-0.01, z=-0.01))
+    scene = dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0), dk.Langevin(1.5, 2.0, seed=1)], box=box)
+    traj = dk.Simulation(scene, dk.VelocityVerlet(2e-3)).run(10.0, record_every=0.25, progress=False)
+    late = np.asarray(traj.time) >= 5.0
+    assert np.mean(np.sum(traj.velocity[late] ** 2, axis=2)) / 3.0 == pytest.approx(1.5, rel=0.06)
