@@ -448,7 +448,8 @@ class Scene(SceneDiagnostics):
         self.induction_slot = len(self.params) - len(tables[-1]) if self.induction is not None else None
         self.shear_slot = slots.shear_slot  # Lees-Edwards: [a, b, gammadot L_b, offset at the lists' build], last
         if self.shear_slot is not None:
-            self.params = np.concatenate([self.params, sheared.shear_block(self.box)])
+            reach = max([g.reach + self.skin for g in plan.groups if g.kind == "list"], default=0.0)
+            self.params = np.concatenate([self.params, sheared.shear_block(self.box, reach, self.skin)])
         self.deform_slot = None  # a deforming box: [rates, sizes at 0, sizes at the lists' build, list reach], last
         if self.box is not None and getattr(self.box, "deform", None) is not None:
             self.deform_slot = len(self.params)

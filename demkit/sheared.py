@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .engine.shear import SH_BUILT, SH_FLOW, SH_GRADIENT, SH_JUMP, SHEAR_VALUES
+from .engine.shear import SH_BUILT, SH_FLOW, SH_GRADIENT, SH_JUMP, SH_MARGIN, SHEAR_VALUES
 
 
-def shear_block(box):
-    """The params block of a sheared box: [a, b, gammadot L_b, offset at the lists' last build (0 for now)]."""
+def shear_block(box, list_reach, skin):
+    """The params block of a sheared box: [a, b, gammadot L_b, offset at the lists' last build (0 for now),
+    the margin: the longest list's reach (cutoff + skin) plus twice the skin]."""
     a, b = box.shear.axes
     block = np.zeros(SHEAR_VALUES)
     block[SH_FLOW], block[SH_GRADIENT], block[SH_JUMP], block[SH_BUILT] = a, b, box.shear.jump(box.size), 0.0
+    block[SH_MARGIN] = list_reach + 2.0 * skin
     return block
 
 

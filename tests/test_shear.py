@@ -154,8 +154,8 @@ def test_an_unsheared_scene_generates_the_code_it_did():
     assert "sheared_image(dx, dy, dz, 0, 1, la, lb, delta, jump, True, lc)" in text and "(sx, sy, sz))" in text
     plain = generic._Generic(False, "plain").pieces_text()
     full = generic._Generic(False, "full").pieces_text()
-    assert "if sheared:" not in plain and "shear_offset(" not in plain and "delta" not in plain
-    assert "if sheared:" in full and "shear_offset(" in full
+    assert "if edge:" not in plain and "shear_offset(" not in plain and "delta" not in plain
+    assert "if edge:" in full and "shear_offset(" in full  # (owners near a face across b: sliding images)
     for make, sliding in ((lambda: sheared_gas(1), True), (lambda: test_tiers.gas(1, kelvin_voigt=True), False)):
         scene = make()
         needs = generic_modules.needs_of(scene.program)

@@ -140,14 +140,23 @@ class _Generic:
                 "    la = box[sa]", "    lb = box[sb]", "    lc = box[3 - sa - sb]",
                 "    pc = program[G_PX + 3 - sa - sb] != 0",
                 "    delta = shear_offset(params, sh, box, clock[0]) if sheared else 0.0",
-                "    jump = params[sh + SH_JUMP] if sheared else 0.0"] if self.sheared else [])
+                "    jump = params[sh + SH_JUMP] if sheared else 0.0",
+                "    margin = params[sh + SH_MARGIN] if sheared else 0.0"] if self.sheared else [])
 
     def rows(self, pad, first, last):
-        """Loop header over owners first..last-1 and their entries; the body goes at pad + 8."""
-        return [f"{pad}for i in range({first}, {last}):",
-                f"{pad}    if is_list and start[i] == end[i]:",
-                f"{pad}        continue",
-                f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
+        """Loop header over owners first..last-1 and their entries; the body goes at pad + 8. In a
+        sheared box, ``edge``: is the owner within the shear block's margin of a face across the gradient
+        axis (else none of its partners is through the sliding boundary: the plain minimum image)?"""
+        lines = [f"{pad}for i in range({first}, {last}):",
+                 f"{pad}    if is_list and start[i] == end[i]:",
+                 f"{pad}        continue",
+                 f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
+        if self.sheared:
+            lines += [f"{pad}    ob = xi if sb == 0 else (yi if sb == 1 else zi)",
+                      f"{pad}    edge = sheared and (ob < margin or ob > lb - margin)",
+                      f"{pad}    if not edge:  # (no sliding image's velocity: set per pair by sheared_image)",
+                      f"{pad}        sx = 0.0", f"{pad}        sy = 0.0", f"{pad}        sz = 0.0"]
+        return lines
 
     def entries(self, pad):
         return [f"{pad}lo = start[i] if is_list else i + 1",
@@ -161,7 +170,7 @@ class _Generic:
         lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
         fold = pad
         if self.sheared:
-            lines += [f"{pad}if sheared:", shear_geometry(pad + "    ", "sa", "sb", "pc"), f"{pad}else:"]
+            lines += [f"{pad}if edge:", shear_geometry(pad + "    ", "sa", "sb", "pc"), f"{pad}else:"]
             fold = pad + "    "
         for axis in "xyz":
             d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
@@ -602,7 +611,7 @@ class _Generic:
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
                  "from demkit.engine.plan import BLOCK",
-                 "from demkit.engine.shear import (SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT, shear_offset, sheared_image,",
+                 "from demkit.engine.shear import (SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT, SH_MARGIN, shear_offset, sheared_image,",
                  "                          list_frame, slide_since_build, wrap_sheared, frame_sheared)",
                  "from demkit.engine.program import H_SHEAR, H_DEFORM",
                  "from demkit.engine.deform import deform_step, squeeze_since_build, mark_built",

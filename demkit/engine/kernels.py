@@ -98,6 +98,10 @@ class _Source:
             last = "n - 1"  # the last row of the triangle is empty
         lines = [f"{pad}for i in range({first}, {last}):",
                  f"{pad}    xi = position[i, 0]", f"{pad}    yi = position[i, 1]", f"{pad}    zi = position[i, 2]"]
+        if self.plan.shear is not None and group.kind == "list":  # near a face across the gradient axis?
+            ob = ("xi", "yi", "zi")[self.plan.shear.axes[1]]  # (demkit.engine.generic._Generic.rows)
+            lines += [f"{pad}    edge = {ob} < margin or {ob} > lb - margin", f"{pad}    if not edge:",
+                      f"{pad}        sx = 0.0", f"{pad}        sy = 0.0", f"{pad}        sz = 0.0"]
         if group.kind == "list":
             lines.insert(1, f"{pad}    if start[i] == end[i]:")
             lines.insert(2, f"{pad}        continue")
@@ -115,16 +119,18 @@ class _Source:
         """dx, dy, dz = x_j - x_i (minimum image along periodic axes: branches, or selects that a
         vectorising compiler keeps) and r2."""
         lines = [f"{pad}dx = position[j, 0] - xi", f"{pad}dy = position[j, 1] - yi", f"{pad}dz = position[j, 2] - zi"]
+        fold = pad
         if self.plan.shear is not None and group.kind == "list":  # Lees-Edwards images (demkit.engine.shear)
-            return lines + [sheared_line(self.plan, pad), f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
+            lines += [f"{pad}if edge:", sheared_line(self.plan, pad + "    "), f"{pad}else:"]
+            fold = pad + "    "  # (an owner away from the faces across b: the plain minimum image, the same bits)
         for a, axis in enumerate("xyz"):
             if self.plan.periodic[a] and group.kind == "list":
                 d, l, h = f"d{axis}", f"l{axis}", f"h{axis}"
                 if select:
-                    lines.append(f"{pad}{d} = {d} - {l} if {d} > {h} else ({d} + {l} if {d} < -{h} else {d})")
+                    lines.append(f"{fold}{d} = {d} - {l} if {d} > {h} else ({d} + {l} if {d} < -{h} else {d})")
                 else:
-                    lines += [f"{pad}if {d} > {h}:", f"{pad}    {d} -= {l}", f"{pad}elif {d} < -{h}:",
-                              f"{pad}    {d} += {l}"]
+                    lines += [f"{fold}if {d} > {h}:", f"{fold}    {d} -= {l}", f"{fold}elif {d} < -{h}:",
+                              f"{fold}    {d} += {l}"]
         return lines + [f"{pad}r2 = dx * dx + dy * dy + dz * dz"]
 
     def guarded(self, k, inter, statements, pad, offset=None):

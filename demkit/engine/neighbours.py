@@ -358,6 +358,7 @@ def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start,
     hz = 0.5 * lz if lz > 0.0 else np.inf
     minimum_image = lx > 0.0 or ly > 0.0 or lz > 0.0
     sheared = le.shape[0] > 0  # Lees-Edwards: every candidate takes its sliding image (sheared_ranges)
+    gradient = int(le[1]) if sheared else 0
     count = base
     for c in range(first_cell, last_cell):
         if cell_start[c] == cell_start[c + 1]:
@@ -365,7 +366,13 @@ def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start,
         cx = c // (ncell[1] * ncell[2])
         cy = (c // ncell[2]) % ncell[1]
         cz = c % ncell[2]
-        if sheared:
+        # a sheared box's cells whose neighbours along the gradient axis cross no boundary have no
+        # sliding image among their candidates: they take the plain path (a third of the build's time)
+        crossing = sheared and ncell[gradient] < few
+        own_b = cx if gradient == 0 else (cy if gradient == 1 else cz)
+        for q in range(counts[gradient, own_b] if sheared and not crossing else 0):
+            crossing = crossing or shift[gradient, own_b, q] != 0
+        if crossing:
             nr = sheared_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, radius, le, lo, hi, image)
         else:
             nr = neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image)
@@ -383,7 +390,7 @@ def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start,
             xi = xs[0, m]
             yi = xs[1, m]
             zi = xs[2, m]
-            if sheared:
+            if crossing:
                 sheared_hits(xs[0, m], xs[1, m], xs[2, m], ti, k, near_x, near_id, box, periodic, reach2, le)
             elif minimum_image:  # two loops: the selects cost the dipole list's build 17-19 ms against 11
                 for u in range(k):

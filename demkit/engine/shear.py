@@ -25,9 +25,11 @@ from numba import njit
 from .motion import KERNEL_OPTIONS, fold
 from .neighbours import LOOP_OPTIONS, wrap
 
-#: the shear block in params: flow axis a, gradient axis b, jump u = gammadot L_b, offset at the last build
-SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT = range(4)
-SHEAR_VALUES = 4
+#: the shear block in params: flow axis a, gradient axis b, jump u = gammadot L_b, offset at the last build,
+#: and the margin: an owner farther than it from both faces across b has no listed partner through the
+#: sliding boundary (the longest list's reach plus twice the skin: positions lie within a skin of the box)
+SH_FLOW, SH_GRADIENT, SH_JUMP, SH_BUILT, SH_MARGIN = range(5)
+SHEAR_VALUES = 5
 #: the lists take the pairs across the sliding boundary that come within reach while delta slides on by
 #: this many skins (at most L_a / 4) in the flow's direction: the sliding then uses up the skin that
 #: many times more slowly, for a few per cent more pairs (see slide_since_build)

@@ -85,6 +85,7 @@ def shear_prelude(plan, slot):
     the lengths of the flow, gradient and third axes."""
     a, b = plan.shear.axes
     return [f"    sh = {slot}", "    delta = shear_offset(params, sh, box, clock[0])", "    jump = params[sh + 2]",
+            "    margin = params[sh + 4]",
             f"    la = box[{a}]", f"    lb = box[{b}]", f"    lc = box[{3 - a - b}]",
             "    sx = 0.0", "    sy = 0.0", "    sz = 0.0"]
 
@@ -108,12 +109,16 @@ def shear_gather(pad, gather, a, b, pc):
     along b and by delta along a, to its sliding image (x_j + k L_b e_b + k delta e_a), so that the
     vectorised loop's rint minimum image, as in any periodic box, finds its nearest image and keeps no
     branch of the shear (in tier 1 it ran 15-25 % slower with one per pair; the pass costs one
-    comparison per pair). ``pc`` is unused (the vectorised loop takes the third axis)."""
+    comparison per pair). Owners farther than ``margin`` (the shear block's SH_MARGIN) from both faces
+    across b have no partner through the sliding boundary and skip the pass (the same bits: it would
+    move none). ``pc`` is unused (the vectorised loop takes the third axis)."""
     ob = ("xi", "yi", "zi")[b] if isinstance(b, int) else f"(xi if {b} == 0 else (yi if {b} == 1 else zi))"
-    return [f"{pad}ob = {ob}", f"{pad}for u in range(m):", f"{pad}    db = {gather}[{b}, u + 1] - ob",
-            f"{pad}    if db > 0.5 * lb:", f"{pad}        {gather}[{b}, u + 1] -= lb", f"{pad}        {gather}[{a}, u + 1] -= delta",
-            f"{pad}    elif db < -0.5 * lb:", f"{pad}        {gather}[{b}, u + 1] += lb",
-            f"{pad}        {gather}[{a}, u + 1] += delta"]
+    return [f"{pad}ob = {ob}", f"{pad}if ob < margin or ob > lb - margin:", f"{pad}    for u in range(m):",
+            f"{pad}        db = {gather}[{b}, u + 1] - ob",
+            f"{pad}        if db > 0.5 * lb:", f"{pad}            {gather}[{b}, u + 1] -= lb",
+            f"{pad}            {gather}[{a}, u + 1] -= delta",
+            f"{pad}        elif db < -0.5 * lb:", f"{pad}            {gather}[{b}, u + 1] += lb",
+            f"{pad}            {gather}[{a}, u + 1] += delta"]
 
 
 def sheared_gather(plan, pad, gather):
