@@ -118,7 +118,9 @@ def run_command(args):
         print(f"already complete: {checkpoint} holds the end of the run (t = {loaded.duration:g}); nothing ran "
               f"and the outputs are as they were (delete the checkpoint to run again)")
         for name, where in outputs.items():
-            if name != "checkpoint" and where.exists():
+            if loaded.made is not None and where == loaded.made:  # (interrupted while it was being made)
+                print(f"wrote {name} (the finished run's, not made before): {where}")
+            elif name != "checkpoint" and where.exists():
                 print(f"kept {name}: {where}")
         return 0
     print(f"done in {seconds:.1f} s (compilation included): {frames} frames recorded")

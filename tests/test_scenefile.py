@@ -582,6 +582,15 @@ def test_demkit_run_the_examples(tmp_path):
     assert done.returncode == 0, done.stderr
     assert np.load(tmp_path / "k" / "output" / "cluster.npz")["position"].shape == (2, 60, 3)
     assert (tmp_path / "k" / "output" / "cluster_vtk" / "particles.pvd").is_file()
+    # a finished run whose animation was not made (Ctrl-C while it was rendered): the rerun makes it
+    options = ["--duration", "0.06", "--set", "particles.build.n=60", "--set", "outputs.animation.max_frames=2",
+               "--set", "outputs.vtk.every=0.03", "--set", "outputs.checkpoint.path=ck.npz", "--out", str(tmp_path / "a")]
+    assert demkit("run", str(CLUSTER), *options, cwd=ROOT).returncode == 0
+    animation = next((tmp_path / "a").rglob("*.gif"))
+    animation.unlink()
+    done = demkit("run", str(CLUSTER), *options, cwd=ROOT)
+    assert done.returncode == 0 and "already complete" in done.stdout, done.stdout + done.stderr
+    assert f"wrote animation (the finished run's, not made before): {animation}" in done.stdout and animation.is_file()
 
 
 def test_demkit_run_without_outputs_says_so_and_set_adds_one(tmp_path):

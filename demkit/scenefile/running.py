@@ -128,8 +128,10 @@ class LoadedScene:
         dt = self.integrator.dt
         end = round(self.duration / dt)
         start = sim.step
-        #: the checkpoint already held the end of the run: nothing ran, the outputs are as they were
+        #: the checkpoint already held the end of the run: nothing ran, the outputs are as they were (but
+        #: an animation whose making was interrupted: made now, ``self.made``)
         self.complete = start >= end
+        self.made = None
         if getattr(sim, "resumed_meta", None) is not None and on_resume is not None and not self.complete:
             on_resume(sim.checkpoint.path)
         with _At(self.source, "run", "record_every"):
@@ -139,8 +141,12 @@ class LoadedScene:
             from ..outputs import remove_partials
             remove_partials(target)  # left by a process killed while writing the file
         earlier = self._earlier_frames(target, sim, stride) if start > 0 and target is not None else None
-        if start >= end:  # a finished run's checkpoint: nothing left to do
+        if start >= end:  # a finished run's checkpoint: nothing left to do but an animation it did not finish
             sim.close()
+            animation = self.outputs.get("animation")
+            pvd = self.output_path(self.outputs["vtk"]["folder"], out_dir) / "particles.pvd" if animation else None
+            if animation and not self.output_path(animation["path"], out_dir).exists() and pvd.exists():
+                self.made = self._animate(pvd, out_dir)
             return earlier if earlier is not None else sim.trajectory
         grid = -(-start // stride) * stride  # the first step of the grid at or after the start
         plan = [] if grid in (start, end) or grid > end else [(grid * dt, None)]
@@ -245,19 +251,26 @@ class LoadedScene:
             target.parent.mkdir(parents=True, exist_ok=True)
             written.append(write_or_rescue(target, lambda tmp: _savez(trajectory, tmp), "trajectory"))
         if out.get("animation") is not None:
-            from .. import viz
-            a = out["animation"]
-            target = self.output_path(a["path"], out_dir)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            options = {"color_by": a["color_by"]} if a["color_by"] else {}
-            if a["trail"] is not None:
-                options["trail"] = a["trail"]
-            try:
-                viz.animate(sim.writers[0].pvd, target, max_frames=a["max_frames"], fps=a["fps"], **options)
-                written.append(target)
-            except viz.RenderingUnavailable as err:
-                print(f"no animation: {err}")
+            made = self._animate(sim.writers[0].pvd, out_dir)
+            written += [made] if made is not None else []
         return written
+
+    def _animate(self, pvd, out_dir):
+        """The animation [outputs.animation] asks for, made from the VTK series ``pvd``: its path, or None
+        (rendering unavailable: said)."""
+        from .. import viz
+        a = self.outputs["animation"]
+        target = self.output_path(a["path"], out_dir)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        options = {"color_by": a["color_by"]} if a["color_by"] else {}
+        if a["trail"] is not None:
+            options["trail"] = a["trail"]
+        try:
+            viz.animate(pvd, target, max_frames=a["max_frames"], fps=a["fps"], **options)
+            return target
+        except viz.RenderingUnavailable as err:
+            print(f"no animation: {err}")
+            return None
 
 
 def _kept(steps, stride, upto):
