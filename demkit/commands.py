@@ -173,7 +173,7 @@ def info_command(args):
                   deform.rates[a] and a not in servo.axes for a in range(3)) else ""))
     elif deform is not None:
         end = scene.box.size_at(loaded.duration)
-        print(f"deform        " + ", ".join(f"{'xyz'[a]} at {deform.rates[a]:g}" for a in deform.axes) + ": the box "
+        print("deform        " + ", ".join(f"{'xyz'[a]} at {deform.rates[a]:g}" for a in deform.axes) + ": the box "
               f"{' x '.join(f'{x:.4g}' for x in scene.box.size)} becomes {' x '.join(f'{x:.4g}' for x in end)} by t = "
               f"{loaded.duration:g} (volume x {np.prod(end) / np.prod(scene.box.size):.4g}), the positions remapped "
               "affinely after each step")
