@@ -107,7 +107,9 @@ class Scene(SceneDiagnostics):
             sheared.check_scene(box, interactions, effects)
         if box is not None and getattr(box, "deform", None) is not None:  # ... nor the affine remap
             deformed.check_scene(box, interactions, effects)
-            box.deform.history = np.zeros((0, 7))  # (a servo's changes of rates: this scene's, from t = 0)
+            if len(box.deform.history):  # a servo's changes of rates belong to the scene that made them
+                raise ValueError("this box's servo has driven another scene (box.deform.history holds its changes of "
+                                 "rates, which that scene's frames need): give each scene its own dk.Box")
         # long-range sums are tuned to the spheres and the box: the scene keeps a tuned copy
         interactions = [inter.tuned_for(particles, box) if getattr(inter, "long_range", None) is not None else inter
                         for inter in interactions]

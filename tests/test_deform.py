@@ -339,6 +339,10 @@ def test_bad_servos_are_refused():
             dk.PressureServo(**args)
     with pytest.raises(ValueError, match="axes must name each of x, y, z at most once"):
         dk.PressureServo(1.0, 0.1, 0.1, axes="xx")
+    used = servo_packing()
+    dk.Simulation(used, dk.VelocityVerlet(1.5e-3)).run(0.1, progress=False)
+    with pytest.raises(ValueError, match="this box's servo has driven another scene"):
+        dk.Scene(used.particles, list(used.interactions), box=used.box)
     with pytest.raises(ValueError, match="Deform servo must be a demkit.PressureServo"):
         dk.Deform(servo=1.0)
     with pytest.raises(ValueError, match="axis z deforms but is not periodic"):
