@@ -126,20 +126,32 @@ class Deform:
         history = getattr(self, "history", np.zeros((0, 7)))
         return [a for a in range(3) if self.rates[a] != 0.0 or a in driven or np.any(history[:, 4 + a] != 0.0)]
 
+    def _segment(self, size, time):
+        """(t0, the lengths at t0, the rates from t0) of the stretch holding each time: from the box's
+        ``size`` at t0 = 0, or from the last change of rates at or before it (:attr:`history`)."""
+        history = getattr(self, "history", np.zeros((0, 7)))
+        rows = np.concatenate([[[0.0, *size, *self.rates]], history])
+        k = np.searchsorted(rows[:, 0], time, side="right") - 1
+        return rows[k, 0], rows[k, 1:4], rows[k, 4:7]
+
     def size_at(self, size, time):
         """L_a0 (1 + rate_a (t - t0)) for each axis (the bits the compiled loops give), from the box's
         ``size`` at t0 = 0 or from the last change of rates before t (:attr:`history`); ``time`` may be
         an array (shape T: sizes T x 3)."""
         time = np.asarray(time, dtype=np.float64)
         size = np.asarray(size, dtype=np.float64)
-        history = getattr(self, "history", np.zeros((0, 7)))
-        rows = np.concatenate([[[0.0, *size, *self.rates]], history])
-        k = np.searchsorted(rows[:, 0], time, side="right") - 1  # the last change at or before t
-        start, lengths, rates = rows[k, 0], rows[k, 1:4], rows[k, 4:7]
+        start, lengths, rates = self._segment(size, time)
         out = np.broadcast_to(size, time.shape + (3,)).copy()
         for a in self.axes:
             out[..., a] = lengths[..., a] * (1.0 + rates[..., a] * (time - start))
         return out
+
+    def strain_rate(self, size, time):
+        """Ldot_a / L_a = rate_a / (1 + rate_a (t - t0)) for each axis at ``time`` (0 along the others),
+        the rate of the stretch holding it (:meth:`size_at`); an array of times gives T x 3."""
+        time = np.asarray(time, dtype=np.float64)
+        start, _, rates = self._segment(np.asarray(size, dtype=np.float64), time)
+        return rates / (1.0 + rates * (time - start)[..., None])
 
     def change(self, time, lengths, rates):
         """Record a servo's change of rates at ``time``, from the box's ``lengths`` then."""
@@ -147,10 +159,6 @@ class Deform:
             raise ValueError(f"a deforming box's rates change at t = {time}, before their last change at "
                              f"t = {self.history[-1, 0]}: give each scene its own box")
         self.history = np.vstack([self.history, [[float(time), *lengths, *rates]]])
-
-    def end_of_positive_size(self):
-        """The time at which the first compressed axis reaches length 0 (inf when none is compressed)."""
-        return min([-1.0 / r for r in self.rates if r < 0.0], default=math.inf)
 
     def __eq__(self, other):
         return (isinstance(other, Deform) and np.array_equal(self.rates, other.rates)
@@ -252,20 +260,16 @@ class Box:
         position + image * size, and in a sheared box + image_b gammadot L_b t along the flow (the sliding
         images' offset, not wrapped) and velocity + image_b gammadot L_b (a sphere crossing the gradient
         axis takes its image's velocity). In a deforming box, position + image * L(t), and the velocity
-        with the affine flow (rate_a / (1 + rate_a t)) x_a added (the path's own rate of change).
+        with the affine flow (Ldot_a / L_a) x_a added (:meth:`Deform.strain_rate`: the path's own rate of
+        change, a servo's rates too).
         ``time`` broadcasts against ``position[..., 0]``; the velocities are those given when the box
         neither shears nor deforms."""
         deform = getattr(self, "deform", None)
         if deform is not None:  # the box's lengths at each time, the velocities with the affine flow
             t = np.asarray(time, dtype=np.float64)
             position = position + image * self.size_at(t)
-            velocity = velocity.copy()
-            for a in deform.axes:
-                rate = deform.rates[a]
-                velocity[..., a] += rate / (1.0 + rate * t) * position[..., a]
-            return position, velocity
-        else:
-            position = position + image * self.size
+            return position, velocity + deform.strain_rate(self.size, t) * position
+        position = position + image * self.size
         shear = getattr(self, "shear", None)
         if shear is None:
             return position, velocity

@@ -166,11 +166,10 @@ def info_command(args):
     deform = getattr(scene.box, "deform", None) if scene.box is not None else None
     if deform is not None and deform.servo is not None:  # what the run will do to the box
         servo = deform.servo
+        fixed = [f"{'xyz'[a]} at {deform.rates[a]:g}" for a in range(3) if deform.rates[a] and a not in servo.axes]
         print(f"deform        a servo drives {', '.join('xyz'[a] for a in servo.axes)} to the normal stress "
               f"{servo.pressure:g}: strain rates up to {servo.max_rate:g}, set every {servo.every:g} from the stress "
-              "measured then" + (", " + ", ".join(f"{'xyz'[a]} at {deform.rates[a]:g}" for a in range(3)
-                                                 if deform.rates[a] and a not in servo.axes) if any(
-                  deform.rates[a] and a not in servo.axes for a in range(3)) else ""))
+              "measured then" + "".join(", " + rate for rate in fixed))
     elif deform is not None:
         end = scene.box.size_at(loaded.duration)
         print("deform        " + ", ".join(f"{'xyz'[a]} at {deform.rates[a]:g}" for a in deform.axes) + ": the box "

@@ -30,9 +30,6 @@ def change_rates(scene, rates):
     scene.box.deform.change(now, lengths, rates)
 
 
-#: the block's values that are state in a box a servo drives (saved with it, left out of the digest)
-SERVO_STATE = slice(DF_RATE, DF_SIZE0 + 3)
-
 
 def check_scene(box, interactions, effects):
     """Raise ValueError for what a deforming box does not do (each named, with the reason)."""

@@ -64,7 +64,6 @@ from typing import NamedTuple
 import numpy as np
 
 from .box import Box
-from .engine.deform import DF_START
 from .integrators import VelocityVerlet
 from .interactions import (Cone, Cylinder, Dipole, Gravity, Hertz, KelvinVoigt, MagnetField, MeshWall, PowerLawDipole,
                            UniformField, Wall)
@@ -576,8 +575,7 @@ def export_lammps(scene, integrator, directory, duration=None, record_every=None
     box = scene.box  # a deforming box as it is now, LAMMPS' erate taken from there (L_0 (1 + r t) = L(t0) (1 + r' (t - t0)))
     if deform is not None:
         box = Box(scene.box.size_at(scene.time), periodic=scene.box.periodic)
-        q = scene.deform_slot  # the rates now (a servo's last), from the box's lengths now
-        now = scene.params[q:q + 3] / (1.0 + scene.params[q:q + 3] * (scene.time - scene.params[q + DF_START]))
+        now = deform.strain_rate(scene.box.size, scene.time)  # the rates now (a servo's last), from the box now
         rates = {"xyz"[a]: float(now[a]) for a in deform.axes if now[a] != 0.0}
     job = _Export(scene, integrator, strict, dipole_update, dipole_cutoff)
     job.check()

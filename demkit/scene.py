@@ -449,13 +449,12 @@ class Scene(SceneDiagnostics):
         self.params = np.concatenate(params + [np.array(cut2)] + tables) if params else np.zeros(0)
         self.induction_slot = len(self.params) - len(tables[-1]) if self.induction is not None else None
         self.shear_slot = slots.shear_slot  # Lees-Edwards: [a, b, gammadot L_b, offset at the lists' build], last
+        reach = max([g.reach + self.skin for g in plan.groups if g.kind == "list"], default=0.0)  # the longest list's
         if self.shear_slot is not None:
-            reach = max([g.reach + self.skin for g in plan.groups if g.kind == "list"], default=0.0)
             self.params = np.concatenate([self.params, sheared.shear_block(self.box, reach, self.skin)])
         self.deform_slot = None  # a deforming box: [rates, sizes at 0, sizes at the lists' build, list reach], last
         if self.box is not None and getattr(self.box, "deform", None) is not None:
             self.deform_slot = len(self.params)
-            reach = max([g.reach + self.skin for g in plan.groups if g.kind == "list"], default=0.0)
             self.params = np.concatenate([self.params, deformed.deform_block(self.box, 0.0, reach)])
             if self.program is not None:  # the time loops keep the clock; end_step remaps (demkit.engine.deform)
                 self.program[0, layout.H_DEFORM], self.program[0, layout.H_CLOCK] = self.deform_slot, 1

@@ -471,3 +471,23 @@ def test_a_langevin_bath_keeps_its_temperature_in_a_squeezed_box():
     traj = dk.Simulation(scene, dk.VelocityVerlet(2e-3)).run(10.0, record_every=0.25, progress=False)
     late = np.asarray(traj.time) >= 5.0
     assert np.mean(np.sum(traj.velocity[late] ** 2, axis=2)) / 3.0 == pytest.approx(1.5, rel=0.06)
+
+
+def test_the_unwrapped_velocity_in_a_servo_driven_box_is_the_paths_rate_of_change():
+    """One sphere feels no pressure, so its servo shrinks the box at its full rate, changing the rates
+    every 0.05 from the lengths then (the box's first rates are 0): the unwrapped path's central
+    differences over two steps equal unwrapped_velocity (velocity + the servo's Ldot/L x) to 1e-4 (the
+    remap after the drift: an O(rate v dt) = 6e-5 difference; frames next to a change of rates left out,
+    where the difference straddles two rates), and differ from the velocity alone by far more."""
+    p = dk.Particles(position=[[2.0, 3.0, 4.0]], velocity=[[0.3, -0.2, 0.1]], radius=0.5, mass=1.0)
+    box = dk.Box(20.0, periodic=True, deform=dk.Deform(servo=dk.PressureServo(1.0, max_rate=0.2, every=0.05)))
+    dt = 1e-3
+    traj = dk.Simulation(dk.Scene(p, [dk.KelvinVoigt(1e3, 1.0)], box=box), dk.VelocityVerlet(dt)).run(
+        0.5, record_every=dt, progress=False)
+    x, v, t = traj.unwrapped()[:, 0], traj.unwrapped_velocity()[:, 0], np.asarray(traj.time)
+    slope = (x[2:] - x[:-2]) / (2 * dt)
+    changes = box.deform.history[:, 0]
+    steady = ~np.any((changes[None, :] > t[:-2, None] + 0.5 * dt) & (changes[None, :] < t[2:, None] + 0.5 * dt), axis=1)
+    assert steady.sum() > 400 and len(changes) == 11
+    assert np.abs(slope - v[1:-1])[steady].max() < 1e-4
+    assert np.abs(traj.velocity[1:-1, 0] - slope).max() > 0.1  # the flow: 0.2 x ~ 0.4 along x

@@ -34,13 +34,13 @@ def _footer(box):
     if box is not None:
         size = " ".join(repr(float(x)) for x in box.size)
         periodic = " ".join(str(int(bool(f))) for f in box.periodic)
-        shear = (f' shear="{float(box.shear.rate)!r} {box.shear.flow} {box.shear.gradient}"'
-                 if getattr(box, "shear", None) is not None else "")
+        motion = (f' shear="{float(box.shear.rate)!r} {box.shear.flow} {box.shear.gradient}"'
+                  if getattr(box, "shear", None) is not None else "")
         deform = getattr(box, "deform", None)
-        shear += f' deform="{" ".join(repr(float(r)) for r in deform.rates)}"' if deform is not None else ""
+        motion += f' deform="{" ".join(repr(float(r)) for r in deform.rates)}"' if deform is not None else ""
         if deform is not None and len(deform.history):  # a servo's changes of rates: (t, L (3), rates (3)) each
-            shear += f' deform_history="{" ".join(repr(float(v)) for v in deform.history.ravel())}"'
-        text += f'  <Box size="{size}" periodic="{periodic}"{shear}/>\n'
+            motion += f' deform_history="{" ".join(repr(float(v)) for v in deform.history.ravel())}"'
+        text += f'  <Box size="{size}" periodic="{periodic}"{motion}/>\n'
     return text + "</VTKFile>\n"
 
 

@@ -51,7 +51,7 @@ def region(position, radius, box, time=None):
     hi = np.ceil((np.max(position, axis=0) + 0.5 * step) / step) * step
     if box is not None:
         lo = np.where(box.periodic, 0.0, lo)
-        hi = np.where(box.periodic, box.size_at(time) if getattr(box, "deform", None) is not None else box.size, hi)
+        hi = np.where(box.periodic, box.size_at(time), hi)
     return lo, hi
 
 
