@@ -22,10 +22,12 @@ for _name in SHIPPED_THRESHOLDS:
 #: the tests that open the second half of the collection. With -n 2 (--dist worksteal) each worker starts
 #: on its half of the collection; both opening on tier 1 left one waiting ~35 s for the other's compile of
 #: the same generic pieces (a function is compiled once by the processes sharing a cache). These compile
-#: scenes' own code (tier 2) first, beside the first worker's tier 1.
-SECOND_HALF_OPENS = ("tests/test_tiers.py::test_small_scene_with_multiple_time_steps_same_bits",
-                     "tests/test_analysis.py::test_final_spin_on_a_real_run",
-                     "tests/test_analysis.py::test_outcome_on_clear_cases[setup3-stick]")
+#: scenes' own code (tier 2) first, beside the first worker's tier 1: the paper's fused modules and the plain
+#: family, then the small scene's fused module (27 CPU s), by when the first worker has the full family's
+#: pair loops the small scene's tier-1 run needs (opening on it, it waited ~20 s for them).
+SECOND_HALF_OPENS = ("tests/test_analysis.py::test_final_spin_on_a_real_run",
+                     "tests/test_analysis.py::test_outcome_on_clear_cases[setup3-stick]",
+                     "tests/test_tiers.py::test_small_scene_with_multiple_time_steps_same_bits")
 
 
 def pytest_collection_modifyitems(config, items):

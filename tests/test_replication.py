@@ -21,7 +21,10 @@ def replicate():
 
 
 def test_quick_replication_writes_everything(replicate, tmp_path):
-    summary = replicate.main(["--quick", "--out", str(tmp_path)])
+    # one worker: the runs in this process, on tier 2 (the pool's workers, started by a forkserver that
+    # may predate paper_on_tier_2, ran them on tier 1: 5x slower, 18 s beside the other test worker);
+    # the pool itself is test_serial_execution_gives_the_same_result's
+    summary = replicate.main(["--quick", "--workers", "1", "--out", str(tmp_path)])
     docs = tmp_path / "docs"
     for name in ("omega_vs_b", "energy_ratio", "energy_aligned", "energy_anti_aligned", "capture"):
         png = docs / "figures" / "two_magnets" / f"{name}.png"
