@@ -1,6 +1,8 @@
 """Generated modules on disk and in memory: their names (a fingerprint of their text, the pair functions'
-source and demkit's whole source), numba's cache folder, one compile per machine (file locks), and
-loading a module from its file (cached) or from memory (functions defined in ``__main__``)."""
+source and demkit's whole source), numba's cache folder, and loading a module from its file (cached) or
+from memory (functions defined in ``__main__``). One compile per machine is numba_cache's lock, taken per
+function and signature: a lock over a whole module (until 1 Dec 2026) made a process wait while another
+compiled a *different* function of the same module (the suite's two workers, 13-16 s at its start)."""
 from __future__ import annotations
 
 import hashlib
@@ -155,50 +157,7 @@ def _load_from_file(name, source):
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
-    _compile_one_at_a_time(module, folder / f"{name}.lock")
     return module
-
-
-class _FileLock:
-    """An exclusive lock on a file shared by processes (re-entrant within one), so that processes
-    needing the same kernels at once (test workers, sweep workers, two terminals) compile them once:
-    the others wait, then load what the first wrote to numba's cache."""
-
-    def __init__(self, path):
-        self.path, self.depth, self.fh = path, 0, None
-
-    def __enter__(self):
-        if self.depth == 0:
-            try:
-                import fcntl
-                self.fh = open(self.path, "a")
-                fcntl.flock(self.fh, fcntl.LOCK_EX)
-            except (ImportError, OSError):  # no locking here (Windows, a read-only cache): just compile
-                self.fh = None
-        self.depth += 1
-        return self
-
-    def __exit__(self, *exc):
-        self.depth -= 1
-        if self.depth == 0 and self.fh is not None:
-            self.fh.close()  # releases the lock
-            self.fh = None
-        return False
-
-
-def _compile_one_at_a_time(module, lock_path):
-    """Every compilation of the module's functions under one file lock (see _FileLock)."""
-    lock = _FileLock(lock_path)
-    for obj in list(vars(module).values()):
-        if isinstance(obj, numba.core.registry.CPUDispatcher) and getattr(obj, "__module__", None) == module.__name__:
-            obj.compile = _locked(obj.compile, lock)
-
-
-def _locked(compile_, lock):
-    def compile(sig):
-        with lock:
-            return compile_(sig)
-    return compile
 
 
 def _load_in_memory(name, source, plan):
