@@ -128,13 +128,29 @@ def test_a_stopped_and_resumed_deforming_run_is_bit_identical(tmp_path):
     path = tmp_path / "deform.ckpt"
     for k, end in enumerate([0.062, 0.2, until]):
         again = squeezed_gas()
-        sim = dk.Simulation(again, dk.VelocityVerlet(2e-3), checkpoint=dk.Checkpoint(path))
+        vtk = dk.VTKWriter(tmp_path / "vtk", every=0.02, trails=False, resume=k > 0)
+        sim = dk.Simulation(again, dk.VelocityVerlet(2e-3), checkpoint=dk.Checkpoint(path), writers=[vtk])
         if k:
             sim.resume()
         sim.run(until=end, progress=False)
     assert truth["image"].any(), "spheres crossed the faces"
     assert_identical(state_of(again), truth)
     assert again.arrays["box"].tobytes() == scene.arrays["box"].tobytes()
+    # the box's outline at every frame (particles_box.pvd, demkit.io.box_outline), continued by the resumed runs
+    # as the spheres' series is: one outline per frame, each the box of its frame's time
+    import pyvista as pv
+    read = dk.read_series(tmp_path / "vtk")
+    outlines = pv.get_reader(str(tmp_path / "vtk" / "particles_box.pvd"))
+    # (16 frames every 0.02 and the end of the first run, 0.062)
+    assert np.allclose(outlines.time_values, read.time, rtol=0, atol=1e-12) and len(read.time) == 17
+    for t in read.time:
+        outlines.set_active_time_value(t)
+        mesh = outlines.read()[0]
+        size = again.box.size_at(t)
+        assert np.array_equal(mesh.field_data["box_size"], size) and mesh.n_cells == 12
+        assert np.allclose(mesh.bounds, [0, size[0], 0, size[1], 0, size[2]], rtol=0, atol=1e-12)
+        assert np.array_equal(np.bincount(mesh.cell_data["axis"]), [4, 4, 4])
+    assert again.box.size_at(read.time[-1])[0] < 0.95 * again.box.size_at(0.0)[0]  # (the outline moved)
 
 
 def test_setting_the_time_remaps_the_spheres_into_the_box_of_that_time():

@@ -238,6 +238,49 @@ def test_paraview_opens_the_series(tmp_path):
     assert "spheres, dipoles" in done.stdout and state.exists()
 
 
+PVPYTHON_BOX = textwrap.dedent("""
+    import sys
+    from paraview.simple import PVDReader
+    reader = PVDReader(FileName=sys.argv[1])
+    reader.UpdatePipelineInformation()
+    for t in reader.TimestepValues:
+        reader.UpdatePipeline(t)
+        print("BOX", t, *reader.GetDataInformation().GetBounds())
+""")
+
+
+@pytest.mark.skipif(shutil.which("pvpython") is None,
+                    reason="ParaView's pvpython is not installed (Debian package 'paraview')")
+def test_paraview_draws_a_deforming_box_frame_by_frame(tmp_path):
+    """A box compressed along x and drawn out along y: ParaView reads the outline series (each frame's box,
+    demkit.io.box_outline) at every time step, and the set-up script draws it instead of the fixed outline."""
+    rng = np.random.default_rng(1)
+    box = dk.Box(8.0, periodic=True, deform=dk.Deform(x=-0.2, y=0.1))
+    p = dk.Particles(position=dk.build.random_packing(30, 0.5, dk.Box(8.0, periodic=True), seed=rng),
+                     velocity=rng.normal(size=(30, 3)), radius=0.5, mass=1.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(1e3, 2.0)], box=box)
+    writer = dk.VTKWriter(tmp_path / "out", every=0.5)
+    sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3), writers=[writer])
+    sim.run(2.0, progress=False)
+    sim.close()
+    script = tmp_path / "check.py"
+    script.write_text(PVPYTHON_BOX)
+    done = subprocess.run(["pvpython", str(script), str(tmp_path / "out" / "particles_box.pvd")], capture_output=True,
+                          text=True, timeout=120)
+    rows = [list(map(float, line.split()[1:])) for line in done.stdout.splitlines() if line.startswith("BOX")]
+    assert len(rows) == 5, done.stdout + done.stderr
+    for t, *bounds in rows:
+        size = box.size_at(t)
+        assert np.allclose(bounds, [0, size[0], 0, size[1], 0, size[2]], rtol=1e-12, atol=1e-12)
+    assert rows[-1][2] == pytest.approx(8.0 * 0.6) and rows[-1][4] == pytest.approx(8.0 * 1.2)
+    state = tmp_path / "view.pvsm"
+    done = subprocess.run(["pvpython", str(dk.io.paraview_script()), str(writer.pvd), "--state", str(state)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "box outline at every frame (the box deforms: from 4.8 x 8 x 8 to 8 x 9.6 x 8 at most)" in done.stdout
+    assert "particles_box.pvd" in state.read_text()
+
+
 def test_trails_are_written_at_exit_when_the_writer_is_never_closed(tmp_path):
     code = textwrap.dedent(f"""
         import demkit as dk

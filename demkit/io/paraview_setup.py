@@ -20,8 +20,10 @@ run, which reads every frame); Glyph (Arrow, oriented by ``dipole``, centred on 
 (broken where a sphere crosses a periodic side; above 10 spheres only the last
 :data:`TRAIL_FRAMES` frames, so that the spheres stay readable); the ``<name>_trails.vtp``
 poly-lines (whole paths, coloured by time; hidden at first) when present; the box outline when the
-.pvd holds a ``Box`` element. The saved state has a layout holding the render view and a
-camera that frames the box, or else every position of the run.
+.pvd holds a ``Box`` element, and for a box that deforms the outline of each frame's box
+(``<name>_box.pvd``, :mod:`demkit.io.box_outline`) instead. The saved state has a layout holding the
+render view and a camera that frames the box (a deforming box's largest lengths), or else every
+position of the run.
 
 It says what it does as it goes, a line a step with the seconds since it started (loading ParaView
 and the steps that read every frame of a long series take a while).
@@ -63,8 +65,23 @@ def read_box(pvd):
     return size, periodic
 
 
-def decorate(reader, view, trails_file=None, box=None, colour_range="frame"):
-    """Add the demkit glyphs, arrows, trails and box to ``view``; returns the sources made.
+def box_frames(box_file):
+    """(reader, smallest lengths [3], largest lengths [3]) of a deforming box's outline series (the
+    .pvd ``box_file``: every frame's box [0, L]), or None when there is no such file."""
+    if not box_file or not os.path.exists(box_file):
+        return None
+    outline = pvs.PVDReader(registrationName="box", FileName=box_file)
+    sizes = []
+    for t in outline.TimestepValues or [0.0]:
+        outline.UpdatePipeline(t)
+        bounds = outline.GetDataInformation().GetBounds()
+        sizes.append([bounds[2 * a + 1] - bounds[2 * a] for a in range(3)])
+    return outline, [min(s[a] for s in sizes) for a in range(3)], [max(s[a] for s in sizes) for a in range(3)]
+
+
+def decorate(reader, view, trails_file=None, box=None, colour_range="frame", box_file=None):
+    """Add the demkit glyphs, arrows, trails and box to ``view`` (``box_file``: a deforming box's outline
+    series, drawn instead of the fixed outline); returns the sources made.
     ``colour_range``: 'frame' (the speed colours span the frame shown) or 'run' (the whole run)."""
     say("reading the series' frame list and its first frame...")
     reader.UpdatePipelineInformation()
@@ -116,8 +133,11 @@ def decorate(reader, view, trails_file=None, box=None, colour_range="frame"):
     paths.IdChannelArray = "id"
     paths.MaskPoints = 1
     paths.MaxTrackLength = TRAIL_FRAMES if count > ID_COLOURS_UP_TO else 100000
-    # a step longer than half a periodic side is a jump across the box: the track breaks there
-    paths.MaxStepDistance = [s / 2 if p else 1e30 for s, p in zip(*box)] if box else [1e30] * 3
+    # a step longer than half a periodic side is a jump across the box: the track breaks there (a
+    # deforming box: half its smallest side over the run)
+    deforming = box_frames(box_file) if box else None
+    sides = deforming[1] if deforming else (box[0] if box else None)
+    paths.MaxStepDistance = [s / 2 if p else 1e30 for s, p in zip(sides, box[1])] if box else [1e30] * 3
     paths_shown = pvs.Show(paths, view)
     pvs.ColorBy(paths_shown, ("POINTS", "id"))
     made["growing trails"] = paths
@@ -128,7 +148,16 @@ def decorate(reader, view, trails_file=None, box=None, colour_range="frame"):
         pvs.ColorBy(whole_shown, ("POINTS", "time"))
         pvs.Hide(whole, view)  # whole paths: tick the eye in the Pipeline Browser to show them
         made["trails"] = whole
-    if box:
+    if deforming:
+        outline, smallest, largest = deforming
+        say(f"box outline at every frame (the box deforms: from {smallest[0]:g} x {smallest[1]:g} x {smallest[2]:g} "
+            f"to {largest[0]:g} x {largest[1]:g} x {largest[2]:g} at most)...")
+        outline_shown = pvs.Show(outline, view)
+        outline_shown.ColorArrayName = ["POINTS", ""]
+        outline_shown.AmbientColor = outline_shown.DiffuseColor = [0.85, 0.85, 0.85]
+        made["box"] = outline
+        box = (largest, box[1])  # the camera frames the largest box
+    elif box:
         size = box[0]
         say(f"box outline {size[0]:g} x {size[1]:g} x {size[2]:g}...")
         outline = pvs.Box(registrationName="box", XLength=size[0], YLength=size[1], ZLength=size[2],
@@ -206,7 +235,7 @@ def main(argv=None):
     view.ViewSize = VIEW_SIZE
     pvs.GetAnimationScene().PlayMode = "Snap To TimeSteps"  # play the frames as written
     box = read_box(pvd)
-    made = decorate(reader, view, pvd[:-4] + "_trails.vtp", box, args.colour_range)
+    made = decorate(reader, view, pvd[:-4] + "_trails.vtp", box, args.colour_range, pvd[:-4] + "_box.pvd")
     state = os.path.abspath(args.state or pvd[:-4] + ".pvsm")
     say(f"writing the state file {state}...")
     pvs.SaveState(state)
@@ -248,7 +277,7 @@ def in_gui():
     name = getattr(source, "FileName", None)
     is_pvd = isinstance(name, str) and name.endswith(".pvd")
     decorate(source, pvs.GetActiveViewOrCreate("RenderView"), name[:-4] + "_trails.vtp" if is_pvd else None,
-             read_box(name) if is_pvd else None)
+             read_box(name) if is_pvd else None, box_file=name[:-4] + "_box.pvd" if is_pvd else None)
     pvs.GetAnimationScene().UpdateAnimationUsingDataTimeSteps()
     pvs.Render()
 

@@ -179,12 +179,13 @@ def read_box(path):
 
 
 #: the series a VTKWriter may write beside its particles' (demkit.io.writer): not what a folder is read for
-COMPANIONS = ("contacts", "walls")
+COMPANIONS = ("contacts", "walls", "box")
 
 
 def find_pvd(source):
     """The .pvd file named by ``source``: the file itself, or the only .pvd in a folder (not counting the
-    contacts' and walls' series written beside a series, ``<name>_contacts.pvd`` and ``<name>_walls.pvd``)."""
+    contacts', walls' and a deforming box's series written beside a series, ``<name>_contacts.pvd``,
+    ``<name>_walls.pvd`` and ``<name>_box.pvd``)."""
     source = Path(source)
     if source.is_dir():
         found = sorted(source.glob("*.pvd"))

@@ -24,6 +24,7 @@ import weakref
 import numpy as np
 
 from ..checks import writer_interval
+from .box_outline import write_outline
 from .frames import CONSTANT_FIELDS, VECTOR_FIELDS, FrameWriter, choose_fields, read_frame
 from .polylines import write_vtp_polygons
 from .series import write_polylines
@@ -82,7 +83,9 @@ class VTKWriter:
     fields : names among velocity, angular_velocity, dipole, force, torque to write (default: all
         the scene has; force and torque need one extra force evaluation per frame). id, radius and
         mass are always written, and ``image`` (periodic image counts) when the particles have it.
-        The scene's box (``scene.box``) is stored in the .pvd, and the trails are unwrapped.
+        The scene's box (``scene.box``) is stored in the .pvd, and the trails are unwrapped; a box
+        that deforms (``Box(deform=...)``) is also written at every frame as its outline, a series
+        ``<name>_box.pvd`` (:mod:`demkit.io.box_outline`), which ParaView shows frame by frame.
     dtype : 'float64' (default) or 'float32' (half the bytes).
     name : base name of the series files.
     overwrite : replace this series' files in a non-empty folder (other files are left alone).
@@ -121,6 +124,8 @@ class VTKWriter:
         self.wall_series = (SeriesFolder(folder, name + "_walls", overwrite, extension="vtp", resume=resume)
                             if walls else None)
         self._walls = None  # the scene's WallSurfaces, when it has walls (set by open/resume)
+        self._name, self._folder, self._overwrite, self._resume = name, folder, overwrite, resume
+        self.box_series = None  # the outline of a deforming box at every frame (set by open/resume)
         self.trails = bool(trails)
         self._trails = None
         self.fields = None
@@ -133,8 +138,11 @@ class VTKWriter:
         surfaces = self._wall_surfaces(simulation.scene)
         if surfaces is not None:
             self.wall_series.check_unclaimed()
+        boxes = self._box_series(simulation.scene)
+        if boxes is not None:
+            boxes.check_unclaimed()
         self.begin(simulation.scene.particles, **self._scene_options(simulation.scene))
-        self._walls = surfaces
+        self._walls, self.box_series = surfaces, boxes
 
     def resume(self, simulation):
         """Continue the series in the folder for ``simulation`` resumed from a checkpoint at
@@ -144,11 +152,17 @@ class VTKWriter:
         surfaces = self._wall_surfaces(simulation.scene)
         if surfaces is not None:
             kept, later = self.wall_series.frames_until(float(simulation.time), missing_ok=True)
+        boxes = self._box_series(simulation.scene)
+        if boxes is not None:
+            box_kept, box_later = boxes.frames_until(float(simulation.time), missing_ok=True)
         write = self.continue_series(simulation.time, simulation.scene.particles,
                                      **self._scene_options(simulation.scene))
         if surfaces is not None:
             self.wall_series.take_over(kept, later)
             self._walls = surfaces
+        if boxes is not None:
+            boxes.take_over(box_kept, box_later)
+            self.box_series = boxes
         return write
 
     def write(self, simulation):
@@ -172,6 +186,10 @@ class VTKWriter:
             points, connectivity, offsets, cells = self._walls.at(simulation.time)
             self.wall_series.add_frame(simulation.time, lambda path: write_vtp_polygons(
                 path, points, connectivity, offsets, cells, compress=bool(self._frames.compression)))
+        if self.box_series is not None:
+            size = simulation.scene.box.size_at(float(simulation.time))
+            self.box_series.add_frame(simulation.time, lambda path: write_outline(
+                path, size, simulation.time, compress=bool(self._frames.compression)))
 
     def _wall_surfaces(self, scene):
         """The scene's walls as surfaces (demkit.io.walls), or None: no walls, or not asked for."""
@@ -182,6 +200,13 @@ class VTKWriter:
             return None
         self.wall_series.box = getattr(scene, "box", None)
         return surfaces
+
+    def _box_series(self, scene):
+        """The series of a deforming box's outline (demkit.io.box_outline), or None: the box does not deform."""
+        box = getattr(scene, "box", None)
+        if box is None or getattr(box, "deform", None) is None:
+            return None
+        return SeriesFolder(self._folder, self._name + "_box", self._overwrite, extension="vtp", resume=self._resume)
 
     def close(self):
         """Finish the series: write the trails file (once). The frames and .pvd are complete already."""
