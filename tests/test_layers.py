@@ -11,6 +11,7 @@ input/output and pictures, and on top scene files, sweeps, LAMMPS decks and the 
 may import its own layer and those below.
 """
 import ast
+import functools
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "demkit"
@@ -39,8 +40,10 @@ def module_name(path):
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+@functools.cache
 def import_graph():
-    """{module: set of demkit modules it imports}, for every module of the package."""
+    """{module: set of demkit modules it imports}, for every module of the package (read once, when a test
+    asks: at the module's import it cost each test worker 3 s of collection)."""
     modules = {module_name(p): p for p in PACKAGE.rglob("*.py")}
     packages = {m for m, p in modules.items() if p.name == "__init__.py"}
 
@@ -129,24 +132,23 @@ def layer(module):
     return max(prefixes)[1]
 
 
-GRAPH = import_graph()
 
 
 def test_the_walker_sees_imports_inside_functions_and_through_re_exports():
     # a lazy import inside a function, and a name re-exported by demkit.interactions
-    assert "demkit.engine.templates" in GRAPH["demkit.engine.tiers"]
-    assert "demkit.interactions.dipole" in GRAPH["demkit.scene"]
-    assert {"demkit.interactions.contact", "demkit.interactions.wall"} <= GRAPH["demkit"]  # KelvinVoigt, Wall
+    assert "demkit.engine.templates" in import_graph()["demkit.engine.tiers"]
+    assert "demkit.interactions.dipole" in import_graph()["demkit.scene"]
+    assert {"demkit.interactions.contact", "demkit.interactions.wall"} <= import_graph()["demkit"]  # KelvinVoigt, Wall
     # and finds a circle when there is one
     assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
 
 def test_no_import_circles():
-    assert circles(GRAPH) == []
+    assert circles(import_graph()) == []
 
 
 def test_every_module_has_a_layer():
-    assert all(layer(m) >= 0 for m in GRAPH)
+    assert all(layer(m) >= 0 for m in import_graph())
 
 
 def upward(graph):
@@ -158,4 +160,4 @@ def upward(graph):
 def test_no_module_imports_a_higher_layer():
     assert upward({"demkit.checks": {"demkit.scene"}, "demkit.scene": {"demkit.checks"}}) == [
         "demkit.checks (foundations) -> demkit.scene (scenes)"]  # (what a violation looks like)
-    assert upward(GRAPH) == []
+    assert upward(import_graph()) == []
