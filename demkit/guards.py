@@ -108,7 +108,9 @@ def fastest_impact(scene):
     with v0_i the speed now, g the scene's gravity, h_i the distance the sphere's centre can fall
     along g before the walls stop it (:func:`fall_heights`; energy conservation: the drop's
     potential energy g h per unit mass becomes kinetic at most) and u the fastest wall's speed
-    (a moving wall drags spheres up to its speed and hits them at its speed plus theirs). Gravity
+    (a moving wall drags spheres up to its speed and hits them at its speed plus theirs); in a sheared
+    box half the speed gammadot L_b of the sliding images is added (a sphere meets an image at up to
+    2 v + gammadot L_b: :meth:`demkit.Scene.max_time_step` counts the same). Gravity
     with no wall below (a fall the walls do not bound) adds nothing here: ``why`` says so, and the
     speeds are re-checked while stepping. Magnets snapping together are added by the guards."""
     p = scene.particles
@@ -133,6 +135,12 @@ def fastest_impact(scene):
     if drag > 0.0:
         speed += drag
         why = f"{why}, plus {drag:.4g} of the fastest moving wall"
+    shear = getattr(getattr(scene, "box", None), "shear", None)
+    slide = abs(shear.jump(scene.box.size)) if shear is not None else 0.0
+    if slide > 0.0:  # a sphere and an image approach at up to 2 v + gammadot L_b: an impact at v + slide / 2
+        speed += 0.5 * slide
+        why = (f"{why}, plus half the {slide:.4g} at which the sheared box's images slide by (a sphere meets an "
+               f"image at up to 2 v + gammadot L_b)")
     return speed, why
 
 

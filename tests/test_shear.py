@@ -708,3 +708,37 @@ def test_a_free_sphere_across_the_sliding_boundary_keeps_its_straight_path_and_i
     expected = 2.0 * np.cross(x0[0], v0[0]) + p.inertia[0] * w0[0]
     assert np.abs(traj.angular_momentum - expected).max() < 1e-10
     assert np.abs(scene.angular_momentum() - expected).max() < 1e-10
+
+
+def test_the_time_step_limit_of_hertz_contacts_counts_the_imposed_flow():
+    """Hertz contacts limit the step by the contact time at the impact speed (2 max|v|; none at rest). In a
+    sheared box the flow drives spheres into the images sliding by at u = gammadot L_b, so spheres at rest
+    still get a finite limit: the Hertz contact time at impact speed 2 max|v| + |u| (by hand: a tenth of
+    2.87 (m*^2 / (R* E*^2 v))^(1/5), Hertz's duration of an impact at v)."""
+    n, R = 40, 0.5
+    size = dk.build.box_for(n, R, 0.3).size
+    pos = dk.build.random_packing(n, R, dk.Box(size, periodic=True), seed=2)
+    law = dk.Hertz(young=1e5, poisson=0.3, restitution=0.5)
+
+    def scene(rate, velocity):
+        box = dk.Box(size, periodic=True, shear=dk.Shear(rate, "z", "x")) if rate else dk.Box(size, periodic=True)
+        return dk.Scene(dk.Particles(position=pos, velocity=velocity, radius=R, mass=1.0), [law], box=box)
+
+    rest = np.zeros((n, 3))
+    assert scene(None, rest).max_time_step() == float("inf")
+    e_star = 1e5 / (2 * (1 - 0.3 ** 2))
+    by_hand = lambda v: 0.1 * 2.87 * ((0.5 ** 2) / ((R / 2) * e_star ** 2 * v)) ** 0.2  # noqa: E731
+    u = 0.5 * size[0]
+    assert scene(0.5, rest).max_time_step() == pytest.approx(by_hand(u), rel=2e-3)
+    moving = np.zeros((n, 3))
+    moving[0, 1] = 0.3
+    assert scene(-0.5, moving).max_time_step() == pytest.approx(by_hand(0.6 + u), rel=2e-3)
+    assert scene(None, moving).max_time_step() == pytest.approx(by_hand(0.6), rel=2e-3)
+    # the guards' largest safe step counts the same approach speed: a step between it and the limit
+    # without the flow is refused, naming the images' sliding
+    fast = scene(20.0, rest)
+    limit = fast.max_time_step()
+    assert limit == pytest.approx(by_hand(20.0 * size[0]), rel=2e-3)
+    with pytest.raises(ValueError, match="sheared box's images slide by"):
+        dk.Simulation(fast, dk.VelocityVerlet(1.5 * limit))
+    dk.Simulation(fast, dk.VelocityVerlet(limit))  # (accepted: the guards run as the simulation is made)
