@@ -132,3 +132,30 @@ def test_the_mesh_on_threads_gives_the_bits_of_one_thread():
                         angular_velocity=np.zeros((160, 3)))
 
     same_bits_on_two_threads_and_one(make, 0.05)
+
+
+def test_tuning_runs_on_one_thread_and_gives_the_tuning_of_two():
+    """A tuning's trial sums are small: they run on one of numba's threads (the count given back after), and
+    give what the same tuning gives on two threads (its trial sums' bits do not depend on the count)."""
+    import numba
+
+    from demkit.interactions import dipole
+    pos, dip = random_gas(n=160, side=15.0, seed=5)
+    p = dk.Particles(position=pos, radius=0.4, mass=1.0, dipole=0.3 * dip)
+    box = dk.Box(15.0, periodic=True)
+    seen = []
+    tune = dk.P3M(1e-4).tune
+
+    def watched(*args):
+        seen.append(numba.get_num_threads())
+        return tune(*args)
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        one = dipole._on_one_thread(watched, 1.0, p, box, None)
+        assert seen == [1] and numba.get_num_threads() == 2
+        two = tune(1.0, p, box, None)  # (on two threads)
+    finally:
+        numba.set_num_threads(before)
+    assert (one.mesh, one.cutoff, one.alpha, one.estimated_error) == (two.mesh, two.cutoff, two.alpha, two.estimated_error)
