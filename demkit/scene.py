@@ -757,17 +757,15 @@ class Scene(SceneDiagnostics):
         limit depends on the impact speed (Hertz: 2 max|v| by default, no limit at rest) take in a
         sheared box 2 max|v| + |gammadot L_b|: the flow drives spheres into the images sliding by at
         gammadot L_b, even when they start at rest."""
+        members = self.interactions + self.effects
         shear = getattr(self.box, "shear", None)
-        limits = []
-        for inter in self.interactions + self.effects:
-            takes_speed = "speed" in inspect.signature(inter.max_time_step).parameters
-            if shear is not None and takes_speed:
-                v = self.particles.velocity
-                speed = 2.0 * float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0
-                limits.append(inter.max_time_step(self.particles, speed=speed + abs(shear.jump(self.box.size))))
-            else:
-                limits.append(inter.max_time_step(self.particles))
-        return min(limits + [math.inf])
+        if shear is None:
+            return min([inter.max_time_step(self.particles) for inter in members] + [math.inf])
+        v = self.particles.velocity
+        speed = (2.0 * float(np.max(np.linalg.norm(v, axis=1))) if len(v) else 0.0) + abs(shear.jump(self.box.size))
+        return min([inter.max_time_step(self.particles, speed=speed)
+                    if "speed" in inspect.signature(inter.max_time_step).parameters
+                    else inter.max_time_step(self.particles) for inter in members] + [math.inf])
 
     # ---- diagnostics ---------------------------------------------------------------------
     def check_layers(self):
