@@ -309,7 +309,7 @@ class Scene(SceneDiagnostics):
         pairs = new_pair_list(solver.cutoff if solver.kind == "list" else 0.0, n, 0, 1)
         if solver.kind == "list":
             neighbours.rebuild(pairs, position, index, index, self.arrays["box"], self.arrays["periodic"],
-                               self._shear_frame())
+                               self._shear_frame(), False)
         code = induction.induce(position, p.dipole, index, self.arrays["box"], self.arrays["periodic"], self.params,
                                 self.induction_slot, pairs.start, pairs.end, pairs.partner, np.zeros((n, 0)), 0,
                                 False, self._shear_frame())
@@ -665,7 +665,7 @@ class Scene(SceneDiagnostics):
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
         neighbours.rebuild(pl, p.position, index, index, self.arrays["box"], self.arrays["periodic"],
-                           self._shear_frame())
+                           self._shear_frame(), False)
         return neighbours.pairs_of(pl, index)
 
     def _shear_frame(self):

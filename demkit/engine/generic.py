@@ -53,7 +53,7 @@ import warnings
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, BOX_FUNCTIONS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
-                       PIECE_SIGNATURES, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
+                       PIECE_SIGNATURES, CHUNK_CALL, CHUNK_PARAMETERS, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
                        deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
 
@@ -207,27 +207,24 @@ class _Generic:
                  f"{inner}            history[p, h] = 0.0",
                  f"{inner}    continue"]
 
+        # each branch is the law's call alone, the sums shared (see sphere_functions: adding +0.0 for a
+        # law without torque or dissipation leaves the bits alone)
+        body += [f"{inner}{name} = 0.0" for name in ("ax", "ay", "az", "bix", "biy", "biz", "bjx", "bjy", "bjz", "w")]
+
         def branch(law):
             outs = ["ax", "ay", "az"] + (["bix", "biy", "biz", "bjx", "bjy", "bjz"] if law.torque else [])
             outs += ["w"] if law.dissipative else []
-            lines = [f"{', '.join(outs)} = {_pair_call(law, 'force')}", "fx += ax", "fy += ay", "fz += az",
-                     "if record:", "    entries[p, 3 + 3 * mm] = ax", "    entries[p, 4 + 3 * mm] = ay",
-                     "    entries[p, 5 + 3 * mm] = az"]
-            if law.torque:
-                lines += ["tix += bix", "tiy += biy", "tiz += biz", "tjx += bjx", "tjy += bjy", "tjz += bjz"]
-            if law.dissipative:
-                lines.append("power += w")
-            return lines
+            return [f"{', '.join(outs)} = {_pair_call(law, 'force')}"]
         body += _switch(self.laws, inner, branch)
         body += [f"{inner}{'elif' if self.laws else 'if'} kind == OWN:",  # a function of your own, through its adapter (demkit.engine.own_laws)
                  f"{inner}    ax, ay, az, bix, biy, biz, bjx, bjy, bjz, w = own(program[mb + M_INDEX], i, j, dx, dy, "
                  "dz, r2, s, history, p, off, commit, slot)",
-                 f"{inner}    fx += ax", f"{inner}    fy += ay", f"{inner}    fz += az",
-                 f"{inner}    if record:", f"{inner}        entries[p, 3 + 3 * mm] = ax",
-                 f"{inner}        entries[p, 4 + 3 * mm] = ay", f"{inner}        entries[p, 5 + 3 * mm] = az",
-                 f"{inner}    tix += bix", f"{inner}    tiy += biy", f"{inner}    tiz += biz",
-                 f"{inner}    tjx += bjx", f"{inner}    tjy += bjy", f"{inner}    tjz += bjz",
-                 f"{inner}    power += w"]
+                 f"{inner}fx += ax", f"{inner}fy += ay", f"{inner}fz += az",
+                 f"{inner}if record:", f"{inner}    entries[p, 3 + 3 * mm] = ax",
+                 f"{inner}    entries[p, 4 + 3 * mm] = ay", f"{inner}    entries[p, 5 + 3 * mm] = az",
+                 f"{inner}tix += bix", f"{inner}tiy += biy", f"{inner}tiz += biz",
+                 f"{inner}tjx += bjx", f"{inner}tjy += bjy", f"{inner}tjz += bjz",
+                 f"{inner}power += w"]
         body += [f"{pad}{force}[j, 0] += fx", f"{pad}{force}[j, 1] += fy", f"{pad}{force}[j, 2] += fz",
                  f"{pad}fix -= fx", f"{pad}fiy -= fy", f"{pad}fiz -= fz",
                  f"{pad}if torque_on:",
@@ -300,34 +297,34 @@ class _Generic:
 
     def chunked(self, name, loop):
         """A pair-loop function over fixed chunks of owners (see demkit.engine.kernels: the same bits on any
-        number of threads, and serially). Each chunk is one call of ``<name>_chunk``, a serial function
-        of the serial pieces: the loop on threads (prange) is a few lines around it, not a second copy
-        of the catalogue for numba's parallel compiler (which took 55 s over the whole loop)."""
-        lines = []
-        if not self.threads:
-            lines += ["", "", "@njit(**INNER)",
-                      f"def {name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last, program, "
-                      "record, entries, s, own):",
-                      '    """The owners first..last-1 of the loop, their forces into cf/ct; returns the power. With '
-                      'record (the\n    plain loop): entries[p, :3] the separation of entry p, entries[p, 3 + 3 m:] '
-                      'member m\'s force on j."""']
-            lines += self.header()
-            lines += ["    g_dipole = cg[3:6].T", "    power = 0.0"]
-            lines += loop("    ", "first", "last", "cf", "ct", "co", "cg")
-            lines += ["    return power"]
-        lines += ["", "", "@njit(**ENTRY_PARALLEL)" if self.threads else "@njit(**ENTRY)",
-                  f"def {name}({PIECE_SIGNATURES[name]}):"] + piece_prelude(name) + [
-                  "    torque_on = program[G_TORQUE] != 0"]
-        return lines + chunks_run("prange" if self.threads else "range",
-                                  f"{name}_chunk({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, "
-                                  "bounds[t], bounds[t + 1], program, np.False_, history, s, own)")
+        number of threads, and serially). Each chunk is one call of ``<name>_chunk``, a serial function;
+        the loop over the chunks on threads is not here but one function for every family
+        (:meth:`threads_loop`), given the chunk as a first-class function (each family's own copy cost
+        2-4 CPU s of numba's parallel compiler)."""
+        lines = ["", "", "@njit(**INNER)", f"def {name}_chunk({CHUNK_PARAMETERS}):",
+                 '    """The owners first..last-1 of the loop, their forces into cf/ct; returns the power. With '
+                 'record (the\n    plain loop): entries[p, :3] the separation of entry p, entries[p, 3 + 3 m:] '
+                 'member m\'s force on j."""']
+        lines += self.header()
+        lines += ["    g_dipole = cg[3:6].T", "    power = 0.0"]
+        lines += loop("    ", "first", "last", "cf", "ct", "co", "cg")
+        lines += ["    return power"]
+        lines += ["", "", "@njit(**ENTRY)",
+                  f"def {name}({PIECE_SIGNATURES[name]}):  # (chunk: this module's own, called directly)"]
+        lines += piece_prelude(name) + ["    torque_on = program[G_TORQUE] != 0"]
+        return lines + chunks_run("range", f"{name}_chunk{CHUNK_CALL}")
+
+    @staticmethod
+    def threads_loop():
+        """Tier 1's pair loop on threads, for every family: the chunks of ``chunk`` on prange."""
+        lines = ["", "", "@njit(**ENTRY_PARALLEL)", f"def pairs_on_threads({PIECE_SIGNATURES['pairs_forces']}):"]
+        lines += piece_prelude("pairs_forces") + ["    torque_on = program[G_TORQUE] != 0"]
+        return lines + chunks_run("prange", f"chunk{CHUNK_CALL}")
 
     def pair_functions(self):
         if self.family == BLOCKED:
             return self.chunked("pairs_forces_blocked", self.blocked_loop)
         lines = self.chunked("pairs_forces", lambda pad, a, b, f, t, o, g: self.plain_loop(pad, a, b, f, t))
-        if self.threads:  # the thread pieces: the chunked loop on prange, the rest is serial
-            return lines
         # energies: the loop, which also records each entry's energies when asked (diagnostics, called from
         # Python, as the force chunk is for each entry's forces: no second copy of the catalogue). The
         # pieces pass record as np.False_, a bool numba does not type as the literal False: a literal
@@ -370,30 +367,35 @@ class _Generic:
         lines += ["    for e in range(program[0, H_EFFECTS]):  # servo-controlled walls sum their push afresh",
                   "        servo_clear(params, program[EFFECT_ROW + e, E_GEOMETRY])"] + head
 
+        # one wall plane, one overlap test and one set of sums for every kind: each branch is the law's call
+        # alone (the effects' loop body is what numba's compile time grows with). Sums of +0.0 (a kind
+        # without torque or dissipation) leave the bits alone: the sums start at +0.0, never -0.0.
+        planes = [law.kind for law in self.effects if law.plane_contact]
+        pad = " " * 12
+        lines += [f"{pad}{name} = 0.0" for name in ("ax", "ay", "az", "bx", "by", "bz", "w") + WALL_PLANE]
+        lines += [f"{pad}overlap = 0.0",
+                  f"{pad}plane = {' or '.join(f'kind == {k}' for k in planes) or 'False'}",
+                  f"{pad}if plane:  # walls: the plane they present to sphere i (see wall_plane_line)",
+                  f"{pad}    {wall_plane_line()}",
+                  f"{pad}    overlap = radius[i] - (x * wnx + y * wny + z * wnz - wp)",
+                  f"{pad}    held = False",
+                  f"{pad}    for h in range(off, off + program[er, E_SIZE]):",
+                  f"{pad}        if history[i, h] != 0.0:",
+                  f"{pad}            held = True",
+                  f"{pad}            break",
+                  f"{pad}    if not (overlap > 0.0 or held):",
+                  f"{pad}        continue"]
+
         def branch(law):
             outs = ["ax", "ay", "az"] + (["bx", "by", "bz"] if law.torque else []) + (["w"] if law.dissipative else [])
-            body = [f"{', '.join(outs)} = {_effect_call(law, 'force')}"]
-            lines = []
-            if law.plane_contact:  # walls: plane, nx, ny, nz come first (see demkit.engine.kernels)
-                lines += [wall_plane_line(),
-                          "overlap = radius[i] - (x * wnx + y * wny + z * wnz - wp)",
-                          "held = False",
-                          "for h in range(off, off + program[er, E_SIZE]):",
-                          "    if history[i, h] != 0.0:",
-                          "        held = True",
-                          "        break",
-                          "if overlap > 0.0 or held:"]
-                body += deep_wall_overlap("e")
-                body += ["servo_add(params, program[er, E_GEOMETRY], ax, ay, az, wnx, wny, wnz, overlap)"]
-                pad = "    "
-            else:
-                pad = ""
-            body += effect_sums(law.torque, law.dissipative)
-            return lines + [pad + line for line in body]
-        lines += _switch(self.effects, " " * 12, branch)
-        lines += [f"            {'elif' if self.effects else 'if'} kind == OWN:",  # an effect of your own, through its adapter (demkit.engine.own_laws)
-                  "                ax, ay, az, bx, by, bz, w = own(e, i, x, y, z, s, history, off, commit, slot, table)"]
-        lines += ["    " * 4 + line for line in effect_sums(True, True)]
+            return [f"{', '.join(outs)} = {_effect_call(law, 'force')}"]
+        lines += _switch(self.effects, pad, branch)
+        lines += [f"{pad}{'elif' if self.effects else 'if'} kind == OWN:",  # an effect of your own, through its adapter (demkit.engine.own_laws)
+                  f"{pad}    ax, ay, az, bx, by, bz, w = own(e, i, x, y, z, s, history, off, commit, slot, table)",
+                  f"{pad}if plane:"]
+        lines += [f"{pad}    {line}" for line in deep_wall_overlap("e")]
+        lines += [f"{pad}    servo_add(params, program[er, E_GEOMETRY], ax, ay, az, wnx, wny, wnz, overlap)"]
+        lines += [pad + line for line in effect_sums(True, True)]
         lines.append("    return power")
         lines += ["", "", "@njit(**ENTRY)", f"def sphere_energies({PIECE_SIGNATURES['sphere_energies']}):",
                   '    """Add the potential energies of the single-sphere effects to out[kind]."""']
@@ -428,9 +430,10 @@ class _Generic:
                   "        if s.program[row, G_COUNT] > 0:",
                   "            pl = s.lists[g]"]
         lines += ["            if s.program[row, G_BLOCKED] != 0:",  # (blocked: over neighbour lists only)
-                  f"                power += calls[{PIECES.index('pairs_forces_blocked')}]({args})",
+                  f"                power += calls[{PIECES.index('pairs_forces_blocked')}]({args}, "
+                  f"{self.call('pairs_blocked_chunk')})",
                   "            else:",
-                  f"                power += calls[{PIECES.index('pairs_forces')}]({args})"]
+                  f"                power += calls[{PIECES.index('pairs_forces')}]({args}, {self.call('pairs_chunk')})"]
         if speed != "slow":
             lines += ["    if s.program[0, H_EFFECTS] > 0:",
                       f"        power += calls[{PIECES.index('sphere_forces')}](s, {force}, {torque}, commit_flag, "
@@ -469,7 +472,7 @@ class _Generic:
         lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le)"]
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le, np.bool_(LISTS_ON_THREADS))"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]", "    mark_built(s.params, dq, s.box)"]
         lines += MAINTAIN_LISTS_TAIL
         # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
@@ -489,7 +492,7 @@ class _Generic:
         for g in range(MAX_GROUPS):
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le)"]
+                      f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le, np.bool_(LISTS_ON_THREADS))"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]",
                   "    mark_built(s.params, s.program[0, H_DEFORM], s.box)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
@@ -608,6 +611,7 @@ class _Generic:
                  "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
                  "from demkit.engine.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
+                 "LISTS_ON_THREADS = False  # (the thread modules' list upkeep: True)",
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
                  "from demkit.engine.plan import BLOCK",
@@ -626,8 +630,8 @@ class _Generic:
                  f"SUM_ROW = {sum_row(0)}",
                  ""]
         if self.threads:  # the list upkeep alone (the time loops, and their passes over spheres, are serial)
-            lines += ["from demkit.engine.neighbours import (max_displacement_threads as max_displacement,",
-                      "                               rebuild_threads as rebuild)"]
+            lines += ["from demkit.engine.neighbours import max_displacement_threads as max_displacement",
+                      "LISTS_ON_THREADS = True"]
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules
         # (demkit.engine.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
@@ -656,25 +660,22 @@ class _Generic:
                           f"from {law.module} import {law.energy_name} as {prefix}_{law.kind}_energy"]
         blocked = self.family == BLOCKED
         names = ("pairs_forces_blocked",) if blocked else PIECES[:1] + PIECES[2:]
-        if self.threads:
-            lines.append(f"from {_pieces_name(False, self.family)[1]} import {names[0]}_chunk")
         lines += self.pair_functions()
-        if not (self.threads or blocked):
+        if not blocked:
             lines += self.sphere_functions()
         for name in names:
             params, result = PIECE_ARGUMENTS[name]
-            if not self.threads or name in THREAD_PIECES:
-                lines += ["", "", "@njit(**INNER)", f"def no_{name}({params}):", f"    return {result}"]
+            lines += ["", "", "@njit(**INNER)", f"def no_{name}({params}):", f"    return {result}"]
         return "\n".join(lines) + "\n"
 
     def text(self, templates):
         """The scene-level functions and the time loops: every function that reaches a piece takes the
         tuple ``calls`` (the pieces as first-class functions, :data:`PIECES` order) first. On threads,
-        the list upkeep alone: the time loops are the serial module's, given the upkeep on threads and
-        the thread pieces in ``calls`` (the same types, so the same compiled loops)."""
+        the list upkeep and the pair loop on threads alone: the time loops are the serial module's, given
+        the upkeep and the pair loop on threads in ``calls`` (the same types, so the same compiled loops)."""
         lines = self.imports()
         if self.threads:
-            return "\n".join(lines + self.upkeep_functions()) + "\n"
+            return "\n".join(lines + self.upkeep_functions() + self.threads_loop()) + "\n"
         lines += ["from demkit.engine.state import INDUCTION_FAILED",
                   "from demkit.interactions.induction import induce, induction_energy",
                   "from demkit.engine.program import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
@@ -701,7 +702,8 @@ class _Generic:
                   "", "", "@njit(**INNER)",
                   "def no_own_sphere_forces(e, i, x, y, z, s, history, off, commit, slot, table):",
                   "    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0",
-                  "", "", "no_own_sphere_energies = no_own_sphere_forces"]
+                  "", "", "no_own_sphere_energies = no_own_sphere_forces",
+                  "", "", "@njit(**INNER)", f"def no_pairs_chunk({CHUNK_PARAMETERS}):", "    return 0.0"]
         steps_of = {}  # each time loop: the functions in its tuple steps, in order
         for name, template in templates.items():
             src = textwrap.dedent(inspect.getsource(template))
@@ -766,8 +768,11 @@ SHEARED_CALLS = {"wrap_positions": "wrap_positions_sheared", "fold_frame": "fold
 #: i and j, power; an energy in the first), a single-sphere effect's (e, i, x, y, z, s, history,
 #: offset, commit, slot, table) and 7 (force, torque, power)
 OWN_CALLS = ("own_pair_forces", "own_pair_energies", "own_sphere_forces", "own_sphere_energies")
+#: tier 1's chunks of its pair loops, given to the pair pieces (tier 1's loop on threads runs them; a scene
+#: without a loop of that kind, or with its own pieces, is given the stub ``no_pairs_chunk``)
+CHUNK_CALLS = {"pairs_chunk": "pairs_forces", "pairs_blocked_chunk": "pairs_forces_blocked"}
 #: the names in the ``calls`` tuple, in order
-CALLS = PIECES + SCENE_PIECES + OWN_CALLS
+CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS)
 
 
 #: ... and what each stub returns
@@ -787,8 +792,7 @@ def _name(threads):
     return source, f"demkit_generic_{_fingerprint(source, [])}"
 
 
-def _pieces_name(threads, family):
+def _pieces_name(family):
     from .modules import _fingerprint
-    source = _Generic(threads, family).pieces_text()
-    return source, (f"demkit_generic_pieces_{family}_{'threads_' if threads else ''}"
-                    f"{_fingerprint(source, [])}")
+    source = _Generic(False, family).pieces_text()
+    return source, f"demkit_generic_pieces_{family}_{_fingerprint(source, [])}"

@@ -9,10 +9,10 @@ import numpy as np
 
 from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
-from .generic import CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES, UPKEEP, _name, _pieces_name
+from .generic import CALLS, CHUNK_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES, UPKEEP, _name, _pieces_name
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
                       H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
-from .snippets import SPEEDS
+from .snippets import ARRAYS, LIST_ARRAYS, SPEEDS
 from .state import pair_loop_arrays
 
 
@@ -32,10 +32,9 @@ def _load(key, source_and_name):
     return _MODULES[key]
 
 
-def _pieces(threads, family):
-    """The pieces module of a family (serial, or the thread pieces: the chunked loops on prange)."""
-    _load(("pieces", False, family), lambda: _pieces_name(False, family))
-    return _load(("pieces", threads, family), lambda: _pieces_name(threads, family))
+def _pieces(family):
+    """The pieces module of a family."""
+    return _load(("pieces", family), lambda: _pieces_name(family))
 
 
 def family_of(program):
@@ -139,11 +138,41 @@ def piece_arguments(state_type):
                  "pairs_energies": (state_type, pair_list, out, types.int64),
                  "sphere_energies": (state_type, out)}
     own = {kind: own_signature(kind, state_type) for kind in ("pair", "sphere")}
-    for name in PIECES:  # each piece takes its kind's adapter last
+    for name in PIECES:  # each piece takes its kind's adapter
         arguments[name] += (types.FunctionType(own["pair" if name.startswith("pairs") else "sphere"]),)
+    chunk = chunk_arguments(state_type, arguments["pairs_forces"][-1])
+    for name in CHUNK_CALLS:
+        arguments[name] = chunk
+    for name in THREAD_PIECES:  # ... and a pair loop the chunk of tier 1's loop last
+        arguments[name] += (types.FunctionType(types.float64(*chunk)),)
     for name in OWN_CALLS:
         arguments[name] = own["pair" if name.startswith("own_pair") else "sphere"].args
     return arguments
+
+
+def chunk_arguments(state_type, own):
+    """The argument types of a chunk of tier 1's pair loop (snippets.CHUNK_PARAMETERS) as the loops over
+    chunks call it (snippets.CHUNK_CALL): the state's arrays, the forces' buffer of chunk t (the force
+    array or a row of the threads' buffers: numba's unified type), the pair list's, ``own``'s type."""
+    import operator
+
+    from numba import types
+    from numba.core.registry import cpu_target
+    typing = cpu_target.typing_context
+    typing.refresh()
+
+    def row(array):  # the type of array[t]
+        return typing.resolve_function_type(operator.getitem, (array, types.int64), {}).return_type
+
+    f = _fields(state_type)
+    pl = _fields(f["lists"][0])
+    state = tuple(f[name] for name in ARRAYS.split(", "))
+    buffers = (typing.unify_types(f["force"], row(f["thread_force"])),
+               typing.unify_types(f["torque"], row(f["thread_torque"])))
+    lists = tuple(pl[name] for name in LIST_ARRAYS.split(", "))
+    return state + buffers + lists + (row(f["scratch"]), row(f["gather"]), types.boolean, row(pl["bounds"]),
+                                      row(pl["bounds"]), row(f["program"]), types.boolean, pl["history"],
+                                      state_type, own)
 
 
 def own_signature(kind, state_type):
@@ -181,9 +210,15 @@ class GenericKernels:
             arguments = piece_arguments(state_type)
             calls = []
             for name in CALLS:
+                if name in CHUNK_CALLS:  # tier 1's chunk of a pair loop the scene runs, else a stub
+                    piece = CHUNK_CALLS[name]
+                    family = BLOCKED if piece == "pairs_forces_blocked" else self.family
+                    function = (getattr(_pieces(family), f"{piece}_chunk")
+                                if piece in self.needs and self.pieces is None else self.module.no_pairs_chunk)
+                    calls.append(self._wrapped(function, arguments[name]))
+                    continue
                 family = BLOCKED if name == "pairs_forces_blocked" else self.family
-                module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(
-                    self.threads and name in THREAD_PIECES, family)
+                module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(family)
                 # the piece, or its stub when the scene never calls it (the list upkeep has none)
                 stubbed = (name not in self.needs or (name in OWN_CALLS and self.own is None)) and \
                     hasattr(module, f"no_{name}")
@@ -197,6 +232,8 @@ class GenericKernels:
                     function = getattr(own, f"piece_{name}")
                 elif name in OWN_CALLS and not stubbed:
                     function = getattr(self.own, name)
+                elif self.threads and name in THREAD_PIECES and not stubbed:  # tier 1's loop on threads
+                    function = self.upkeep.pairs_on_threads  # (running the chunk in calls)
                 elif "fold_frame" in self.needs and name in SHEARED_CALLS:  # a sheared box's
                     function = getattr(module, SHEARED_CALLS[name])
                 else:
@@ -214,7 +251,7 @@ class GenericKernels:
         if self.pieces is not None:  # the scene's own loop of group g (it takes no program row)
             function = getattr(getattr(self.pieces, "serial", self.pieces), f"group_{g}_{kind}")
         else:
-            pieces = _pieces(False, self.family)
+            pieces = _pieces(self.family)
             function = pieces.pairs_energies_rows if kind == "pair_energies" else pieces.pairs_forces_chunk
 
         def run(s, owners, partners, out):

@@ -556,7 +556,7 @@ class _Source:
             # callers pass strict as a bool *variable* (True != False): numba compiles a function
             # once per literal argument value, and this one links the whole list builder
             lines += MAINTAIN_LISTS_HEAD
-            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic)" for g in plan.lists]
+            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, np.zeros(0), np.bool_(LISTS_ON_THREADS))" for g in plan.lists]
             lines += MAINTAIN_LISTS_TAIL
         if plan.sorted:
             shortest = plan.lists[0]  # groups come sorted by reach: the cells of the shortest list
@@ -568,7 +568,7 @@ class _Source:
             lines += PERMUTE_BY_ORDER
             if plan.effect_width:
                 lines.append("    permute_rows(s.sphere_history, order)")
-            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic)" for g in plan.lists]
+            lines += [f"    rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, np.zeros(0), np.bool_(LISTS_ON_THREADS))" for g in plan.lists]
             lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
         # forces. forces_of has compute_forces' body written out on s.force/s.torque rather than a
         # call of it: numba re-reads and copies a function at every level of inlining (the time
@@ -661,6 +661,7 @@ class _Source:
                  "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list",
                  "from demkit.engine.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
+                 "LISTS_ON_THREADS = False  # (the thread modules' list upkeep: True)",
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS, LAST_SORT, SORT_EVERY,",
                  "                          INNER_STEPS, RUN_START, INDUCTION_FAILED, field)",
                  ""]
@@ -684,8 +685,8 @@ class _Source:
             lines += ["from demkit.engine.motion import (kick_threads as kick, drift_threads as drift, clear_threads as clear,",
                       "                           advance_spin_threads as advance_spin, kick_all_threads as kick_all,",
                       "                           state_is_finite_threads as state_is_finite)",
-                      "from demkit.engine.neighbours import (max_displacement_threads as max_displacement,",
-                      "                               rebuild_threads as rebuild)", ""]
+                      "from demkit.engine.neighbours import max_displacement_threads as max_displacement",
+                      "LISTS_ON_THREADS = True", ""]
         if self.importable:
             lines += function_imports(enumerate(plan.interactions), enumerate(plan.effects))
         cache = self.importable

@@ -470,28 +470,27 @@ def split_cells(cell_start, cells):
 
 
 # A list is built in three parts around its filling, which runs the chunks one after the other
-# (build, fill_serial) or on threads (build_threads, fill_threads): the same lists either way. Kept
-# apart so that a scene that never runs on threads never compiles the threaded builder (4.6 of the
-# 18 CPU s the list builder took to compile when one function held both).
+# (fill_serial) or on threads (fill_threads): the same lists either way. One builder takes the choice
+# as an argument, so that its body (binning, history carried by tag) compiles once for both (twins
+# inlining the same helpers cost 6.5 CPU s more per install).
+@njit(**HELPER)
+def fill(threads, arguments):
+    """fill_threads or fill_serial (the same lists) with the arguments of :func:`fill_arguments`."""
+    if threads:
+        fill_threads(*arguments)
+    else:
+        fill_serial(*arguments)
+
+
 @njit(**ENTRY)
-def build(pl, position, tag, box, periodic, le):
+def build(pl, position, tag, box, periodic, le, threads):
     """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
-    into len(pl.bounds) - 1 chunks filled one after the other, each in its own region of ``partner``
-    (grown, and the regions resized, when one overflows)."""
+    into len(pl.bounds) - 1 chunks filled one after the other (or on threads), each in its own region
+    of ``partner`` (grown, and the regions resized, when one overflows)."""
     work = start_build(pl, position, tag, box, periodic, le)
-    fill_serial(*fill_arguments(pl, box, periodic, work, le))
+    fill(threads, fill_arguments(pl, box, periodic, work, le))
     if grown(pl, work):
-        fill_serial(*fill_arguments(pl, box, periodic, work, le))
-    finish_build(pl, work)
-
-
-@njit(**ENTRY)
-def build_threads(pl, position, tag, box, periodic, le):
-    """:func:`build` with the chunks filled on threads (the same lists)."""
-    work = start_build(pl, position, tag, box, periodic, le)
-    fill_threads(*fill_arguments(pl, box, periodic, work, le))
-    if grown(pl, work):
-        fill_threads(*fill_arguments(pl, box, periodic, work, le))
+        fill(threads, fill_arguments(pl, box, periodic, work, le))
     finish_build(pl, work)
 
 
@@ -671,31 +670,21 @@ def balance(start, end, bounds):
 
 
 @njit(**ENTRY)
-def rebuild(pl, position, tag, before, box, periodic, shear=None):
+def rebuild(pl, position, tag, before, box, periodic, le, threads):
     """Rebuild one list, carrying its per-pair history by tag: ``before`` are the tags the particles
     had when the list was last built (``tag`` itself, unless they were re-ordered since: the sort
     permutes the particles first and then rebuilds every list with this one compiled function).
-    ``shear``: [a, b, delta] of Lees-Edwards images (demkit.engine.shear.list_frame), or empty/None."""
-    le = np.zeros(0) if shear is None else shear
+    ``le``: [a, b, delta, ...] of Lees-Edwards images (demkit.engine.shear.list_frame), or empty;
+    ``threads``: its chunks filled on threads (the same list). Generated callers pass
+    ``np.bool_(LISTS_ON_THREADS)``, a bool: numba compiles a function once per *literal* argument value,
+    and thin serial and threaded entry points around this one cost 1.3 CPU s each (linked and optimised
+    again)."""
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, before)
-        build(pl, position, tag, box, periodic, le)
+        build(pl, position, tag, box, periodic, le, threads)
         restore_history(pl, tag, owners, partners, rows)
     else:
-        build(pl, position, tag, box, periodic, le)
-    balance(pl.start, pl.end, pl.bounds)
-
-
-@njit(**ENTRY)
-def rebuild_threads(pl, position, tag, before, box, periodic, shear=None):
-    """:func:`rebuild` with the list's chunks filled on threads (the same list)."""
-    le = np.zeros(0) if shear is None else shear
-    if pl.history.shape[1] > 0:
-        owners, partners, rows = saved_history(pl, before)
-        build_threads(pl, position, tag, box, periodic, le)
-        restore_history(pl, tag, owners, partners, rows)
-    else:
-        build_threads(pl, position, tag, box, periodic, le)
+        build(pl, position, tag, box, periodic, le, threads)
     balance(pl.start, pl.end, pl.bounds)
 
 

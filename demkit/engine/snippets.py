@@ -14,11 +14,18 @@ LIST_ARRAYS = "start, end, partner, history"
 #: each piece's parameters: the state s and pair list pl whole (one pointer each; a first-class call
 #: passing the ~20 arrays themselves cost 0.2-0.3 us, more than two spheres' forces), the force
 #: buffers, the commit flag, the program row r of the pair loop, and ``own``: the scene's functions
-#: of your own behind one first-class function (demkit.engine.own_laws; tier 1's loops call it for kind OWN)
-PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r, own",
-                    "pairs_forces_blocked": "s, force, torque, pl, commit, r, own",
+#: of your own behind one first-class function (demkit.engine.own_laws; tier 1's loops call it for kind OWN),
+#: and for a pair loop ``chunk``: tier 1's chunk of its loop (CHUNK_PARAMETERS), which tier 1's loop on
+#: threads runs (one such loop for every family, demkit.engine.generic); the other pair pieces ignore it
+PIECE_SIGNATURES = {"pairs_forces": "s, force, torque, pl, commit, r, own, chunk",
+                    "pairs_forces_blocked": "s, force, torque, pl, commit, r, own, chunk",
                     "sphere_forces": "s, force, torque, commit, own", "pairs_energies": "s, pl, out, r, own",
                     "sphere_energies": "s, out, own"}
+#: the parameters of a chunk of tier 1's pair loop: owners first..last-1, their forces into cf/ct
+CHUNK_PARAMETERS = f"{ARRAYS}, cf, ct, {LIST_ARRAYS}, co, cg, commit, first, last, program, record, entries, s, own"
+#: ... and its call by a loop over the chunks (chunks_run)
+CHUNK_CALL = (f"({ARRAYS}, cf, ct, {LIST_ARRAYS}, scratch[t], gather[t], commit, bounds[t], bounds[t + 1], program, "
+              "np.False_, history, s, own)")
 
 
 def piece_prelude(name):
