@@ -27,6 +27,8 @@ Parts (all by default; name some to run only those):
 
 Usage: python benchmarks/bench_nbody.py [speed] [memory] [scaling] [allpairs] [unused] [plot] [--quick]
        [--models=nofric,full,nodip_nofric,nodip] (part speed: only these models; the others' rows are kept)
+       [--tier=2|1] (part speed: demkit's scenes on the fused modules, tier 2, rows ``speed``; or on the
+       generic tier 1, rows ``speed_tier1``: docs/engine.md)
 """
 from __future__ import annotations
 
@@ -74,7 +76,7 @@ CHILD = textwrap.dedent("""
         inters = [dk.KelvinVoigt(stiffness=1000.0, damping=1.5, **extra)]
         if not model.startswith("nodip"):
             inters.insert(0, dk.Dipole(prefactor=1.0, cutoff=4.0))
-        scene = dk.Scene(p, inters, box=box, skin=0.3, parallel=parallel)
+        scene = dk.Scene(p, inters, box=box, skin=0.3, parallel=parallel, tier={tier})
         return dk.Simulation(scene, dk.VelocityVerlet(dt=1e-3))
 
     fresh().run(duration=0.02)  # compile or load the kernels (kept for the process)
@@ -92,9 +94,9 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def demkit_run(model, threads, n=N_REFERENCE, steps=STEPS, repeats=3, folder=None):
+def demkit_run(model, threads, n=N_REFERENCE, steps=STEPS, repeats=3, folder=None, tier=None):
     code = CHILD.format(here=str(HERE), threads=threads, n=n, folder=folder, model=model, steps=steps,
-                        repeats=repeats)
+                        repeats=repeats, tier=tier)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(max(2, threads)))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     if out.returncode != 0:  # say why: the child's own error, not only its exit status
@@ -112,7 +114,7 @@ def lammps_rate(model, ranks, data, steps=STEPS, repeats=3):
     return max(rates)
 
 
-def part_speed(folder, quick, models=MODELS):
+def part_speed(folder, quick, models=MODELS, tier=2):
     import statistics
 
     from reference_scene import write_reference_scene
@@ -127,7 +129,8 @@ def part_speed(folder, quick, models=MODELS):
                 pair = {}
                 for code in ("demkit", "lammps") if r % 2 == 0 else ("lammps", "demkit"):
                     if code == "demkit":
-                        res = demkit_run(model, cores, steps=steps, folder=folder, repeats=1 if quick else 3)
+                        res = demkit_run(model, cores, steps=steps, folder=folder, repeats=1 if quick else 3,
+                                         tier=tier)
                         pair["demkit"] = res["particle_steps_per_second"]
                         builds.append(res["steps_per_build"])
                         lists = res["lists"]
@@ -137,7 +140,7 @@ def part_speed(folder, quick, models=MODELS):
                 theirs.append(pair["lammps"])
                 if pair["lammps"] is not None:
                     ratios.append(pair["demkit"] / pair["lammps"])
-            rows.append({"model": model, "cores": cores,
+            rows.append({"model": model, "cores": cores, "tier": tier,
                          "demkit_particle_steps_per_s": statistics.median(ours),
                          "lammps_atom_steps_per_s": statistics.median(theirs) if ratios else None,
                          "ratio": statistics.median(ratios) if ratios else None,
@@ -308,14 +311,16 @@ def main(argv):
             t = time.perf_counter()
             if part == "speed":
                 models = next((a.split("=", 1)[1].split(",") for a in argv if a.startswith("--models=")), MODELS)
-                rows = part_speed(folder, quick, models)
+                tier = int(next((a.split("=", 1)[1] for a in argv if a.startswith("--tier=")), 2))
+                rows = part_speed(folder, quick, models, tier)
+                key = "speed" if tier == 2 else "speed_tier1"
                 rev = subprocess.run(["git", "-C", str(HERE.parent), "rev-parse", "--short", "HEAD"],
                                      capture_output=True, text=True).stdout.strip()
                 when = f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} at {rev}"
                 for row in rows:
                     row["measured"] = when
-                kept = [r for r in results.get("speed", []) if r["model"] not in models]  # --models: the others stay
-                results["speed"] = sorted(kept + rows, key=lambda r: (MODELS.index(r["model"]), r["cores"]))
+                kept = [r for r in results.get(key, []) if r["model"] not in models]  # --models: the others stay
+                results[key] = sorted(kept + rows, key=lambda r: (MODELS.index(r["model"]), r["cores"]))
                 results["speed_note"] = (f"each row: median of {1 if quick else ROUNDS} alternating demkit/LAMMPS "
                                          "round(s), measured when its 'measured' says")
             elif part == "memory":
