@@ -524,3 +524,34 @@ def test_a_tier_switch_that_brings_a_thread_module_before_any_probe_gets_it_prob
     loop, steps = choice.loop(100, 10_000)
     assert loop == "thread loop" and choice.probing and steps < 100  # a short probe on threads
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+
+def test_a_tier_2_scene_with_its_thread_pieces_cached_loads_them_at_once(monkeypatch):
+    """With neighbour lists, tier 2 is the scene's own pieces: a new run looks for their thread module
+    in numba's cache (not for a fused module, which such a scene never compiles) and loads it when half a
+    second of run is left, as it does a cached fused module. Until 1 Dec 2026 it always waited for
+    WORTH_COMPILING (5 s) of run: the N = 8000 reference scene's 5-s runs stayed on one thread (17 M
+    particle-steps/s against 27 M on two)."""
+    import demkit.engine.generic_modules as generic_modules
+    import demkit.engine.modules as modules
+    import demkit.engine.threads as threads
+    import demkit.scene as scene_module
+    p, box = gas(n=300, periodic=True, seed=12)
+    monkeypatch.setattr(scene_module, "PARALLEL_MIN", 100)
+    monkeypatch.setattr(scene_module, "THREADS_FROM_SECONDS", 0.0)
+    scene = dk.Scene(p, [dk.KelvinVoigt(1000.0, 1.0)], box=box, tier=2, parallel=None)
+    assert scene._pieces_tier_2()
+    pieces = modules.pieces_source(scene.plan, scene.program_columns, threads=True)[1]
+    asked = []
+
+    def cached(module, function, answer):
+        asked.append((module, function))
+        return answer
+
+    monkeypatch.setattr(generic_modules, "is_cached", lambda threads, function: True)
+    for answer, worth in ((True, 0.5), (False, threads.WORTH_COMPILING)):
+        asked.clear()
+        monkeypatch.setattr(modules, "cached_function", lambda m, f, answer=answer: cached(m, f, answer))
+        choice = threads.ThreadChoice(scene, "velocity_verlet")
+        assert choice._worth() == worth
+        assert (pieces, "piece_pairs_forces") in asked

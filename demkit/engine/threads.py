@@ -262,6 +262,11 @@ class ThreadChoice:
             if self.serial_module is self.scene.kernels and self.scene.tier == 1:
                 from .generic_modules import is_cached as generic_cached
                 self._cached = generic_cached(True, self.name)
+            elif self.scene._pieces_tier_2():  # tier 2 of its own pieces: the pieces on threads and tier 1's loop
+                from .generic_modules import is_cached as generic_cached
+                from .modules import cached_function, pieces_source
+                pieces = pieces_source(self.scene.plan, self.scene.program_columns, threads=True)[1]
+                self._cached = generic_cached(True, self.name) and cached_function(pieces, "piece_pairs_forces")
             else:
                 self._cached = is_cached(self.scene.plan, TEMPLATES, self.name, threads=True)
         return 0.5 if self._cached else WORTH_COMPILING
