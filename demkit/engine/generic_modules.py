@@ -143,7 +143,7 @@ def piece_arguments(state_type):
     chunk = chunk_arguments(state_type, arguments["pairs_forces"][-1])
     for name in CHUNK_CALLS:
         arguments[name] = chunk
-    for name in THREAD_PIECES:  # ... and a pair loop the chunk of tier 1's loop last
+    for name in THREAD_PIECES:  # and the pair pieces, tier 1's chunk of their loop last
         arguments[name] += (types.FunctionType(types.float64(*chunk)),)
     for name in OWN_CALLS:
         arguments[name] = own["pair" if name.startswith("own_pair") else "sphere"].args
