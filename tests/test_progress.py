@@ -191,6 +191,18 @@ def test_the_compile_notice_expects_what_the_scene_needs(monkeypatch):
     assert notice.compile_estimate(small, "run") == notice.compile_estimate(small, "scene")  # no lists to build
 
 
+def test_the_one_time_compile_notice_expects_more_for_a_first_scene_with_lists():
+    """Tier 1's generic kernels on a new install: a scene in open space compiles the few pieces it needs
+    (about 10 s), the first scene with neighbour lists the list builder and the full pieces too."""
+    small = SimpleNamespace(growing=False, interactions=[], effects=[])
+    lists = SimpleNamespace(growing=True, interactions=[], effects=[])
+    lo, hi = notice.ESTIMATES["generic"]
+    assert notice.compile_estimate(small, "run", tier=1).endswith(f"about {lo}-{hi} s on an idle machine")
+    lo_lists, hi_lists = notice.ESTIMATES["generic_lists"]
+    assert notice.compile_estimate(lists, "run", tier=1).endswith(f"about {lo_lists}-{hi_lists} s on an idle machine")
+    assert lo_lists > lo and hi_lists > hi
+
+
 def test_small_scenes_find_close_pairs_like_the_cell_list(rng):
     box = dk.Box([10.0, 10.0, 10.0], periodic=[True, True, False])
     for n, b in ((40, box), (40, None), (3, None)):
