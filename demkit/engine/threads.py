@@ -257,14 +257,12 @@ class ThreadChoice:
         """Seconds of run left (at the one-thread rate) that make loading the thread module worth
         it: WORTH_COMPILING when it must be compiled, 0.5 s when numba's cache has it."""
         if self._cached is None:
+            from .generic_modules import is_cached as generic_cached
+            from .modules import cached_function, is_cached, pieces_source
             from .templates import TEMPLATES
-            from .modules import is_cached
             if self.serial_module is self.scene.kernels and self.scene.tier == 1:
-                from .generic_modules import is_cached as generic_cached
                 self._cached = generic_cached(True, self.name)
             elif self.scene._pieces_tier_2():  # tier 2 of its own pieces: the pieces on threads and tier 1's loop
-                from .generic_modules import is_cached as generic_cached
-                from .modules import cached_function, pieces_source
                 pieces = pieces_source(self.scene.plan, self.scene.program_columns, threads=True)[1]
                 self._cached = generic_cached(True, self.name) and cached_function(pieces, "piece_pairs_forces")
             else:
