@@ -413,9 +413,15 @@ class _Generic:
         """How the scene-level functions call ``name`` (of :data:`CALLS`): through ``calls``."""
         return f"calls[{CALLS.index(name)}]"
 
+    def upkeep_call(self, name, *arguments):
+        """The call of the list upkeep ``name`` (maintain_lists, sort_particles) with the list builder and
+        the threads' flag of ``calls``."""
+        rest = [self.call(n) for n in LIST_CALLS]
+        return f"{self.call(name)}({', '.join(['s', *arguments, *rest])})"
+
     def forces_body(self, speed, force, torque, strict):
         sp = SPEEDS.index(speed)
-        lines = [f"    {self.call('maintain_lists')}(s, {strict} != False)"]
+        lines = [f"    {self.upkeep_call('maintain_lists', f'{strict} != False')}"]
         lines += ["    commit_flag = commit != False"]
         if speed != "fast":  # induced moments first: the slow forces read them
             lines += ["    if s.program[0, H_INDUCTION] != 0:",
@@ -454,12 +460,19 @@ class _Generic:
         return lines
 
     def upkeep_functions(self):
-        """maintain_lists and sort_particles: the list upkeep (on threads: the lists built on threads)."""
+        """maintain_lists and sort_particles: the list upkeep, given the list builder as a first-class
+        function (``rebuild_list``: :func:`demkit.engine.neighbours.rebuild`; called directly, its whole
+        body was linked into each caller and optimised again there, 1.2 CPU s a caller) and whether the
+        lists are built on threads (``threads``: True in the thread module's ``calls``, the same lists)."""
+        head = [line.replace("def maintain_lists(s, strict):", "def maintain_lists(s, strict, rebuild_list, threads):")
+                .replace("d2, k = max_displacement(s.position, s.reference)",
+                         "d2, k = max_displacement_threads(s.position, s.reference) if threads else "
+                         "max_displacement(s.position, s.reference)") for line in MAINTAIN_LISTS_HEAD]
         lines = []
         # in a sheared box the sliding since the last build counts against the skin (demkit.engine.shear)
-        test = MAINTAIN_LISTS_HEAD.index("    if d2 <= 0.25 * s.skin * s.skin:")
+        test = head.index("    if d2 <= 0.25 * s.skin * s.skin:")
         # in a deforming box the remap's squeeze since the build (demkit.engine.deform)
-        lines += MAINTAIN_LISTS_HEAD[:test] + [
+        lines += head[:test] + [
             "    sh = s.program[0, H_SHEAR]",
             "    dq = s.program[0, H_DEFORM]",
             "    if sh >= 0:",
@@ -468,17 +481,17 @@ class _Generic:
             "    elif dq >= 0:",
             "        if 2.0 * math.sqrt(d2) + squeeze_since_build(s.params, dq, s.box) <= s.skin:",
             "            return",
-            "    el" + MAINTAIN_LISTS_HEAD[test].lstrip()] + MAINTAIN_LISTS_HEAD[test + 1:]
+            "    el" + head[test].lstrip()] + head[test + 1:]
         lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le, np.bool_(LISTS_ON_THREADS))"]
+                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le, threads)"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]", "    mark_built(s.params, dq, s.box)"]
         lines += MAINTAIN_LISTS_TAIL
         # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
         # saved by the tags the particles had (``before``): saving and restoring it here, inlined for
         # each of the groups, compiled for 10 CPU s a module
-        lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s):",
+        lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s, rebuild_list, threads):",
                   '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""',
                   "    before = s.tag.copy()"]
         lines += ["    shortest = s.program[0, H_SHORTEST]",
@@ -492,7 +505,7 @@ class _Generic:
         for g in range(MAX_GROUPS):
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                      f"        rebuild(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le, np.bool_(LISTS_ON_THREADS))"]
+                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le, threads)"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]",
                   "    mark_built(s.params, s.program[0, H_DEFORM], s.box)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
@@ -528,7 +541,7 @@ class _Generic:
                   "s.sphere_history, offset, commit, frame)"]
         lines += ["", "", "@njit(**OUTER)", "def induce_of(calls, s):",
                   '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
-        lines.append(f"    {self.call('maintain_lists')}(s, False != False)")
+        lines.append(f"    {self.upkeep_call('maintain_lists', 'False != False')}")
         lines += [f"    return {self.call('induce_now')}(s, False != False)"]
         lines += ["", "", "@njit(**OUTER)", "def compute_forces(calls, s, force, torque, commit, strict):",
                   '    """Forces and torques at the current state into force/torque; returns the dissipated power."""']
@@ -562,7 +575,7 @@ class _Generic:
                   "    return earliest"]
         lines += ["", "", "@njit(**OUTER)", "def energies_of(calls, s, out):",
                   '    """out = [kinetic, rotational, <one potential energy per kind>]."""']
-        lines.append(f"    {self.call('maintain_lists')}(s, False != False)")
+        lines.append(f"    {self.upkeep_call('maintain_lists', 'False != False')}")
         lines += ["    for a in range(out.shape[0]):", "        out[a] = 0.0",
                   "    out[0], out[1] = kinetic_energies(s.velocity, s.angular_velocity, s.mass, s.inertia)"]
         lines += [f"    for g in range({MAX_GROUPS}):",
@@ -589,7 +602,7 @@ class _Generic:
                   f"            {self.call('wrap_positions')}(s)",
                   "        if s.program[0, H_SORTED] != 0:",
                   "            if step + s.counters[RUN_START] - s.counters[LAST_SORT] >= s.counters[SORT_EVERY]:",
-                  f"                {self.call('sort_particles')}(s)",
+                  f"                {self.upkeep_call('sort_particles')}",
                   "                s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
         # record_frame through ``frame`` (a time loop's steps[...]): called, it would be linked into
         # end_step and optimised again there (2.5 CPU s at a scene's first step)
@@ -609,9 +622,8 @@ class _Generic:
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
                  "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
                  "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
-                 "from demkit.engine.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
-                 "                               permute_vectors, permute_scalars, permute_rows)",
-                 "LISTS_ON_THREADS = False  # (the thread modules' list upkeep: True)",
+                 "from demkit.engine.neighbours import (max_displacement, max_displacement_threads, copy_rows, wrap,",
+                 "                               cell_order, permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",
                  "                          LAST_SORT, SORT_EVERY, INNER_STEPS, RUN_START, field)",
                  "from demkit.engine.plan import BLOCK",
@@ -629,9 +641,6 @@ class _Generic:
                  f"EFFECT_ROW = {effect_row(0)}",
                  f"SUM_ROW = {sum_row(0)}",
                  ""]
-        if self.threads:  # the list upkeep alone (the time loops, and their passes over spheres, are serial)
-            lines += ["from demkit.engine.neighbours import max_displacement_threads as max_displacement",
-                      "LISTS_ON_THREADS = True"]
         # IEEE arithmetic in every generated loop: with fast-math flags (fused multiply-adds) LLVM
         # rounds differently where code is shaped differently, and the generic and fused modules
         # (demkit.engine.tiers) would not give the same bits (a Langevin bath beside walls, a switched power
@@ -671,11 +680,12 @@ class _Generic:
     def text(self, templates):
         """The scene-level functions and the time loops: every function that reaches a piece takes the
         tuple ``calls`` (the pieces as first-class functions, :data:`PIECES` order) first. On threads,
-        the list upkeep and the pair loop on threads alone: the time loops are the serial module's, given
-        the upkeep and the pair loop on threads in ``calls`` (the same types, so the same compiled loops)."""
+        the pair loop on threads alone: the time loops and the list upkeep are the serial module's, given
+        the pair loop on threads and ``lists_on_threads`` True in ``calls`` (the same types, so the same
+        compiled loops)."""
         lines = self.imports()
         if self.threads:
-            return "\n".join(lines + self.upkeep_functions() + self.threads_loop()) + "\n"
+            return "\n".join(lines + self.threads_loop()) + "\n"
         lines += ["from demkit.engine.state import INDUCTION_FAILED",
                   "from demkit.interactions.induction import induce, induction_energy",
                   "from demkit.engine.program import (H_SUMS, H_INDUCTION, H_INDUCTION_GROUP, H_INDUCTION_SLOT, "
@@ -686,8 +696,10 @@ class _Generic:
                   + ")"]
         lines += self.scene_functions()
         # stubs passed for the list upkeep, the sums and the induction solve to scenes without them
-        lines += ["", "", "@njit(**LOOP)", "def no_maintain_lists(s, strict):", "    return",
-                  "", "", "@njit(**LOOP)", "def no_sort_particles(s):", "    return",
+        lines += ["", "", "@njit(**LOOP)", "def no_maintain_lists(s, strict, rebuild_list, threads):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_sort_particles(s, rebuild_list, threads):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_rebuild_list(pl, position, tag, before, box, periodic, le, threads):",
+                  "    return",
                   "", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
                   "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
                   "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0",
@@ -755,7 +767,7 @@ STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_cont
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
 SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now", "wrap_positions",
                 "fold_frame", "deform_box")
-#: ... of which the list upkeep, which has a twin on threads
+#: ... of which the list upkeep, given the two LIST_CALLS (below) as its last arguments
 UPKEEP = SCENE_PIECES[:2]
 #: the scene pieces a sheared box takes in place of the plain ones (its own name in the module), and
 #: what only a sheared box calls: a scene in a fixed box compiles none of their shear code
@@ -771,8 +783,13 @@ OWN_CALLS = ("own_pair_forces", "own_pair_energies", "own_sphere_forces", "own_s
 #: tier 1's chunks of its pair loops, given to the pair pieces (tier 1's loop on threads runs them; a scene
 #: without a loop of that kind, or with its own pieces, is given the stub ``no_pairs_chunk``)
 CHUNK_CALLS = {"pairs_chunk": "pairs_forces", "pairs_blocked_chunk": "pairs_forces_blocked"}
+#: the list builder (demkit.engine.neighbours.rebuild, or a stub for a scene without lists) as a
+#: first-class function, and whether the lists are built on threads (a bool: True in the thread module's
+#: ``calls``), passed on to the list upkeep (UPKEEP): one compiled upkeep for both, the builder linked
+#: into none of them
+LIST_CALLS = ("rebuild_list", "lists_on_threads")
 #: the names in the ``calls`` tuple, in order
-CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS)
+CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS) + LIST_CALLS
 
 
 #: ... and what each stub returns

@@ -9,7 +9,8 @@ import numpy as np
 
 from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
-from .generic import CALLS, CHUNK_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES, UPKEEP, _name, _pieces_name
+from .generic import (CALLS, CHUNK_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
+                      UPKEEP, _name, _pieces_name)
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
                       H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
 from .snippets import ARRAYS, LIST_ARRAYS, SPEEDS
@@ -64,8 +65,8 @@ def build_generic(threads=False, needs=CALLS, pieces=None, family="full", own_en
     view = key + (tuple(needs), pieces and pieces.__name__, family, own_energies, own and own.__name__)
     if view not in _MODULES:
         module = _load(("generic", False), lambda: _name(False))
-        upkeep = _load(key, lambda: _name(True)) if threads else module
-        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies, upkeep,
+        on_threads = _load(key, lambda: _name(True)) if threads else module
+        _MODULES[view] = GenericKernels(module, bool(threads), tuple(needs), pieces, family, own_energies, on_threads,
                                         own)
     return _MODULES[view]
 
@@ -104,11 +105,11 @@ def needs_of(program):
 
 
 def is_cached(threads, function):
-    """Is ``function`` of the generic module in numba's disk cache already (on threads: and the list
-    upkeep on threads)?"""
+    """Is ``function`` of the generic module in numba's disk cache already (on threads: and tier 1's
+    pair loop on threads)?"""
     from .modules import cached_function
     return cached_function(_name(False)[1], function) and (not threads or
-                                                            cached_function(_name(True)[1], "maintain_lists"))
+                                                            cached_function(_name(True)[1], "pairs_on_threads"))
 
 
 def _fields(ty):
@@ -127,7 +128,11 @@ def piece_arguments(state_type):
     chunked = (state_type, f["force"], f["torque"], pair_list, types.boolean, types.int64)
     out = types.Array(types.float64, 1, "C")
     frames = types.Array(types.float64, 3, "C")  # the record's positions and velocities (demkit.recording)
-    arguments = {"maintain_lists": (state_type, types.boolean), "sort_particles": (state_type,),
+    # the list builder (demkit.engine.neighbours.rebuild) as the upkeep calls it, and its first-class type
+    rebuild = (pair_list, f["position"], f["tag"], f["tag"], f["box"], f["periodic"], out, types.boolean)
+    builder = types.FunctionType(types.none(*rebuild))
+    arguments = {"maintain_lists": (state_type, types.boolean, builder, types.boolean),
+                 "sort_particles": (state_type, builder, types.boolean), "rebuild_list": rebuild,
                  "long_range": (state_type, f["force"], f["torque"]),
                  "sum_energies": (state_type, out),
                  "induce_now": (state_type, types.boolean), "wrap_positions": (state_type,),
@@ -193,10 +198,11 @@ class GenericKernels:
     that call the pieces ``needs``: its functions that take the pieces are given them (compiled for
     the state's type, the others replaced by stubs, :func:`calls_for`)."""
 
-    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, upkeep=None, own=None):
+    def __init__(self, module, threads, needs, pieces=None, family="full", own_energies=True, on_threads=None,
+                 own=None):
         self.module, self.threads, self.needs = module, threads, needs
         self.own = own  # the adapters of the scene's functions of your own (demkit.engine.own_laws), or None
-        self.upkeep = upkeep or module  # maintain_lists and sort_particles (on threads: the thread module's)
+        self.on_threads = on_threads or module  # the thread module (tier 1's pair loop on threads)
         self.family, self.own_energies = family, own_energies
         self.pieces = pieces  # a scene's own pieces (tier 2), or None: the generic ones
         self.tier = 1 if pieces is None else 2
@@ -217,13 +223,18 @@ class GenericKernels:
                                 if piece in self.needs and self.pieces is None else self.module.no_pairs_chunk)
                     calls.append(self._wrapped(function, arguments[name]))
                     continue
+                if name == "lists_on_threads":  # a bool, the same type in both modules' calls
+                    calls.append(np.bool_(self.threads))
+                    continue
+                if name == "rebuild_list":  # the list builder, or a stub for a scene without lists
+                    function = neighbours.rebuild if "maintain_lists" in self.needs else self.module.no_rebuild_list
+                    calls.append(self._wrapped(function, arguments[name]))
+                    continue
                 family = BLOCKED if name == "pairs_forces_blocked" else self.family
                 module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(family)
-                # the piece, or its stub when the scene never calls it (the list upkeep has none)
+                # the piece, or its stub when the scene never calls it
                 stubbed = (name not in self.needs or (name in OWN_CALLS and self.own is None)) and \
                     hasattr(module, f"no_{name}")
-                if name in UPKEEP and not stubbed:
-                    module = self.upkeep
                 own_piece = name in PIECES and (self.own_energies or "energies" not in name)
                 if self.pieces is not None and own_piece and not stubbed:
                     own = self.pieces  # the scene's own; its thread pieces hold the chunked loops alone
@@ -233,7 +244,7 @@ class GenericKernels:
                 elif name in OWN_CALLS and not stubbed:
                     function = getattr(self.own, name)
                 elif self.threads and name in THREAD_PIECES and not stubbed:  # tier 1's loop on threads
-                    function = self.upkeep.pairs_on_threads  # (running the chunk in calls)
+                    function = self.on_threads.pairs_on_threads  # (running the chunk in calls)
                 elif "fold_frame" in self.needs and name in SHEARED_CALLS:  # a sheared box's
                     function = getattr(module, SHEARED_CALLS[name])
                 else:
@@ -257,7 +268,7 @@ class GenericKernels:
         def run(s, owners, partners, out):
             import numba
             if "maintain_lists" in self.needs:
-                self.module.maintain_lists(s, False)
+                self.maintain_lists(s, False)
             *arrays, program = pair_loop_arrays(s, g)
             if self.pieces is not None:
                 return function(*arrays, owners, partners, out)
@@ -320,10 +331,21 @@ class GenericKernels:
             if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
                 return self._diagnostic(kind, int(name[len(kind) + 1:]))
         if name not in self._bound:  # the module's function, or it bound to the pieces when it takes them
-            function = getattr(self.upkeep if name in UPKEEP else self.module, name)
+            function = getattr(self.module, name)
             takes = "calls" in inspect.signature(function.py_func).parameters
-            self._bound[name] = _Bound(self, function) if takes else function
+            self._bound[name] = _Bound(self, function) if takes else (self._upkeep(function) if name in UPKEEP
+                                                                      else function)
         return self._bound[name]
+
+    def _upkeep(self, function):
+        """The list upkeep called from Python: given the list builder and the threads' flag of ``calls``."""
+        import numba
+        rest = [CALLS.index(name) for name in LIST_CALLS]
+
+        def upkeep(s, *arguments):
+            calls = self.calls_for(numba.typeof(s))
+            return function(s, *arguments, *(calls[k] for k in rest))
+        return upkeep
 
 
 class _Bound:

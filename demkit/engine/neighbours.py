@@ -675,10 +675,11 @@ def rebuild(pl, position, tag, before, box, periodic, le, threads):
     had when the list was last built (``tag`` itself, unless they were re-ordered since: the sort
     permutes the particles first and then rebuilds every list with this one compiled function).
     ``le``: [a, b, delta, ...] of Lees-Edwards images (demkit.engine.shear.list_frame), or empty;
-    ``threads``: its chunks filled on threads (the same list). Generated callers pass
-    ``np.bool_(LISTS_ON_THREADS)``, a bool: numba compiles a function once per *literal* argument value,
-    and thin serial and threaded entry points around this one cost 1.3 CPU s each (linked and optimised
-    again)."""
+    ``threads``: its chunks filled on threads (the same list), a bool and not a literal (numba compiles a
+    function once per *literal* argument value): the generic list upkeep passes its ``calls``' flag, a
+    fused module ``np.bool_(LISTS_ON_THREADS)``. The generic upkeep calls this function as a first-class
+    function: each function that calls it directly has its whole body linked in and optimised again
+    (1.2-1.3 CPU s a caller)."""
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, before)
         build(pl, position, tag, box, periodic, le, threads)
