@@ -70,12 +70,10 @@ def test_magnets_spinning_a_radian_per_step_keep_their_moments_and_energy():
     assert err[half:].max() < 1.5 * err[:half].max()
 
 
-@pytest.mark.usefixtures("paper_on_tier_2")
 def test_ten_million_steps_of_a_spinning_bound_pair_keep_the_energy_bounded():
     """The paper's final state: two magnets touching head to tail, revolving as a barbell at
     omega_f = 1.19e-3 with one moment tilted by 0.05 rad (it librates), no damping: 1e7 velocity-Verlet
-    steps of dt = 0.01, 19 revolutions (on tier 2, the paper's fused module: 4x faster than tier 1 for
-    two spheres, the same bits, tests/test_tiers.py)."""
+    steps of dt = 0.01, 19 revolutions."""
     radius, k = PAPER.radius, 1.0
     distance = 2 * radius - 6 / 3 / (2 * radius) ** 4 / k  # held by the static overlap
     w, tilt = 1.19e-3, 0.05
