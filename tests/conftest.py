@@ -153,14 +153,21 @@ if __import__("os").environ.get("DEMKIT_COMPILE_LOG"):
     _LOG = _CompileLog()
     event.register("numba:compile", _LOG)
 
+    def _children_cpu():
+        import resource
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
     @pytest.fixture(autouse=True)
     def _log_compiles(request):
         _LOG.test = request.node.nodeid
-        began, cpu = time.perf_counter(), time.process_time()
+        began, cpu, children = time.perf_counter(), time.process_time(), _children_cpu()
         yield
-        # and the test itself (its wall and CPU seconds, from when): a timeline of each worker
+        # and the test itself (its wall and CPU seconds, its child processes' CPU seconds, from when):
+        # a timeline of each worker
         _LOG.rows.append({"test": _LOG.test, "function": None, "began": began, "wall": time.perf_counter() - began,
-                          "cpu": time.process_time() - cpu, "pid": os.getpid()})
+                          "cpu": time.process_time() - cpu, "children": _children_cpu() - children,
+                          "pid": os.getpid()})
         with open(os.environ["DEMKIT_COMPILE_LOG"], "a") as fh:
             for row in _LOG.rows:
                 fh.write(json.dumps(row) + "\n")
