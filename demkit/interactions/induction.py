@@ -264,7 +264,7 @@ def field_of(position, moments, box, periodic, params, slot, start, end, partner
         extra = np.zeros(moments.shape)
         with objmode():
             long_range_field(key, x, m, extra)
-        field += extra
+        _combine(field, field, 1.0, extra)
     return field
 
 
@@ -284,6 +284,37 @@ def _dot(a, b):
     for i in range(a.shape[0]):
         total += a[i, 0] * b[i, 0] + a[i, 1] * b[i, 1] + a[i, 2] * b[i, 2]
     return total
+
+
+# the solve's vector updates as loops: numba compiles each array expression as a function of its own
+# (induce compiled in 6.6 CPU s with them); the same arithmetic element by element, the same bits
+@njit(cache=True)
+def _scaled(scale, a):
+    """scale[i] a[i]: the (n, 3) rows of ``a`` scaled."""
+    out = np.empty(a.shape)
+    for i in range(a.shape[0]):
+        for c in range(3):
+            out[i, c] = scale[i] * a[i, c]
+    return out
+
+
+@njit(cache=True)
+def _combine(out, x, a, y):
+    """out = x + a y for (n, 3) arrays and a number a (out may be x or y: element by element)."""
+    for i in range(out.shape[0]):
+        for c in range(3):
+            out[i, c] = x[i, c] + a * y[i, c]
+
+
+@njit(cache=True)
+def _add_scaled(out, scale, a, sign):
+    """out += sign scale[i] a[i] (sign +1 or -1), in place."""
+    for i in range(out.shape[0]):
+        for c in range(3):
+            if sign > 0.0:
+                out[i, c] += scale[i] * a[i, c]
+            else:
+                out[i, c] -= scale[i] * a[i, c]
 
 
 @njit(cache=True)
@@ -323,13 +354,14 @@ def induce(position, dipole, tag, box, periodic, params, slot, start, end, partn
         extra = np.zeros((n, 3))
         with objmode():
             magnet_field(key, x, extra)
-        source += extra
+        _combine(source, source, 1.0, extra)
     if any_permanent:
         permanent = dipole.copy()
         for i in range(n):
             if scale[i] > 0.0:
                 permanent[i, :] = 0.0
-        source += field_of(position, permanent, box, periodic, params, slot, start, end, partner, frame)
+        _combine(source, source, 1.0, field_of(position, permanent, box, periodic, params, slot, start, end, partner,
+                                               frame))
     b = np.empty((n, 3))
     y = np.zeros((n, 3))
     for i in range(n):
@@ -337,9 +369,10 @@ def induce(position, dipole, tag, box, periodic, params, slot, start, end, partn
             b[i, c] = scale[i] * source[i, c]
             if scale[i] > 0.0:
                 y[i, c] = dipole[i, c] / scale[i]
-    r = b - y
-    r += scale.reshape(n, 1) * field_of(position, scale.reshape(n, 1) * y, box, periodic, params, slot, start, end,
-                                        partner, frame)
+    r = np.empty((n, 3))
+    _combine(r, b, -1.0, y)  # b - y
+    _add_scaled(r, scale, field_of(position, _scaled(scale, y), box, periodic, params, slot, start, end, partner,
+                                   frame), 1.0)
     norm_b = math.sqrt(_dot(b, b))
     goal = params[slot + TOLERANCE] * norm_b
     rr = _dot(r, r)
@@ -352,18 +385,19 @@ def induce(position, dipole, tag, box, periodic, params, slot, start, end, partn
             code = NOT_CONVERGED
             break
         k += 1
-        ap = p - scale.reshape(n, 1) * field_of(position, scale.reshape(n, 1) * p, box, periodic, params, slot,
-                                                  start, end, partner, frame)
+        ap = p.copy()
+        _add_scaled(ap, scale, field_of(position, _scaled(scale, p), box, periodic, params, slot, start, end,
+                                        partner, frame), -1.0)
         pap = _dot(p, ap)
         if not pap > 0.0:
             code = NOT_POSITIVE
             break
         step = rr / pap
-        y += step * p
-        r -= step * ap
+        _combine(y, y, step, p)
+        _combine(r, r, -step, ap)
         old = rr
         rr = _dot(r, r)
-        p = r + (rr / old) * p
+        _combine(p, r, rr / old, p)
     for i in range(n):
         if scale[i] > 0.0:
             for c in range(3):
