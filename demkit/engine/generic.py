@@ -54,7 +54,7 @@ from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, BOX_FUNCTIONS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, CHUNK_CALL, CHUNK_PARAMETERS, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
-                       deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
+                       borrowing, deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -732,28 +732,7 @@ class _Generic:
             src = re.sub(pattern, call, src)
             lines += ["", "", "@njit(**TIME_LOOP)"] + src.rstrip().splitlines()
         lines += ["", "", f"STEPS_OF = {steps_of!r}"]
-        return "\n".join(_borrowing(lines, STEPS + tuple(steps_of))) + "\n"
-
-
-def _borrowing(lines, names):
-    """The functions ``names`` of the module's ``lines`` compiled without reference counting (STEP):
-    their reads of the state's fields (``s.force``, ``pl.start``) become borrowed reads
-    (:func:`demkit.engine.state.field`). A time loop calls them through ``steps`` once or twice a step; with
-    numba's reads each field took an atomic increment and decrement (a quarter of the time of a
-    small scene's step on tier 1, measured with perf)."""
-    out, inside, docstring = [], False, False
-    for line in lines:
-        quotes = line.count('"""') % 2 == 1
-        if line.startswith("def "):
-            inside = line[4:line.index("(")] in names
-            if inside and out and out[-1] in ("@njit(**OUTER)", "@njit(**LOOP)"):
-                out[-1] = "@njit(**STEP)"
-        elif inside and not docstring and not quotes and not line.lstrip().startswith(('"""', "#")):
-            code, hash_, comment = line.partition("  #")
-            line = re.sub(r"\b(s|pl)\.([a-z_]+)\b", r'field(\1, "\2")', code) + hash_ + comment
-        docstring = docstring != quotes
-        out.append(line)
-    return out
+        return "\n".join(borrowing(lines, STEPS + tuple(steps_of))) + "\n"
 
 
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
