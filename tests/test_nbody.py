@@ -555,3 +555,28 @@ def test_a_tier_2_scene_with_its_thread_pieces_cached_loads_them_at_once(monkeyp
         choice = threads.ThreadChoice(scene, "velocity_verlet")
         assert choice._worth() == worth
         assert (pieces, "piece_pairs_forces") in asked
+
+
+def test_the_fill_given_to_the_list_builder_has_the_types_the_builder_passes_it():
+    """The list upkeep gives the builder its fill as a first-class function (neighbours.filler), typed by
+    neighbours.fill_signature: those must be the types start_build's arrays have (else every rebuild would
+    fail to compile), and a list built through it is the list built with the fill linked in (a bool)."""
+    rng = np.random.default_rng(5)
+    n, side = 400, 9.0
+    position = rng.uniform(0.0, side, (n, 3))
+    box, periodic, le = np.full(3, side), np.array([True, True, False]), np.zeros(0)
+    tag = np.arange(n, dtype=np.int64)
+    arguments = tuple(numba.typeof(a) for a in (new_pair_list(1.2, n, 0, 2), position, tag, box, periodic, le))
+    neighbours.start_build.compile(arguments)
+    work = neighbours.start_build.overloads[arguments].signature.return_type.types
+    expected = (*work[:3], arguments[3], arguments[4], numba.types.float64, *work[3:9])
+    pl_fields = dict(arguments[0].field_dict)
+    expected += (pl_fields["start"], pl_fields["end"], pl_fields["partner"], *work[9:], arguments[5])
+    assert neighbours.fill_signature(arguments[0], arguments[3], arguments[4]) == expected
+    lists = []
+    for threads in (False, True):
+        pl = new_pair_list(1.2, n, 0, 2)
+        neighbours.rebuild(pl, position, tag, tag, box, periodic, le, neighbours.filler(
+            arguments[0], arguments[3], arguments[4], threads))
+        lists.append({(min(i, j), max(i, j)) for i, j in neighbours.pairs_of(pl, tag).tolist()})
+    assert lists[0] == lists[1] == pairs_within(position, 1.2, dk.Box((side,) * 3, periodic=(True, True, False)))

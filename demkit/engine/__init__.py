@@ -7,7 +7,8 @@ API); it is what turns a scene into compiled loops:
   lists' own state;
 * :mod:`~demkit.engine.motion`: the compiled building blocks of a step (kicks, drifts, spins, frames), and
   the compile options the interactions' laws use;
-* :mod:`~demkit.engine.neighbours`: cell lists, Verlet lists with per-pair history, sorting;
+* :mod:`~demkit.engine.neighbours`: cell lists, Verlet lists with per-pair history, sorting (the history carried
+  across a rebuild by tag: :mod:`~demkit.engine.pair_history`);
 * :mod:`~demkit.engine.templates`: the time loops of the integrators, as templates pasted into generated code;
 * :mod:`~demkit.engine.catalogue`: the shipped laws and effects, each an integer *kind*;
 * :mod:`~demkit.engine.program`: a scene's *program*, the table tier 1's loops read;

@@ -460,11 +460,12 @@ class _Generic:
         return lines
 
     def upkeep_functions(self):
-        """maintain_lists and sort_particles: the list upkeep, given the list builder as a first-class
-        function (``rebuild_list``: :func:`demkit.engine.neighbours.rebuild`; called directly, its whole
-        body was linked into each caller and optimised again there, 1.2 CPU s a caller) and whether the
-        lists are built on threads (``threads``: True in the thread module's ``calls``, the same lists)."""
-        head = [line.replace("def maintain_lists(s, strict):", "def maintain_lists(s, strict, rebuild_list, threads):")
+        """maintain_lists and sort_particles: the list upkeep, given the list builder and its fill as
+        first-class functions (``rebuild_list``: :func:`demkit.engine.neighbours.rebuild`; called directly,
+        its whole body was linked into each caller and optimised again there, 1.2 CPU s a caller;
+        ``fill_list``: serial or on threads, the same lists) and whether the lists are built on threads
+        (``threads``: True in the thread module's ``calls``, for the displacement check)."""
+        head = [line.replace("def maintain_lists(s, strict):", "def maintain_lists(s, strict, rebuild_list, fill_list, threads):")
                 .replace("d2, k = max_displacement(s.position, s.reference)",
                          "d2, k = max_displacement_threads(s.position, s.reference) if threads else "
                          "max_displacement(s.position, s.reference)") for line in MAINTAIN_LISTS_HEAD]
@@ -485,13 +486,13 @@ class _Generic:
         lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
         for g in range(MAX_GROUPS):
             lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le, threads)"]
+                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le, fill_list)"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]", "    mark_built(s.params, dq, s.box)"]
         lines += MAINTAIN_LISTS_TAIL
         # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
         # saved by the tags the particles had (``before``): saving and restoring it here, inlined for
         # each of the groups, compiled for 10 CPU s a module
-        lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s, rebuild_list, threads):",
+        lines += ["", "", "@njit(**UPKEEP)", "def sort_particles(s, rebuild_list, fill_list, threads):",
                   '    """Re-order the particles by cell and rebuild the lists, carrying their history by tag."""',
                   "    before = s.tag.copy()"]
         lines += ["    shortest = s.program[0, H_SHORTEST]",
@@ -505,7 +506,7 @@ class _Generic:
         for g in range(MAX_GROUPS):
             row = group_row(g, 0)
             lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le, threads)"]
+                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le, fill_list)"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]",
                   "    mark_built(s.params, s.program[0, H_DEFORM], s.box)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
@@ -696,10 +697,13 @@ class _Generic:
                   + ")"]
         lines += self.scene_functions()
         # stubs passed for the list upkeep, the sums and the induction solve to scenes without them
-        lines += ["", "", "@njit(**LOOP)", "def no_maintain_lists(s, strict, rebuild_list, threads):", "    return",
-                  "", "", "@njit(**LOOP)", "def no_sort_particles(s, rebuild_list, threads):", "    return",
-                  "", "", "@njit(**LOOP)", "def no_rebuild_list(pl, position, tag, before, box, periodic, le, threads):",
+        lines += ["", "", "@njit(**LOOP)", "def no_maintain_lists(s, strict, rebuild_list, fill_list, threads):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_sort_particles(s, rebuild_list, fill_list, threads):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_rebuild_list(pl, position, tag, before, box, periodic, le, fill_list):",
                   "    return",
+                  "", "", "@njit(**LOOP)", "def no_fill_list(ts, xs, members, box, periodic, reach, radius, ncell, "
+                  "cell_start, near, shift, counts, start, end, partner, lo, hi, image, near_x, near_id, cells, region, "
+                  "used, le):", "    return",
                   "", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
                   "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
                   "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0",
@@ -762,11 +766,11 @@ OWN_CALLS = ("own_pair_forces", "own_pair_energies", "own_sphere_forces", "own_s
 #: tier 1's chunks of its pair loops, given to the pair pieces (tier 1's loop on threads runs them; a scene
 #: without a loop of that kind, or with its own pieces, is given the stub ``no_pairs_chunk``)
 CHUNK_CALLS = {"pairs_chunk": "pairs_forces", "pairs_blocked_chunk": "pairs_forces_blocked"}
-#: the list builder (demkit.engine.neighbours.rebuild, or a stub for a scene without lists) as a
-#: first-class function, and whether the lists are built on threads (a bool: True in the thread module's
-#: ``calls``), passed on to the list upkeep (UPKEEP): one compiled upkeep for both, the builder linked
-#: into none of them
-LIST_CALLS = ("rebuild_list", "lists_on_threads")
+#: the list builder (demkit.engine.neighbours.rebuild, or a stub for a scene without lists) and its fill
+#: (neighbours.filler: serial, or on threads in the thread module's ``calls``) as first-class functions,
+#: and whether the lists are built on threads (a bool), passed on to the list upkeep (UPKEEP): one
+#: compiled upkeep for both, the builder linked into none of them, the fill into no builder
+LIST_CALLS = ("rebuild_list", "fill_list", "lists_on_threads")
 #: the names in the ``calls`` tuple, in order
 CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS) + LIST_CALLS
 

@@ -129,10 +129,13 @@ def piece_arguments(state_type):
     out = types.Array(types.float64, 1, "C")
     frames = types.Array(types.float64, 3, "C")  # the record's positions and velocities (demkit.recording)
     # the list builder (demkit.engine.neighbours.rebuild) as the upkeep calls it, and its first-class type
-    rebuild = (pair_list, f["position"], f["tag"], f["tag"], f["box"], f["periodic"], out, types.boolean)
+    fill = neighbours.fill_signature(pair_list, f["box"], f["periodic"])
+    filler = types.FunctionType(types.none(*fill))
+    rebuild = (pair_list, f["position"], f["tag"], f["tag"], f["box"], f["periodic"], out, filler)
     builder = types.FunctionType(types.none(*rebuild))
-    arguments = {"maintain_lists": (state_type, types.boolean, builder, types.boolean),
-                 "sort_particles": (state_type, builder, types.boolean), "rebuild_list": rebuild,
+    arguments = {"maintain_lists": (state_type, types.boolean, builder, filler, types.boolean),
+                 "sort_particles": (state_type, builder, filler, types.boolean), "rebuild_list": rebuild,
+                 "fill_list": fill,
                  "long_range": (state_type, f["force"], f["torque"]),
                  "sum_energies": (state_type, out),
                  "induce_now": (state_type, types.boolean), "wrap_positions": (state_type,),
@@ -229,6 +232,13 @@ class GenericKernels:
                 if name == "rebuild_list":  # the list builder, or a stub for a scene without lists
                     function = neighbours.rebuild if "maintain_lists" in self.needs else self.module.no_rebuild_list
                     calls.append(self._wrapped(function, arguments[name]))
+                    continue
+                if name == "fill_list":  # its fill, serial or on threads (or a stub)
+                    if "maintain_lists" in self.needs:
+                        f = _fields(state_type)
+                        calls.append(neighbours.filler(f["lists"][0], f["box"], f["periodic"], self.threads))
+                    else:
+                        calls.append(self._wrapped(self.module.no_fill_list, arguments[name]))
                     continue
                 family = BLOCKED if name == "pairs_forces_blocked" else self.family
                 module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(family)

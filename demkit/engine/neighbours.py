@@ -30,9 +30,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 from .motion import fold
+from .pair_history import restore_history, saved_history
 
 #: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
 MAX_CELLS_PER_PARTICLE = 4
@@ -472,25 +474,73 @@ def split_cells(cell_start, cells):
 # A list is built in three parts around its filling, which runs the chunks one after the other
 # (fill_serial) or on threads (fill_threads): the same lists either way. One builder takes the choice
 # as an argument, so that its body (binning, history carried by tag) compiles once for both (twins
-# inlining the same helpers cost 6.5 CPU s more per install).
-@njit(**HELPER)
-def fill(threads, arguments):
-    """fill_threads or fill_serial (the same lists) with the arguments of :func:`fill_arguments`."""
-    if threads:
-        fill_threads(*arguments)
-    else:
-        fill_serial(*arguments)
+# inlining the same helpers cost 6.5 CPU s more per install): a bool (both fills linked into the builder:
+# the fused modules), or the fill itself as a first-class function (:func:`filler`: the generic list upkeep
+# and Python; linked into nothing, 2.2 CPU s less for the builder, and a scene that never builds its lists
+# on threads never compiles fill_threads).
+def fill(how, arguments):
+    """fill_threads or fill_serial (the same lists) with the arguments of :func:`fill_arguments`; ``how``:
+    threads or not (a bool), or the fill (a first-class function). Compiled code only."""
+    raise NotImplementedError("demkit.engine.neighbours.fill runs in compiled code only")
+
+
+@overload(fill, inline="always")
+def _fill(how, arguments):
+    if isinstance(how, types.Boolean):
+        def direct(how, arguments):
+            if how:
+                fill_threads(*arguments)
+            else:
+                fill_serial(*arguments)
+        return direct
+
+    def called(how, arguments):
+        how(*arguments)
+    return called
+
+
+def fill_signature(pair_list, box, periodic):
+    """The argument types of fill_serial/fill_threads (:func:`fill_arguments`) for a pair list, box and
+    periodic flags of these numba types: start_build's arrays (tests/test_nbody.py checks them) and the
+    list's."""
+    i1, i2, i3 = (types.Array(types.int64, d, "C") for d in (1, 2, 3))
+    f1, f2, f3 = (types.Array(types.float64, d, "C") for d in (1, 2, 3))
+    f = dict(pair_list.field_dict)
+    return (i1, f2, i1, box, periodic, types.float64, types.int64, i1, i1, i3, i3, i2, f["start"], f["end"],
+            f["partner"], i2, i2, f3, f3, i3, i1, i1, i1, f1)
+
+
+_FILLERS = {}
+
+
+def filler(pair_list, box, periodic, threads=False):
+    """fill_threads (``threads``) or fill_serial compiled for lists of these numba types, as a first-class
+    function: what :func:`rebuild` takes as ``how`` from the generic list upkeep and from Python."""
+    key = (pair_list, box, periodic, bool(threads))
+    if key not in _FILLERS:
+        from numba.core.types.function_type import CompileResultWAP
+        signature = fill_signature(pair_list, box, periodic)
+        function = fill_threads if threads else fill_serial
+        function.compile(signature)
+        _FILLERS[key] = CompileResultWAP(function.overloads[signature])
+    return _FILLERS[key]
+
+
+def serial_filler(pl, box, periodic):
+    """:func:`filler` (one thread) for these arrays: ``rebuild(pl, ..., le, serial_filler(pl, box, periodic))``."""
+    import numba
+    return filler(numba.typeof(pl), numba.typeof(box), numba.typeof(periodic))
 
 
 @njit(**ENTRY)
-def build(pl, position, tag, box, periodic, le, threads):
+def build(pl, position, tag, box, periodic, le, how):
     """Fill ``pl.start``/``pl.end``/``pl.partner`` with every pair closer than ``pl.reach``, the cells cut
     into len(pl.bounds) - 1 chunks filled one after the other (or on threads), each in its own region
     of ``partner`` (grown, and the regions resized, when one overflows)."""
     work = start_build(pl, position, tag, box, periodic, le)
-    fill(threads, fill_arguments(pl, box, periodic, work, le))
+    fill(how, fill_arguments(pl, box, periodic, work, le))
     if grown(pl, work):
-        fill(threads, fill_arguments(pl, box, periodic, work, le))
+        fill(how, fill_arguments(pl, box, periodic, work, le))
     finish_build(pl, work)
 
 
@@ -583,75 +633,6 @@ def finish_build(pl, work):
 
 
 @njit(**HELPER)
-def count_kept(start, end, history):
-    """How many entries have a history that is not all zero."""
-    kept = 0
-    for i in range(end.shape[0]):
-        for p in range(start[i], end[i]):
-            for h in range(history.shape[1]):
-                if history[p, h] != 0.0:
-                    kept += 1
-                    break
-    return kept
-
-
-@njit(**HELPER)
-def save_rows(start, end, partner, history, tag, owners, partners, rows):
-    """Copy the non-zero history rows, with the tags of their pair, into owners/partners/rows."""
-    k = 0
-    for i in range(end.shape[0]):
-        for p in range(start[i], end[i]):
-            nonzero = False
-            for h in range(history.shape[1]):
-                nonzero = nonzero or history[p, h] != 0.0
-            if nonzero:
-                owners[k] = tag[i]
-                partners[k] = tag[partner[p]]
-                for h in range(history.shape[1]):
-                    rows[k, h] = history[p, h]
-                k += 1
-
-
-@njit(**HELPER)
-def saved_history(pl, tag):
-    """(owner tags, partner tags, rows) of the list's entries whose history is not all zero."""
-    kept = count_kept(pl.start, pl.end, pl.history)
-    owners = np.empty(kept, dtype=np.int64)
-    partners = np.empty(kept, dtype=np.int64)
-    rows = np.empty((kept, pl.history.shape[1]))
-    save_rows(pl.start, pl.end, pl.partner, pl.history, tag, owners, partners, rows)
-    return owners, partners, rows
-
-
-@njit(**HELPER)
-def put_rows(start, end, partner, history, where, owners, partners, rows):
-    """Zero the history of every entry, then put each saved row on its pair's entry, if listed."""
-    for i in range(end.shape[0]):
-        for p in range(start[i], end[i]):
-            for h in range(history.shape[1]):
-                history[p, h] = 0.0
-    for k in range(owners.shape[0]):
-        i = where[owners[k]]
-        j = where[partners[k]]
-        for p in range(start[i], end[i]):
-            if partner[p] == j:
-                for h in range(history.shape[1]):
-                    history[p, h] = rows[k, h]
-                break
-
-
-@njit(**HELPER)
-def restore_history(pl, tag, owners, partners, rows):
-    """Size the history to the (new) list and put the saved rows back by tag."""
-    if pl.history.shape[0] < pl.partner.shape[0]:
-        pl.history = np.zeros((pl.partner.shape[0], pl.history.shape[1]))
-    where = np.empty(tag.shape[0], dtype=np.int64)
-    for i in range(tag.shape[0]):
-        where[tag[i]] = i
-    put_rows(pl.start, pl.end, pl.partner, pl.history, where, owners, partners, rows)
-
-
-@njit(**HELPER)
 def balance(start, end, bounds):
     """Cut the owners (by index) into len(bounds)-1 consecutive chunks holding equal numbers of pairs."""
     n = end.shape[0]
@@ -670,22 +651,23 @@ def balance(start, end, bounds):
 
 
 @njit(**ENTRY)
-def rebuild(pl, position, tag, before, box, periodic, le, threads):
+def rebuild(pl, position, tag, before, box, periodic, le, how):
     """Rebuild one list, carrying its per-pair history by tag: ``before`` are the tags the particles
     had when the list was last built (``tag`` itself, unless they were re-ordered since: the sort
     permutes the particles first and then rebuilds every list with this one compiled function).
     ``le``: [a, b, delta, ...] of Lees-Edwards images (demkit.engine.shear.list_frame), or empty;
-    ``threads``: its chunks filled on threads (the same list), a bool and not a literal (numba compiles a
-    function once per *literal* argument value): the generic list upkeep passes its ``calls``' flag, a
-    fused module ``np.bool_(LISTS_ON_THREADS)``. The generic upkeep calls this function as a first-class
-    function: each function that calls it directly has its whole body linked in and optimised again
-    (1.2-1.3 CPU s a caller)."""
+    ``how``: the fill (see :func:`fill`), a first-class function from :func:`filler` (the generic list
+    upkeep's ``calls``, Python: :func:`serial_filler`), or whether to fill on threads, a bool and not a
+    literal (numba compiles a function once per *literal* argument value: a fused module passes
+    ``np.bool_(LISTS_ON_THREADS)``). The generic upkeep calls this function as a first-class function: each
+    function that calls it directly has its whole body linked in and optimised again (1.2-1.3 CPU s a
+    caller)."""
     if pl.history.shape[1] > 0:
         owners, partners, rows = saved_history(pl, before)
-        build(pl, position, tag, box, periodic, le, threads)
+        build(pl, position, tag, box, periodic, le, how)
         restore_history(pl, tag, owners, partners, rows)
     else:
-        build(pl, position, tag, box, periodic, le, threads)
+        build(pl, position, tag, box, periodic, le, how)
     balance(pl.start, pl.end, pl.bounds)
 
 
