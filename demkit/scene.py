@@ -308,9 +308,8 @@ class Scene(SceneDiagnostics):
             position[:, axis] = np.mod(position[:, axis], self.box.size[axis])
         pairs = new_pair_list(solver.cutoff if solver.kind == "list" else 0.0, n, 0, 1)
         if solver.kind == "list":
-            box, periodic = self.arrays["box"], self.arrays["periodic"]
-            neighbours.rebuild(pairs, position, index, index, box, periodic, self._shear_frame(),
-                               neighbours.serial_filler(pairs, box, periodic))
+            neighbours.build_from_python(pairs, position, index, self.arrays["box"], self.arrays["periodic"],
+                                         self._shear_frame())
         code = induction.induce(position, p.dipole, index, self.arrays["box"], self.arrays["periodic"], self.params,
                                 self.induction_slot, pairs.start, pairs.end, pairs.partner, np.zeros((n, 0)), 0,
                                 False, self._shear_frame())
@@ -665,9 +664,8 @@ class Scene(SceneDiagnostics):
             return np.column_stack([i[close], j[close]]).astype(np.int64)
         pl = new_pair_list(reach, len(p), 0, 1)
         index = np.arange(len(p), dtype=np.int64)
-        box, periodic = self.arrays["box"], self.arrays["periodic"]
-        neighbours.rebuild(pl, p.position, index, index, box, periodic, self._shear_frame(),
-                           neighbours.serial_filler(pl, box, periodic))
+        neighbours.build_from_python(pl, p.position, index, self.arrays["box"], self.arrays["periodic"],
+                                     self._shear_frame())
         return neighbours.pairs_of(pl, index)
 
     def _shear_frame(self):

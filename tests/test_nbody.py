@@ -560,7 +560,7 @@ def test_a_tier_2_scene_with_its_thread_pieces_cached_loads_them_at_once(monkeyp
 def test_the_fill_given_to_the_list_builder_has_the_types_the_builder_passes_it():
     """The list upkeep gives the builder its fill as a first-class function (neighbours.filler), typed by
     neighbours.fill_signature: those must be the types start_build's arrays have (else every rebuild would
-    fail to compile), and a list built through it is the list built with the fill linked in (a bool)."""
+    fail to compile), and the lists built through it, serial and on threads, are scipy's pairs."""
     rng = np.random.default_rng(5)
     n, side = 400, 9.0
     position = rng.uniform(0.0, side, (n, 3))

@@ -526,10 +526,12 @@ def filler(pair_list, box, periodic, threads=False):
     return _FILLERS[key]
 
 
-def serial_filler(pl, box, periodic):
-    """:func:`filler` (one thread) for these arrays: ``rebuild(pl, ..., le, serial_filler(pl, box, periodic))``."""
+def build_from_python(pl, position, tag, box, periodic, le):
+    """Fill the list ``pl`` from Python, on one thread (:func:`rebuild` given the serial :func:`filler`; the
+    tags ``tag`` also as ``before``: no history to carry)."""
     import numba
-    return filler(numba.typeof(pl), numba.typeof(box), numba.typeof(periodic))
+    rebuild(pl, position, tag, tag, box, periodic, le,
+            filler(numba.typeof(pl), numba.typeof(box), numba.typeof(periodic)))
 
 
 @njit(**ENTRY)
@@ -657,7 +659,7 @@ def rebuild(pl, position, tag, before, box, periodic, le, how):
     permutes the particles first and then rebuilds every list with this one compiled function).
     ``le``: [a, b, delta, ...] of Lees-Edwards images (demkit.engine.shear.list_frame), or empty;
     ``how``: the fill (see :func:`fill`), a first-class function from :func:`filler` (the generic list
-    upkeep's ``calls``, Python: :func:`serial_filler`), or whether to fill on threads, a bool and not a
+    upkeep's ``calls``; from Python: :func:`build_from_python`), or whether to fill on threads, a bool and not a
     literal (numba compiles a function once per *literal* argument value: a fused module passes
     ``np.bool_(LISTS_ON_THREADS)``). The generic upkeep calls this function as a first-class function: each
     function that calls it directly has its whole body linked in and optimised again (1.2-1.3 CPU s a

@@ -307,14 +307,11 @@ def _combine(out, x, a, y):
 
 
 @njit(cache=True)
-def _add_scaled(out, scale, a, sign):
-    """out += sign scale[i] a[i] (sign +1 or -1), in place."""
+def _combine_scaled(out, x, sign, scale, a):
+    """out = x + sign scale[i] a[i] for sign +1 or -1 (exact: x - scale[i] a[i] for -1; out may be x)."""
     for i in range(out.shape[0]):
         for c in range(3):
-            if sign > 0.0:
-                out[i, c] += scale[i] * a[i, c]
-            else:
-                out[i, c] -= scale[i] * a[i, c]
+            out[i, c] = x[i, c] + sign * (scale[i] * a[i, c])
 
 
 @njit(cache=True)
@@ -371,8 +368,8 @@ def induce(position, dipole, tag, box, periodic, params, slot, start, end, partn
                 y[i, c] = dipole[i, c] / scale[i]
     r = np.empty((n, 3))
     _combine(r, b, -1.0, y)  # b - y
-    _add_scaled(r, scale, field_of(position, _scaled(scale, y), box, periodic, params, slot, start, end, partner,
-                                   frame), 1.0)
+    _combine_scaled(r, r, 1.0, scale, field_of(position, _scaled(scale, y), box, periodic, params, slot, start, end,
+                                               partner, frame))
     norm_b = math.sqrt(_dot(b, b))
     goal = params[slot + TOLERANCE] * norm_b
     rr = _dot(r, r)
@@ -385,9 +382,9 @@ def induce(position, dipole, tag, box, periodic, params, slot, start, end, partn
             code = NOT_CONVERGED
             break
         k += 1
-        ap = p.copy()
-        _add_scaled(ap, scale, field_of(position, _scaled(scale, p), box, periodic, params, slot, start, end,
-                                        partner, frame), -1.0)
+        ap = np.empty((n, 3))
+        _combine_scaled(ap, p, -1.0, scale, field_of(position, _scaled(scale, p), box, periodic, params, slot, start,
+                                                     end, partner, frame))
         pap = _dot(p, ap)
         if not pap > 0.0:
             code = NOT_POSITIVE
