@@ -52,7 +52,7 @@ import warnings
 
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
-from .snippets import (ARRAYS, BOX_FUNCTIONS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
+from .snippets import (ARRAYS, BOX_FUNCTIONS, END_STEP_HEAD, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, CHUNK_CALL, CHUNK_PARAMETERS, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
                        borrowing, deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
@@ -593,7 +593,7 @@ class _Generic:
                   "s.program[0, H_INDUCTION_SLOT])"]
         frame = [line.replace("def record_frame(k,", "def record_frame(calls, k,")
                  .replace("energies_of(s,", "energies_of(calls, s,")
-                 .replace("def end_step(step,", "def end_step(calls, frame, step,") for line in RECORD_FRAME]
+                 .replace("def end_step(step,", "def end_step(calls, frame, step,") for line in RECORD_FRAME + END_STEP_HEAD]
         at = frame.index("    e = record[4]")  # after store_frame: the frame folded with the sliding images
         lines += frame[:at] + ["    if s.program[0, H_SHEAR] >= 0:",
                                f"        {self.call('fold_frame')}(s, k, record[0], record[1], record[6])"] + frame[at:]

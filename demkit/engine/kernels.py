@@ -29,7 +29,7 @@ import textwrap
 import numpy as np
 
 from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
-from .snippets import (ARRAYS, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
+from .snippets import (ARRAYS, END_STEP_HEAD, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
                        PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments,
                        _pair_call, _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums,
                        as_int64, deep_pair_overlap, function_imports, piece_prelude, shear_prelude, shear_slot_after,
@@ -44,6 +44,8 @@ class _Source:
         self.threads = threads  # the thread module: chunked loops on prange, per-step passes on threads
         self.kinds = energy_kinds(plan.energy_sources)
         self.importable = importable
+        #: an open scene's frames are recorded by tier 1 (see Plan.frames_of_tier_1)
+        self.frames_of_tier_1 = plan.frames_of_tier_1 and not plan.growing
         self.parts = self.split_groups()
         # parameter slots: each interaction's parameters, each effect's, then one squared cutoff per
         # interaction, then the effects' tables (Scene builds params in this order)
@@ -440,7 +442,7 @@ class _Source:
                 return lines + [pad + line for line in call]
             return body
 
-        lines = ["", "", "@njit(**INNER)",
+        lines = ["", "", "@njit(**CALLED)",
                  f"def sphere_forces({ARRAYS}, force, torque, history, commit):",
                  '    """Forces and torques of the single-sphere effects; returns the dissipated power."""',
                  "    power = 0.0"] + [f"    servo_clear(params, {as_int64(g)})" for g in self.servo_slots()] + head
@@ -633,7 +635,9 @@ class _Source:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        lines += RECORD_FRAME
+        frames = self.frames_of_tier_1
+        lines += ([] if frames else RECORD_FRAME) + [line.replace("timed):", "timed, tier_1):") if frames else line
+                                                      for line in END_STEP_HEAD]
         if plan.lists and (any(plan.periodic) or plan.sorted):
             lines += ["    if s.counters[WRAP_DUE] != 0:", "        s.counters[WRAP_DUE] = 0"]
             if any(plan.periodic):
@@ -643,7 +647,10 @@ class _Source:
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
         lines += [f"    servo_step(s.params, {as_int64(g)}, s.clock[0])" for g in self.servo_slots()]  # servo-controlled walls move
-        lines += END_STEP_TAIL
+        # a fused open module's frames: tier 1's record_frame (tier_1: it, its pieces, the structref state)
+        lines += [line.replace("record_frame(step // stride, s, record)",
+                               "tier_1[0](tier_1[1], step // stride, tier_1[2], record)") if frames else line
+                  for line in END_STEP_TAIL]
         return lines
 
     def servo_slots(self):
@@ -700,7 +707,10 @@ class _Source:
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop
             lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache}, fastmath=False)")
-        lines += [f"ENTRY = dict(cache={cache}, _nrt=False, {fast})",  # a piece's entry (tier 2 with lists): reads the state (borrowed)
+        # the single-sphere loop: called, not inlined, in every scene (one call a force evaluation; each
+        # time loop of a fused module inlined a copy of the walls' laws)
+        lines += [f"CALLED = dict(cache={cache}, _nrt=False, {fast})",
+                  f"ENTRY = dict(cache={cache}, _nrt=False, {fast})",  # a piece's entry (tier 2 with lists): reads the state (borrowed)
                   f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
                   f"OUTER = dict(cache={cache}, inline='always', {fast}{nrt})",
                   f"UPKEEP = dict(cache={cache})",
@@ -720,6 +730,9 @@ class _Source:
             src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
             # the clock as a constant: kept where walls move, pruned where none does (tier 1 reads H_CLOCK)
             src = re.sub(r"timed = s\.program\[0, H_CLOCK\] != 0.*", f"timed = {bool(self.geometry_slot)}", src)
+            if self.frames_of_tier_1:  # the loops pass tier 1's record_frame on to end_step
+                src = src.replace("s, record):", "s, record, tier_1):", 1)
+                src = re.sub(r"end_step\((.*), timed\)", r"end_step(\1, timed, tier_1)", src)
             lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
         return "\n".join(lines) + "\n"
 

@@ -205,8 +205,10 @@ RECORD_FRAME = ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                 "    e = record[4]",
                 "    last = e.shape[1] - 1",
                 "    energies_of(s, e[k, :last])",
-                "    e[k, last] = s.accum[0]",
-                "", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record, timed):",
+                "    e[k, last] = s.accum[0]"]
+#: a fused module's end_step, its head (with ``tier_1``: tier 1's record_frame, its pieces and the
+#: structref state, which a fused open module records its frames with)
+END_STEP_HEAD = ["", "", "@njit(**OUTER)", "def end_step(step, countdown, stride, s, record, timed):",
                 '    """After global step ``step``: -1 if the run must stop (s.status says why), else the',
                 '    steps left until the next frame (recording frame step // stride when it is due); with',
                 '    ``timed`` (the scene keeps its clock), the servos take their step."""']

@@ -238,22 +238,55 @@ class TupleStateModule:
     """A fused module of a scene without neighbour lists (tier 2, named tuples, no reference counting)
     called with the structref state of tier 1, which the scene keeps after a switch of tier: each call
     is given :func:`tuple_state` of the scene's arrays (open scenes' arrays never change size, so both
-    forms see the same memory), and ``compile`` takes tier 1's signatures."""
+    forms see the same memory), and ``compile`` takes tier 1's signatures. Its frames are tier 1's:
+    ``record_frame`` is the scene's generic one, and each time loop is given it as its last argument
+    (``tier_1``: the function, its pieces and the structref state), not a record_frame of its own
+    compiled with the scene's energies (2.5 CPU s of a two-magnet module's 6)."""
 
     def __init__(self, module, scene):
         self.module, self.scene = module, scene
+        self._functions = {}
 
     def __getattr__(self, name):
-        return _TupleStateFunction(getattr(self.module, name), self.scene)
+        if name == "record_frame":
+            return self.scene.kernels.record_frame
+        if name not in self._functions:
+            self._functions[name] = _TupleStateFunction(getattr(self.module, name), self.scene,
+                                                        name.endswith("_steps"))
+        return self._functions[name]
 
 
 class _TupleStateFunction:
-    def __init__(self, function, scene):
-        self.function, self.scene = function, scene
+    def __init__(self, function, scene, loop):
+        self.function, self.scene, self.loop = function, scene, loop
+        self._entries = {}  # argument types -> (compiled entry point, tier 1's record_frame and pieces)
+
+    def _tier_1(self, state_type, record_type):
+        """Tier 1's record_frame for these types, as a first-class function, and its pieces."""
+        kernels = self.scene.kernels
+        return kernels.steps_for(state_type, record_type, ("record_frame",))[0], kernels.calls_for(state_type)
 
     def __call__(self, *args):
         state = tuple_state(self.scene.arrays)
-        return self.function(*(state if isinstance(a, State) else a for a in args))
+        named = tuple(state if isinstance(a, State) else a for a in args)
+        if not self.loop:
+            return self.function(*named)
+        # a time loop: (..., s, record, tier_1). numba's dispatcher would type tier 1's tuple of
+        # first-class functions at every call (3 ms); after the first call, the compiled entry point
+        from .generic_modules import _type_key
+        s, record = args[-2], args[-1]
+        key = tuple(_type_key(a) for a in named)
+        entry = self._entries.get(key)
+        if entry is None:
+            import numba
+            frame, calls = self._tier_1(numba.typeof(s), numba.typeof(record))
+            result = self.function(*named, (frame, calls, s))
+            compiled = self.function.overloads.get(tuple(numba.typeof(a) for a in (*named, (frame, calls, s))))
+            if compiled is not None:
+                self._entries[key] = (compiled.entry_point, frame, calls)
+            return result
+        function, frame, calls = entry
+        return function(*named, (frame, calls, s))
 
     @property
     def signatures(self):
@@ -262,4 +295,9 @@ class _TupleStateFunction:
     def compile(self, signature):
         import numba
         ty = numba.typeof(tuple_state(self.scene.arrays))
-        return self.function.compile(tuple(ty if isinstance(t, StateType) else t for t in signature))
+        signature = tuple(ty if isinstance(t, StateType) else t for t in signature)
+        if self.loop:  # (..., s, record): tier 1's record_frame, its pieces, the structref state
+            structref = numba.typeof(self.scene.state)
+            frame, calls = self._tier_1(structref, signature[-1])
+            signature += (numba.types.Tuple((numba.typeof(frame), numba.typeof(calls), structref)),)
+        return self.function.compile(signature)
