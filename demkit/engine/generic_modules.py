@@ -14,7 +14,7 @@ from .generic import (CALLS, CHUNK_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_P
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
                       H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
 from .snippets import ARRAYS, LIST_ARRAYS, SPEEDS
-from .state import pair_loop_arrays
+from .state import pair_loop_arrays, type_key
 
 
 _MODULES = {}
@@ -382,7 +382,7 @@ class _Bound:
         functions anew at every call (3 ms, more than a chunk of a small scene): after the first call
         of a signature, its compiled entry point is called directly."""
         import numba
-        key = tuple(_type_key(a) for a in args)
+        key = tuple(type_key(a) for a in args)
         entry = self._entries.get(key)
         if entry is None:
             types = tuple(numba.typeof(a) for a in args)
@@ -405,15 +405,3 @@ class _Bound:
         p = self.position
         first = self._first(signature[p], signature[p + 1] if self.steps else None)
         return self.function.compile((*(numba.typeof(f) for f in first), *signature))
-
-
-def _type_key(value):
-    """What decides the numba type of an argument, read without numba's typeof (arrays: dtype,
-    dimensions, layout, writability; a state: its numba type; tuples: their items)."""
-    if isinstance(value, np.ndarray):
-        flags = value.flags
-        return value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned
-    if isinstance(value, tuple):
-        return tuple(_type_key(v) for v in value)
-    numba_type = getattr(value, "_numba_type_", None)
-    return numba_type if numba_type is not None else type(value)

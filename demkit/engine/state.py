@@ -273,9 +273,8 @@ class _TupleStateFunction:
             return self.function(*named)
         # a time loop: (..., s, record, tier_1). numba's dispatcher would type tier 1's tuple of
         # first-class functions at every call (3 ms); after the first call, the compiled entry point
-        from .generic_modules import _type_key
         s, record = args[-2], args[-1]
-        key = tuple(_type_key(a) for a in named)
+        key = tuple(type_key(a) for a in named)
         entry = self._entries.get(key)
         if entry is None:
             import numba
@@ -301,3 +300,15 @@ class _TupleStateFunction:
             frame, calls = self._tier_1(structref, signature[-1])
             signature += (numba.types.Tuple((numba.typeof(frame), numba.typeof(calls), structref)),)
         return self.function.compile(signature)
+
+
+def type_key(value):
+    """What decides the numba type of an argument, read without numba's typeof (arrays: dtype,
+    dimensions, layout, writability; a state: its numba type; tuples: their items)."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned
+    if isinstance(value, tuple):
+        return tuple(type_key(v) for v in value)
+    numba_type = getattr(value, "_numba_type_", None)
+    return numba_type if numba_type is not None else type(value)
