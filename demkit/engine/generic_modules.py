@@ -9,7 +9,7 @@ import numpy as np
 
 from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
-from .generic import (CALLS, CHUNK_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
+from .generic import (CALLS, CHUNK_CALLS, FRAME_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
                       UPKEEP, _name, _pieces_name)
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
                       H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
@@ -213,9 +213,13 @@ class GenericKernels:
         self._steps = {}
         self._bound = {}
 
-    def calls_for(self, state_type):
-        """The tuple of first-class functions the scene-level functions take, for this state type."""
-        if state_type not in self._calls:
+    def calls_for(self, state_type, only=None):
+        """The tuple of first-class functions the scene-level functions take, for this state type;
+        with ``only`` (names of :data:`CALLS`), the others the scene needs given as their stubs, of
+        the same types (:data:`FRAME_CALLS`: what record_frame calls, for a fused module's frames)."""
+        key = (state_type, only)
+        if key not in self._calls:
+            needs = self.needs if only is None else tuple(name for name in self.needs if name in only)
             arguments = piece_arguments(state_type)
             calls = []
             for name in CALLS:
@@ -223,18 +227,18 @@ class GenericKernels:
                     piece = CHUNK_CALLS[name]
                     family = BLOCKED if piece == "pairs_forces_blocked" else self.family
                     function = (getattr(_pieces(family), f"{piece}_chunk")
-                                if piece in self.needs and self.pieces is None else self.module.no_pairs_chunk)
+                                if piece in needs and self.pieces is None else self.module.no_pairs_chunk)
                     calls.append(self._wrapped(function, arguments[name]))
                     continue
                 if name == "lists_on_threads":  # a bool, the same type in both modules' calls
                     calls.append(np.bool_(self.threads))
                     continue
                 if name == "rebuild_list":  # the list builder, or a stub for a scene without lists
-                    function = neighbours.rebuild if "maintain_lists" in self.needs else self.module.no_rebuild_list
+                    function = neighbours.rebuild if "maintain_lists" in needs else self.module.no_rebuild_list
                     calls.append(self._wrapped(function, arguments[name]))
                     continue
                 if name == "fill_list":  # its fill, serial or on threads (or a stub)
-                    if "maintain_lists" in self.needs:
+                    if "maintain_lists" in needs:
                         f = _fields(state_type)
                         calls.append(neighbours.filler(f["lists"][0], f["box"], f["periodic"], self.threads))
                     else:
@@ -243,7 +247,7 @@ class GenericKernels:
                 family = BLOCKED if name == "pairs_forces_blocked" else self.family
                 module = self.module if name in SCENE_PIECES + OWN_CALLS else _pieces(family)
                 # the piece, or its stub when the scene never calls it
-                stubbed = (name not in self.needs or (name in OWN_CALLS and self.own is None)) and \
+                stubbed = (name not in needs or (name in OWN_CALLS and self.own is None)) and \
                     hasattr(module, f"no_{name}")
                 own_piece = name in PIECES and (self.own_energies or "energies" not in name)
                 if self.pieces is not None and own_piece and not stubbed:
@@ -255,13 +259,13 @@ class GenericKernels:
                     function = getattr(self.own, name)
                 elif self.threads and name in THREAD_PIECES and not stubbed:  # tier 1's loop on threads
                     function = self.on_threads.pairs_on_threads  # (running the chunk in calls)
-                elif "fold_frame" in self.needs and name in SHEARED_CALLS:  # a sheared box's
+                elif "fold_frame" in needs and name in SHEARED_CALLS:  # a sheared box's
                     function = getattr(module, SHEARED_CALLS[name])
                 else:
                     function = getattr(module, f"no_{name}" if stubbed else name)
                 calls.append(self._wrapped(function, arguments[name]))
-            self._calls[state_type] = tuple(calls)
-        return self._calls[state_type]
+            self._calls[key] = tuple(calls)
+        return self._calls[key]
 
     def _diagnostic(self, kind, g):
         """pair_energies_<g> / pair_forces_<g>(s, owners, partners, out): every entry of pair loop g and
@@ -315,7 +319,8 @@ class GenericKernels:
         if key not in self._steps:
             import numba
             from numba import types
-            calls_type = numba.typeof(self.calls_for(state_type))
+            # (the calls' type: the same with or without stubs; the frames' need no force piece compiled)
+            calls_type = numba.typeof(self.calls_for(state_type, FRAME_CALLS))
             stage = _fields(state_type)["stage"]
             vector = types.Array(stage.dtype, stage.ndim - 1, "C" if stage.layout == "C" else "A")
             frame = self._wrapped(self.module.record_frame, (calls_type, types.int64, state_type, record_type))
@@ -328,6 +333,11 @@ class GenericKernels:
             self._steps[key] = tuple(frame if name == "record_frame" else
                                      self._wrapped(getattr(self.module, name), arguments[name]) for name in uses)
         return self._steps[key]
+
+    def frame_of(self, state_type, record_type):
+        """record_frame for this state and record type, as a first-class function, and the calls it
+        takes (:data:`FRAME_CALLS`, the rest stubs): a fused open module's time loops record with them."""
+        return self.steps_for(state_type, record_type, ("record_frame",))[0], self.calls_for(state_type, FRAME_CALLS)
 
     @staticmethod
     def _wrapped(function, arguments):
@@ -369,10 +379,13 @@ class _Bound:
         self.steps = "steps" in names
         self.position = names.index("s") - (2 if self.steps else 1)
         self.uses = kernels.module.STEPS_OF[function.__name__] if self.steps else ()
+        # record_frame is given the pieces it calls, the rest as stubs of the same types (the same
+        # compiled function): a fused module's run records its first frame compiling no force piece
+        self.only = FRAME_CALLS if function.__name__ == "record_frame" else None
         self._entries = {}  # argument types -> (compiled entry point, the pieces' tuples)
 
     def _first(self, state_type, record_type):
-        calls = self.kernels.calls_for(state_type)
+        calls = self.kernels.calls_for(state_type, self.only)
         if not self.steps:
             return (calls,)
         return calls, self.kernels.steps_for(state_type, record_type, self.uses)

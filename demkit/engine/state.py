@@ -263,8 +263,7 @@ class _TupleStateFunction:
 
     def _tier_1(self, state_type, record_type):
         """Tier 1's record_frame for these types, as a first-class function, and its pieces."""
-        kernels = self.scene.kernels
-        return kernels.steps_for(state_type, record_type, ("record_frame",))[0], kernels.calls_for(state_type)
+        return self.scene.kernels.frame_of(state_type, record_type)
 
     def __call__(self, *args):
         state = tuple_state(self.scene.arrays)
