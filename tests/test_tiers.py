@@ -101,24 +101,27 @@ def test_small_scene_with_multiple_time_steps_same_bits():
     same_bits(small_scene, dk.MultipleTimeStep(4e-4, inner=2), 0.05)
 
 
+def frictionless_gas(tier, **options):
+    """The gas with Kelvin-Voigt contacts and dipoles of the contacts' reach (one pair loop): the tier-2
+    pieces of every test of a periodic gas here (one module compiled; each costs seconds). Frictional
+    history over periodic lists on tier 2 is the sheared gas's (tests/test_shear.py), the walled pour's
+    and the threaded scene's of functions of your own (below)."""
+    return gas(tier, kelvin_voigt=True, cutoff=1.0, **options)
+
+
 @pytest.mark.parametrize("integrator", [dk.VelocityVerlet(1e-3), dk.RK4(1e-3), dk.ForestRuth(1e-3),
                                         dk.VelocityVerlet(1e-3, resolve_contacts=True), dk.EulerCromer(1e-3)],
                          ids=["verlet", "rk4", "forest_ruth", "contact_events", "euler_cromer"])
 def test_periodic_gas_same_bits(integrator):
-    # RK4 and Forest-Ruth integrate no contact history, contact events need frictionless contacts; the
-    # integrators whose loops differ only in their arithmetic run the cheaper frictionless gas (each
-    # integrator is a time loop of its own in the fused module: seconds to compile for each)
-    # (the frictionless gas is test_multiple_time_steps_with_lists_same_bits's: one module of pieces)
-    friction = type(integrator) is dk.VelocityVerlet and not integrator.resolve_contacts
-    make = gas if friction else (lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0))
-    same_bits(make, integrator, 0.2)
+    # every integrator's time loop over the scene's own pieces (contact events need frictionless contacts)
+    same_bits(frictionless_gas, integrator, 0.2)
 
 
 def test_a_deforming_box_same_bits():
     """The gas compressed along x and drawn out along y (the box and positions remapped after each step
     by end_step, the lists rebuilt as the remap squeezes the skin): tier 2's pieces are the fixed box's
     (the deformation is data: params and the program), the same bits as tier 1."""
-    make = (lambda tier: gas(tier, deform=dk.Deform(x=-0.4, y=0.25)))
+    make = (lambda tier: frictionless_gas(tier, deform=dk.Deform(x=-0.4, y=0.25)))
     same_bits(make, dk.VelocityVerlet(1e-3), 0.2)
     assert make(1).program[0, layout.H_DEFORM] >= 0
 
@@ -127,9 +130,9 @@ def test_multiple_time_steps_with_lists_same_bits():
     """Multiple time stepping over neighbour lists: a slow dipole and a fast contact law of the same
     reach share a pair loop, run as a fast and a slow loop (on tier 2: two pair loops of the scene's
     own pieces, picked by the program row's speed)."""
-    scene = gas(1, kelvin_voigt=True, cutoff=1.0)
+    scene = frictionless_gas(1)
     assert len(scene.plan.groups) == 1 and scene.program[layout.group_row(0, 1), layout.G_COUNT] == 1
-    same_bits(lambda tier: gas(tier, kelvin_voigt=True, cutoff=1.0), dk.MultipleTimeStep(2e-3, inner=2), 0.2)
+    same_bits(frictionless_gas, dk.MultipleTimeStep(2e-3, inner=2), 0.2)
 
 
 def walled_pour(tier, n=72):
@@ -178,9 +181,9 @@ def test_long_range_sum_same_bits():
 
 def test_switch_in_the_middle_same_bits():
     """A run that starts on tier 1 and switches to tier 2 when it is ready ends with the same bits."""
-    plain = outcome(gas(1), dk.VelocityVerlet(1e-3), 2.0)[1]
-    outcome(gas(2), dk.VelocityVerlet(1e-3), 0.01)  # tier 2 compiled in this process
-    sim, switched = outcome(gas(None), dk.VelocityVerlet(1e-3), 2.0, switch=True)
+    plain = outcome(frictionless_gas(1), dk.VelocityVerlet(1e-3), 2.0)[1]
+    outcome(frictionless_gas(2), dk.VelocityVerlet(1e-3), 0.01)  # tier 2 compiled in this process
+    sim, switched = outcome(frictionless_gas(None), dk.VelocityVerlet(1e-3), 2.0, switch=True)
     assert sim.statistics["tier"] == 2 and 0 < sim.statistics["tier_switch_step"] < 2000
     assert switched.tobytes() == plain.tobytes()
 
@@ -266,9 +269,10 @@ def test_tier_choice_and_refusals(monkeypatch):
     scene = gas(None)
     assert scene.tier == 1 and scene.kernels.tier == 1
     # tier 2 of a scene with lists: the generic time loops calling the scene's own pieces
-    assert gas(2).loop_kernels.tier == 2 and gas(2).loop_kernels.pieces.__name__.startswith("demkit_pieces_")
+    second = frictionless_gas(2)
+    assert second.loop_kernels.tier == 2 and second.loop_kernels.pieces.__name__.startswith("demkit_pieces_")
     # ... whose diagnostics run on tier 1 (nothing of tier 2 compiled for them), open or with lists
-    for second in (gas(2), small_scene(2)):
+    for second in (second, small_scene(2)):
         assert second.tier == 2 and second.kernels.tier == 1 and second.loop_kernels is not second.kernels
     sim = dk.Simulation(scene, dk.VelocityVerlet(1e-3))
     sim.run(duration=0.01, progress=False)
