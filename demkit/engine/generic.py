@@ -773,9 +773,6 @@ CHUNK_CALLS = {"pairs_chunk": "pairs_forces", "pairs_blocked_chunk": "pairs_forc
 LIST_CALLS = ("rebuild_list", "fill_list", "lists_on_threads")
 #: the names in the ``calls`` tuple, in order
 CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS) + LIST_CALLS
-#: ... of which record_frame calls (its energies, the list upkeep before them, a sheared frame's folding)
-FRAME_CALLS = ("pairs_energies", "sphere_energies", "sum_energies", "own_pair_energies", "own_sphere_energies",
-               "fold_frame", "maintain_lists", "rebuild_list", "fill_list", "lists_on_threads")
 
 
 #: ... and what each stub returns

@@ -9,7 +9,7 @@ import numpy as np
 
 from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
-from .generic import (CALLS, CHUNK_CALLS, FRAME_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
+from .generic import (CALLS, CHUNK_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
                       UPKEEP, _name, _pieces_name)
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
                       H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
@@ -18,6 +18,12 @@ from .state import pair_loop_arrays, type_key
 
 
 _MODULES = {}
+
+
+#: the names of :data:`CALLS` record_frame calls (its energies, the list upkeep before them, a sheared
+#: frame's folding): the others are given to it as stubs of the same types
+FRAME_CALLS = ("pairs_energies", "sphere_energies", "sum_energies", "own_pair_energies", "own_sphere_energies",
+               "fold_frame", "maintain_lists", "rebuild_list", "fill_list", "lists_on_threads")
 
 
 def _load(key, source_and_name):

@@ -22,15 +22,12 @@ set ``DEMKIT_CACHE_DIR`` to move it, ``DEMKIT_NO_CACHE=1`` to disable it.
 """
 from __future__ import annotations
 
-import inspect
-import re
-import textwrap
-
 import numpy as np
 
 from .plan import BLOCK, SCALAR_FIELDS, Group, energy_kinds
-from .snippets import (ARRAYS, END_STEP_HEAD, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
-                       PERMUTE_BY_ORDER, PIECE_SIGNATURES, RECORD_FRAME, SPEEDS, WALL_PLANE, _callable_arguments,
+from .templates import fused_loop
+from .snippets import (ARRAYS, end_step_lines, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL,
+                       PERMUTE_BY_ORDER, PIECE_SIGNATURES, SPEEDS, WALL_PLANE, _callable_arguments,
                        _pair_call, _state_arrays, _state_fields, chunks_run, deep_wall_overlap, effect_sums,
                        as_int64, deep_pair_overlap, function_imports, piece_prelude, shear_prelude, shear_slot_after,
                        sheared_gather, sheared_line)
@@ -635,9 +632,8 @@ class _Source:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        frames = self.frames_of_tier_1
-        lines += ([] if frames else RECORD_FRAME) + [line.replace("timed):", "timed, tier_1):") if frames else line
-                                                      for line in END_STEP_HEAD]
+        head, tail = end_step_lines(self.frames_of_tier_1)
+        lines += head
         if plan.lists and (any(plan.periodic) or plan.sorted):
             lines += ["    if s.counters[WRAP_DUE] != 0:", "        s.counters[WRAP_DUE] = 0"]
             if any(plan.periodic):
@@ -647,11 +643,7 @@ class _Source:
                           "            sort_particles(s)",
                           "            s.counters[LAST_SORT] = step + s.counters[RUN_START]"]
         lines += [f"    servo_step(s.params, {as_int64(g)}, s.clock[0])" for g in self.servo_slots()]  # servo-controlled walls move
-        # a fused open module's frames: tier 1's record_frame (tier_1: it, its pieces, the structref state)
-        lines += [line.replace("record_frame(step // stride, s, record)",
-                               "tier_1[0](tier_1[1], step // stride, tier_1[2], record)") if frames else line
-                  for line in END_STEP_TAIL]
-        return lines
+        return lines + tail
 
     def servo_slots(self):
         """The geometry blocks of the servo-controlled walls, in the scene's order."""
@@ -707,8 +699,7 @@ class _Source:
             lines.append(f"INNER = dict(cache={cache}, _nrt=False, {fast})")
         else:  # small scenes: everything inlined into the time loop
             lines.append(f"INNER = dict(KERNEL_OPTIONS, cache={cache}, fastmath=False)")
-        # the single-sphere loop: called, not inlined, in every scene (one call a force evaluation; each
-        # time loop of a fused module inlined a copy of the walls' laws)
+        # (CALLED: the sphere loop, not inlined: one call a force evaluation, not a copy in each time loop)
         lines += [f"CALLED = dict(cache={cache}, _nrt=False, {fast})",
                   f"ENTRY = dict(cache={cache}, _nrt=False, {fast})",  # a piece's entry (tier 2 with lists): reads the state (borrowed)
                   f"PARALLEL = dict(cache={cache}, _nrt=False, parallel=True, {fast})",
@@ -725,15 +716,9 @@ class _Source:
         for g, name, sub, _ in self.parts:
             lines += self.group_forces(g, sub, name)
         lines += self.scene_functions()
-        for name, template in templates.items():
-            src = textwrap.dedent(inspect.getsource(template))
-            src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
-            # the clock as a constant: kept where walls move, pruned where none does (tier 1 reads H_CLOCK)
-            src = re.sub(r"timed = s\.program\[0, H_CLOCK\] != 0.*", f"timed = {bool(self.geometry_slot)}", src)
-            if self.frames_of_tier_1:  # the loops pass tier 1's record_frame on to end_step
-                src = src.replace("s, record):", "s, record, tier_1):", 1)
-                src = re.sub(r"end_step\((.*), timed\)", r"end_step(\1, timed, tier_1)", src)
-            lines += ["", "", "@njit(**LOOP)"] + src.rstrip().splitlines()
+        for name, template in templates.items():  # (the clock a constant: tier 1 reads H_CLOCK)
+            lines += ["", "", "@njit(**LOOP)"] + fused_loop(name, template, bool(self.geometry_slot),
+                                                            self.frames_of_tier_1)
         return "\n".join(lines) + "\n"
 
     def pieces_text(self, columns, serial_name=None):

@@ -27,6 +27,10 @@ The integrator classes that name them (``template``) are in :mod:`demkit.integra
 """
 from __future__ import annotations
 
+import inspect
+import re
+import textwrap
+
 from .motion import (advance_spin, copy_vectors, drift, kick, kick_all, rk_finish, rk_save,  # noqa: F401
                      rk_stage, total_forces)
 from .program import H_CLOCK  # noqa: F401 (used by templates)
@@ -317,3 +321,17 @@ TEMPLATES = {
     "velocity_verlet_events": velocity_verlet_events_template,
     "multiple_time_step_events": multiple_time_step_events_template,
 }
+
+
+def fused_loop(name, template, timed, frames_of_tier_1):
+    """The source lines of a fused module's time loop ``<name>_steps`` from ``template``: the clock
+    a constant (``timed``: walls that move; pruned where none does), and with ``frames_of_tier_1``
+    the loop's last argument, ``tier_1`` (tier 1's record_frame, its pieces, the structref state),
+    passed on to end_step, which records the frames with it."""
+    src = textwrap.dedent(inspect.getsource(template))
+    src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
+    src = re.sub(r"timed = s\.program\[0, H_CLOCK\] != 0.*", f"timed = {timed}", src)
+    if frames_of_tier_1:
+        src = src.replace("s, record):", "s, record, tier_1):", 1)
+        src = re.sub(r"end_step\((.*), timed\)", r"end_step(\1, timed, tier_1)", src)
+    return src.rstrip().splitlines()
