@@ -181,7 +181,8 @@ class StressSeries:
         return keep
 
     def mean(self, after=None):
-        """(<P>, its standard error), both (3, 3), over the samples at t >= ``after`` (all by default)."""
+        """(<P>, its standard error), both (3, 3), over the samples at t >= ``after`` (all by default);
+        the error is NaN with fewer than 16 samples (2 per block of :data:`BLOCKS`: no estimate)."""
         return block_mean(self.pressure_tensor[self._kept(after)])
 
     def statistics(self, since):
@@ -199,7 +200,8 @@ class StressSeries:
 
     def rheology(self, after=None):
         """The rheology of a sheared sample (module docstring) over the samples at t >= ``after``:
-        a dict of shear_stress, viscosity, n1, n2, pressure and each one's ``<name>_error``, and rate."""
+        a dict of shear_stress, viscosity, n1, n2, pressure and each one's ``<name>_error`` (NaN with
+        fewer than 16 samples, as :meth:`mean`), and rate."""
         if self.shear is None:
             raise ValueError("rheology needs a sheared box (dk.Box(..., shear=dk.Shear(rate, ...))); "
                              "mean() gives the stress of any scene")
