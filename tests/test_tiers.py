@@ -83,14 +83,19 @@ def outcome(scene, integrator, duration, switch=False, diagnostics=False):
     return sim, np.concatenate([np.ravel(a) for a in parts])
 
 
-def same_bits(make, integrator, duration, diagnostics=False):
-    # tier 2 first: a worker opening the suite on this test compiles the scene's own code while the
-    # other compiles the generic module (tests/conftest.py's SECOND_HALF_OPENS)
-    b = outcome(make(2), integrator, duration, diagnostics=diagnostics)[1]
-    a = outcome(make(1), integrator, duration, diagnostics=diagnostics)[1]
+def assert_same_bits(a, b):
     assert a.shape == b.shape
     assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ between the tiers"
-    return a
+
+
+def same_bits(make, integrator, duration, diagnostics=False):
+    """The run of make(1) and of make(2) give the same bits; returns their two Simulations."""
+    # tier 2 first: a worker opening the suite on this test compiles the scene's own code while the
+    # other compiles the generic module (tests/conftest.py's SECOND_HALF_OPENS)
+    second, b = outcome(make(2), integrator, duration, diagnostics=diagnostics)
+    first, a = outcome(make(1), integrator, duration, diagnostics=diagnostics)
+    assert_same_bits(a, b)
+    return first, second
 
 
 def test_small_scene_with_multiple_time_steps_same_bits():
@@ -257,7 +262,7 @@ def test_functions_of_your_own_with_history_over_lists_on_threads_same_bits():
     a = outcome(first, dk.VelocityVerlet(1e-3), 0.1, diagnostics=True)[1]
     second, counter_2 = make(2)
     b = outcome(second, dk.VelocityVerlet(1e-3), 0.1, diagnostics=True)[1]
-    assert a.tobytes() == b.tobytes(), f"{np.sum(a != b)} of {a.size} values differ between the tiers"
+    assert_same_bits(a, b)
     touches = first.history(counter)[1]
     assert touches.max() > 0 and touches.tobytes() == second.history(counter_2)[1].tobytes()
 

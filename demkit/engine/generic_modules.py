@@ -20,10 +20,10 @@ from .state import pair_loop_arrays, type_key
 _MODULES = {}
 
 
-#: the names of :data:`CALLS` record_frame calls (its energies, the list upkeep before them, a sheared
-#: frame's folding): the others are given to it as stubs of the same types
+#: the needs (:func:`needs_of`) record_frame calls (its energies, the list upkeep before them with its builder
+#: and fill, a sheared frame's folding): the others are given to it as stubs of the same types
 FRAME_CALLS = ("pairs_energies", "sphere_energies", "sum_energies", "own_pair_energies", "own_sphere_energies",
-               "fold_frame", "maintain_lists", "rebuild_list", "fill_list", "lists_on_threads")
+               "fold_frame", "maintain_lists")
 
 
 def _load(key, source_and_name):
@@ -221,7 +221,7 @@ class GenericKernels:
 
     def calls_for(self, state_type, only=None):
         """The tuple of first-class functions the scene-level functions take, for this state type;
-        with ``only`` (names of :data:`CALLS`), the others the scene needs given as their stubs, of
+        with ``only`` (names of :func:`needs_of`), the others the scene needs given as their stubs, of
         the same types (:data:`FRAME_CALLS`: what record_frame calls, for a fused module's frames)."""
         key = (state_type, only)
         if key not in self._calls:

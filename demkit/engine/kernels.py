@@ -41,8 +41,6 @@ class _Source:
         self.threads = threads  # the thread module: chunked loops on prange, per-step passes on threads
         self.kinds = energy_kinds(plan.energy_sources)
         self.importable = importable
-        #: an open scene's frames are recorded by tier 1 (see Plan.frames_of_tier_1)
-        self.frames_of_tier_1 = plan.frames_of_tier_1 and not plan.growing
         self.parts = self.split_groups()
         # parameter slots: each interaction's parameters, each effect's, then one squared cutoff per
         # interaction, then the effects' tables (Scene builds params in this order)
@@ -632,7 +630,7 @@ class _Source:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        head, tail = end_step_lines(self.frames_of_tier_1)
+        head, tail = end_step_lines(plan.frames_of_tier_1)
         lines += head
         if plan.lists and (any(plan.periodic) or plan.sorted):
             lines += ["    if s.counters[WRAP_DUE] != 0:", "        s.counters[WRAP_DUE] = 0"]
@@ -718,7 +716,7 @@ class _Source:
         lines += self.scene_functions()
         for name, template in templates.items():  # (the clock a constant: tier 1 reads H_CLOCK)
             lines += ["", "", "@njit(**LOOP)"] + fused_loop(name, template, bool(self.geometry_slot),
-                                                            self.frames_of_tier_1)
+                                                            plan.frames_of_tier_1)
         return "\n".join(lines) + "\n"
 
     def pieces_text(self, columns, serial_name=None):

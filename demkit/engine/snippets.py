@@ -225,7 +225,6 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
                  "    return countdown - 1"]
 
 
-
 def end_step_lines(frames_of_tier_1):
     """A fused module's record_frame and end_step's head, and end_step's tail (after its list upkeep and
     servos). With ``frames_of_tier_1`` no record_frame: end_step takes ``tier_1`` (tier 1's record_frame,
@@ -235,6 +234,7 @@ def end_step_lines(frames_of_tier_1):
     return ([line.replace("timed):", "timed, tier_1):") for line in END_STEP_HEAD],
             [line.replace("record_frame(step // stride, s, record)", "tier_1[0](tier_1[1], step // stride, tier_1[2], record)")
              for line in END_STEP_TAIL])
+
 
 #: the plane a wall presents to sphere i (its own, or a cylinder's tangent plane there) and the
 #: surface's velocity, set by demkit.interactions.wall_motion.wall_plane: the first seven parameters

@@ -261,10 +261,6 @@ class _TupleStateFunction:
         self.function, self.scene, self.loop = function, scene, loop
         self._entries = {}  # argument types -> (compiled entry point, tier 1's record_frame and pieces)
 
-    def _tier_1(self, state_type, record_type):
-        """Tier 1's record_frame for these types, as a first-class function, and its pieces."""
-        return self.scene.kernels.frame_of(state_type, record_type)
-
     def __call__(self, *args):
         state = tuple_state(self.scene.arrays)
         named = tuple(state if isinstance(a, State) else a for a in args)
@@ -277,7 +273,7 @@ class _TupleStateFunction:
         entry = self._entries.get(key)
         if entry is None:
             import numba
-            frame, calls = self._tier_1(numba.typeof(s), numba.typeof(record))
+            frame, calls = self.scene.kernels.frame_of(numba.typeof(s), numba.typeof(record))
             result = self.function(*named, (frame, calls, s))
             compiled = self.function.overloads.get(tuple(numba.typeof(a) for a in (*named, (frame, calls, s))))
             if compiled is not None:
@@ -296,7 +292,7 @@ class _TupleStateFunction:
         signature = tuple(ty if isinstance(t, StateType) else t for t in signature)
         if self.loop:  # (..., s, record): tier 1's record_frame, its pieces, the structref state
             structref = numba.typeof(self.scene.state)
-            frame, calls = self._tier_1(structref, signature[-1])
+            frame, calls = self.scene.kernels.frame_of(structref, signature[-1])
             signature += (numba.types.Tuple((numba.typeof(frame), numba.typeof(calls), structref)),)
         return self.function.compile(signature)
 
