@@ -117,7 +117,7 @@ def _evaluate(law, first, fields, history, params):
         args = first(k) + fields
         if law.history_size:
             args += [history, k, 0, False]
-        if table.size:  # a wall of a law with twisting resistance: its table (demkit.interactions.wall)
+        if table.size:  # a wall of a law with friction: its table (demkit.interactions.wall)
             args += [table, 0]
         out = force_function(*args, *(params[k] if np.ndim(params) == 2 else params))
         rows[k, :3], rows[k, 9] = out[:3], out[-1]

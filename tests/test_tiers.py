@@ -313,7 +313,9 @@ def test_program_layout():
     assert program[0, layout.H_EFFECTS] == 7
     names = [effects[program[layout.effect_row(e), layout.E_KIND]].force_name for e in range(6)]
     assert names[:2] == ["gravity_force", "field_torque"] and names[2].startswith("wall_kelvin_voigt_twisting")
-    assert names[5] == "wall_kelvin_voigt_friction_force"  # the cylinder: a wall kind, with its geometry block
+    # the cylinder (friction without twisting): a wall kind, with its geometry block, run as the twisting law
+    assert names[5] == "wall_kelvin_voigt_twisting_force"
+    assert scene.effects[5].force_function.__name__ == "wall_kelvin_voigt_friction_force"
     geometry = [program[layout.effect_row(e), layout.E_GEOMETRY] for e in range(6)]
     # the vibrated floor (shape 0 and its motion: 8 numbers), the cylinder (18: its Hertz flag last) and the lid (shape 2, the
     # motion, the servo with its count of target points: 17) have blocks

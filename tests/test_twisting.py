@@ -198,8 +198,8 @@ def test_twisting_with_rolling_keeps_angular_momentum_and_closes_the_energy_bala
 
 
 def test_unused_twisting_costs_nothing_and_used_adds_two_history_values():
-    """Without twisting resistance a scene keeps today's history widths, parameters and generated
-    code (checked once against the code before twisting existed: identical source for five laws);
+    """Without twisting resistance a scene keeps today's history widths and its fused code has no
+    twisting (its laws take the twisting law's arguments, lever 0, so that tier 1 runs both as one kind);
     with it, two more history values per contact and sphere-wall contact."""
     def scene(contact):
         p = dk.Particles(position=[[0, 0, 0.5], [0.99, 0, 0.5]], radius=0.5, mass=1.0)
@@ -208,14 +208,14 @@ def test_unused_twisting_costs_nothing_and_used_adds_two_history_values():
     for rolling, width in ((None, HISTORY), (dk.RollingResistance(0.1), 2 * HISTORY)):
         plain = dk.KelvinVoigt(1e3, 1.0, friction=dk.Friction(0.3), rolling=rolling)
         assert plain.history_size == width and plain.twisting is None and "twisting" not in repr(plain)
-        assert len(plain.parameters) == 11
+        assert len(plain.parameters) == 14 and plain.lever_tw == 0.0  # (the twisting law's arguments, lever 0)
         s = scene(plain)
         assert "twist" not in s.fused_source()
-        assert s.effects[0].history_size == width and s.effects[0].table_values().size == 0
+        assert s.effects[0].history_size == width and s.effects[0].table_values()[6] == 0.0  # (no twist)
         twisted = dk.KelvinVoigt(1e3, 1.0, friction=dk.Friction(0.3), rolling=rolling,
                                  twisting=dk.TwistingResistance())
         assert twisted.history_size == width + TWIST_HISTORY
-        assert twisted.parameters == plain.parameters[:-1] + ("k_tw", "eta_tw", "lever_tw", "dt")
+        assert twisted.parameters == plain.parameters and twisted.parameters[-4:] == ("k_tw", "eta_tw", "lever_tw", "dt")
         s = scene(twisted)
         assert "kelvin_voigt_twisting_force" in s.fused_source() and s.effects[0].history_size == width + TWIST_HISTORY
         # the wall's table: (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw), Marshall's as -1, then twisting on and the

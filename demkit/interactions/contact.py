@@ -74,10 +74,11 @@ def kelvin_voigt_energy(i, j, dx, dy, dz, r2, velocity, radius, stiffness, dampi
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt,
-                                vshift=NO_SHIFT):
+                                commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
+                                eta_tw, lever_tw, dt, vshift=NO_SHIFT):
     """Force on j, torques on i and j and dissipated power of a spring-dashpot contact with
-    Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0."""
+    Coulomb friction (see :mod:`demkit.interactions.friction`) and rolling resistance if mu_r > 0
+    (the twisting parameters, 0, are not read: a frictional law takes the twisting law's arguments)."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -102,7 +103,8 @@ def kelvin_voigt_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
 
 @njit(**KERNEL_OPTIONS)
 def kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt):
+                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
+                                 eta_tw, lever_tw, dt):
     """Elastic energy of the normal spring, of the tangential spring and of the rolling spring."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -116,10 +118,14 @@ def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
                                 commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw,
                                 eta_tw, lever_tw, dt, vshift=NO_SHIFT):
     """:func:`kelvin_voigt_friction_force` plus twisting resistance (:mod:`.twisting`; history after
-    the friction and rolling springs; Marshall's coefficient where the given one is -1)."""
+    the friction and rolling springs; Marshall's coefficient where the given one is -1), none when lever_tw
+    is 0: then the bits of :func:`kelvin_voigt_friction_force`, which tier 1 runs as this law
+    (demkit.engine.catalogue: one kind for both)."""
     fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = kelvin_voigt_friction_force(
         i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset, commit, stiffness, damping,
-        no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, dt, vshift)
+        no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r, k_tw, eta_tw, lever_tw, dt, vshift)
+    if lever_tw == 0.0:  # no twisting resistance
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -144,14 +150,16 @@ def kelvin_voigt_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity
 def kelvin_voigt_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
                                  commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr, eta_r,
                                  k_tw, eta_tw, lever_tw, dt):
-    """Elastic energy of the contact's springs, the twist spring included."""
+    """Elastic energy of the contact's springs, the twist spring's included (none when lever_tw is 0)."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         return 0.0
-    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    return kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p, offset,
-                                        commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r, kr,
-                                        eta_r, dt) + twist_energy(history, p, o)
+    energy = kelvin_voigt_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, history, p,
+                                          offset, commit, stiffness, damping, no_tension, mu, kt, eta_t, style, mu_r,
+                                          kr, eta_r, k_tw, eta_tw, lever_tw, dt)
+    if lever_tw == 0.0:
+        return energy
+    return energy + twist_energy(history, p, offset + (2 * HISTORY if mu_r > 0.0 else HISTORY))
 
 
 def contact_duration(stiffness, damping, m_eff):
@@ -205,7 +213,8 @@ class KelvinVoigt(PairInteraction):
             self.reads = ("velocity", "angular_velocity", "radius")
             self.torque = True
             self.history_size = HISTORY * (2 if self.rolling is not None else 1)
-            self.parameters = self.parameters + ("mu", "kt", "eta_t", "style", "mu_r", "kr", "eta_r", "dt")
+            self.parameters = self.parameters + ("mu", "kt", "eta_t", "style", "mu_r", "kr", "eta_r") + \
+                TWIST_PARAMETERS + ("dt",)
             self.force_function = kelvin_voigt_friction_force
             self.energy_function = kelvin_voigt_friction_energy
             self.mu = friction.coefficient
@@ -221,8 +230,7 @@ class KelvinVoigt(PairInteraction):
                 default = self.damping * math.sqrt(self.kr / self.stiffness)
                 self.eta_r = rolling.damping if rolling.damping is not None else default
             self.dt = 0.0
-            if self.twisting is not None:
-                add_twisting(self, kelvin_voigt_twisting_force, kelvin_voigt_twisting_energy)
+            add_twisting(self, kelvin_voigt_twisting_force, kelvin_voigt_twisting_energy)
 
     def __repr__(self):
         return (f"KelvinVoigt(stiffness={self.stiffness!r}, damping={self.damping!r}, "
@@ -299,12 +307,14 @@ def check_twisting(law, friction, twisting):
 
 
 def add_twisting(law, force_function, energy_function):
-    """Give a contact law with friction its twisting spring: history, parameters, functions."""
-    law.history_size += TWIST_HISTORY
-    law.parameters = law.parameters[:-1] + TWIST_PARAMETERS + ("dt",)
-    law.force_function = force_function
-    law.energy_function = energy_function
-    law.k_tw, law.eta_tw, law.lever_tw = law.twisting.fixed
+    """Give a contact law with friction its twisting spring (history, parameter values, functions), or
+    the twisting parameters of one without: 0 (lever 0: none)."""
+    law.k_tw = law.eta_tw = law.lever_tw = 0.0
+    if law.twisting is not None:
+        law.history_size += TWIST_HISTORY
+        law.force_function = force_function
+        law.energy_function = energy_function
+        law.k_tw, law.eta_tw, law.lever_tw = law.twisting.fixed
 
 
 def twisting_repr(law):

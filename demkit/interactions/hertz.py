@@ -33,8 +33,8 @@ from numba import njit
 from ..engine.motion import KERNEL_OPTIONS
 
 from .base import PairInteraction, number, positive
-from .contact import (NO_SHIFT, add_twisting, check_tangential, check_twisting, contact_duration, twisting_repr,
-                      twisting_time_step)
+from .contact import (NO_SHIFT, TWIST_PARAMETERS, add_twisting, check_tangential, check_twisting, contact_duration,
+                      twisting_repr, twisting_time_step)
 from .friction import HISTORY, pair_friction, release, springs_energy
 from .hertz_restitution import damping_for_restitution
 from .rolling import STIFFNESS_FACTOR
@@ -97,10 +97,11 @@ def hertz_energy(i, j, dx, dy, dz, r2, velocity, radius, mass, young_eff, shear_
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
-                         eta_r_fixed, dt, vshift=NO_SHIFT):
+                         eta_r_fixed, k_tw, eta_tw, lever_tw, dt, vshift=NO_SHIFT):
     """Force on j, torques on i and j and dissipated power of a Hertz contact with friction
     (Mindlin spring when kt_fixed is 0; normal damping ratio when eta_t_fixed < 0) and rolling
-    resistance when mu_r > 0 (k_r = 2.25 mu_r^2 S_n when kr_fixed is 0, damping ratio likewise)."""
+    resistance when mu_r > 0 (k_r = 2.25 mu_r^2 S_n when kr_fixed is 0, damping ratio likewise); the
+    twisting parameters (0) are not read."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
@@ -128,7 +129,7 @@ def hertz_friction_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
 @njit(**KERNEL_OPTIONS)
 def hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                           young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed,
-                          eta_r_fixed, dt):
+                          eta_r_fixed, k_tw, eta_tw, lever_tw, dt):
     """Elastic energy of the Hertz contact, of its tangential spring and of its rolling spring."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -143,10 +144,14 @@ def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
                          young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
                          k_tw, eta_tw, lever_tw, dt, vshift=NO_SHIFT):
     """:func:`hertz_friction_force` plus twisting resistance (:mod:`.twisting`: Marshall's k_t a^2/2,
-    eta_t a^2/2, (2/3) mu a with the contact's own k_t and eta_t where the given value is -1)."""
+    eta_t a^2/2, (2/3) mu a with the contact's own k_t and eta_t where the given value is -1), none when
+    lever_tw is 0 (then :func:`hertz_friction_force`'s bits: tier 1 runs both as this law)."""
     fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power = hertz_friction_force(
         i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit, young_eff,
-        shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt, vshift)
+        shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, k_tw, eta_tw, lever_tw, dt,
+        vshift)
+    if lever_tw == 0.0:  # no twisting resistance
+        return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, power
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
@@ -175,14 +180,17 @@ def hertz_twisting_force(i, j, dx, dy, dz, r2, velocity, angular_velocity, radiu
 def hertz_twisting_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                           young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed,
                           k_tw, eta_tw, lever_tw, dt):
-    """Elastic energy of the Hertz contact and of its springs, the twist spring included."""
+    """Elastic energy of the Hertz contact and of its springs, the twist spring's included (none when
+    lever_tw is 0)."""
     reach = radius[i] + radius[j]
     if r2 >= reach * reach:
         return 0.0
-    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    return hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset,
-                                 commit, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r,
-                                 kr_fixed, eta_r_fixed, dt) + twist_energy(history, p, o)
+    energy = hertz_friction_energy(i, j, dx, dy, dz, r2, velocity, angular_velocity, radius, mass, history, p, offset,
+                                   commit, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, mu_r,
+                                   kr_fixed, eta_r_fixed, k_tw, eta_tw, lever_tw, dt)
+    if lever_tw == 0.0:
+        return energy
+    return energy + twist_energy(history, p, offset + (2 * HISTORY if mu_r > 0.0 else HISTORY))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -242,7 +250,7 @@ class Hertz(PairInteraction):
             self.torque = True
             self.history_size = HISTORY * (2 if self.rolling is not None else 1)
             self.parameters = self.parameters + ("mu", "kt_fixed", "eta_t_fixed", "style", "mu_r", "kr_fixed",
-                                                 "eta_r_fixed", "dt")
+                                                 "eta_r_fixed") + TWIST_PARAMETERS + ("dt",)
             self.force_function = hertz_friction_force
             self.energy_function = hertz_friction_energy
             self.mu = friction.coefficient
@@ -254,8 +262,7 @@ class Hertz(PairInteraction):
             self.kr_fixed = rolling.stiffness if rolling is not None and rolling.stiffness is not None else 0.0
             self.eta_r_fixed = rolling.damping if rolling is not None and rolling.damping is not None else -1.0
             self.dt = 0.0
-            if self.twisting is not None:
-                add_twisting(self, hertz_twisting_force, hertz_twisting_energy)
+            add_twisting(self, hertz_twisting_force, hertz_twisting_energy)
 
     def _pair(self, particles, i, j):
         """sqrt(R*) E* (arrays over the index pairs): F = 4/3 c delta^(3/2), U = 8/15 c delta^(5/2)."""

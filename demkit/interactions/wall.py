@@ -13,12 +13,12 @@ as LAMMPS' fix wall/gran ``wiggle``; peak acceleration (2 pi f)^2 |A|). Time is 
 demkit.interactions.wall_motion.wall_plane). A :class:`Servo` moves it instead to hold a force on it.
 Friction keeps each sphere's tangential spring against the wall in per-sphere history; with twisting resistance the
 wall, which does not spin, resists the sphere's spin about n (Marshall's a = sqrt(R delta)). A law
-with twisting passes its rolling and twisting numbers to the wall functions as a table
+with friction passes its rolling and twisting numbers to the wall functions as a table
 (:meth:`Wall.table_values`, :data:`TABLE`): one more scalar each would exceed the number of
 arguments a compiled call can take. The table also holds the wall's own spin (a turning cylinder's or
 cone's), which rolling and twisting resistance measure the sphere's spin against: a sphere turning with
-the wall as one rigid body feels neither; a rolling law against a turning wall takes the table's
-functions too.
+the wall as one rigid body feels neither. The twisting functions take the frictional ones' arguments and
+give their bits when the table says "no twisting": tier 1 runs both as one kind.
 """
 from __future__ import annotations
 
@@ -88,21 +88,25 @@ def _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, histo
 
 @njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                     plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                     eta_t, style, mu_r, kr, eta_r, dt):
+                                     params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
+                                     mu, kt, eta_t, style, dt):
+    """A Kelvin-Voigt wall contact with friction and rolling resistance (if mu_r > 0); params[start:start +
+    10] holds (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE` (twisting, not read
+    here: :func:`wall_kelvin_voigt_twisting_force` takes the same arguments)."""
     return _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane,
                                   nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt,
-                                  (mu_r, kr, eta_r, 0.0, 0.0, 0.0))
+                                  (params[start], params[start + 1], params[start + 2], params[start + 7],
+                                   params[start + 8], params[start + 9]))
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                      plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt,
-                                      eta_t, style, mu_r, kr, eta_r, dt):
+                                      params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
+                                      mu, kt, eta_t, style, dt):
     overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
-    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r)
+    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, params[start])
 
 
 @njit(**KERNEL_OPTIONS)
@@ -126,18 +130,21 @@ def wall_hertz_energy(i, x, y, z, velocity, radius, mass, plane, nx, ny, nz, ux,
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                              plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
-                              eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
+                              params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
+                              kt_fixed, eta_t_fixed, style, dt):
+    """:func:`wall_kelvin_voigt_friction_force` for a Hertz contact; params[start:start + 10] holds (mu_r,
+    k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE`."""
     return _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane,
                            nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
-                           (mu_r, kr_fixed, eta_r_fixed, 0.0, 0.0, 0.0))
+                           (params[start], params[start + 1], params[start + 2], params[start + 7], params[start + 8],
+                            params[start + 9]))
 
 
 @njit(**KERNEL_OPTIONS)
 def _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny,
                     nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt, rolling):
-    """:func:`wall_hertz_friction_force` against a wall spinning at (ox, oy, oz); ``rolling`` = (mu_r,
-    kr_fixed, eta_r_fixed, ox, oy, oz) (see :func:`_kelvin_voigt_friction`)."""
+    """:func:`_kelvin_voigt_friction` for a Hertz contact; ``rolling`` = (mu_r, kr_fixed, eta_r_fixed, ox,
+    oy, oz)."""
     mu_r, kr_fixed, eta_r_fixed, ox, oy, oz = rolling
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -154,12 +161,13 @@ def _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, histor
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
-                               plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed,
-                               eta_t_fixed, style, mu_r, kr_fixed, eta_r_fixed, dt):
+                               params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
+                               kt_fixed, eta_t_fixed, style, dt):
     overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
     if overlap <= 0.0:
         return 0.0
-    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r)
+    return (8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5
+            + springs_energy(history, p, offset, params[start]))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -177,17 +185,15 @@ def _wall_twist(nx, ny, nz, w, i, a, fn, kt, eta_t, mu, k_tw, eta_tw, lever_tw, 
 def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                      params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
                                      mu, kt, eta_t, style, dt):
-    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance; params[start:start + 10] holds
-    (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE` (twist 0: rolling resistance
-    alone, against a turning wall)."""
-    mu_r = params[start]
-    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
-    fx, fy, fz, tx, ty, tz, power = _kelvin_voigt_friction(
-        i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx, ny, nz, ux, uy, uz,
-        stiffness, damping, no_tension, mu, kt, eta_t, style, dt, (mu_r, params[start + 1], params[start + 2], ox, oy,
-                                                                   oz))
+    """:func:`wall_kelvin_voigt_friction_force` with twisting resistance if the table's twist is 1 (0:
+    that function's bits; tier 1 runs every frictional wall as this one, demkit.engine.catalogue)."""
+    fx, fy, fz, tx, ty, tz, power = wall_kelvin_voigt_friction_force(
+        i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, params, start, plane, nx, ny, nz,
+        ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt)
     if params[start + 6] == 0.0:  # no twisting
         return fx, fy, fz, tx, ty, tz, power
+    mu_r = params[start]
+    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -205,29 +211,27 @@ def wall_kelvin_voigt_twisting_force(i, x, y, z, velocity, angular_velocity, rad
 def wall_kelvin_voigt_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
                                       params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
                                       mu, kt, eta_t, style, dt):
-    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
-    if overlap <= 0.0:
-        return 0.0
-    mu_r = params[start]
-    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    twist = twist_energy(history, p, o) if params[start + 6] != 0.0 else 0.0
-    return 0.5 * stiffness * overlap * overlap + springs_energy(history, p, offset, mu_r) + twist
+    energy = wall_kelvin_voigt_friction_energy(i, x, y, z, velocity, angular_velocity, radius, history, p, offset,
+                                               commit, params, start, plane, nx, ny, nz, ux, uy, uz, stiffness,
+                                               damping, no_tension, mu, kt, eta_t, style, dt)
+    if params[start + 6] == 0.0 or radius[i] - (x * nx + y * ny + z * nz - plane) <= 0.0:
+        return energy
+    return energy + twist_energy(history, p, offset + (2 * HISTORY if params[start] > 0.0 else HISTORY))
 
 
 @njit(**KERNEL_OPTIONS)
 def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                               params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
                               kt_fixed, eta_t_fixed, style, dt):
-    """:func:`wall_hertz_friction_force` with twisting resistance; params[start:start + 10] holds
-    (mu_r, k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE`."""
-    mu_r = params[start]
-    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
-    fx, fy, fz, tx, ty, tz, power = _hertz_friction(
-        i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny, nz, ux, uy,
-        uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
-        (mu_r, params[start + 1], params[start + 2], ox, oy, oz))
+    """:func:`wall_hertz_friction_force` with twisting resistance if the table's twist is 1 (see
+    :func:`wall_kelvin_voigt_twisting_force`)."""
+    fx, fy, fz, tx, ty, tz, power = wall_hertz_friction_force(
+        i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, params, start, plane, nx, ny,
+        nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt)
     if params[start + 6] == 0.0:  # no twisting
         return fx, fy, fz, tx, ty, tz, power
+    mu_r = params[start]
+    ox, oy, oz = params[start + 7], params[start + 8], params[start + 9]
     o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
     overlap, rate, _, _, _ = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
@@ -247,13 +251,12 @@ def wall_hertz_twisting_force(i, x, y, z, velocity, angular_velocity, radius, ma
 def wall_hertz_twisting_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit,
                                params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu,
                                kt_fixed, eta_t_fixed, style, dt):
-    overlap = radius[i] - (x * nx + y * ny + z * nz - plane)
-    if overlap <= 0.0:
-        return 0.0
-    mu_r = params[start]
-    o = offset + (2 * HISTORY if mu_r > 0.0 else HISTORY)
-    twist = twist_energy(history, p, o) if params[start + 6] != 0.0 else 0.0
-    return 8.0 / 15.0 * young_eff * math.sqrt(radius[i]) * overlap ** 2.5 + springs_energy(history, p, offset, mu_r) + twist
+    energy = wall_hertz_friction_energy(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset,
+                                        commit, params, start, plane, nx, ny, nz, ux, uy, uz, young_eff, shear_eff,
+                                        gamma, mu, kt_fixed, eta_t_fixed, style, dt)
+    if params[start + 6] == 0.0 or radius[i] - (x * nx + y * ny + z * nz - plane) <= 0.0:
+        return energy
+    return energy + twist_energy(history, p, offset + (2 * HISTORY if params[start] > 0.0 else HISTORY))
 
 
 _GEOMETRY = ("plane", "nx", "ny", "nz", "ux", "uy", "uz")
@@ -265,12 +268,12 @@ _FUNCTIONS = {
 }
 _TWISTING = {KelvinVoigt: (wall_kelvin_voigt_twisting_force, wall_kelvin_voigt_twisting_energy),
              Hertz: (wall_hertz_twisting_force, wall_hertz_twisting_energy)}
-#: a twisting law's parameters that its walls take from their table instead, in the table's order
+#: a frictional law's parameters that its walls take from their table instead, in the table's order
 TWIST_TABLE = {KelvinVoigt: ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw"),
                Hertz: ("mu_r", "kr_fixed", "eta_r_fixed", "k_tw", "eta_tw", "lever_tw")}
-#: a wall's table (:meth:`Wall.table_values`): those six, then whether the law twists (1) or not (0: rolling
-#: resistance alone, against a turning wall) and the wall's own spin (ox, oy, oz), which the rolling and
-#: twisting springs measure the sphere's spin against (a turning cylinder's or cone's omega a)
+#: a frictional wall's table (:meth:`Wall.table_values`): those six, then whether the law twists (1) or not
+#: (0) and the wall's own spin (ox, oy, oz), which the rolling and twisting springs measure the sphere's spin
+#: against (a turning cylinder's or cone's omega a)
 TABLE = ("mu_r", "kr", "eta_r", "k_tw", "eta_tw", "lever_tw", "twist", "ox", "oy", "oz")
 
 
@@ -510,12 +513,11 @@ class Wall(SphereInteraction):
         self.history_size = law.history_size
         names = list(law.parameters)
         self.table = np.zeros(0)
-        turning = getattr(self, "angular_velocity", 0.0) != 0.0
-        if getattr(law, "twisting", None) is not None or (getattr(law, "rolling", None) is not None and turning):
-            # twisting, or rolling against a turning wall: the functions that take a table (the wall's spin)
-            self.force_function, self.energy_function = _TWISTING[base]
+        if friction:  # the rolling and twisting numbers in a table, with the wall's spin (table_values)
+            if law.twisting is not None:
+                self.force_function, self.energy_function = _TWISTING[base]
             table = TWIST_TABLE[base]
-            self.table = np.array([getattr(law, name, 0.0) for name in table], dtype=np.float64)
+            self.table = np.array([getattr(law, name) for name in table], dtype=np.float64)
             names = [name for name in names if name not in table]
         self.parameters = _GEOMETRY + tuple(names)
         for name in names:
