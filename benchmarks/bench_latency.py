@@ -29,7 +29,9 @@ Parts (all by default; name some to run only those):
   first step in a fresh process. ``tier2_first_step`` (the scenes with lists, and the paper's fused module): then the same scene
   started on tier 2 (``DEMKIT_TIER=2``) in a fresh process, CPU s to its first step: what tier 2 of a
   new combination costs (its own pieces; the time loops are tier 1's). ``install_wide``: CPU s compiling every function of the generic
-  modules (serial and threads, both families of pieces) as the integrators and diagnostics use them. ``speed``: steps per
+  modules (serial and threads, both families of pieces) as the integrators and diagnostics use them, then the
+  long-range sums (Ewald, P3M, each over a slab too; FMM) and the solve of induced moments (``tier_1_cpu_s``:
+  the first part alone, what this figure was until 1 Dec 2026). ``speed``: steps per
   second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
 
 * ``long_range`` (only when named): the same two measurements for long-range dipole sums: the
@@ -524,7 +526,42 @@ for scene in (small, big, small_full, big_full):
         module = scene.thread_kernels if threads else scene.kernels
         for name in TEMPLATES:
             getattr(module, name + "_steps").compile(signature)
-print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0}}))
+tier_1 = time.process_time() - t0
+# the long-range sums (Ewald, P3M, each also over a slab; FMM) and the solve of induced moments, with
+# and without lists: demkit's own functions and the generic module's, compiled once per install too
+m = 125
+mbox = dk.build.box_for(m, R, 0.1)
+mpos = dk.build.random_packing(m, R, mbox, seed=4)
+g = np.arange(4) + 0.5
+layer = np.column_stack([np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2), np.full(16, 0.5)])
+sums = []
+for lr in (dk.Ewald(1e-4), dk.P3M(1e-4)):
+    sums.append(dk.Scene(dk.Particles(position=mpos, radius=R, mass=1.0, dipole=np.tile([0.0, 0, 1], (m, 1))),
+                         [dk.Dipole(0.1, long_range=lr), dk.KelvinVoigt(1000.0, 1.0)], box=mbox, tier=1, parallel=True))
+    sums.append(dk.Scene(dk.Particles(position=mpos, radius=R, mass=1.0, susceptibility=1.0),
+                         [dk.Dipole(0.1, long_range=lr), dk.KelvinVoigt(1000.0, 1.0), dk.UniformField((0, 0, 0.2))],
+                         box=mbox, tier=1, parallel=True))
+for lr in (dk.Ewald(1e-6), dk.P3M(1e-4)):
+    sums.append(dk.Scene(dk.Particles(layer, radius=0.2, mass=1.0, dipole=np.tile([0.6, 0.0, 0.8], (16, 1))),
+                         [dk.Dipole(1.0, long_range=lr)], box=dk.Box([4.0, 4.0, 1.0], periodic=[True, True, False]),
+                         tier=1))
+sums.append(dk.Scene(dk.Particles(position=[[0, 0, 1.05 * k] for k in range(5)], radius=0.5, mass=1.0,
+                                  susceptibility=3.0),
+                     [dk.Dipole(1.0), dk.KelvinVoigt(1000.0, 1.0), dk.UniformField((0, 0, 0.5))], tier=1))
+sums.append(dk.Scene(dk.Particles(position=mpos, radius=R, mass=1.0, susceptibility=1.0),
+                     [dk.Dipole(0.1, cutoff=3.0), dk.KelvinVoigt(1000.0, 1.0), dk.UniformField((0, 0, 0.2))],
+                     box=mbox, tier=1))
+try:  # (fmm3dpy: the [fmm] extra)
+    sums.append(dk.Scene(dk.Particles(position=[[0, 0, 0], [1.5, 0, 0], [0, 1.5, 0], [1.5, 1.5, 0]], radius=0.5,
+                                      mass=1.0, dipole=np.eye(4, 3) + 0.1),
+                         [dk.Dipole(0.01, long_range=dk.FMM(1e-6, exact_below=0)), dk.KelvinVoigt(1000.0, 1.0)], tier=1))
+except ImportError:
+    pass
+for scene in sums:
+    for integrator in (dk.VelocityVerlet(1e-4), dk.MultipleTimeStep(1e-4, inner=2)):
+        dk.Simulation(scene, integrator).run(duration=2e-4, progress=False)
+    scene.energy(); scene.forces()
+print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0, "tier_1_cpu_s": tier_1}}))
 """
 
 

@@ -461,7 +461,7 @@ class TunedP3M:
         n = len(particles)
         field = np.zeros((n, 3))
         terms(np.ascontiguousarray(particles.position, dtype=np.float64),
-              np.ascontiguousarray(particles.dipole, dtype=np.float64), np.asarray(box.size, dtype=np.float64),
+              np.ascontiguousarray(particles.dipole, dtype=np.float64), np.array(box.size, dtype=np.float64),
               self.table_values(), np.zeros((n, 3)), field, True)
         return field + self_field(self.prefactor, self.alpha, particles.dipole)
 
