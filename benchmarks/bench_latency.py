@@ -30,8 +30,9 @@ Parts (all by default; name some to run only those):
   started on tier 2 (``DEMKIT_TIER=2``) in a fresh process, CPU s to its first step: what tier 2 of a
   new combination costs (its own pieces; the time loops are tier 1's). ``install_wide``: CPU s compiling every function of the generic
   modules (serial and threads, both families of pieces) as the integrators and diagnostics use them, then the
-  long-range sums (Ewald, P3M, each over a slab too; FMM) and the solve of induced moments (``tier_1_cpu_s``:
-  the first part alone, what this figure was until 1 Dec 2026). ``speed``: steps per
+  long-range sums (Ewald, P3M, each over a slab too; FMM), the solve of induced moments, sorting by cell, a
+  sheared box, contact events over lists, a cone and the contact diagnostics (``tier_1_cpu_s``: the first part
+  alone, what this figure was until 1 Dec 2026). ``speed``: steps per
   second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
 
 * ``long_range`` (only when named): the same two measurements for long-range dipole sums: the
@@ -561,6 +562,19 @@ for scene in sums:
     for integrator in (dk.VelocityVerlet(1e-4), dk.MultipleTimeStep(1e-4, inner=2)):
         dk.Simulation(scene, integrator).run(duration=2e-4, progress=False)
     scene.energy(); scene.forces()
+# and what other scenes compile once: sorting by cell, a sheared box, contact events over lists, a cone,
+# the contact diagnostics (the laws called from Python)
+others = [dk.Scene(dk.Particles(position=q.position, radius=R, mass=1.0), [dk.KelvinVoigt(1000.0, 1.0)], box=box,
+                   tier=1, sort_every=1),
+          dk.Scene(dk.Particles(position=q.position, radius=R, mass=1.0, dipole=q.dipole), full[:1],
+                   box=dk.Box(box.size, periodic=True, shear=dk.Shear(0.1, "x", "y")), tier=1),
+          dk.Scene(dk.Particles(position=[[0, 0, 2.0], [0.55, 0, 3.0]], radius=0.5, mass=1.0), [full[0], dk.Gravity((0, 0, -1.0)),
+                   dk.Cone((0, 0, 0), (0, 0, 1), 0.6, upper=5.0, angular_velocity=0.5)], tier=1)]
+for scene in others:
+    dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(duration=3e-3, progress=False)
+dk.Simulation(others[0], dk.VelocityVerlet(1e-3, resolve_contacts=True)).run(duration=2e-3, progress=False)
+for scene in (small_full, big_full, others[2]):
+    scene.contacts()
 print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0, "tier_1_cpu_s": tier_1}}))
 """
 
