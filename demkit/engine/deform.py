@@ -21,8 +21,6 @@ from __future__ import annotations
 
 from numba import njit
 
-from .motion import COMPILED_ONLY
-
 #: the deform block in params: rates (3), lengths at t0 (3), lengths at the lists' build (3), longest list reach, t0
 DF_RATE, DF_SIZE0, DF_BUILT, DF_REACH, DF_START = 0, 3, 6, 9, 10
 DEFORM_VALUES = 11
@@ -31,7 +29,7 @@ DEFORM_VALUES = 11
 OPTIONS = dict(cache=True, _nrt=False, error_model="numpy")
 
 
-@njit(**OPTIONS, **COMPILED_ONLY)
+@njit(**OPTIONS)
 def deform_step(position, reference, box, params, q, t):
     """The box at time t (L_a0 (1 + rate_a (t - t0)) along each deforming axis), the positions and the
     lists' references remapped affinely from the box they were in."""
@@ -50,7 +48,7 @@ def deform_step(position, reference, box, params, q, t):
         box[a] = length
 
 
-@njit(**OPTIONS, **COMPILED_ONLY)
+@njit(**OPTIONS)
 def squeeze_since_build(params, q, box):
     """(1 - s) r_l: how much closer than at the lists' build the remap alone has brought a pair at
     the lists' reach r_l (s: the smallest L_a / L_a(build) below 1)."""
@@ -62,7 +60,7 @@ def squeeze_since_build(params, q, box):
     return (1.0 - s) * params[q + DF_REACH]
 
 
-@njit(**OPTIONS, **COMPILED_ONLY)
+@njit(**OPTIONS)
 def mark_built(params, q, box):
     """Note the box the lists were built in (no-op when q < 0: the box does not deform)."""
     if q < 0:

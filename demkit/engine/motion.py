@@ -26,11 +26,6 @@ KERNEL_OPTIONS = dict(cache=True, _nrt=False, fastmath=FASTMATH, error_model="nu
 #: re-type and re-lower the same code in every kernel: a Hertz + friction + rolling + wall scene
 #: compiled in 43 s instead of 15 s, and ran no faster (LLVM still inlines them where it pays).
 HELPER_OPTIONS = dict(KERNEL_OPTIONS, inline="never")
-#: numba options of a function that only compiled code calls: neither the wrapper a call from Python goes
-#: through (without it such a call would crash the interpreter: tests/test_compiled_only.py checks that
-#: no Python code calls one) nor the one a first-class function needs; 0.1-0.15 CPU s less to compile each
-#: (50 of them: 8 CPU s of the install-wide code, measured)
-COMPILED_ONLY = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 @njit(**KERNEL_OPTIONS)
@@ -406,7 +401,7 @@ sum_chunks_called = _called(sum_chunks)
 THREAD_OPTIONS = dict(cache=True, _nrt=False, parallel=True, fastmath=FASTMATH, error_model="numpy")
 
 
-@njit(**THREAD_OPTIONS, **COMPILED_ONLY)
+@njit(**THREAD_OPTIONS)
 def kick_threads(velocity, force, mass, h):
     """v += F/m h, particles split among threads."""
     for i in prange(velocity.shape[0]):
@@ -416,7 +411,7 @@ def kick_threads(velocity, force, mass, h):
         velocity[i, 2] += s * force[i, 2]
 
 
-@njit(**THREAD_OPTIONS, **COMPILED_ONLY)
+@njit(**THREAD_OPTIONS)
 def drift_threads(position, velocity, h):
     """x += v h, particles split among threads."""
     for i in prange(position.shape[0]):
@@ -425,14 +420,14 @@ def drift_threads(position, velocity, h):
         position[i, 2] += h * velocity[i, 2]
 
 
-@njit(**THREAD_OPTIONS, **COMPILED_ONLY)
+@njit(**THREAD_OPTIONS)
 def rotate_threads(vectors, angular_velocity, h):
     """:func:`rotate`, particles split among threads."""
     for i in prange(vectors.shape[0]):
         rotate_one(vectors, angular_velocity, h, i)
 
 
-@njit(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy", **COMPILED_ONLY)
+@njit(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy")
 def advance_spin_threads(angular_velocity, dipole, torque, inertia, kick_h, rotate_h):
     """:func:`advance_spin` with its passes on threads."""
     if angular_velocity.shape[0] == 0:
@@ -443,14 +438,14 @@ def advance_spin_threads(angular_velocity, dipole, torque, inertia, kick_h, rota
         rotate_threads(dipole, angular_velocity, rotate_h)
 
 
-@njit(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy", **COMPILED_ONLY)
+@njit(cache=True, _nrt=False, fastmath=FASTMATH, error_model="numpy")
 def kick_all_threads(velocity, angular_velocity, dipole, force, torque, mass, inertia, h, rotate_h):
     """:func:`kick_all` with its passes on threads."""
     kick_threads(velocity, force, mass, h)
     advance_spin_threads(angular_velocity, dipole, torque, inertia, h, rotate_h)
 
 
-@njit(**THREAD_OPTIONS, **COMPILED_ONLY)
+@njit(**THREAD_OPTIONS)
 def sum_chunks_threads(target, buffers, count):
     """:func:`sum_chunks`, particles split among threads (the same sums, the same order; the
     buffers zeroed)."""
@@ -463,7 +458,7 @@ def sum_chunks_threads(target, buffers, count):
             target[i, a] = total
 
 
-@njit(**THREAD_OPTIONS, **COMPILED_ONLY)
+@njit(**THREAD_OPTIONS)
 def clear_threads(force, torque):
     """Zero the force and torque arrays, particles split among threads."""
     for i in prange(force.shape[0]):

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import overload
 
-from .motion import COMPILED_ONLY, fold
+from .motion import fold
 from .pair_history import restore_history, saved_history
 
 #: at most this many cells per particle (open scenes whose spheres flew far apart get coarser cells)
@@ -68,7 +68,7 @@ def max_displacement(position, reference):
     return worst, k
 
 
-@njit(cache=True, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy", **COMPILED_ONLY)  # reductions need NRT
+@njit(cache=True, parallel=True, fastmath={"contract", "arcp"}, error_model="numpy")  # reductions need NRT
 def max_displacement_threads(position, reference):
     """:func:`max_displacement` on threads (the largest value on threads, its particle found serially)."""
     worst = 0.0
@@ -89,7 +89,7 @@ def max_displacement_threads(position, reference):
     return worst, k
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def copy_rows(target, source):
     """target[:] = source for (N,3) arrays."""
     for i in range(source.shape[0]):
@@ -204,7 +204,7 @@ def sorted_copy(position, tag, box, periodic, members, xs, ts):
             xs[a, m] = x
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def neighbour_ranges(cx, cy, cz, ncell, cell_start, near, shift, counts, box, lo, hi, image):
     """The members of the cells around (cx, cy, cz) as ranges lo[r]:hi[r] of the cell-sorted arrays,
     with the image shift image[r] to add to their coordinates; cells consecutive along z share a
@@ -335,7 +335,7 @@ def sheared_fold(position, box, periodic, le):
     return out
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def fill_pairs(ts, xs, members, box, periodic, reach, radius, ncell, cell_start, near, shift, counts, start,
                end, partner, lo, hi, image, near_x, near_id, first_cell, last_cell, base, limit, le):
     """Write the pairs closer than ``reach`` whose owner lies in cells first_cell..last_cell-1 into
@@ -741,7 +741,7 @@ def cell_order(position, box, periodic, width):
     return order
 
 
-@njit(cache=True, **COMPILED_ONLY)
+@njit(cache=True)
 def permute_rows(a, order):
     """a[k] = a[order[k]] for the rows of an (N, W) array."""
     tmp = a.copy()
@@ -750,7 +750,7 @@ def permute_rows(a, order):
             a[k, c] = tmp[order[k], c]
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def permute_vectors(a, order, tmp):
     """a[k] = a[order[k]] for the rows of an (N,3) array (skips an absent (0,3) field)."""
     if a.shape[0] == 0:
@@ -763,7 +763,7 @@ def permute_vectors(a, order, tmp):
             a[k, c] = tmp[k, c]
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def permute_scalars(a, order, tmp):
     """a[k] = a[order[k]] for an (N,) array."""
     for k in range(order.shape[0]):

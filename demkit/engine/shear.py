@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .motion import COMPILED_ONLY, KERNEL_OPTIONS, fold
+from .motion import KERNEL_OPTIONS, fold
 from .neighbours import LOOP_OPTIONS, wrap
 
 #: the shear block in params: flow axis a, gradient axis b, jump u = gammadot L_b, offset at the last build,
@@ -36,7 +36,7 @@ SHEAR_VALUES = 5
 SLIDE_AHEAD = 3.0
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def slide_ahead(params, sh, box, skin):
     """The signed sliding the lists cover ahead, SLIDE_AHEAD skins (at most L_a / 4) in the direction of u."""
     ahead = min(SLIDE_AHEAD * skin, 0.25 * box[int(params[sh + SH_FLOW])])
@@ -102,7 +102,7 @@ def list_frame(params, sh, box, t, skin):
     return out
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def slide_since_build(params, sh, box, t, skin):
     """How far a pair across the sliding boundary has moved along a by the sliding alone beyond what the
     lists cover (:func:`slide_ahead`): the change of delta since the build, reduced to the nearest
@@ -143,7 +143,7 @@ def wrap_sheared(position, velocity, reference, image, box, periodic, params, sh
     wrap(position, reference, image, box, periodic)
 
 
-@njit(**LOOP_OPTIONS, **COMPILED_ONLY)
+@njit(**LOOP_OPTIONS)
 def frame_sheared(k, position, velocity, image, tag, box, periodic, params, sh, t, rec_position, rec_velocity,
                   rec_image):
     """Frame k's positions, velocities and image counts folded with the sliding images (after

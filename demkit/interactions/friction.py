@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY, HELPER_OPTIONS
+from ..engine.motion import HELPER_OPTIONS
 
 from .base import non_negative, positive
 from .rolling import rolling_on_i
@@ -80,7 +80,7 @@ class Friction:
                 f"damping={self.damping!r}, slip_radius={self.slip_radius!r}, sliding={self.sliding!r})")
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, eta, share, history, p, o, commit, dt):
     """Friction force on j, torques on i and j (at the contact point, arms ai and aj) and dissipated
     power, for relative velocity v = v_j - v_i and lever sum s = a_i w_i + a_j w_j (the slip is
@@ -97,7 +97,7 @@ def friction_on_j(nx, ny, nz, vx, vy, vz, sx, sy, sz, ai, aj, normal, mu, kt, et
     return fx, fy, fz, -ai * qx, -ai * qy, -ai * qz, -aj * qx, -aj * qy, -aj * qz, lost
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, style, normal, mu, kt, eta, mu_r, kr, eta_r,
                   history, p, o, commit, dt):
     """:func:`friction_on_j` for two spheres: arms R - delta/2 (the slip uses the full radii when
@@ -126,7 +126,7 @@ def pair_friction(nx, ny, nz, vx, vy, vz, w, i, j, radius, overlap, style, norma
     return fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, lost
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, style, normal, mu, kt, eta, mu_r, kr, eta_r,
                   history, p, o, commit, dt, ox=0.0, oy=0.0, oz=0.0):
     """:func:`friction_on_j` for sphere i on a rigid wall: the lever arm is R - delta (the contact
@@ -152,7 +152,7 @@ def wall_friction(nx, ny, nz, vx, vy, vz, w, i, radius, overlap, style, normal, 
     return fx, fy, fz, tx, ty, tz, lost
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def springs_energy(history, p, offset, mu_r):
     """Energy of the tangential spring and, with rolling resistance, of the rolling spring."""
     energy = spring_energy(history, p, offset)

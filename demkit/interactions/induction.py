@@ -36,7 +36,6 @@ import weakref
 import numpy as np
 from numba import njit, objmode
 
-from ..engine.motion import COMPILED_ONLY
 from .base import number
 from .special_functions import screened
 
@@ -88,7 +87,7 @@ class Induction:
 FIELD_BLOCK = 64
 
 
-@njit(**FIELD_OPTIONS, **COMPILED_ONLY)
+@njit(**FIELD_OPTIONS)
 def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, switch_on,
                inv_width, alpha, field, frame):
     """Add to ``field`` the dipole field of each pair's partner: over all pairs i < j
@@ -179,7 +178,7 @@ def pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, 
         field[i, 2] += fz
 
 
-@njit(**FIELD_OPTIONS, **COMPILED_ONLY)
+@njit(**FIELD_OPTIONS)
 def screened_pair_field(position, dipole, box, periodic, start, end, partner, all_pairs, prefactor, cutoff, alpha,
                         field):
     """:func:`pair_field` for the Ewald-screened forms (alpha > 0): one scalar loop that skips the
@@ -236,7 +235,7 @@ HEAD = 21
 KINDS = {None: 0.0, "all": 1.0, "list": 2.0}
 
 
-@njit(cache=True, **COMPILED_ONLY)
+@njit(cache=True)
 def induction_energy(dipole, tag, params, slot):
     """sum_i |m_i|^2 / (2 alpha_i) over the magnetisable spheres (alpha by tag in the table)."""
     energy = 0.0
@@ -289,7 +288,7 @@ def _dot(a, b):
 
 # the solve's vector updates as loops: numba compiles each array expression as a function of its own
 # (induce compiled in 6.6 CPU s with them); the same arithmetic element by element, the same bits
-@njit(cache=True, **COMPILED_ONLY)
+@njit(cache=True)
 def _scaled(scale, a):
     """scale[i] a[i]: the (n, 3) rows of ``a`` scaled."""
     out = np.empty(a.shape)
@@ -299,7 +298,7 @@ def _scaled(scale, a):
     return out
 
 
-@njit(cache=True, **COMPILED_ONLY)
+@njit(cache=True)
 def _combine(out, x, a, y):
     """out = x + a y for (n, 3) arrays and a number a (out may be x or y: element by element)."""
     for i in range(out.shape[0]):
@@ -307,7 +306,7 @@ def _combine(out, x, a, y):
             out[i, c] = x[i, c] + a * y[i, c]
 
 
-@njit(cache=True, **COMPILED_ONLY)
+@njit(cache=True)
 def _combine_scaled(out, x, sign, scale, a):
     """out = x + sign scale[i] a[i] for sign +1 or -1 (exact: x - scale[i] a[i] for -1; out may be x)."""
     for i in range(out.shape[0]):

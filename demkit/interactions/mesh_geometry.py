@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY, KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 
 #: numbers per triangle in the block: A, B, C, n, m, bounding radius
 TRIANGLE = 16
@@ -155,7 +155,7 @@ def nearest_on_mesh(px, py, pz, params, k, g):
     return True, qx, qy, qz, ex, ey, ez
 
 
-@njit(**MESH_OPTIONS, **COMPILED_ONLY)
+@njit(**MESH_OPTIONS)
 def mesh_plane(x, y, z, params, g, k, t, dx, dy, dz, vx, vy, vz):
     """(plane, nx, ny, nz, ux, uy, uz): the plane the mesh (block at params[g], its numbers from k) carried
     by the translation D = (dx, dy, dz) at velocity V = (vx, vy, vz) and turned by omega t about its axis

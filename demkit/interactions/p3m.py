@@ -34,7 +34,6 @@ import numba
 from numba import njit, objmode, prange
 
 from .. import memory
-from ..engine.motion import COMPILED_ONLY
 from .ewald import Ewald, Sample, _alpha_for, real_space_error, scales, screened_pair, self_field, slab_layer
 from .slab import Layer, check_layer, gap_error, layer_terms, table_entries, thick_box_hint
 
@@ -57,7 +56,7 @@ OPTIONS = dict(cache=True, fastmath={"contract", "arcp"}, error_model="numpy")
 THREADS = dict(OPTIONS, parallel=True)
 
 
-@njit(**OPTIONS, **COMPILED_ONLY)
+@njit(**OPTIONS)
 def _splines(t, p, table, w, dw, ddw):
     """w[l] = M_p(t + l), dw[l] = M_p'(t + l), ddw[l] = M_p''(t + l) for l = 0..p-1, 0 <= t < 1;
     ``table`` (p + 1, p + 1) is scratch: table[n, l] = M_n(t + l)."""
@@ -137,7 +136,7 @@ def gather(dipole, box, mesh, p, base, w, dw, ddw, phi, force, field, chunks):
             _gather_one(j, dipole, mesh, p, base, w, dw, ddw, phi, force, field, sx, sy, sz, iz)
 
 
-@njit(**OPTIONS, **COMPILED_ONLY)
+@njit(**OPTIONS)
 def _gather_one(j, dipole, mesh, p, base, w, dw, ddw, phi, force, field, sx, sy, sz, iz):
     """Sphere j's part of :func:`gather`."""
     for c in range(p):

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY, HELPER_OPTIONS
+from ..engine.motion import HELPER_OPTIONS
 
 from .base import non_negative, positive
 from .spring import spring_force
@@ -54,7 +54,7 @@ class RollingResistance:
                 f"damping={self.damping!r})")
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def rolling_on_i(nx, ny, nz, wx, wy, wz, rolling_radius, normal, mu_r, kr, eta_r, share, history, p, o, commit, dt):
     """Rolling-resistance torque on i (the torque on j is its negative) and dissipated power, for
     relative spin w = w_i - w_j and rolling radius R*."""

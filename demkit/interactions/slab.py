@@ -28,7 +28,6 @@ import math
 import numpy as np
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY
 from ..engine.state import LEFT_LAYER, OK
 
 #: room the check of the layer leaves for round-off (relative to its thickness)
@@ -151,7 +150,7 @@ def outlier(position, axis, thickness):
     return worst
 
 
-@njit(cache=True, error_model="numpy", **COMPILED_ONLY)
+@njit(cache=True, error_model="numpy")
 def check_layer(position, params, start, status):
     """Flag LEFT_LAYER in ``status`` (sphere in status[1]) when the spheres of a slab sum whose open
     axis and thickness are params[start], params[start + 1] left its layer (no flag when axis < 0)."""

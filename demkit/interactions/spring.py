@@ -30,7 +30,7 @@ import math
 
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY, HELPER_OPTIONS
+from ..engine.motion import HELPER_OPTIONS
 
 #: history values per spring: displacement (3), the stiffness at the last update, and the force of
 #: the last update (3: the second half of its work is booked at the next update)
@@ -39,7 +39,7 @@ HISTORY = 7
 EPSILON = 1e-10
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, share, history, p, o, commit, dt):
     """Force (3 values) and dissipated power of the spring-dashpot-slider for rate (tx, ty, tz) and
     force limit ``limit``; reads history[p, o:o+HISTORY] and writes it when ``commit``. ``share`` 1
@@ -100,7 +100,7 @@ def spring_force(nx, ny, nz, tx, ty, tz, limit, k, eta, share, history, p, o, co
     return fx, fy, fz, power
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def spring_energy(history, p, o):
     """Elastic energy k |xi|^2 / 2 stored in a spring."""
     sx = history[p, o]

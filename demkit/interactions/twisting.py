@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY, HELPER_OPTIONS
+from ..engine.motion import HELPER_OPTIONS
 
 from .base import non_negative, positive
 
@@ -71,7 +71,7 @@ class TwistingResistance:
                 f"lever={self.lever!r})")
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def twist_coefficients(k_fixed, eta_fixed, lever_fixed, kt, eta_t, mu, a):
     """(k_tw, eta_tw, l_tw): the given values (>= 0; k_tw > 0), else Marshall's for contact radius a."""
     k = k_fixed if k_fixed > 0.0 else 0.5 * kt * a * a
@@ -80,7 +80,7 @@ def twist_coefficients(k_fixed, eta_fixed, lever_fixed, kt, eta_t, mu, a):
     return k, eta, lever
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def twist_torque(rate, limit, k, eta, share, history, p, o, commit, dt):
     """Twisting torque M (along n, on i) and dissipated power for twist rate ``rate`` and torque
     limit ``limit``; reads history[p, o:o+TWIST_HISTORY] and writes it when ``commit``; ``share`` 1: LAMMPS'
@@ -112,7 +112,7 @@ def twist_torque(rate, limit, k, eta, share, history, p, o, commit, dt):
     return torque, power
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def twisting_on_i(nx, ny, nz, wx, wy, wz, normal, a, mu, kt, eta_t, k_fixed, eta_fixed, lever_fixed, share,
                   history, p, o, commit, dt):
     """Twisting torque on i (3 values; on j it is the negative) and dissipated power, for relative
@@ -123,13 +123,13 @@ def twisting_on_i(nx, ny, nz, wx, wy, wz, normal, a, mu, kt, eta_t, k_fixed, eta
     return torque * nx, torque * ny, torque * nz, lost
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def twist_energy(history, p, o):
     """Elastic energy k_tw xi_tw^2 / 2 of the twist spring."""
     return 0.5 * history[p, o + 1] * history[p, o] * history[p, o]
 
 
-@njit(**HELPER_OPTIONS, **COMPILED_ONLY)
+@njit(**HELPER_OPTIONS)
 def twist_release(history, p, o, dt):
     """A contact that has ended keeps no twist: zero the history, return the energy the spring held
     as a power over the step (booked as dissipated)."""

@@ -39,7 +39,7 @@ import math
 
 from numba import njit
 
-from ..engine.motion import COMPILED_ONLY, KERNEL_OPTIONS
+from ..engine.motion import KERNEL_OPTIONS
 from .mesh_geometry import mesh_plane
 
 #: the shape codes of the geometry block
@@ -201,7 +201,7 @@ def wall_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, ux, uy, uz, q7, q8):
     return geometry_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, q7, q8)
 
 
-@njit(**PLANE_OPTIONS, **COMPILED_ONLY)
+@njit(**PLANE_OPTIONS)
 def geometry_plane(x, y, z, r, params, g, t, plane, nx, ny, nz, q7, q8):
     """The plane and surface velocity of a wall whose geometry block is at params[g] (``g`` >= 0; see the
     module docstring): a moving plane, a servo's, a cylinder's or a cone's tangent plane, or a
