@@ -69,34 +69,24 @@ def wall_kelvin_voigt_energy(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux
 
 
 @njit(**KERNEL_OPTIONS)
-def _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane, nx,
-                           ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt, rolling):
-    """:func:`wall_kelvin_voigt_friction_force` against a wall spinning at (ox, oy, oz) (its rolling
-    resistance acts on the sphere's spin relative to the wall's); ``rolling`` = (mu_r, kr, eta_r, ox, oy,
-    oz), one tuple: a call of more than 30 arguments is not compiled (CPython passes them as *args)."""
-    mu_r, kr, eta_r, ox, oy, oz = rolling
+def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
+                                     params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
+                                     mu, kt, eta_t, style, dt):
+    """A Kelvin-Voigt wall contact with friction and rolling resistance (if mu_r > 0); params[start:start +
+    10] holds (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE` (twisting, not read
+    here: :func:`wall_kelvin_voigt_twisting_force` takes the same arguments). The wall spins at (ox, oy, oz):
+    its rolling resistance acts on the sphere's spin relative to the wall's."""
+    mu_r = params[start]
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     fn, elastic = kelvin_voigt_normal(overlap, rate, stiffness, damping, no_tension)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
-                                                    style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
-                                                    commit, dt, ox, oy, oz)
+                                                    style, fn, mu, kt, eta_t, mu_r, params[start + 1],
+                                                    params[start + 2], history, p, offset, commit, dt,
+                                                    params[start + 7], params[start + 8], params[start + 9])
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
-
-
-@njit(**KERNEL_OPTIONS)
-def wall_kelvin_voigt_friction_force(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit,
-                                     params, start, plane, nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension,
-                                     mu, kt, eta_t, style, dt):
-    """A Kelvin-Voigt wall contact with friction and rolling resistance (if mu_r > 0); params[start:start +
-    10] holds (mu_r, k_r, eta_r, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE` (twisting, not read
-    here: :func:`wall_kelvin_voigt_twisting_force` takes the same arguments)."""
-    return _kelvin_voigt_friction(i, x, y, z, velocity, angular_velocity, radius, history, p, offset, commit, plane,
-                                  nx, ny, nz, ux, uy, uz, stiffness, damping, no_tension, mu, kt, eta_t, style, dt,
-                                  (params[start], params[start + 1], params[start + 2], params[start + 7],
-                                   params[start + 8], params[start + 9]))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -134,28 +124,18 @@ def wall_hertz_friction_force(i, x, y, z, velocity, angular_velocity, radius, ma
                               kt_fixed, eta_t_fixed, style, dt):
     """:func:`wall_kelvin_voigt_friction_force` for a Hertz contact; params[start:start + 10] holds (mu_r,
     k_r fixed, eta_r fixed, k_tw, eta_tw, l_tw, twist, ox, oy, oz): :data:`TABLE`."""
-    return _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane,
-                           nx, ny, nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt,
-                           (params[start], params[start + 1], params[start + 2], params[start + 7], params[start + 8],
-                            params[start + 9]))
-
-
-@njit(**KERNEL_OPTIONS)
-def _hertz_friction(i, x, y, z, velocity, angular_velocity, radius, mass, history, p, offset, commit, plane, nx, ny,
-                    nz, ux, uy, uz, young_eff, shear_eff, gamma, mu, kt_fixed, eta_t_fixed, style, dt, rolling):
-    """:func:`_kelvin_voigt_friction` for a Hertz contact; ``rolling`` = (mu_r, kr_fixed, eta_r_fixed, ox,
-    oy, oz)."""
-    mu_r, kr_fixed, eta_r_fixed, ox, oy, oz = rolling
+    mu_r = params[start]
     overlap, rate, vx, vy, vz = _wall_geometry(i, x, y, z, velocity, radius, plane, nx, ny, nz, ux, uy, uz)
     if overlap <= 0.0:
         lost = release(history, p, offset, 2 if mu_r > 0.0 else 1, dt) if commit else 0.0
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lost
     fn, elastic, stiffness, eta = hertz_normal(overlap, rate, radius[i], mass[i], young_eff, gamma)
-    kt, eta_t, kr, eta_r = tangential_springs(kt_fixed, eta_t_fixed, mu_r, kr_fixed, eta_r_fixed, shear_eff,
-                                              radius[i], overlap, stiffness, eta)
+    kt, eta_t, kr, eta_r = tangential_springs(kt_fixed, eta_t_fixed, mu_r, params[start + 1], params[start + 2],
+                                              shear_eff, radius[i], overlap, stiffness, eta)
     ftx, fty, ftz, tx, ty, tz, lost = wall_friction(nx, ny, nz, vx, vy, vz, angular_velocity, i, radius, overlap,
                                                     style, fn, mu, kt, eta_t, mu_r, kr, eta_r, history, p, offset,
-                                                    commit, dt, ox, oy, oz)
+                                                    commit, dt, params[start + 7], params[start + 8],
+                                                    params[start + 9])
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz, tx, ty, tz, (fn - elastic) * rate + lost
 
 
