@@ -29,6 +29,8 @@ Codes written to ``status[0]`` by the compiled loop (``status[1]`` holds the int
 """
 from __future__ import annotations
 
+import hashlib
+
 from collections import namedtuple
 
 import numpy as np
@@ -58,16 +60,28 @@ StateTuple = namedtuple("StateTuple", STATE_FIELDS)
 PairListTuple = namedtuple("PairListTuple", PAIR_LIST_FIELDS)
 
 
-@structref.register
-class PairListType(types.StructRef):
+class _ShortNamed(types.StructRef):
+    """A structref type named by a digest of its fields, not by their list: numba spells a type's name into
+    every type that holds it (the tuple ``calls`` of first-class functions that take the state: 68 000
+    characters) and works on those names at every compile."""
+
+    def __init__(self, fields):
+        super().__init__(fields)
+        digest = hashlib.sha1(repr(self._fields).encode()).hexdigest()[:20]
+        self.name = f"demkit.{self._typename}_{digest}"
+
     def preprocess_fields(self, fields):
         return tuple((name, types.unliteral(t)) for name, t in fields)
 
 
 @structref.register
-class StateType(types.StructRef):
-    def preprocess_fields(self, fields):
-        return tuple((name, types.unliteral(t)) for name, t in fields)
+class PairListType(_ShortNamed):
+    pass
+
+
+@structref.register
+class StateType(_ShortNamed):
+    pass
 
 
 class PairList(structref.StructRefProxy):
