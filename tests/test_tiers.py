@@ -493,3 +493,25 @@ def test_a_failed_tier_2_compilation_is_reported_and_the_run_goes_on_on_tier_1(m
     stats = sim.statistics
     assert stats["tier"] == 1 and stats["tier_switch_step"] is None
     assert "failed to compile" in stats["tier_reason"] and "No space left" in stats["tier_reason"]
+
+
+def test_functions_only_compiled_code_calls_have_no_python_wrapper_and_are_refused_from_python():
+    """The steps, the sums, the box's functions and the stubs are compiled without numba's wrapper for calls
+    from Python (unboxing ``calls`` cost 0.1-0.2 CPU s of each): called from Python they would crash it, so
+    the generic module seen from Python refuses them; what Python calls keeps its wrapper."""
+    from demkit.engine.generic import COMPILED_ONLY, generic_source
+
+    text = generic_source(False).splitlines()
+    decorators = {line[4:line.index("(")]: text[k - 1] for k, line in enumerate(text) if line.startswith("def ")}
+    for name in COMPILED_ONLY:
+        assert decorators[name].endswith("no_cpython_wrapper=True)"), name
+    for name in ("record_frame", "energies_of", "compute_forces", "maintain_lists", "velocity_verlet_steps"):
+        assert "no_cpython_wrapper" not in decorators[name], name
+    assert all("no_cpython_wrapper" in decorators[name] for name in decorators if name.startswith("no_"))
+    scene = dk.Scene(dk.Particles([[0, 0, 0], [0.9, 0, 0]], radius=0.5, mass=1.0), [dk.KelvinVoigt(100.0, 1.0)],
+                     tier=1)
+    for name in ("forces_of", "end_step", "no_long_range"):
+        with pytest.raises(AttributeError, match="compiled code only"):
+            getattr(scene.kernels, name)
+    dk.Simulation(scene, dk.VelocityVerlet(1e-3)).run(duration=3e-3, progress=False)  # runs through them
+    assert scene.particles.position[1, 0] > 0.9  # pushed apart by the contact

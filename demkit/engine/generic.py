@@ -676,7 +676,7 @@ class _Generic:
         for name in names:
             params, result = PIECE_ARGUMENTS[name]
             lines += ["", "", "@njit(**INNER)", f"def no_{name}({params}):", f"    return {result}"]
-        return "\n".join(lines) + "\n"
+        return "\n".join(compiled_only(lines)) + "\n"
 
     def text(self, templates):
         """The scene-level functions and the time loops: every function that reaches a piece takes the
@@ -736,7 +736,7 @@ class _Generic:
             src = re.sub(pattern, call, src)
             lines += ["", "", "@njit(**TIME_LOOP)"] + src.rstrip().splitlines()
         lines += ["", "", f"STEPS_OF = {steps_of!r}"]
-        return "\n".join(borrowing(lines, STEPS + tuple(steps_of))) + "\n"
+        return "\n".join(compiled_only(borrowing(lines, STEPS + tuple(steps_of)))) + "\n"
 
 
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
@@ -773,6 +773,26 @@ CHUNK_CALLS = {"pairs_chunk": "pairs_forces", "pairs_blocked_chunk": "pairs_forc
 LIST_CALLS = ("rebuild_list", "fill_list", "lists_on_threads")
 #: the names in the ``calls`` tuple, in order
 CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS) + LIST_CALLS
+
+
+#: the scene-level functions only compiled code calls (through ``steps`` or ``calls``; the stubs ``no_*`` too):
+#: compiled without numba's wrapper for calls from Python, which unboxes ``calls`` (0.1-0.2 CPU s of each,
+#: paired in one process). Called from Python they would crash it: :class:`GenericKernels` refuses them
+COMPILED_ONLY = STEPS + ("long_range", "sum_energies", "induce_now", "wrap_positions", "wrap_positions_sheared",
+                         "deform_box", "fold_frame")
+
+
+def compiled_only(lines):
+    """``lines`` of a module with the functions of :data:`COMPILED_ONLY` and the stubs compiled without
+    numba's Python wrapper."""
+    out = []
+    for line in lines:
+        if line.startswith("def ") and out and out[-1].startswith("@njit(**") and out[-1].endswith(")"):
+            name = line[4:line.index("(")]
+            if name in COMPILED_ONLY or name.startswith("no_"):
+                out[-1] = out[-1][:-1] + ", no_cpython_wrapper=True)"
+        out.append(line)
+    return out
 
 
 #: ... and what each stub returns

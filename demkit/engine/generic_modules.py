@@ -9,7 +9,7 @@ import numpy as np
 
 from . import neighbours
 from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, catalogue
-from .generic import (CALLS, CHUNK_CALLS, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
+from .generic import (CALLS, CHUNK_CALLS, COMPILED_ONLY, LIST_CALLS, OWN_CALLS, PIECES, SCENE_PIECES, SHEARED_CALLS, THREAD_PIECES,
                       UPKEEP, _name, _pieces_name)
 from .program import (E_KIND, G_BLOCKED, G_COUNT, G_LIST, G_MEMBERS, H_EFFECTS, H_INDUCTION, H_LISTS, H_PERIODIC,
                       H_DEFORM, H_SHEAR, H_SORTED, H_SUMS, MAX_GROUPS, M_COLUMNS, M_ENERGY, M_KIND, effect_row, group_row)
@@ -356,6 +356,8 @@ class GenericKernels:
         for kind in ("pair_energies", "pair_forces"):
             if name.startswith(kind + "_") and name[len(kind) + 1:].isdigit():
                 return self._diagnostic(kind, int(name[len(kind) + 1:]))
+        if name in COMPILED_ONLY or name.startswith("no_"):
+            raise AttributeError(f"{name} of tier 1's generic module is called from compiled code only")
         if name not in self._bound:  # the module's function, or it bound to the pieces when it takes them
             function = getattr(self.module, name)
             takes = "calls" in inspect.signature(function.py_func).parameters
