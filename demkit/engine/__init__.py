@@ -25,8 +25,9 @@ API); it is what turns a scene into compiled loops:
 * :mod:`~demkit.engine.threads`: whether the pair loops run on numba's threads, measured while running;
 * :mod:`~demkit.engine.events`: contact events located within a step (``resolve_contacts=True``);
 * :mod:`~demkit.engine.numba_cache`, :mod:`~demkit.engine.inlining`, :mod:`~demkit.engine.mangling`,
-  :mod:`~demkit.engine.ssa`: numba's disk cache kept fresh across demkit's files, one compile per machine,
-  numba's inliner in linear time, its symbol names escaped in C, its SSA pass over the blocks a variable is in.
+  :mod:`~demkit.engine.ssa`, :mod:`~demkit.engine.options`: numba's disk cache kept fresh across demkit's files,
+  one compile per machine, numba's inliner in linear time, its symbol names escaped in C, its SSA pass over the
+  blocks a variable is in, its compile options listed in one dictionary merge.
 
 Imports go one way: the engine imports nothing of demkit outside it except the progress notices
 (:mod:`demkit.progress`) and the memory model (:mod:`demkit.memory`); the interactions import the engine's
