@@ -77,26 +77,17 @@ def pair_crossing(i, j, position, velocity, force, mass, radius, box, periodic, 
 
 
 @njit(**KERNEL_OPTIONS)
-def earliest_crossing_all(position, velocity, force, mass, radius, box, periodic, horizon):
-    """Earliest contact event of any pair i < j within ``horizon`` (math.inf if none)."""
+def earliest_crossing(position, velocity, force, mass, radius, box, periodic, start, end, partner, is_list,
+                      horizon):
+    """Earliest contact event within ``horizon`` (math.inf if none) of the pairs of a neighbour list
+    (``is_list``: the partners of i are partner[start[i]:end[i]]) or of all pairs i < j. One loop for both:
+    its pair test is inlined once into what calls it."""
     n = position.shape[0]
     earliest = math.inf
     for i in range(n):
-        for j in range(i + 1, n):
-            tau = pair_crossing(i, j, position, velocity, force, mass, radius, box, periodic, horizon)
-            if tau < earliest:
-                earliest = tau
-    return earliest
-
-
-@njit(**KERNEL_OPTIONS)
-def earliest_crossing_list(position, velocity, force, mass, radius, box, periodic, start, end, partner,
-                           horizon):
-    """Earliest contact event of the pairs of a neighbour list within ``horizon`` (math.inf if none)."""
-    earliest = math.inf
-    for i in range(position.shape[0]):
-        for p in range(start[i], end[i]):
-            tau = pair_crossing(i, partner[p], position, velocity, force, mass, radius, box, periodic, horizon)
+        for p in range(start[i] if is_list else i + 1, end[i] if is_list else n):
+            tau = pair_crossing(i, partner[p] if is_list else p, position, velocity, force, mass, radius, box,
+                                periodic, horizon)
             if tau < earliest:
                 earliest = tau
     return earliest

@@ -562,12 +562,9 @@ class _Generic:
         lines += [f"    for g in range({MAX_GROUPS}):",
                   f"        row = {group_row(0, 0)} + 3 * g",
                   "        if s.program[row, G_COUNT] > 0 and s.program[row, G_CONTACT] != 0:",
-                  "            if s.program[row, G_LIST] != 0:",
-                  "                pl = s.lists[g]",
-                  f"                earliest = min(earliest, earliest_crossing_list({args}, pl.start, pl.end, "
-                  "pl.partner, horizon))",
-                  "            else:",
-                  f"                earliest = min(earliest, earliest_crossing_all({args}, horizon))"]
+                  "            pl = s.lists[g]",
+                  f"            earliest = min(earliest, earliest_crossing({args}, pl.start, pl.end, pl.partner, "
+                  "s.program[row, G_LIST] != 0, horizon))"]
         lines += ["    for e in range(s.program[0, H_EFFECTS]):",
                   "        if s.program[EFFECT_ROW + e, E_PLANE] != 0:",
                   "            q = s.program[EFFECT_ROW + e, E_SLOT]",
@@ -622,7 +619,7 @@ class _Generic:
                  "from demkit.engine.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
                  "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
-                 "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list, earliest_wall_crossing",
+                 "from demkit.engine.events import earliest_crossing, earliest_wall_crossing",
                  "from demkit.engine.neighbours import (max_displacement, max_displacement_threads, copy_rows, wrap,",
                  "                               cell_order, permute_vectors, permute_scalars, permute_rows)",
                  "from demkit.engine.state import (OK, NON_FINITE, MOVED_TOO_FAR, DEEP_OVERLAP, REBUILDS, WRAP_DUE, SORTS,",

@@ -589,11 +589,8 @@ class _Source:
             if not any(inter.contact_reach for _, inter in group.members):
                 continue
             args = "s.position, s.velocity, force, s.mass, s.radius, s.box, s.periodic"
-            if group.kind == "all":
-                lines.append(f"    earliest = min(earliest, earliest_crossing_all({args}, horizon))")
-            else:
-                lines.append(f"    earliest = min(earliest, earliest_crossing_list({args}, s.lists[{g}].start, "
-                             f"s.lists[{g}].end, s.lists[{g}].partner, horizon))")
+            lines.append(f"    earliest = min(earliest, earliest_crossing({args}, s.lists[{g}].start, s.lists[{g}].end, "
+                         f"s.lists[{g}].partner, {group.kind == 'list'}, horizon))")
         for e, effect in enumerate(plan.effects):
             if getattr(effect, "plane_contact", False) and getattr(effect, "flat", True):
                 q = self.effect_slot[e]  # plane walls: parameters plane, nx, ny, nz first
@@ -654,7 +651,7 @@ class _Source:
                  "from demkit.engine.motion import (kick, drift, rotate, advance_spin, state_is_finite, kinetic_energies,",
                  "                           store_frame, clear, rk_save, rk_stage, rk_finish, copy_vectors, kick_all,",
                  "                           total_forces, sum_chunks, KERNEL_OPTIONS)",
-                 "from demkit.engine.events import earliest_crossing_all, earliest_crossing_list",
+                 "from demkit.engine.events import earliest_crossing",
                  "from demkit.engine.neighbours import (max_displacement, rebuild, copy_rows, wrap, cell_order,",
                  "                               permute_vectors, permute_scalars, permute_rows)",
                  "LISTS_ON_THREADS = False  # (the thread modules' list upkeep: True)",
