@@ -264,7 +264,8 @@ def test_chunk_buffers_are_zero_after_every_force_evaluation_so_the_next_needs_n
     f0, t0 = scene.forces()
     assert np.abs(f0).max() > 0 and np.abs(t0).max() > 0
     for kernels in (scene.kernels, scene.thread_kernels):  # the serial and the thread module
-        kernels.forces_of(scene.state, False)
+        n = len(f0)  # (forces_of is called from compiled code only: compute_forces runs the same loops)
+        kernels.compute_forces(scene.state, np.zeros((n, 3)), np.zeros((n, 3)), False, True)
         assert not scene.arrays["thread_force"].any() and not scene.arrays["thread_torque"].any()
         f1, t1 = scene.forces()
         np.testing.assert_array_equal(f1, f0)

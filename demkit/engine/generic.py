@@ -445,7 +445,7 @@ class _Generic:
                       f"        power += calls[{PIECES.index('sphere_forces')}](s, {force}, {torque}, commit_flag, "
                       f"{self.call('own_sphere_forces')})"]
         if speed != "fast":
-            lines += [f"    {self.call('long_range')}(s, {force}, {torque})"]
+            lines += [f"    {self.call('long_range')}(s, {force}, {torque}, s.accum, True)"]
         return lines + ["    return power"]
 
     def sum_switch(self, target, rest):
@@ -517,15 +517,16 @@ class _Generic:
         # the sums are called as in the fused module (the same bits), with_forces as np.True_ for the
         # forces and np.False_ for the energies: a bool, not a literal, so each sum compiles once for
         # both calls (P3M's object-mode block around scipy's FFTs is compiled in every process, per overload)
-        lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque):",
-                  '    """Add the forces and torques of the long-range sums (an Ewald sum\'s reciprocal part, P3M,',
-                  '    FMM); returns their energy."""',
+        lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque, out, forces):",
+                  '    """The long-range sums (an Ewald sum\'s reciprocal part, P3M, FMM): with ``forces``, their forces and',
+                  '    torques added to force/torque; else each sum\'s energy added to its column of out. Returns their',
+                  '    energy. (One function for both: the sums are linked into it, and optimised again, once.)"""',
                   "    total = 0.0"]
-        lines += self.sum_switch("total", "force, torque, np.True_") + ["    return total"]
+        switch = self.sum_switch("energy", "force, torque, forces")
+        lines += switch[:3] + ["        energy = 0.0"] + [line.replace("energy +=", "energy =") for line in switch[3:]]
+        lines += ["        if not forces:", "            out[s.program[SUM_ROW + q, S_ENERGY]] += energy",
+                  "        total += energy", "    return total"]
         lines += BOX_FUNCTIONS  # the wrap, a deforming box's step, a sheared box's frames (demkit.engine.snippets)
-        lines += ["", "", "@njit(**OUTER)", "def sum_energies(s, out):",
-                  '    """Add the energy of each long-range sum to its column of out."""']
-        lines += self.sum_switch("out[s.program[SUM_ROW + q, S_ENERGY]]", "s.force, s.torque, np.False_")
         lines += ["", "", "@njit(**OUTER)", "def induce_now(s, commit):",
                   '    """Solve the induced moments in s.dipole (demkit.interactions.induction; 0: converged)."""',
                   "    g = s.program[0, H_INDUCTION_GROUP]",
@@ -584,7 +585,7 @@ class _Generic:
         lines += ["    if s.program[0, H_EFFECTS] > 0:",
                   f"        calls[{PIECES.index('sphere_energies')}](s, out, {self.call('own_sphere_energies')})"]
         # in the fused module's order: the sums, then the induced moments' energy
-        lines += [f"    {self.call('sum_energies')}(s, out)"]
+        lines += [f"    {self.call('long_range')}(s, s.force, s.torque, out, False)"]
         lines += ["    if s.program[0, H_INDUCTION] != 0:",
                   "        out[s.program[0, H_INDUCTION_ENERGY]] += induction_energy(s.dipole, s.tag, s.params, "
                   "s.program[0, H_INDUCTION_SLOT])"]
@@ -701,8 +702,7 @@ class _Generic:
                   "", "", "@njit(**LOOP)", "def no_fill_list(ts, xs, members, box, periodic, reach, radius, ncell, "
                   "cell_start, near, shift, counts, start, end, partner, lo, hi, image, near_x, near_id, cells, region, "
                   "used, le):", "    return",
-                  "", "", "@njit(**LOOP)", "def no_long_range(s, force, torque):", "    return 0.0",
-                  "", "", "@njit(**LOOP)", "def no_sum_energies(s, out):", "    return",
+                  "", "", "@njit(**LOOP)", "def no_long_range(s, force, torque, out, forces):", "    return 0.0",
                   "", "", "@njit(**LOOP)", "def no_induce_now(s, commit):", "    return 0",
                   "", "", "@njit(**LOOP)", "def no_wrap_positions(s):", "    return",
                   "", "", "@njit(**LOOP)", "def no_fold_frame(s, k, rec_position, rec_velocity, rec_image):",
@@ -745,7 +745,7 @@ THREAD_PIECES = ("pairs_forces", "pairs_forces_blocked")
 STEPS = ("forces_of", "end_step", "fast_forces_of", "slow_forces_of", "next_contact_event")
 #: the list upkeep and the allocating sums (long-range sums, induced moments), also passed through
 #: ``calls`` (linked into every time loop, they would be optimised again in each)
-SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "sum_energies", "induce_now", "wrap_positions",
+SCENE_PIECES = ("maintain_lists", "sort_particles", "long_range", "induce_now", "wrap_positions",
                 "fold_frame", "deform_box")
 #: ... of which the list upkeep, given the two LIST_CALLS (below) as its last arguments
 UPKEEP = SCENE_PIECES[:2]
@@ -775,7 +775,7 @@ CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS) + LIST_CALLS
 #: the scene-level functions only compiled code calls (through ``steps`` or ``calls``; the stubs ``no_*`` too):
 #: compiled without numba's wrapper for calls from Python, which unboxes ``calls`` (0.1-0.2 CPU s of each,
 #: paired in one process). Called from Python they would crash it: :class:`GenericKernels` refuses them
-COMPILED_ONLY = STEPS + ("long_range", "sum_energies", "induce_now", "wrap_positions", "wrap_positions_sheared",
+COMPILED_ONLY = STEPS + ("long_range", "induce_now", "wrap_positions", "wrap_positions_sheared",
                          "deform_box", "fold_frame")
 
 

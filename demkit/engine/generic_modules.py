@@ -22,7 +22,7 @@ _MODULES = {}
 
 #: the needs (:func:`needs_of`) record_frame calls (its energies, the list upkeep before them with its builder
 #: and fill, a sheared frame's folding): the others are given to it as stubs of the same types
-FRAME_CALLS = ("pairs_energies", "sphere_energies", "sum_energies", "own_pair_energies", "own_sphere_energies",
+FRAME_CALLS = ("pairs_energies", "sphere_energies", "long_range", "own_pair_energies", "own_sphere_energies",
                "fold_frame", "maintain_lists")
 
 
@@ -90,7 +90,7 @@ def needs_of(program):
     if any(program[group_row(g, 0), G_COUNT] > 0 for g in range(MAX_GROUPS)):
         needs += ["pairs_energies"]
     if program[0, H_SUMS] > 0:
-        needs += ["long_range", "sum_energies"]
+        needs += ["long_range"]
     if program[0, H_INDUCTION] != 0:
         needs += ["induce_now"]
     if program[0, H_LISTS] != 0:
@@ -142,8 +142,7 @@ def piece_arguments(state_type):
     arguments = {"maintain_lists": (state_type, types.boolean, builder, filler, types.boolean),
                  "sort_particles": (state_type, builder, filler, types.boolean), "rebuild_list": rebuild,
                  "fill_list": fill,
-                 "long_range": (state_type, f["force"], f["torque"]),
-                 "sum_energies": (state_type, out),
+                 "long_range": (state_type, f["force"], f["torque"], out, types.boolean),
                  "induce_now": (state_type, types.boolean), "wrap_positions": (state_type,),
                  "deform_box": (state_type,),
                  "fold_frame": (state_type, types.int64, frames, frames, types.Array(types.int64, 3, "C")),

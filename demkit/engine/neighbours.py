@@ -558,11 +558,12 @@ def start_build(pl, position, tag, box, periodic, le):
     origin = np.empty(3)
     size = np.empty(3)
     ncell = np.empty(3, dtype=np.int64)
-    cell_grid(position, box, periodic, pl.reach, origin, size, ncell)
     radius = 1
-    if n >= DENSE_CELL * ncell[0] * ncell[1] * ncell[2]:  # crowded cells: halve them, 2 cells of reach
-        radius = 2
-        cell_grid(position, box, periodic, 0.5 * pl.reach, origin, size, ncell)
+    while True:  # (one call site: the grid's code inlined once)
+        cell_grid(position, box, periodic, pl.reach / radius, origin, size, ncell)
+        if radius == 2 or n < DENSE_CELL * ncell[0] * ncell[1] * ncell[2]:
+            break
+        radius = 2  # crowded cells: halve them, 2 cells of reach
     cell = np.empty(n, dtype=np.int64)
     cell_start = np.empty(ncell[0] * ncell[1] * ncell[2] + 1, dtype=np.int64)
     members = np.empty(n, dtype=np.int64)
