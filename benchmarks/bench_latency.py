@@ -32,7 +32,9 @@ Parts (all by default; name some to run only those):
   modules (serial and threads, both families of pieces) as the integrators and diagnostics use them, then the
   long-range sums (Ewald, P3M, each over a slab too; FMM), the solve of induced moments, sorting by cell, a
   sheared box, contact events over lists, a cone and the contact diagnostics (``tier_1_cpu_s``: the first part
-  alone, what this figure was until 1 Dec 2026). ``speed``: steps per
+  alone, what this figure was until 1 Dec 2026): the whole child process's CPU s from its start, the median of
+  three (``cpu_s_runs``); ``compile_cpu_s``: the part inside numba's compiles (the rest: imports, running the
+  scenes' few steps, P3M's tuning). ``speed``: steps per
   second of the same run on tier 1 and tier 2 (warm, medians of alternating rounds).
 
 * ``long_range`` (only when named): the same two measurements for long-range dipole sums: the
@@ -500,6 +502,18 @@ print("RESULT", json.dumps({{"steps_per_s": steps / took, "tier": sim.statistics
 INSTALL_CHILD = """
 import json, time
 t0 = time.process_time()
+from numba.core import event
+compiling = [0.0, 0]  # CPU s inside numba's outermost compiles (the rest: imports, the scenes' runs, P3M's tuning)
+class Compiles(event.Listener):
+    def on_start(self, ev):
+        compiling[1] += 1
+        if compiling[1] == 1:
+            compiling[0] -= time.process_time()
+    def on_end(self, ev):
+        compiling[1] -= 1
+        if compiling[1] == 0:
+            compiling[0] += time.process_time()
+event.register("numba:compile", Compiles())
 import numpy as np
 import demkit as dk
 from demkit.integrators import TEMPLATES
@@ -575,7 +589,7 @@ for scene in others:
 dk.Simulation(others[0], dk.VelocityVerlet(1e-3, resolve_contacts=True)).run(duration=2e-3, progress=False)
 for scene in (small_full, big_full, others[2]):
     scene.contacts()
-print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0, "tier_1_cpu_s": tier_1}}))
+print("RESULT", json.dumps({{"cpu_s": time.process_time() - t0, "tier_1_cpu_s": tier_1, "compile_cpu_s": compiling[0]}}))
 """
 
 
@@ -613,9 +627,14 @@ def part_tiers(quick, rounds=3):
                 second = _child(COMPILE_CHILD.format(scene=_scene_source(source, tmp)), dict(env, DEMKIT_TIER="2"))
                 rows.append({"what": "tier2_first_step", "scene": name, **second})
                 print(json.dumps(rows[-1]), flush=True)
-        if not quick:  # several minutes
-            _empty_caches(cache)
-            rows.append({"what": "install_wide", **_child(INSTALL_CHILD.format(), env)})
+        if not quick:  # several minutes each; the machine drifts by 5-10 % between minutes: the median of three
+            runs = []
+            for _ in range(rounds):
+                _empty_caches(cache)
+                runs.append(_child(INSTALL_CHILD.format(), env))
+            middle = sorted(runs, key=lambda r: r["cpu_s"])[len(runs) // 2]
+            rows.append({"what": "install_wide", **middle, "cpu_s_runs": [round(r["cpu_s"], 1) for r in runs],
+                         "compile_cpu_s_runs": [round(r["compile_cpu_s"], 1) for r in runs]})
             print(json.dumps(rows[-1]), flush=True)
         for name in ("two_magnets", "gas600", "plugin_lists"):
             row = {"what": "speed", "scene": name, "tier1_runs": [], "tier2_runs": []}

@@ -484,9 +484,10 @@ class _Generic:
             "            return",
             "    el" + head[test].lstrip()] + head[test + 1:]
         lines += ["    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
-        for g in range(MAX_GROUPS):
-            lines += [f"    if s.program[{group_row(g, 0)}, G_LIST] != 0:",
-                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, s.tag, s.box, s.periodic, le, fill_list)"]
+        # one call site of each first-class call, in a loop over the groups (each site is lowered whole)
+        lines += [f"    for g in range({MAX_GROUPS}):",
+                  f"        if s.program[{group_row(0, 0)} + 3 * g, G_LIST] != 0:",
+                  "            rebuild_list(s.lists[g], s.position, s.tag, s.tag, s.box, s.periodic, le, fill_list)"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]", "    mark_built(s.params, dq, s.box)"]
         lines += MAINTAIN_LISTS_TAIL
         # the lists are rebuilt after the permutation by the list upkeep's own rebuild, their history
@@ -503,10 +504,9 @@ class _Generic:
         lines += ["    if s.sphere_history.shape[1] > 0:",
                   "        permute_rows(s.sphere_history, order)"]
         lines += ["    sh = s.program[0, H_SHEAR]", "    le = list_frame(s.params, sh, s.box, s.clock[0], s.skin)"]
-        for g in range(MAX_GROUPS):
-            row = group_row(g, 0)
-            lines += [f"    if s.program[{row}, G_LIST] != 0:",
-                      f"        rebuild_list(s.lists[{g}], s.position, s.tag, before, s.box, s.periodic, le, fill_list)"]
+        lines += [f"    for g in range({MAX_GROUPS}):",
+                  f"        if s.program[{group_row(0, 0)} + 3 * g, G_LIST] != 0:",
+                  "            rebuild_list(s.lists[g], s.position, s.tag, before, s.box, s.periodic, le, fill_list)"]
         lines += ["    if sh >= 0:", "        s.params[sh + SH_BUILT] = le[2]",
                   "    mark_built(s.params, s.program[0, H_DEFORM], s.box)"]
         lines += ["    copy_rows(s.reference, s.position)", "    s.counters[SORTS] += 1"]
@@ -533,13 +533,14 @@ class _Generic:
                   "    slot = s.program[0, H_INDUCTION_SLOT]",
                   "    offset = s.program[0, H_INDUCTION_OFFSET]",
                   "    frame = list_frame(s.params, s.program[0, H_SHEAR], s.box, s.clock[0], 0.0)  # (sheared images)"]
-        for g in range(MAX_GROUPS):
-            lines += [f"    {'if' if g == 0 else 'elif'} g == {g}:",
-                      f"        return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
-                      f"s.lists[{g}].start, s.lists[{g}].end, s.lists[{g}].partner, s.sphere_history, offset, commit, "
-                      f"frame)"]
-        lines += ["    return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, "
-                  "np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int32), "
+        # one call site (the solve linked in and optimised once): the group's list, or none (g = -1: all pairs)
+        lines += ["    if g >= 0:",
+                  "        pl = s.lists[g]",
+                  "        start, end, partner = pl.start, pl.end, pl.partner",
+                  "    else:",
+                  "        start, end = np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64)",
+                  "        partner = np.zeros(1, dtype=np.int32)",
+                  "    return induce(s.position, s.dipole, s.tag, s.box, s.periodic, s.params, slot, start, end, partner, "
                   "s.sphere_history, offset, commit, frame)"]
         lines += ["", "", "@njit(**OUTER)", "def induce_of(calls, s):",
                   '    """Solve the induced moments in s.dipole at the current positions (0: converged)."""']
