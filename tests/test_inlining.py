@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import numba
+import pytest
 from numba.core import inline_closurecall, ir
 from numba.core.compiler import run_frontend
 
@@ -69,9 +70,17 @@ def test_inlined_functions_compute_what_python_computes():
     assert isinstance(next(iter(run_frontend(branchy).blocks.values())), ir.Block)
 
 
-def test_demkit_plain_inlining_keeps_numba_as_it_is():
-    code = ("import demkit, copy; from numba.core import inline_closurecall as ic; "
-            "print(demkit.engine.inlining.INSTALLED, ic.copy is copy)")
-    env = dict(os.environ, DEMKIT_PLAIN_INLINING="1")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "True"]
+@pytest.mark.parametrize("variable, code", [
+    ("DEMKIT_PLAIN_INLINING", "import copy; from numba.core import inline_closurecall as ic; "
+                              "print(demkit.engine.inlining.INSTALLED, ic.copy is not copy)"),
+    ("DEMKIT_PLAIN_MANGLING", "from numba.core import itanium_mangler as im; "
+                              "print(demkit.engine.mangling.INSTALLED, im._escape_string is demkit.engine.mangling.escape)"),
+    ("DEMKIT_PLAIN_SSA", "from numba.core import ssa; print(demkit.engine.ssa.INSTALLED, ssa._run_ssa is demkit.engine.ssa.run_ssa)"),
+    ("DEMKIT_PLAIN_OPTIONS", "from numba.core import targetconfig as tc; "
+                             "print(demkit.engine.options.INSTALLED, tc.TargetConfig.values is demkit.engine.options.values)"),
+])
+def test_each_of_demkits_numba_patches_stays_out_when_its_variable_is_set(variable, code):
+    """(inlining, mangling, ssa, options: each module's tests check what it changes)"""
+    out = subprocess.run([sys.executable, "-c", "import demkit; " + code], env=dict(os.environ, **{variable: "1"}),
+                         capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]

@@ -3,12 +3,9 @@
 Independent truth: numba's original ``_escape_string`` (kept by the module), on every ASCII character,
 on long random names and on non-ASCII ones; a function compiled with the patch in place runs and its
 symbol name is the one numba's own mangler gives. The compile time it saves is measured in
-benchmarks/bench_latency.py (``DEMKIT_PLAIN_MANGLING=1`` keeps the patch out).
+benchmarks/bench_latency.py (``DEMKIT_PLAIN_MANGLING=1`` keeps the patch out: tests/test_inlining.py).
 """
-import os
 import random
-import subprocess
-import sys
 
 import numba
 from numba.core import funcdesc, itanium_mangler
@@ -56,10 +53,3 @@ def test_a_compiled_function_runs_and_is_named_as_numba_names_it():
         itanium_mangler._escape_string = saved
     assert name == expected
 
-
-def test_demkit_plain_mangling_keeps_numba_as_it_is():
-    code = ("import demkit; from numba.core import itanium_mangler as im; "
-            "print(demkit.engine.mangling.INSTALLED, im._escape_string is demkit.engine.mangling.escape)")
-    env = dict(os.environ, DEMKIT_PLAIN_MANGLING="1")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "False"]

@@ -2,11 +2,8 @@
 
 Independent truth: numba's original ``TargetConfig.values`` (kept by the module) on default flags, on
 flags with options set (to their default values too), and on a copy; flags that differ in one option still
-compare unequal, and compiled code runs. ``DEMKIT_PLAIN_OPTIONS=1`` keeps the patch out.
+compare unequal, and compiled code runs. (``DEMKIT_PLAIN_OPTIONS=1`` keeps the patch out: tests/test_inlining.py.)
 """
-import os
-import subprocess
-import sys
 
 import numba
 from numba.core import targetconfig
@@ -54,10 +51,3 @@ def test_compiled_code_runs():
 
     assert outer(3.0) == 7.0
 
-
-def test_demkit_plain_options_keeps_numba_as_it_is():
-    code = ("import demkit; from numba.core import targetconfig; "
-            "print(demkit.engine.options.INSTALLED, targetconfig.TargetConfig.values is demkit.engine.options.values)")
-    env = dict(os.environ, DEMKIT_PLAIN_OPTIONS="1")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "False"]
