@@ -54,7 +54,7 @@ from .catalogue import BLOCKED, FAMILIES, OWN, SLIDING, SUMS, catalogue
 from .program import MAX_GROUPS, _layout_line, effect_row, group_row, sum_row
 from .snippets import (ARRAYS, BOX_FUNCTIONS, END_STEP_HEAD, END_STEP_TAIL, LIST_ARRAYS, MAINTAIN_LISTS_HEAD, MAINTAIN_LISTS_TAIL, PERMUTE_BY_ORDER,
                        PIECE_SIGNATURES, CHUNK_CALL, CHUNK_PARAMETERS, RECORD_FRAME, SHIFT, SPEEDS, WALL_PLANE, chunks_run, deep_wall_overlap,
-                       borrowing, deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
+                       borrowing, compiled_only, deep_pair_overlap, effect_sums, piece_prelude, shear_gather, shear_geometry)
 
 
 # the scene-level functions call the pieces as numba's first-class functions (an experimental
@@ -448,14 +448,14 @@ class _Generic:
             lines += [f"    {self.call('long_range')}(s, {force}, {torque}, s.accum, True)"]
         return lines + ["    return power"]
 
-    def sum_switch(self, target, rest):
-        """For each long-range sum q of the program: target += its function(..., rest)."""
-        lines = ["    for q in range(s.program[0, H_SUMS]):",
-                 "        kind = s.program[SUM_ROW + q, S_KIND]",
-                 "        slot = s.program[SUM_ROW + q, S_SLOT]"]
+    @staticmethod
+    def sum_switch():
+        """For each long-range sum q of the program: energy = its function(..., force, torque, forces)."""
+        lines = ["    for q in range(s.program[0, H_SUMS]):", "        kind = s.program[SUM_ROW + q, S_KIND]",
+                 "        slot = s.program[SUM_ROW + q, S_SLOT]", "        energy = 0.0"]
         for k in range(len(SUMS)):
             lines += [f"        {'if' if k == 0 else 'elif'} kind == {k}:",
-                      f"            {target} += sum_{k}(s.position, s.dipole, s.box, s.params, slot, {rest}, "
+                      f"            energy = sum_{k}(s.position, s.dipole, s.box, s.params, slot, force, torque, forces, "
                       "s.status)"]
         return lines
 
@@ -522,8 +522,7 @@ class _Generic:
                   '    torques added to force/torque; else each sum\'s energy added to its column of out. Returns their',
                   '    energy. (One function for both: the sums are linked into it, and optimised again, once.)"""',
                   "    total = 0.0"]
-        switch = self.sum_switch("energy", "force, torque, forces")
-        lines += switch[:3] + ["        energy = 0.0"] + [line.replace("energy +=", "energy =") for line in switch[3:]]
+        lines += self.sum_switch()
         lines += ["        if not forces:", "            out[s.program[SUM_ROW + q, S_ENERGY]] += energy",
                   "        total += energy", "    return total"]
         lines += BOX_FUNCTIONS  # the wrap, a deforming box's step, a sheared box's frames (demkit.engine.snippets)
@@ -675,7 +674,7 @@ class _Generic:
         for name in names:
             params, result = PIECE_ARGUMENTS[name]
             lines += ["", "", "@njit(**INNER)", f"def no_{name}({params}):", f"    return {result}"]
-        return "\n".join(compiled_only(lines)) + "\n"
+        return "\n".join(compiled_only(lines, COMPILED_ONLY)) + "\n"
 
     def text(self, templates):
         """The scene-level functions and the time loops: every function that reaches a piece takes the
@@ -734,7 +733,7 @@ class _Generic:
             src = re.sub(pattern, call, src)
             lines += ["", "", "@njit(**TIME_LOOP)"] + src.rstrip().splitlines()
         lines += ["", "", f"STEPS_OF = {steps_of!r}"]
-        return "\n".join(compiled_only(borrowing(lines, STEPS + tuple(steps_of)))) + "\n"
+        return "\n".join(compiled_only(borrowing(lines, STEPS + tuple(steps_of)), COMPILED_ONLY)) + "\n"
 
 
 #: the pieces, in the order of the ``calls`` tuple the scene-level functions take
@@ -773,24 +772,9 @@ LIST_CALLS = ("rebuild_list", "fill_list", "lists_on_threads")
 CALLS = PIECES + SCENE_PIECES + OWN_CALLS + tuple(CHUNK_CALLS) + LIST_CALLS
 
 
-#: the scene-level functions only compiled code calls (through ``steps`` or ``calls``; the stubs ``no_*`` too):
-#: compiled without numba's wrapper for calls from Python, which unboxes ``calls`` (0.1-0.2 CPU s of each,
-#: paired in one process). Called from Python they would crash it: :class:`GenericKernels` refuses them
-COMPILED_ONLY = STEPS + ("long_range", "induce_now", "wrap_positions", "wrap_positions_sheared",
-                         "deform_box", "fold_frame")
-
-
-def compiled_only(lines):
-    """``lines`` of a module with the functions of :data:`COMPILED_ONLY` and the stubs compiled without
-    numba's Python wrapper."""
-    out = []
-    for line in lines:
-        if line.startswith("def ") and out and out[-1].startswith("@njit(**") and out[-1].endswith(")"):
-            name = line[4:line.index("(")]
-            if name in COMPILED_ONLY or name.startswith("no_"):
-                out[-1] = out[-1][:-1] + ", no_cpython_wrapper=True)"
-        out.append(line)
-    return out
+#: the scene-level functions (and stubs ``no_*``) only compiled code calls, compiled without numba's wrapper for calls
+#: from Python (it unboxed ``calls``: 0.1-0.2 CPU s each), which they would crash: :class:`GenericKernels` refuses them
+COMPILED_ONLY = STEPS + ("long_range", "induce_now", "wrap_positions", "wrap_positions_sheared", "deform_box", "fold_frame")
 
 
 #: ... and what each stub returns

@@ -329,3 +329,16 @@ def borrowing(lines, names):
         docstring = docstring != quotes
         out.append(line)
     return out
+
+
+def compiled_only(lines, names):
+    """``lines`` of a module with the functions ``names`` and the stubs (``no_*``) compiled without numba's
+    wrapper for calls from Python (only compiled code calls them: demkit.engine.generic.COMPILED_ONLY)."""
+    out = []
+    for line in lines:
+        if line.startswith("def ") and out and out[-1].startswith("@njit(**") and out[-1].endswith(")"):
+            name = line[4:line.index("(")]
+            if name in names or name.startswith("no_"):
+                out[-1] = out[-1][:-1] + ", no_cpython_wrapper=True)"
+        out.append(line)
+    return out
