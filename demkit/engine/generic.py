@@ -514,9 +514,9 @@ class _Generic:
 
     def scene_functions(self):
         lines = self.upkeep_functions()
-        # the sums are called as in the fused module (the same bits), with_forces as np.True_ for the
-        # forces and np.False_ for the energies: a bool, not a literal, so each sum compiles once for
-        # both calls (P3M's object-mode block around scipy's FFTs is compiled in every process, per overload)
+        # the sums are called as in the fused module (the same bits), with_forces the argument ``forces``: a
+        # bool, not a literal, so each sum compiles once for forces and energies (P3M's object-mode block
+        # around scipy's FFTs is compiled in every process, per overload)
         lines += ["", "", "@njit(**OUTER)", "def long_range(s, force, torque, out, forces):",
                   '    """The long-range sums (an Ewald sum\'s reciprocal part, P3M, FMM): with ``forces``, their forces and',
                   '    torques added to force/torque; else each sum\'s energy added to its column of out. Returns their',

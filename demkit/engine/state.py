@@ -30,7 +30,6 @@ Codes written to ``status[0]`` by the compiled loop (``status[1]`` holds the int
 from __future__ import annotations
 
 import hashlib
-
 from collections import namedtuple
 
 import numpy as np
