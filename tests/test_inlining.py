@@ -78,9 +78,15 @@ def test_inlined_functions_compute_what_python_computes():
     ("DEMKIT_PLAIN_SSA", "from numba.core import ssa; print(demkit.engine.ssa.INSTALLED, ssa._run_ssa is demkit.engine.ssa.run_ssa)"),
     ("DEMKIT_PLAIN_OPTIONS", "from numba.core import targetconfig as tc; "
                              "print(demkit.engine.options.INSTALLED, tc.TargetConfig.values is demkit.engine.options.values)"),
+    ("DEMKIT_PLAIN_VARIABLES", "from numba.core import ir; print(demkit.engine.variables.INSTALLED, "
+                               "ir.Stmt.list_vars is demkit.engine.variables.list_vars_of_statement)"),
+    ("DEMKIT_PLAIN_LIVENESS", "from numba.core import ir_utils; print(demkit.engine.liveness.INSTALLED, "
+                              "ir_utils.compute_live_map is demkit.engine.liveness.compute_live_map)"),
+    ("DEMKIT_PLAIN_UFUNC_LOOPS", "from numba.core.typing import npydecl; print(demkit.engine.ufunc_loops.INSTALLED, "
+                                 "npydecl.ufunc_find_matching_loop is demkit.engine.ufunc_loops.ufunc_find_matching_loop)"),
 ])
 def test_each_of_demkits_numba_patches_stays_out_when_its_variable_is_set(variable, code):
-    """(inlining, mangling, ssa, options: each module's tests check what it changes)"""
+    """(each module's own tests check what it changes)"""
     out = subprocess.run([sys.executable, "-c", "import demkit; " + code], env=dict(os.environ, **{variable: "1"}),
                          capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]

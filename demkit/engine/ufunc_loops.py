@@ -1,0 +1,63 @@
+"""Faster compilation: numba remembers which loop of a NumPy ufunc takes given argument types.
+
+numba (0.59 to 0.68 at least) types each scalar ``*``, ``+``, ``-``, ``/`` and comparison of compiled code
+through the NumPy ufunc of that operator, and for each it searches the ufunc's loops for the first one
+the argument types cast to safely (``ufunc_find_matching_loop``): 5 750 searches to type tier 1's full
+pair loop, 45 000 over what an install compiles (~2.5 % of that time, sampled), nearly all of them for
+a dozen (ufunc, types) pairs.
+
+:func:`install` keeps the answer per (ufunc, argument types) for NumPy's own ufuncs, whose loops are
+fixed (numba's growing ``DUFunc``\\ s are searched each time, as before), and hands out a fresh copy of
+it each time (the loop spec holds lists). The answer is the one numba's search gives
+(``tests/test_ufunc_loops.py``). ``DEMKIT_PLAIN_UFUNC_LOOPS=1`` keeps numba as it is.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from numba.np import numpy_support
+
+_numba_search = numpy_support.ufunc_find_matching_loop
+_FOUND = {}  # (ufunc, argument types) -> the loop spec, or None
+#: numba's modules that search by the name they imported
+_USERS = ("numba.np.numpy_support", "numba.core.typing.npydecl", "numba.np.npyimpl")
+
+
+def ufunc_find_matching_loop(ufunc, arg_types):
+    """numba's ``ufunc_find_matching_loop`` (the first loop of ``ufunc`` the types cast to), remembered
+    for NumPy's ufuncs."""
+    if type(ufunc) is not np.ufunc:
+        return _numba_search(ufunc, arg_types)
+    key = (ufunc, tuple(arg_types))
+    try:
+        spec = _FOUND[key]
+    except KeyError:
+        spec = _FOUND[key] = _numba_search(ufunc, arg_types)
+    except TypeError:  # (an unhashable type)
+        return _numba_search(ufunc, arg_types)
+    return None if spec is None else type(spec)(list(spec.inputs), list(spec.outputs), spec.ufunc_sig)
+
+
+def install():
+    """Patch numba's ufunc loop search (once); returns whether the patch is in place."""
+    import sys
+
+    if numpy_support.ufunc_find_matching_loop is ufunc_find_matching_loop:
+        return True
+    if os.environ.get("DEMKIT_PLAIN_UFUNC_LOOPS", "") not in ("", "0"):
+        return False
+    import numba.core.typing.npydecl  # noqa: F401 (the modules that import it by name)
+    import numba.np.npyimpl  # noqa: F401
+    users = [sys.modules[name] for name in _USERS]
+    from numba.core import types
+    probe = _numba_search(np.multiply, (types.float64, types.int64))
+    if not (all(getattr(module, "ufunc_find_matching_loop", None) is _numba_search for module in users)
+            and probe is not None and isinstance(probe.inputs, list) and probe.ufunc_sig == "dd->d"):
+        return False  # numba searches differently now: leave it as it is
+    for module in users:
+        module.ufunc_find_matching_loop = ufunc_find_matching_loop
+    return True
+
+
+INSTALLED = install()
