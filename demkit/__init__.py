@@ -8,6 +8,7 @@ from .engine import options  # noqa: F401 (numba's compile options listed in one
 from .engine import variables  # noqa: F401 (numba's IR statements list their variables in one pass)
 from .engine import liveness  # noqa: F401 (numba's variable liveness on bit sets: large loops 17 % faster)
 from .engine import ufunc_loops  # noqa: F401 (numba remembers which NumPy ufunc loop takes given types)
+from .engine import collector  # noqa: F401 (Python's garbage collector runs less often while numba compiles)
 from . import units
 from .box import Box, Deform, Shear
 from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet

@@ -84,6 +84,8 @@ def test_inlined_functions_compute_what_python_computes():
                               "ir_utils.compute_live_map is demkit.engine.liveness.compute_live_map)"),
     ("DEMKIT_PLAIN_UFUNC_LOOPS", "from numba.core.typing import npydecl; print(demkit.engine.ufunc_loops.INSTALLED, "
                                  "npydecl.ufunc_find_matching_loop is demkit.engine.ufunc_loops.ufunc_find_matching_loop)"),
+    ("DEMKIT_PLAIN_COLLECTOR", "from numba.core import dispatcher; print(demkit.engine.collector.INSTALLED, "
+                               "dispatcher.Dispatcher.compile is demkit.engine.collector.compile)"),
 ])
 def test_each_of_demkits_numba_patches_stays_out_when_its_variable_is_set(variable, code):
     """(each module's own tests check what it changes)"""
