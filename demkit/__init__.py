@@ -1,14 +1,7 @@
 """demkit: discrete-element simulation of spinning rigid spheres with pluggable pair interactions."""
 from .engine import numba_cache
 numba_cache.install()  # before any function is defined: caches stamped with the whole package's source
-from .engine import inlining  # noqa: F401 (numba's inliner in linear time: compiles 40 % faster)
-from .engine import mangling  # noqa: F401 (numba's symbol names escaped in C: scene-level functions 14 % faster)
-from .engine import ssa  # noqa: F401 (numba's SSA pass over the blocks that use a variable only)
-from .engine import options  # noqa: F401 (numba's compile options listed in one dict merge)
-from .engine import variables  # noqa: F401 (numba's IR statements list their variables in one pass)
-from .engine import liveness  # noqa: F401 (numba's variable liveness on bit sets: large loops 17 % faster)
-from .engine import ufunc_loops  # noqa: F401 (numba remembers which NumPy ufunc loop takes given types)
-from .engine import collector  # noqa: F401 (Python's garbage collector runs less often while numba compiles)
+from .engine import numba_patches  # noqa: F401 (numba's compiler made faster, its output the same)
 from . import units
 from .box import Box, Deform, Shear
 from .integrators import RK4, EulerCromer, ForestRuth, Integrator, MultipleTimeStep, VelocityVerlet

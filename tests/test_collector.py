@@ -1,4 +1,4 @@
-"""demkit.engine.collector: while numba compiles, Python's garbage collector starts less often; before and
+"""demkit.engine.numba_patches.collector: while numba compiles, Python's garbage collector starts less often; before and
 after, it is as it was.
 
 Independent truth: ``gc.get_threshold()`` seen from inside numba's compiles (its "numba:compile" event),
@@ -13,7 +13,7 @@ import pytest
 from numba.core import dispatcher, event
 
 import demkit  # noqa: F401 (installs the wrapper)
-from demkit.engine import collector
+from demkit.engine.numba_patches import collector
 
 
 class Seen(event.Listener):

@@ -1,8 +1,11 @@
-"""demkit.engine.inlining: numba's inliner copies a callee's IR with one memo per copy (linear, not quadratic).
+"""demkit.engine.numba_patches.inlining: numba's inliner copies a callee's IR with one memo per copy (linear,
+not quadratic), each copy made by copy.deepcopy's rules.
 
 Independent truths: the copy must equal the original block by block (numba's own IR equality), share
 one scope like the original, be made afresh each time, and be what ``copy.deepcopy`` makes (the same
-objects copied and kept alive); inlined code must compute what the plain Python functions compute. The compile time it saves is measured in benchmarks/bench_latency.py.
+objects copied and kept alive); inlined code must compute what the plain Python functions compute.
+Each of demkit's numba patches stays out when its variable is set. The compile time saved is measured
+in benchmarks/bench_latency.py.
 """
 import copy
 import os
@@ -15,7 +18,7 @@ from numba.core import inline_closurecall, ir
 from numba.core.compiler import run_frontend
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import inlining
+from demkit.engine.numba_patches import inlining
 from demkit.engine.generic_modules import _pieces
 
 
@@ -102,23 +105,23 @@ def test_inlined_functions_compute_what_python_computes():
 
 @pytest.mark.parametrize("variable, code", [
     ("DEMKIT_PLAIN_INLINING", "import copy; from numba.core import inline_closurecall as ic; "
-                              "print(demkit.engine.inlining.INSTALLED, ic.copy is not copy)"),
+                              "print(P.inlining.INSTALLED, ic.copy is not copy)"),
     ("DEMKIT_PLAIN_MANGLING", "from numba.core import itanium_mangler as im; "
-                              "print(demkit.engine.mangling.INSTALLED, im._escape_string is demkit.engine.mangling.escape)"),
-    ("DEMKIT_PLAIN_SSA", "from numba.core import ssa; print(demkit.engine.ssa.INSTALLED, ssa._run_ssa is demkit.engine.ssa.run_ssa)"),
+                              "print(P.mangling.INSTALLED, im._escape_string is P.mangling.escape)"),
+    ("DEMKIT_PLAIN_SSA", "from numba.core import ssa; print(P.ssa.INSTALLED, ssa._run_ssa is P.ssa.run_ssa)"),
     ("DEMKIT_PLAIN_OPTIONS", "from numba.core import targetconfig as tc; "
-                             "print(demkit.engine.options.INSTALLED, tc.TargetConfig.values is demkit.engine.options.values)"),
-    ("DEMKIT_PLAIN_VARIABLES", "from numba.core import ir; print(demkit.engine.variables.INSTALLED, "
-                               "ir.Stmt.list_vars is demkit.engine.variables.list_vars_of_statement)"),
-    ("DEMKIT_PLAIN_LIVENESS", "from numba.core import ir_utils; print(demkit.engine.liveness.INSTALLED, "
-                              "ir_utils.compute_live_map is demkit.engine.liveness.compute_live_map)"),
-    ("DEMKIT_PLAIN_UFUNC_LOOPS", "from numba.core.typing import npydecl; print(demkit.engine.ufunc_loops.INSTALLED, "
-                                 "npydecl.ufunc_find_matching_loop is demkit.engine.ufunc_loops.ufunc_find_matching_loop)"),
-    ("DEMKIT_PLAIN_COLLECTOR", "from numba.core import dispatcher; print(demkit.engine.collector.INSTALLED, "
-                               "dispatcher.Dispatcher.compile is demkit.engine.collector.compile)"),
+                             "print(P.options.INSTALLED, tc.TargetConfig.values is P.options.values)"),
+    ("DEMKIT_PLAIN_VARIABLES", "from numba.core import ir; "
+                               "print(P.variables.INSTALLED, ir.Stmt.list_vars is P.variables.list_vars_of_statement)"),
+    ("DEMKIT_PLAIN_LIVENESS", "from numba.core import ir_utils; "
+                              "print(P.liveness.INSTALLED, ir_utils.compute_live_map is P.liveness.compute_live_map)"),
+    ("DEMKIT_PLAIN_UFUNC_LOOPS", "from numba.core.typing import npydecl; print(P.ufunc_loops.INSTALLED, "
+                                 "npydecl.ufunc_find_matching_loop is P.ufunc_loops.ufunc_find_matching_loop)"),
+    ("DEMKIT_PLAIN_COLLECTOR", "from numba.core import dispatcher; "
+                               "print(P.collector.INSTALLED, dispatcher.Dispatcher.compile is P.collector.compile)"),
 ])
 def test_each_of_demkits_numba_patches_stays_out_when_its_variable_is_set(variable, code):
     """(each module's own tests check what it changes)"""
-    out = subprocess.run([sys.executable, "-c", "import demkit; " + code], env=dict(os.environ, **{variable: "1"}),
-                         capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", "import demkit.engine.numba_patches as P; " + code],
+                         env=dict(os.environ, **{variable: "1"}), capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]

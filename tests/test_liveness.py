@@ -1,4 +1,4 @@
-"""demkit.engine.liveness: numba's variable liveness computed on bit sets gives numba's own map.
+"""demkit.engine.numba_patches.liveness: numba's variable liveness computed on bit sets gives numba's own map.
 
 Independent truth: numba's original ``compute_live_map`` (kept by the module) on the same control-flow
 graph and use/def maps: the same blocks, each with the same set of live variables, on a function with
@@ -13,7 +13,7 @@ from numba.core import analysis, ir_utils
 from numba.core.compiler import run_frontend
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import liveness
+from demkit.engine.numba_patches import liveness
 from demkit.interactions.contact import kelvin_voigt_twisting_force
 from demkit.interactions.hertz import hertz_twisting_force
 

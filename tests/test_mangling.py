@@ -1,4 +1,4 @@
-"""demkit.engine.mangling: numba's symbol names escaped by str.translate give numba's own names.
+"""demkit.engine.numba_patches.mangling: numba's symbol names escaped by str.translate give numba's own names.
 
 Independent truth: numba's original ``_escape_string`` (kept by the module), on every ASCII character,
 on long random names and on non-ASCII ones; a function compiled with the patch in place runs and its
@@ -11,7 +11,7 @@ import numba
 from numba.core import funcdesc, itanium_mangler
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import mangling
+from demkit.engine.numba_patches import mangling
 
 
 def test_the_patch_is_in_place_after_importing_demkit():

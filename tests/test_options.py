@@ -1,4 +1,4 @@
-"""demkit.engine.options: numba's compile options listed by one dictionary merge give numba's own listing.
+"""demkit.engine.numba_patches.options: numba's compile options listed by one dictionary merge give numba's own listing.
 
 Independent truth: numba's original ``TargetConfig.values`` (kept by the module) on default flags, on
 flags with options set (to their default values too), and on a copy; flags that differ in one option still
@@ -10,7 +10,7 @@ from numba.core import targetconfig
 from numba.core.compiler import Flags
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import options
+from demkit.engine.numba_patches import options
 
 
 def _numbas(flags):

@@ -1,4 +1,4 @@
-"""demkit.engine.ssa: numba's SSA reconstruction, rewriting only the blocks where a variable appears, gives
+"""demkit.engine.numba_patches.ssa: numba's SSA reconstruction, rewriting only the blocks where a variable appears, gives
 numba's own IR.
 
 Independent truth: numba's original ``_run_ssa`` (kept by the module) on the same IR: the same blocks
@@ -13,7 +13,7 @@ import numba
 from numba.core import compiler, ssa
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import ssa as patch
+from demkit.engine.numba_patches import ssa as patch
 from demkit.engine.generic_modules import _pieces
 
 

@@ -1,4 +1,4 @@
-"""demkit.engine.ufunc_loops: numba's search for a NumPy ufunc's loop, remembered, gives numba's own answer.
+"""demkit.engine.numba_patches.ufunc_loops: numba's search for a NumPy ufunc's loop, remembered, gives numba's own answer.
 
 Independent truth: numba's original ``ufunc_find_matching_loop`` (kept by the module) on the operators'
 ufuncs for the scalar types demkit's kernels use, mixed and unmatched types included (None); each answer
@@ -12,7 +12,7 @@ from numba.core.typing import npydecl
 from numba.np import numpy_support
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import ufunc_loops
+from demkit.engine.numba_patches import ufunc_loops
 
 CASES = [(ufunc, args) for ufunc in (np.multiply, np.add, np.subtract, np.true_divide, np.less, np.power, np.sqrt,
                                      np.floor)

@@ -1,4 +1,4 @@
-"""demkit.engine.variables: numba's IR statements listing their variables in one pass give numba's own lists.
+"""demkit.engine.numba_patches.variables: numba's IR statements listing their variables in one pass give numba's own lists.
 
 Independent truth: numba's original ``Stmt.list_vars``, ``Expr.list_vars`` and ``Inst._rec_list_vars`` (kept
 by the module), statement by statement, on every statement of tier 1's largest generated loops and on a
@@ -11,7 +11,7 @@ from numba.core import ir
 from numba.core.compiler import run_frontend
 
 import demkit  # noqa: F401 (installs the patch)
-from demkit.engine import variables
+from demkit.engine.numba_patches import variables
 from demkit.engine.generic_modules import _pieces
 
 

@@ -24,10 +24,10 @@ API); it is what turns a scene into compiled loops:
 * :mod:`~demkit.engine.tiers`: when a run goes over from tier 1 to tier 2 (between chunks, the same bits);
 * :mod:`~demkit.engine.threads`: whether the pair loops run on numba's threads, measured while running;
 * :mod:`~demkit.engine.events`: contact events located within a step (``resolve_contacts=True``);
-* :mod:`~demkit.engine.numba_cache`, :mod:`~demkit.engine.inlining`, :mod:`~demkit.engine.mangling`,
-  :mod:`~demkit.engine.ssa`, :mod:`~demkit.engine.options`: numba's disk cache kept fresh across demkit's files,
-  one compile per machine, numba's inliner in linear time, its symbol names escaped in C, its SSA pass over the
-  blocks a variable is in, its compile options listed in one dictionary merge.
+* :mod:`~demkit.engine.numba_cache`: numba's disk cache kept fresh across demkit's files, one compile per machine;
+* :mod:`~demkit.engine.numba_patches`: numba's compiler made faster, its output the same (its inliner, symbol
+  names, SSA pass, option listing, variable listing, liveness analysis, ufunc loop search, and the garbage
+  collector while it compiles).
 
 Imports go one way: the engine imports nothing of demkit outside it except the progress notices
 (:mod:`demkit.progress`) and the memory model (:mod:`demkit.memory`); the interactions import the engine's

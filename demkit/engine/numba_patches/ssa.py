@@ -18,10 +18,11 @@ functions). If numba's SSA module no longer looks as expected the patch stays ou
 """
 from __future__ import annotations
 
-import os
 import threading
 
 from numba.core import ir, ssa
+
+from . import left_out
 
 _state = threading.local()  # the current _run_ssa's map: variable name -> labels of the blocks it appears in
 
@@ -76,7 +77,7 @@ def install():
     """Patch numba's SSA reconstruction (once); returns whether the patch is in place."""
     if ssa._run_ssa is run_ssa:
         return True
-    if os.environ.get("DEMKIT_PLAIN_SSA", "") not in ("", "0"):
+    if left_out("SSA"):
         return False
     needed = ("_run_ssa", "_run_block_rewrite", "_fresh_vars", "_fix_ssa_vars", "_FreshVarHandler", "_FixSSAVars")
     if not all(hasattr(ssa, name) for name in needed):

@@ -14,9 +14,10 @@ out). ``DEMKIT_PLAIN_OPTIONS=1`` keeps numba as it is.
 """
 from __future__ import annotations
 
-import os
 
 from numba.core import targetconfig
+
+from . import left_out
 
 _DEFAULTS = {}  # TargetConfig subclass -> {option name: default}
 
@@ -46,7 +47,7 @@ def install():
     """Patch numba's option listing (once); returns whether the patch is in place."""
     if targetconfig.TargetConfig.values is values:
         return True
-    if os.environ.get("DEMKIT_PLAIN_OPTIONS", "") not in ("", "0"):
+    if left_out("OPTIONS"):
         return False
     flags = _sample()
     if not (isinstance(getattr(flags, "_values", None), dict) and values(flags) == _numba_values(flags)

@@ -15,9 +15,10 @@ entries. ``DEMKIT_PLAIN_MANGLING=1`` keeps numba as it is (to measure what this 
 """
 from __future__ import annotations
 
-import os
 
 from numba.core import itanium_mangler
+
+from . import left_out
 
 #: code point -> its escape, for the ASCII characters numba escapes (all but letters, digits and _)
 ESCAPES = {c: "_%02x" % c for c in range(128) if not (chr(c).isalnum() or chr(c) == "_")}
@@ -42,7 +43,7 @@ def install():
     current = itanium_mangler._escape_string
     if current is escape:
         return True
-    if os.environ.get("DEMKIT_PLAIN_MANGLING", "") not in ("", "0"):
+    if left_out("MANGLING"):
         return False
     if not all(escape(text) == current(text) for text in SAMPLES):
         return False  # numba escapes differently now: leave it as it is

@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import copy
 import copyreg
-import os
 
 from numba.core import inline_closurecall, ir
+
+from . import left_out
 
 
 # how deep_copy copies an object of a given class (copy.deepcopy's rules, looked up once per class)
@@ -126,7 +127,7 @@ def install():
     worker = inline_closurecall.InlineWorker
     if getattr(worker.inline_ir, "demkit_one_memo", False):
         return True
-    if os.environ.get("DEMKIT_PLAIN_INLINING", "") not in ("", "0"):
+    if left_out("INLINING"):
         return False
     if inline_closurecall.copy is not copy or not callable(getattr(worker, "inline_ir", None)):
         return False  # numba's inliner changed: leave it as it is

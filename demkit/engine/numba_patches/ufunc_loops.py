@@ -13,10 +13,12 @@ it each time (the loop spec holds lists). The answer is the one numba's search g
 """
 from __future__ import annotations
 
-import os
+import importlib
 
 import numpy as np
 from numba.np import numpy_support
+
+from . import left_out
 
 _numba_search = numpy_support.ufunc_find_matching_loop
 _FOUND = {}  # (ufunc, argument types) -> the loop spec, or None
@@ -41,15 +43,11 @@ def ufunc_find_matching_loop(ufunc, arg_types):
 
 def install():
     """Patch numba's ufunc loop search (once); returns whether the patch is in place."""
-    import sys
-
     if numpy_support.ufunc_find_matching_loop is ufunc_find_matching_loop:
         return True
-    if os.environ.get("DEMKIT_PLAIN_UFUNC_LOOPS", "") not in ("", "0"):
+    if left_out("UFUNC_LOOPS"):
         return False
-    import numba.core.typing.npydecl  # noqa: F401 (the modules that import it by name)
-    import numba.np.npyimpl  # noqa: F401
-    users = [sys.modules[name] for name in _USERS]
+    users = [importlib.import_module(name) for name in _USERS]
     from numba.core import types
     probe = _numba_search(np.multiply, (types.float64, types.int64))
     if not (all(getattr(module, "ufunc_find_matching_loop", None) is _numba_search for module in users)

@@ -16,11 +16,12 @@ nothing downstream changes. If numba no longer looks as expected the patch stays
 """
 from __future__ import annotations
 
+import importlib
 import inspect
-import os
-import sys
 
 from numba.core import analysis
+
+from . import left_out
 
 _numba_live_map = analysis.compute_live_map
 #: numba's modules that call compute_live_map by the name they imported
@@ -127,11 +128,9 @@ def install():
     """Patch numba's liveness analysis (once); returns whether the patch is in place."""
     if analysis.compute_live_map is compute_live_map:
         return True
-    if os.environ.get("DEMKIT_PLAIN_LIVENESS", "") not in ("", "0"):
+    if left_out("LIVENESS"):
         return False
-    import numba.core.ir_utils  # noqa: F401 (the modules that import it by name)
-    import numba.parfors.parfor  # noqa: F401
-    users = [sys.modules[name] for name in _USERS]
+    users = [importlib.import_module(name) for name in _USERS]
     if not (all(getattr(module, "compute_live_map", None) is _numba_live_map for module in users)
             and list(inspect.signature(_numba_live_map).parameters) == ["cfg", "blocks", "var_use_map",
                                                                          "var_def_map"]

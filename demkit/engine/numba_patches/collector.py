@@ -18,10 +18,11 @@ from __future__ import annotations
 
 import functools
 import gc
-import os
 import threading
 
 from numba.core import dispatcher
+
+from . import left_out
 
 #: the collector's first threshold while numba compiles (Python's default: 700)
 COMPILE_THRESHOLD = 100_000
@@ -55,7 +56,7 @@ def install():
     """Wrap numba's compile (once); returns whether the wrapper is in place."""
     if dispatcher.Dispatcher.compile is compile:
         return True
-    if os.environ.get("DEMKIT_PLAIN_COLLECTOR", "") not in ("", "0"):
+    if left_out("COLLECTOR"):
         return False
     if not callable(_numba_compile) or _numba_compile.__code__.co_varnames[:2] != ("self", "sig"):
         return False  # numba compiles differently now: leave it as it is

@@ -15,9 +15,10 @@ demkit's largest functions. If numba's IR no longer looks as expected the patch 
 """
 from __future__ import annotations
 
-import os
 
 from numba.core import ir
+
+from . import left_out
 
 _numba_rec = ir.Inst._rec_list_vars
 _numba_stmt = ir.Stmt.list_vars
@@ -113,7 +114,7 @@ def install():
     """Patch numba's variable listing (once); returns whether the patch is in place."""
     if ir.Stmt.list_vars is list_vars_of_statement:
         return True
-    if os.environ.get("DEMKIT_PLAIN_VARIABLES", "") not in ("", "0"):
+    if left_out("VARIABLES"):
         return False
     if not (ir.Stmt.list_vars is ir.Assign.list_vars and "list_vars" in vars(ir.Expr) and _agrees()):
         return False  # numba lists variables differently now: leave it as it is
