@@ -3,7 +3,7 @@
 Each module patches one place in numba (0.59 to 0.68 at least) when ``import demkit`` imports it, keeps numba's
 original function beside its own, and checks on install that numba still looks as the patch expects (else it
 stays out, and numba runs as it is). Each gives numba's own output (its tests compare with the original), and each
-is kept out by its variable ``DEMKIT_PLAIN_<NAME>=1`` (to measure what it saves):
+is kept out by its variable ``DEMKIT_PLAIN_<NAME>=1`` (:mod:`.plain`; to measure what it saves):
 
 * :mod:`.inlining`: the inliner copies a callee's IR with one memo per copy, faster (INLINING);
 * :mod:`.mangling`: symbol names escaped by ``str.translate`` (MANGLING);
@@ -16,15 +16,7 @@ is kept out by its variable ``DEMKIT_PLAIN_<NAME>=1`` (to measure what it saves)
 """
 from __future__ import annotations
 
-import os
+from . import inlining, mangling, ssa, options, variables, liveness, ufunc_loops, collector  # (each installs its patch)
 
-
-def left_out(name):
-    """Is the patch ``name`` kept out (``DEMKIT_PLAIN_<name>`` set to anything but 0)?"""
-    return os.environ.get(f"DEMKIT_PLAIN_{name}", "") not in ("", "0")
-
-
-from . import inlining, mangling, ssa, options, variables, liveness, ufunc_loops, collector  # noqa: E402 (each installs)
-
-__all__ = ["left_out", "inlining", "mangling", "ssa", "options", "variables", "liveness", "ufunc_loops",
+__all__ = ["inlining", "mangling", "ssa", "options", "variables", "liveness", "ufunc_loops",
            "collector"]

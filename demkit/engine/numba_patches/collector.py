@@ -22,7 +22,7 @@ import threading
 
 from numba.core import dispatcher
 
-from . import left_out
+from .plain import left_out
 
 #: the collector's first threshold while numba compiles (Python's default: 700)
 COMPILE_THRESHOLD = 100_000

@@ -24,7 +24,7 @@ import copyreg
 
 from numba.core import inline_closurecall, ir
 
-from . import left_out
+from .plain import left_out
 
 
 # how deep_copy copies an object of a given class (copy.deepcopy's rules, looked up once per class)

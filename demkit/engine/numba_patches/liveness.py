@@ -21,7 +21,7 @@ import inspect
 
 from numba.core import analysis
 
-from . import left_out
+from .plain import left_out
 
 _numba_live_map = analysis.compute_live_map
 #: numba's modules that call compute_live_map by the name they imported

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from numba.core import itanium_mangler
 
-from . import left_out
+from .plain import left_out
 
 #: code point -> its escape, for the ASCII characters numba escapes (all but letters, digits and _)
 ESCAPES = {c: "_%02x" % c for c in range(128) if not (chr(c).isalnum() or chr(c) == "_")}

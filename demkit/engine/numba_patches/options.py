@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from numba.core import targetconfig
 
-from . import left_out
+from .plain import left_out
 
 _DEFAULTS = {}  # TargetConfig subclass -> {option name: default}
 

@@ -22,7 +22,7 @@ import threading
 
 from numba.core import ir, ssa
 
-from . import left_out
+from .plain import left_out
 
 _state = threading.local()  # the current _run_ssa's map: variable name -> labels of the blocks it appears in
 

@@ -18,7 +18,7 @@ import importlib
 import numpy as np
 from numba.np import numpy_support
 
-from . import left_out
+from .plain import left_out
 
 _numba_search = numpy_support.ufunc_find_matching_loop
 _FOUND = {}  # (ufunc, argument types) -> the loop spec, or None

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from numba.core import ir
 
-from . import left_out
+from .plain import left_out
 
 _numba_rec = ir.Inst._rec_list_vars
 _numba_stmt = ir.Stmt.list_vars
