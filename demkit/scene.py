@@ -421,7 +421,6 @@ class Scene(SceneDiagnostics):
         growing = plan.growing
         slots = _Source(plan, True)
         self.program, self.program_refusal = layout.program_of(plan, slots, self.energy_kinds)
-        plan.frames_of_tier_1 = self.on_tier_1_possible and not plan.growing  # (see Plan.frames_of_tier_1)
         self.tier = self._choose_tier()  # before the lists: the tier decides the state's form
         lists = []
         for group in plan.groups:

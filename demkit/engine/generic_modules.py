@@ -221,7 +221,7 @@ class GenericKernels:
     def calls_for(self, state_type, only=None):
         """The tuple of first-class functions the scene-level functions take, for this state type;
         with ``only`` (names of :func:`needs_of`), the others the scene needs given as their stubs, of
-        the same types (:data:`FRAME_CALLS`: what record_frame calls, for a fused module's frames)."""
+        the same types (:data:`FRAME_CALLS`: what record_frame calls, for a run's first frame)."""
         key = (state_type, only)
         if key not in self._calls:
             needs = self.needs if only is None else tuple(name for name in self.needs if name in only)
@@ -338,11 +338,6 @@ class GenericKernels:
             self._steps[key] = tuple(frame if name == "record_frame" else
                                      self._wrapped(getattr(self.module, name), arguments[name]) for name in uses)
         return self._steps[key]
-
-    def frame_of(self, state_type, record_type):
-        """record_frame for this state and record type, as a first-class function, and the calls it
-        takes (:data:`FRAME_CALLS`, the rest stubs): a fused open module's time loops record with them."""
-        return self.steps_for(state_type, record_type, ("record_frame",))[0], self.calls_for(state_type, FRAME_CALLS)
 
     @staticmethod
     def _wrapped(function, arguments):

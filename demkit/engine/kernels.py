@@ -627,7 +627,7 @@ class _Source:
                     lines.append("    maintain_lists(s, False != False)")
                 lines.append("    " + self.group_call(g, group, kind, "", ", owners, partners, out"))
         # end of step and recording
-        head, tail = end_step_lines(plan.frames_of_tier_1)
+        head, tail = end_step_lines()
         lines += head
         if plan.lists and (any(plan.periodic) or plan.sorted):
             lines += ["    if s.counters[WRAP_DUE] != 0:", "        s.counters[WRAP_DUE] = 0"]
@@ -712,8 +712,7 @@ class _Source:
             lines += self.group_forces(g, sub, name)
         lines += self.scene_functions()
         for name, template in templates.items():  # (the clock a constant: tier 1 reads H_CLOCK)
-            lines += ["", "", "@njit(**LOOP)"] + fused_loop(name, template, bool(self.geometry_slot),
-                                                            plan.frames_of_tier_1)
+            lines += ["", "", "@njit(**LOOP)"] + fused_loop(name, template, bool(self.geometry_slot))
         return "\n".join(lines) + "\n"
 
     def pieces_text(self, columns, serial_name=None):

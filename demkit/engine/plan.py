@@ -57,9 +57,6 @@ class Plan:
     sums: tuple = ()  # long-range sums over all spheres (an Ewald sum's reciprocal part, an FMM sum)
     induction: object = None  # induced moments solved before the slow forces (InducedMoments), or None
     shear: object = None  # Lees-Edwards images of a sheared box (demkit.Shear), or None
-    #: a fused open module (no lists) records its frames with tier 1's record_frame (the scene's generic
-    #: module runs the scene: its loops get it in their last argument, ``tier_1``) instead of its own
-    frames_of_tier_1: bool = False
 
     @property
     def energy_sources(self):

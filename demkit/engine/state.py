@@ -251,10 +251,9 @@ class TupleStateModule:
     """A fused module of a scene without neighbour lists (tier 2, named tuples, no reference counting)
     called with the structref state of tier 1, which the scene keeps after a switch of tier: each call
     is given :func:`tuple_state` of the scene's arrays (open scenes' arrays never change size, so both
-    forms see the same memory), and ``compile`` takes tier 1's signatures. Its frames are tier 1's:
-    ``record_frame`` is the scene's generic one, and each time loop is given it as its last argument
-    (``tier_1``: the function, its pieces and the structref state), not a record_frame of its own
-    compiled with the scene's energies (2.5 CPU s of a two-magnet module's 6)."""
+    forms see the same memory), and ``compile`` takes tier 1's signatures. Its time loops record their
+    frames with its own record_frame (its own energies); a frame recorded from Python is tier 1's (the
+    same bits, nothing to compile on the main thread)."""
 
     def __init__(self, module, scene):
         self.module, self.scene = module, scene
@@ -264,36 +263,17 @@ class TupleStateModule:
         if name == "record_frame":
             return self.scene.kernels.record_frame
         if name not in self._functions:
-            self._functions[name] = _TupleStateFunction(getattr(self.module, name), self.scene,
-                                                        name.endswith("_steps"))
+            self._functions[name] = _TupleStateFunction(getattr(self.module, name), self.scene)
         return self._functions[name]
 
 
 class _TupleStateFunction:
-    def __init__(self, function, scene, loop):
-        self.function, self.scene, self.loop = function, scene, loop
-        self._entries = {}  # argument types -> (compiled entry point, tier 1's record_frame and pieces)
+    def __init__(self, function, scene):
+        self.function, self.scene = function, scene
 
     def __call__(self, *args):
         state = tuple_state(self.scene.arrays)
-        named = tuple(state if isinstance(a, State) else a for a in args)
-        if not self.loop:
-            return self.function(*named)
-        # a time loop: (..., s, record, tier_1). numba's dispatcher would type tier 1's tuple of
-        # first-class functions at every call (3 ms); after the first call, the compiled entry point
-        s, record = args[-2], args[-1]
-        key = tuple(type_key(a) for a in named)
-        entry = self._entries.get(key)
-        if entry is None:
-            import numba
-            frame, calls = self.scene.kernels.frame_of(numba.typeof(s), numba.typeof(record))
-            result = self.function(*named, (frame, calls, s))
-            compiled = self.function.overloads.get(tuple(numba.typeof(a) for a in (*named, (frame, calls, s))))
-            if compiled is not None:
-                self._entries[key] = (compiled.entry_point, frame, calls)
-            return result
-        function, frame, calls = entry
-        return function(*named, (frame, calls, s))
+        return self.function(*(state if isinstance(a, State) else a for a in args))
 
     @property
     def signatures(self):
@@ -302,12 +282,7 @@ class _TupleStateFunction:
     def compile(self, signature):
         import numba
         ty = numba.typeof(tuple_state(self.scene.arrays))
-        signature = tuple(ty if isinstance(t, StateType) else t for t in signature)
-        if self.loop:  # (..., s, record): tier 1's record_frame, its pieces, the structref state
-            structref = numba.typeof(self.scene.state)
-            frame, calls = self.scene.kernels.frame_of(structref, signature[-1])
-            signature += (numba.types.Tuple((numba.typeof(frame), numba.typeof(calls), structref)),)
-        return self.function.compile(signature)
+        return self.function.compile(tuple(ty if isinstance(t, StateType) else t for t in signature))
 
 
 def type_key(value):

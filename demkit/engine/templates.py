@@ -323,15 +323,10 @@ TEMPLATES = {
 }
 
 
-def fused_loop(name, template, timed, frames_of_tier_1):
+def fused_loop(name, template, timed):
     """The source lines of a fused module's time loop ``<name>_steps`` from ``template``: the clock
-    a constant (``timed``: walls that move; pruned where none does), and with ``frames_of_tier_1``
-    the loop's last argument, ``tier_1`` (tier 1's record_frame, its pieces, the structref state),
-    passed on to end_step, which records the frames with it."""
+    a constant (``timed``: walls that move; pruned where none does)."""
     src = textwrap.dedent(inspect.getsource(template))
     src = src.replace(f"def {template.__name__}(", f"def {name}_steps(", 1)
     src = re.sub(r"timed = s\.program\[0, H_CLOCK\] != 0.*", f"timed = {timed}", src)
-    if frames_of_tier_1:
-        src = src.replace("s, record):", "s, record, tier_1):", 1)
-        src = re.sub(r"end_step\((.*), timed\)", r"end_step(\1, timed, tier_1)", src)
     return src.rstrip().splitlines()
