@@ -16,12 +16,11 @@ nothing downstream changes. If numba no longer looks as expected the patch stays
 """
 from __future__ import annotations
 
-import importlib
 import inspect
 
 from numba.core import analysis
 
-from .plain import left_out
+from .plain import holders, left_out
 
 _numba_live_map = analysis.compute_live_map
 #: numba's modules that call compute_live_map by the name they imported
@@ -130,9 +129,8 @@ def install():
         return True
     if left_out("LIVENESS"):
         return False
-    users = [importlib.import_module(name) for name in _USERS]
-    if not (all(getattr(module, "compute_live_map", None) is _numba_live_map for module in users)
-            and list(inspect.signature(_numba_live_map).parameters) == ["cfg", "blocks", "var_use_map",
+    users = holders(_USERS, "compute_live_map", _numba_live_map)
+    if not (users is not None and list(inspect.signature(_numba_live_map).parameters) == ["cfg", "blocks", "var_use_map",
                                                                          "var_def_map"]
             and _agrees()):
         return False  # numba's analysis changed: leave it as it is

@@ -13,12 +13,10 @@ it each time (the loop spec holds lists). The answer is the one numba's search g
 """
 from __future__ import annotations
 
-import importlib
-
 import numpy as np
 from numba.np import numpy_support
 
-from .plain import left_out
+from .plain import holders, left_out
 
 _numba_search = numpy_support.ufunc_find_matching_loop
 _FOUND = {}  # (ufunc, argument types) -> the loop spec, or None
@@ -47,11 +45,10 @@ def install():
         return True
     if left_out("UFUNC_LOOPS"):
         return False
-    users = [importlib.import_module(name) for name in _USERS]
+    users = holders(_USERS, "ufunc_find_matching_loop", _numba_search)
     from numba.core import types
     probe = _numba_search(np.multiply, (types.float64, types.int64))
-    if not (all(getattr(module, "ufunc_find_matching_loop", None) is _numba_search for module in users)
-            and probe is not None and isinstance(probe.inputs, list) and probe.ufunc_sig == "dd->d"):
+    if not (users is not None and probe is not None and isinstance(probe.inputs, list) and probe.ufunc_sig == "dd->d"):
         return False  # numba searches differently now: leave it as it is
     for module in users:
         module.ufunc_find_matching_loop = ufunc_find_matching_loop
