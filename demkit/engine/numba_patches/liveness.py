@@ -20,7 +20,7 @@ import inspect
 
 from numba.core import analysis
 
-from .plain import holders, left_out
+from .plain import left_out, replace_in
 
 _numba_live_map = analysis.compute_live_map
 #: numba's modules that call compute_live_map by the name they imported
@@ -100,7 +100,10 @@ def compute_live_map(cfg, blocks, var_use_map, var_def_map):
 
 
 def _agrees():
-    """Does the replacement give numba's map on a function with a loop and branches?"""
+    """Does the replacement take numba's arguments and give numba's map on a function with a loop and
+    branches?"""
+    if list(inspect.signature(_numba_live_map).parameters) != ["cfg", "blocks", "var_use_map", "var_def_map"]:
+        return False
     from numba.core import compiler
     from numba.core.ir_utils import compute_cfg_from_blocks
 
@@ -129,14 +132,7 @@ def install():
         return True
     if left_out("LIVENESS"):
         return False
-    users = holders(_USERS, "compute_live_map", _numba_live_map)
-    if not (users is not None and list(inspect.signature(_numba_live_map).parameters) == ["cfg", "blocks", "var_use_map",
-                                                                         "var_def_map"]
-            and _agrees()):
-        return False  # numba's analysis changed: leave it as it is
-    for module in users:
-        module.compute_live_map = compute_live_map
-    return True
+    return replace_in(_USERS, "compute_live_map", _numba_live_map, compute_live_map, _agrees)
 
 
 INSTALLED = install()

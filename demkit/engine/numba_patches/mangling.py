@@ -15,7 +15,6 @@ entries. ``DEMKIT_PLAIN_MANGLING=1`` keeps numba as it is (to measure what this 
 """
 from __future__ import annotations
 
-
 from numba.core import itanium_mangler
 
 from .plain import left_out

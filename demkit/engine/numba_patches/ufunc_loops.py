@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba.np import numpy_support
 
-from .plain import holders, left_out
+from .plain import left_out, replace_in
 
 _numba_search = numpy_support.ufunc_find_matching_loop
 _FOUND = {}  # (ufunc, argument types) -> the loop spec, or None
@@ -39,20 +39,20 @@ def ufunc_find_matching_loop(ufunc, arg_types):
     return None if spec is None else type(spec)(list(spec.inputs), list(spec.outputs), spec.ufunc_sig)
 
 
+def _agrees():
+    """Does numba's search still answer as the patch expects (a spec holding lists)?"""
+    from numba.core import types
+    probe = _numba_search(np.multiply, (types.float64, types.int64))
+    return probe is not None and isinstance(probe.inputs, list) and probe.ufunc_sig == "dd->d"
+
+
 def install():
     """Patch numba's ufunc loop search (once); returns whether the patch is in place."""
     if numpy_support.ufunc_find_matching_loop is ufunc_find_matching_loop:
         return True
     if left_out("UFUNC_LOOPS"):
         return False
-    users = holders(_USERS, "ufunc_find_matching_loop", _numba_search)
-    from numba.core import types
-    probe = _numba_search(np.multiply, (types.float64, types.int64))
-    if not (users is not None and probe is not None and isinstance(probe.inputs, list) and probe.ufunc_sig == "dd->d"):
-        return False  # numba searches differently now: leave it as it is
-    for module in users:
-        module.ufunc_find_matching_loop = ufunc_find_matching_loop
-    return True
+    return replace_in(_USERS, "ufunc_find_matching_loop", _numba_search, ufunc_find_matching_loop, _agrees)
 
 
 INSTALLED = install()

@@ -78,18 +78,12 @@ def rec_list_vars(self, val):
 
 def list_vars_of_statement(self):
     """The variables a statement reads or writes (``Stmt.list_vars``)."""
-    out = []
-    for v in self.__dict__.values():
-        _collect(v, out)
-    return out
+    return rec_list_vars(self, self.__dict__)
 
 
 def list_vars_of_expression(self):
     """The variables an expression reads (``Expr.list_vars``)."""
-    out = []
-    for v in self._kws.values():
-        _collect(v, out)
-    return out
+    return rec_list_vars(self, self._kws)
 
 
 def _agrees():
