@@ -197,7 +197,7 @@ PERMUTE_BY_ORDER = (["    n = order.shape[0]",
                     + ["    permute_scalars(s.tag, order, integers)", "    permute_vectors(s.image, order, count)",
                        "    for k in range(s.stage.shape[0]):  # integrators' arrays that outlive a step",
                        "        permute_vectors(s.stage[k], order, vectors)"])
-#: the generated record_frame, and end_step's opening
+#: the generated record_frame (a fused module records its frames with its own energies), and end_step's opening
 RECORD_FRAME = ["", "", "@njit(**LOOP)", "def record_frame(k, s, record):",
                 '    """Frame k of the record (a real call: it runs once a frame, kept out of the hot loop)."""',
                 "    store_frame(k, s.position, s.velocity, s.angular_velocity, s.dipole, s.image, s.tag, s.mass,",
@@ -222,13 +222,6 @@ END_STEP_TAIL = ["    if s.status[0] != OK:  # list upkeep or a pair loop flagge
                  "        record_frame(step // stride, s, record)",
                  "        return stride",
                  "    return countdown - 1"]
-
-
-def end_step_lines():
-    """A fused module's record_frame and end_step's head, and end_step's tail (after its list upkeep and
-    servos). The frames are the module's own, with its own energies: recorded with tier 1's record_frame
-    (its energies on tier 1's pieces) the paper's scene stepped 4-6 % slower with a frame every 100 steps."""
-    return RECORD_FRAME + END_STEP_HEAD, END_STEP_TAIL
 
 
 #: the plane a wall presents to sphere i (its own, or a cylinder's tangent plane there) and the
